@@ -1,0 +1,182 @@
+"""Command line: ``leolink run | coverage | budget | codebook | sweep | validate``.
+
+Errors leolink raises on purpose are printed as one line (exit code 2); anything else
+is a bug and is printed as a short note (exit code 3) unless ``--debug`` is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from leolink.errors import LeolinkError
+
+EXIT_USAGE = 2
+EXIT_BUG = 3
+EXIT_INTERRUPTED = 130
+
+
+def _config(args):
+    from leolink.config import load_config
+
+    overrides = list(args.set or [])
+    if getattr(args, "seed", None) is not None:
+        overrides.append(f"run.seed={args.seed}")
+    return load_config(args.config, overrides)
+
+
+def cmd_validate(args) -> int:
+    import math
+
+    from leolink.roi import check_coverage
+
+    cfg = _config(args)
+    rx, ry = cfg.roi_semi_axes_m()
+    c = cfg.constellation
+    verdict = check_coverage(
+        rx, ry, c.n_planes, c.sats_per_plane, math.radians(c.inclination_deg), cfg.earth.radius_m
+    )
+    n_ut = sum(max(p.n_ut, 0) for p in cfg.population)
+    print(f"{args.config}: valid ({len(cfg.population)} populations, {n_ut} UTs before tracks)")
+    print(verdict.message)
+    return 0
+
+
+def cmd_budget(args) -> int:
+    from leolink.scenario import link_budget_at_elevation
+
+    cfg = _config(args)
+    budget = link_budget_at_elevation(cfg, args.elevation_deg)
+    if args.json:
+        print(json.dumps(budget, indent=2))
+    else:
+        width = max(len(k) for k in budget)
+        for key, value in budget.items():
+            text = f"{value:.3f}" if isinstance(value, float) else str(value)
+            print(f"{key:<{width}}  {text}")
+    return 0
+
+
+def cmd_codebook(args) -> int:
+    from leolink.scenario import codebook_table
+
+    cfg = _config(args)
+    info = codebook_table(cfg)
+    if args.plot:
+        from leolink.plots import plot_codebook
+
+        plot_codebook(cfg, info, Path(args.plot))
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        print(f"oversampling O = {info['oversampling']:.4g}, {len(info['beams'])} beams")
+        cols = ["beam_id", "u_x", "u_y", "x_m", "y_m", "lat_deg", "lon_deg"]
+        print("  ".join(f"{c:>10}" for c in cols))
+        for b in info["beams"]:
+            print("  ".join(f"{b[c]:>10.4f}" if isinstance(b[c], float) else f"{b[c]:>10}"
+                            for c in cols))
+    return 0
+
+
+def cmd_coverage(args) -> int:
+    from leolink.coverage import run_coverage
+
+    cfg = _config(args)
+    paths = run_coverage(cfg, Path(args.out), n_grid=args.grid, margin=args.margin,
+                         plots=not args.no_plots)
+    if not args.quiet:
+        for p in paths:
+            print(p)
+    return 0
+
+
+def cmd_run(args) -> int:
+    from leolink.sim.runner import run
+
+    cfg = _config(args)
+    if args.parquet and "parquet" not in cfg.run.trace_formats:
+        cfg = cfg.model_copy(update={"run": cfg.run.model_copy(
+            update={"trace_formats": [*cfg.run.trace_formats, "parquet"]})})
+    result = run(cfg, out_dir=Path(args.out), progress=not args.quiet)
+    if not args.quiet:
+        o = result.summary["overall"]
+        print(f"wrote {args.out}: {o['n_ut']} UTs, {o['n_epochs']} epochs, "
+              f"{o['handovers']['beam_handover']} beam and {o['handovers']['sat_handover']} "
+              f"satellite handovers, mean SNR {o['snr_db']['mean']:.2f} dB")
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    from leolink.sweep import run_sweep
+
+    cfg_path = args.config
+    table = run_sweep(cfg_path, args.param, Path(args.out), base_overrides=args.set or [],
+                      workers=args.workers, progress=not args.quiet)
+    if not args.quiet:
+        print(table.to_string(index=False))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="leolink", description=__doc__.splitlines()[0])
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of bugs")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def add(name, func, help_):
+        p = sub.add_parser(name, help=help_)
+        p.add_argument("config", help="TOML config file (e.g. configs/paper.toml)")
+        p.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
+                       help="override a config value (repeatable)")
+        p.set_defaults(func=func)
+        return p
+
+    add("validate", cmd_validate, "check a config and the ROI coverage condition")
+    p = add("budget", cmd_budget, "link budget term by term at one elevation")
+    p.add_argument("--elevation-deg", type=float, required=True, help="elevation [deg]")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p = add("codebook", cmd_codebook, "beams of the configured DFT codebook")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", metavar="FILE", help="write a PNG of the footprints")
+    p = add("coverage", cmd_coverage, "SNR/SINR/Doppler maps over the ROI at one instant")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--grid", type=int, default=201, help="grid points per axis")
+    p.add_argument("--margin", type=float, default=1.1, help="grid extent / ROI semi-axis")
+    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p = add("run", cmd_run, "run the simulation and write traces, events, summary, plots")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--seed", type=int, help="override run.seed")
+    p.add_argument("--parquet", action="store_true", help="also write trace.parquet")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
+    p = add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries")
+    p.add_argument("--param", action="append", required=True, metavar="SECTION.KEY=V1,V2,...",
+                   help="a parameter and its values (repeatable: the grid is their product)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.add_argument("--quiet", action="store_true")
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except LeolinkError as exc:
+        print(f"leolink: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("leolink: interrupted; files already completed are intact", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:  # a bug: say so briefly
+        if args.debug:
+            raise
+        print(f"leolink: internal error: {type(exc).__name__}: {exc} "
+              "(this is a bug; rerun with --debug for the traceback)", file=sys.stderr)
+        return EXIT_BUG
+
+
+if __name__ == "__main__":
+    sys.exit(main())
