@@ -1,0 +1,588 @@
+"""User-terminal (UT) mobility: populations that give every UT's state at a time ``t``.
+
+A *population* is one object holding ``n_ut`` terminals of one mobility model. Its
+``state(t_s)`` returns a :class:`UTState` for all its UTs at once (vectorized; no Python
+loop over UTs). Frame: Earth-centred, Earth-fixed, spherical Earth of radius
+``EARTH_RADIUS_M`` (the inertial frame when Earth rotation is off; the caller adds the
+rotation). Populations: :class:`Static`, :class:`ConstantVelocity`, :class:`Waypoints`
+and :class:`RecordedTrack` (waypoints read from CSV with :func:`read_track_csv`).
+
+Placement helpers map points of the ROI plane of Sec. 3.1 of [1] to the ground with the
+paper's central (gnomonic) projection ``p = R (R u_c + x e_x + y e_y)/sqrt(R^2+x^2+y^2)``.
+
+References
+----------
+.. [1] J. Palacios et al., "A hybrid beamforming design for massive MIMO LEO satellite
+   communications", Sec. 3.1.
+"""
+
+import csv
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from leolink.constants import EARTH_RADIUS_M
+from leolink.errors import ConfigError, LeolinkError
+from leolink.geometry import (
+    destination_point,
+    ecef_to_geodetic,
+    enu_basis,
+    geodetic_to_ecef,
+    great_circle_velocity,
+    ground_to_roi,
+    roi_to_ground,
+)
+
+__all__ = [
+    "SPEED_PRESETS_M_S",
+    "ConstantVelocity",
+    "RecordedTrack",
+    "Static",
+    "Track",
+    "TrackFileError",
+    "UTState",
+    "Waypoints",
+    "concat_states",
+    "geodetic_to_roi_points",
+    "headings",
+    "place_grid",
+    "place_random",
+    "read_track_csv",
+    "resolve_speed_m_s",
+    "roi_points_to_geodetic",
+]
+
+#: Typical ground speeds [m/s], usable by name in configs.
+SPEED_PRESETS_M_S = {
+    "static": 0.0,
+    "pedestrian": 1.4,
+    "car": 30.0,
+    "train": 100.0,
+    "ship": 10.0,
+    "aircraft": 250.0,
+}
+
+
+class TrackFileError(LeolinkError, ValueError):
+    """A recorded-track CSV file that leolink cannot read (names file, line, column)."""
+
+
+@dataclass(frozen=True)
+class UTState:
+    """Kinematic state of ``n_ut`` terminals at one time (Earth-fixed frame, sphere).
+
+    Attributes
+    ----------
+    pos_m, vel_m_s, acc_m_s2 : ndarray, shape (n_ut, 3)
+        Position [m], velocity [m/s] and acceleration [m/s^2].
+    lat_rad, lon_rad, alt_m : ndarray, shape (n_ut,)
+        Spherical latitude, longitude [rad] and height above the sphere [m].
+    """
+
+    pos_m: np.ndarray
+    vel_m_s: np.ndarray
+    acc_m_s2: np.ndarray
+    lat_rad: np.ndarray
+    lon_rad: np.ndarray
+    alt_m: np.ndarray
+
+    @property
+    def n_ut(self):
+        """Number of terminals."""
+        return self.pos_m.shape[0]
+
+
+def concat_states(states):
+    """Stack the states of several populations into one (UT order is kept).
+
+    Parameters
+    ----------
+    states : sequence of UTState
+        States at the same time.
+
+    Returns
+    -------
+    UTState
+        ``n_ut`` is the sum over ``states``.
+    """
+    states = list(states)
+    if not states:
+        raise ValueError("concat_states needs at least one UTState")
+    fields = ("pos_m", "vel_m_s", "acc_m_s2", "lat_rad", "lon_rad", "alt_m")
+    return UTState(*(np.concatenate([getattr(s, f) for s in states], axis=0) for f in fields))
+
+
+def resolve_speed_m_s(speed):
+    """A speed given as a number [m/s] or a preset name of :data:`SPEED_PRESETS_M_S`."""
+    if isinstance(speed, str):
+        if speed not in SPEED_PRESETS_M_S:
+            names = ", ".join(sorted(SPEED_PRESETS_M_S))
+            raise ConfigError(f"speed preset {speed!r} is unknown; use one of {names} or m/s")
+        return SPEED_PRESETS_M_S[speed]
+    return speed
+
+
+def _vec(a, n, name):
+    """``a`` as a float array broadcast to shape (n,)."""
+    try:
+        return np.broadcast_to(np.asarray(a, dtype=float), (n,)).copy()
+    except ValueError:
+        raise ConfigError(f"{name} has shape {np.shape(a)}; expected a scalar or ({n},)") from None
+
+
+def _state_from(lat, lon, alt, vel, acc):
+    """UTState with positions from geodetic coordinates."""
+    return UTState(geodetic_to_ecef(lat, lon, alt), vel, acc, lat, lon, alt)
+
+
+class Static:
+    """Terminals that do not move (in the Earth-fixed frame).
+
+    Parameters
+    ----------
+    lat_rad, lon_rad, alt_m : array_like, shape (n_ut,) or scalar
+        Position [rad, rad, m].
+    """
+
+    def __init__(self, lat_rad, lon_rad, alt_m=0.0):
+        n = np.broadcast(np.asarray(lat_rad), np.asarray(lon_rad), np.asarray(alt_m)).size
+        self.lat_rad, self.lon_rad = _vec(lat_rad, n, "lat_rad"), _vec(lon_rad, n, "lon_rad")
+        self.alt_m = _vec(alt_m, n, "alt_m")
+        self._pos_m = geodetic_to_ecef(self.lat_rad, self.lon_rad, self.alt_m)
+        self.n_ut = n
+
+    def state(self, t_s):
+        """State at ``t_s`` [s]: fixed position, zero velocity and acceleration."""
+        zero = np.zeros((self.n_ut, 3))
+        lat, lon, alt = self.lat_rad.copy(), self.lon_rad.copy(), self.alt_m.copy()
+        return UTState(self._pos_m.copy(), zero, zero.copy(), lat, lon, alt)
+
+
+class ConstantVelocity:
+    """Terminals moving along great circles at constant speed and constant height.
+
+    ``speed_m_s`` is the magnitude of the UT velocity: the great circle of radius
+    ``R + alt`` is covered at angular rate ``speed / (R + alt)``, so the distance along
+    the sea-level sphere is ``speed t R/(R + alt)`` (0.16 % less for an aircraft at 10 km;
+    exact equality for ground UTs). The acceleration is the centripetal term
+    ``-speed^2/(R + alt) u_up`` of uniform great-circle motion.
+
+    Parameters
+    ----------
+    lat0_rad, lon0_rad : array_like, shape (n_ut,)
+        Position at ``t0_s`` [rad].
+    alt_m : array_like, shape (n_ut,)
+        Height above the sphere [m].
+    heading_rad : array_like, shape (n_ut,)
+        Initial heading from north, clockwise [rad].
+    speed_m_s : array_like or str, shape (n_ut,)
+        Speed [m/s] (>= 0) or the name of a preset of :data:`SPEED_PRESETS_M_S`.
+    t0_s : float
+        Time at which the UTs are at ``(lat0, lon0)`` [s].
+    radius_m : float
+        Earth radius [m].
+    """
+
+    def __init__(
+        self, lat0_rad, lon0_rad, alt_m, heading_rad, speed_m_s, t0_s=0.0, radius_m=EARTH_RADIUS_M
+    ):
+        speed_m_s = resolve_speed_m_s(speed_m_s)
+        args = [
+            np.asarray(a, dtype=float) for a in (lat0_rad, lon0_rad, alt_m, heading_rad, speed_m_s)
+        ]
+        n = np.broadcast(*args).size
+        self.lat0_rad, self.lon0_rad, self.alt_m, self.heading_rad, self.speed_m_s = (
+            _vec(a, n, name)
+            for a, name in zip(
+                args, ("lat0_rad", "lon0_rad", "alt_m", "heading_rad", "speed_m_s"), strict=True
+            )
+        )
+        if np.any(~(self.speed_m_s >= 0.0)):
+            raise ConfigError(f"speed_m_s = {speed_m_s!r} is not allowed; use values >= 0")
+        self.t0_s, self.radius_m, self.n_ut = float(t0_s), float(radius_m), n
+        self._u0 = enu_basis(self.lat0_rad, self.lon0_rad)[..., 2, :]  # up at the start
+        self._e0 = great_circle_velocity(self.lat0_rad, self.lon0_rad, self.heading_rad, 1.0)
+
+    def state(self, t_s):
+        """State at ``t_s`` [s] (scalar), all UTs at once."""
+        r_m = self.radius_m + self.alt_m
+        dist_m = self.speed_m_s * (float(t_s) - self.t0_s)
+        lat, lon = destination_point(
+            self.lat0_rad, self.lon0_rad, self.heading_rad, dist_m, radius_m=r_m
+        )
+        # Tangent of the great circle u(phi) = cos(phi) u0 + sin(phi) e0 at phi = dist / r.
+        phi = (dist_m / r_m)[:, None]
+        tangent = -np.sin(phi) * self._u0 + np.cos(phi) * self._e0
+        vel = self.speed_m_s[:, None] * tangent
+        up = enu_basis(lat, lon)[..., 2, :]
+        acc = -(self.speed_m_s**2 / r_m)[:, None] * up
+        return _state_from(lat, lon, self.alt_m.copy(), vel, acc)
+
+
+@dataclass(frozen=True)
+class Track:
+    """Time-stamped track of one UT (waypoints).
+
+    Attributes
+    ----------
+    time_s : ndarray, shape (n_point,)
+        Strictly increasing times [s].
+    lat_rad, lon_rad, alt_m : ndarray, shape (n_point,)
+        Waypoints [rad, rad, m].
+    ut_id : str
+        Label of the UT (the CSV ``ut`` column, or the file name).
+    """
+
+    time_s: np.ndarray
+    lat_rad: np.ndarray
+    lon_rad: np.ndarray
+    alt_m: np.ndarray
+    ut_id: str = "0"
+
+    def __post_init__(self):
+        arrays = [
+            np.atleast_1d(np.asarray(a, dtype=float))
+            for a in (self.time_s, self.lat_rad, self.lon_rad, self.alt_m)
+        ]
+        if len({a.shape for a in arrays}) != 1 or arrays[0].ndim != 1 or arrays[0].size < 1:
+            raise ConfigError(
+                f"track {self.ut_id!r}: time, lat, lon, alt must be 1-D arrays of "
+                f"one common length >= 1, got shapes {[a.shape for a in arrays]}"
+            )
+        if not np.all(np.isfinite(np.stack(arrays))):
+            raise ConfigError(f"track {self.ut_id!r}: values must be finite (no NaN/inf)")
+        if np.any(np.diff(arrays[0]) <= 0.0):
+            raise ConfigError(f"track {self.ut_id!r}: time_s must increase strictly")
+        for name, a in zip(("time_s", "lat_rad", "lon_rad", "alt_m"), arrays, strict=True):
+            object.__setattr__(self, name, a)
+
+
+class Waypoints:
+    """Terminals following their own time-stamped tracks (one :class:`Track` per UT).
+
+    Between two waypoints the UT moves along the great-circle arc (spherical linear
+    interpolation of the unit vectors, linear in angle) at constant angular rate, its height
+    changing linearly: ``p(t) = (R + h(t)) u(t)``. Velocity and acceleration are the exact
+    time derivatives of that motion inside the segment (the segment velocity; the kinks at
+    waypoints are not smoothed, the state is right-continuous). Before its first time and
+    from its last time on, a UT holds the end point with zero velocity and acceleration.
+    Consecutive antipodal waypoints are rejected (the arc is undefined).
+
+    Parameters
+    ----------
+    tracks : sequence of Track
+        One track per UT (``n_ut`` tracks).
+    radius_m : float
+        Earth radius [m].
+    """
+
+    def __init__(self, tracks, radius_m=EARTH_RADIUS_M):
+        tracks = list(tracks)
+        if not tracks:
+            raise ConfigError("Waypoints needs at least one track")
+        self.tracks, self.radius_m, self.n_ut = tracks, float(radius_m), len(tracks)
+        self.ut_id = [t.ut_id for t in tracks]
+        self._n_pt = np.array([t.time_s.size for t in tracks])
+        width = max(int(self._n_pt.max()), 2)  # >= 1 segment column even for 1-point tracks
+
+        def padded(field, fill):
+            """(n_ut, width) array of a track field, right-padded."""
+            return np.array(
+                [
+                    np.concatenate(
+                        [
+                            getattr(t, field),
+                            np.full(
+                                width - t.time_s.size,
+                                getattr(t, field)[-1] if fill is None else fill,
+                            ),
+                        ]
+                    )
+                    for t in tracks
+                ]
+            )
+
+        # Times padded with +inf (never reached); points padded by repeating the last one.
+        self._time_s, self._alt_m = padded("time_s", np.inf), padded("alt_m", None)
+        self._u = enu_basis(padded("lat_rad", None), padded("lon_rad", None))[..., 2, :]
+        self._segments()
+
+    def _segments(self):
+        """Per-segment angle rate, unit tangent and height rate, (n_ut, width - 1)."""
+        ua, ub = self._u[:, :-1], self._u[:, 1:]
+        cos_t = np.sum(ua * ub, axis=-1)
+        perp = ub - cos_t[..., None] * ua
+        sin_t = np.linalg.norm(perp, axis=-1)
+        angle = np.arctan2(sin_t, cos_t)
+        valid = np.arange(1, self._u.shape[1])[None, :] < self._n_pt[:, None]
+        if np.any(valid & (angle > np.pi - 1e-9)):
+            raise ConfigError("two consecutive waypoints are antipodal; add a point between")
+        dt = np.where(valid, np.diff(np.where(np.isinf(self._time_s), 0.0, self._time_s)), 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            self._tangent = np.where(sin_t[..., None] > 0.0, perp / sin_t[..., None], 0.0)
+        self._rate_rad_s = np.where(valid, angle / dt, 0.0)
+        self._alt_rate_m_s = np.where(valid, np.diff(self._alt_m, axis=1) / dt, 0.0)
+
+    def _count_reached(self, t_s):
+        """Number of waypoints with ``time <= t_s`` per UT: vectorized bisection, (n_ut,)."""
+        rows, width = np.arange(self.n_ut), self._time_s.shape[1]
+        lo, hi = np.zeros(self.n_ut, dtype=int), np.full(self.n_ut, width)
+        for _ in range(width.bit_length()):
+            active = lo < hi
+            mid = (lo + hi) // 2
+            go = self._time_s[rows, np.minimum(mid, width - 1)] <= t_s
+            lo = np.where(active & go, mid + 1, lo)
+            hi = np.where(active & ~go, mid, hi)
+        return lo
+
+    def state(self, t_s):
+        """State at ``t_s`` [s] (scalar), all UTs at once."""
+        t_s = float(t_s)
+        rows, count = np.arange(self.n_ut), self._count_reached(t_s)
+        moving = (count >= 1) & (count < self._n_pt)
+        k = np.minimum(np.maximum(count - 1, 0), self._n_pt - 1)  # segment start / held point
+        ks = np.minimum(k, self._rate_rad_s.shape[1] - 1)
+        dt = np.where(moving, t_s - self._time_s[rows, k], 0.0)
+        rate = np.where(moving, self._rate_rad_s[rows, ks], 0.0)
+        alt_rate = np.where(moving, self._alt_rate_m_s[rows, ks], 0.0)
+        u0, tau0 = self._u[rows, k], self._tangent[rows, ks]
+        phi = (rate * dt)[:, None]
+        u = np.cos(phi) * u0 + np.sin(phi) * tau0  # slerp, linear in angle
+        tau = -np.sin(phi) * u0 + np.cos(phi) * tau0
+        alt = self._alt_m[rows, k] + alt_rate * dt
+        r = (self.radius_m + alt)[:, None]
+        # d/dt of (R + h) u:  h' u + (R + h) w tau;  d2/dt2: 2 h' w tau - (R + h) w^2 u.
+        vel = alt_rate[:, None] * u + r * rate[:, None] * tau
+        acc = 2.0 * (alt_rate * rate)[:, None] * tau - r * (rate**2)[:, None] * u
+        lat, lon, _ = ecef_to_geodetic(u)
+        return UTState(r * u, vel, acc, lat, lon, alt)
+
+    @property
+    def time_span_s(self):
+        """First and last waypoint time of every UT, shape (n_ut, 2) [s]."""
+        last = self._time_s[np.arange(self.n_ut), self._n_pt - 1]
+        return np.stack([self._time_s[:, 0], last], axis=-1)
+
+
+class RecordedTrack(Waypoints):
+    """A :class:`Waypoints` population read from a CSV file (see :func:`read_track_csv`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        CSV file with columns ``time_s, lat_deg, lon_deg, alt_m`` and optionally ``ut``.
+    radius_m : float
+        Earth radius [m].
+    """
+
+    def __init__(self, path, radius_m=EARTH_RADIUS_M):
+        self.path = path
+        super().__init__(read_track_csv(path), radius_m=radius_m)
+
+
+_TRACK_COLUMNS = ("time_s", "lat_deg", "lon_deg", "alt_m")
+_TRACK_LIMITS = {  # column: (low, high, meaning)
+    "lat_deg": (-90.0, 90.0, "latitude"),
+    "lon_deg": (-180.0, 360.0, "longitude"),
+    "alt_m": (-11_000.0, 100_000.0, "height between the deepest ocean and 100 km"),
+}
+
+
+def _data_lines(path):
+    """(line number, parsed fields) of the non-blank, non-``#`` lines of a CSV file."""
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            lines = f.read().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TrackFileError(f"{path}: cannot read track file ({exc})") from None
+    return [
+        (i, [c.strip() for c in next(csv.reader([s]))])
+        for i, s in enumerate(lines, 1)
+        if s.strip() and not s.lstrip().startswith("#")
+    ]
+
+
+def _parse_row(path, line_no, header, fields):
+    """Dict column -> float (and ``ut`` str) of one CSV row, validated."""
+    if len(fields) != len(header):
+        raise TrackFileError(
+            f"{path}: line {line_no}: {len(fields)} fields, expected "
+            f"{len(header)} ({', '.join(header)})"
+        )
+    row = dict(zip(header, fields, strict=True))
+    out = {"ut": row.get("ut", "")}
+    for col in _TRACK_COLUMNS:
+        try:
+            value = float(row[col])
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise TrackFileError(
+                f"{path}: line {line_no}, column '{col}': {row[col]!r} is not a finite number"
+            )
+        low, high, meaning = _TRACK_LIMITS.get(col, (-math.inf, math.inf, ""))
+        if not low <= value <= high:
+            raise TrackFileError(
+                f"{path}: line {line_no}, column '{col}': {value!r} is out "
+                f"of [{low:g}, {high:g}] ({meaning})"
+            )
+        out[col] = value
+    return out
+
+
+def read_track_csv(path):
+    """Read time-stamped UT tracks from a CSV file.
+
+    Format: optional ``#`` comment lines, a header with ``time_s, lat_deg, lon_deg, alt_m``
+    and optionally ``ut`` (a label; rows of several UTs may be interleaved), other columns
+    ignored. Within each UT, times must increase strictly. Without a ``ut`` column the file
+    holds one track labelled by the file name (without extension).
+
+    Parameters
+    ----------
+    path : str or path-like
+        CSV file.
+
+    Returns
+    -------
+    list of Track
+        One per UT, in order of first appearance.
+
+    Raises
+    ------
+    TrackFileError
+        Naming the file, the line, the column and the problem.
+    """
+    rows = _data_lines(path)
+    if not rows:
+        raise TrackFileError(
+            f"{path}: empty track file; expected a header line {', '.join(_TRACK_COLUMNS)}[, ut]"
+        )
+    header_line, header = rows[0]
+    missing = [c for c in _TRACK_COLUMNS if c not in header]
+    if missing:
+        raise TrackFileError(
+            f"{path}: line {header_line}: missing column(s) "
+            f"{', '.join(map(repr, missing))}; found {', '.join(header)}"
+        )
+    default_ut = str(path).replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
+    tracks, last = {}, {}
+    for line_no, fields in rows[1:]:
+        row = _parse_row(path, line_no, header, fields)
+        ut = row["ut"] if "ut" in header else default_ut
+        if ut in last and not row["time_s"] > last[ut][0]:
+            raise TrackFileError(
+                f"{path}: line {line_no}, column 'time_s': {row['time_s']!r} s is not after "
+                f"{last[ut][0]!r} s (line {last[ut][1]}) of ut {ut!r}; times must increase"
+            )
+        last[ut] = (row["time_s"], line_no)
+        tracks.setdefault(ut, []).append([row[c] for c in _TRACK_COLUMNS])
+    if not tracks:
+        raise TrackFileError(f"{path}: no data rows after the header (line {header_line})")
+    out = []
+    for ut, values in tracks.items():
+        t, lat, lon, alt = np.array(values).T
+        out.append(Track(t, np.radians(lat), np.radians(lon), alt, ut_id=ut))
+    return out
+
+
+def _roi_frame(lat_c_rad, lon_c_rad, track_heading_rad, radius_m):
+    """A stand-in 'satellite' (position, velocity) whose body frame is the ROI frame."""
+    up = enu_basis(lat_c_rad, lon_c_rad)[..., 2, :]
+    e_x = great_circle_velocity(lat_c_rad, lon_c_rad, track_heading_rad, 1.0)
+    return radius_m * up, e_x
+
+
+def roi_points_to_geodetic(
+    x_m, y_m, lat_c_rad, lon_c_rad, track_heading_rad, radius_m=EARTH_RADIUS_M
+):
+    """ROI-plane points to the ground, central projection of Sec. 3.1 of [1].
+
+    ``p = R (R u_c + x e_x + y e_y) / sqrt(R^2 + x^2 + y^2)`` with ``u_c`` the centre's unit
+    vector, ``e_x`` the unit tangent at the centre along ``track_heading_rad`` and
+    ``e_y = u_c x e_x`` (x along-track, z up, right-handed: y points left of the track).
+    The paper writes ``u_y = u_x x u_sat``, the opposite sign (see docs/errata.md).
+
+    Parameters
+    ----------
+    x_m, y_m : array_like, shape (...)
+        Along-track and cross-track coordinates [m].
+    lat_c_rad, lon_c_rad : float
+        ROI centre [rad].
+    track_heading_rad : float
+        Azimuth of the along-track axis at the centre, from north clockwise [rad].
+    radius_m : float
+        Earth radius [m].
+
+    Returns
+    -------
+    lat_rad, lon_rad : ndarray, shape (...)
+        Ground points [rad].
+    """
+    centre, e_x = _roi_frame(lat_c_rad, lon_c_rad, track_heading_rad, radius_m)
+    pos = roi_to_ground(x_m, y_m, centre, e_x, radius_m=radius_m)
+    lat, lon, _ = ecef_to_geodetic(pos, radius_m=radius_m)
+    return lat, lon
+
+
+def geodetic_to_roi_points(
+    lat_rad, lon_rad, lat_c_rad, lon_c_rad, track_heading_rad, radius_m=EARTH_RADIUS_M
+):
+    """Inverse of :func:`roi_points_to_geodetic`: ``x = R p.e_x / p.u_c``, ``y = R p.e_y / p.u_c``.
+
+    Returns ``(x_m, y_m)`` with shape of the inputs; NaN for points on the far hemisphere.
+    """
+    centre, e_x = _roi_frame(lat_c_rad, lon_c_rad, track_heading_rad, radius_m)
+    pos = geodetic_to_ecef(lat_rad, lon_rad, 0.0, radius_m=radius_m)
+    return ground_to_roi(pos, centre, e_x, radius_m=radius_m)
+
+
+def place_random(n, rx_m, ry_m, rng):
+    """``n`` points uniform over the area of the ellipse ``(x/rx)^2 + (y/ry)^2 <= 1``.
+
+    Uniform in the ROI plane; on the ground the density falls by the projection's area
+    factor ``(1 + rho^2/R^2)^(3/2)`` (about 1 % at 534 km from the centre).
+
+    Parameters
+    ----------
+    n : int
+        Number of points.
+    rx_m, ry_m : float
+        Along-track and cross-track semi-axes [m].
+    rng : numpy.random.Generator
+        Random source.
+
+    Returns
+    -------
+    x_m, y_m : ndarray, shape (n,)
+        ROI-plane coordinates [m].
+    """
+    rho = np.sqrt(rng.random(n))  # sqrt: uniform in area, not in radius
+    ang = 2.0 * np.pi * rng.random(n)
+    return rx_m * rho * np.cos(ang), ry_m * rho * np.sin(ang)
+
+
+def place_grid(n_x, n_y, rx_m, ry_m):
+    """Centres of an ``n_x`` by ``n_y`` grid of cells on the ellipse's bounding box, kept
+    where inside the ellipse (so fewer than ``n_x n_y`` points, ordered x fastest).
+
+    Returns
+    -------
+    x_m, y_m : ndarray, shape (n_inside,)
+        ROI-plane coordinates [m].
+    """
+    x = rx_m * ((np.arange(n_x) + 0.5) * 2.0 / n_x - 1.0)
+    y = ry_m * ((np.arange(n_y) + 0.5) * 2.0 / n_y - 1.0)
+    xx, yy = np.meshgrid(x, y)
+    inside = (xx / rx_m) ** 2 + (yy / ry_m) ** 2 <= 1.0
+    return xx[inside], yy[inside]
+
+
+def headings(n, rng=None, heading_rad=None):
+    """UT headings [rad]: all equal to ``heading_rad``, or uniform on [0, 2 pi) from ``rng``."""
+    if heading_rad is not None:
+        return np.full(n, float(heading_rad))
+    if rng is None:
+        raise ConfigError("headings: give heading_rad (fixed) or rng (random uniform)")
+    return 2.0 * np.pi * rng.random(n)

@@ -1,0 +1,404 @@
+"""Tests of leolink.sim.mobility against independent formulas (haversine, bearing,
+spherical coordinates written out here, numerical derivatives)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from leolink.constants import EARTH_RADIUS_M as R
+from leolink.errors import ConfigError, LeolinkError
+from leolink.sim.mobility import (
+    SPEED_PRESETS_M_S,
+    ConstantVelocity,
+    RecordedTrack,
+    Static,
+    Track,
+    TrackFileError,
+    UTState,
+    Waypoints,
+    concat_states,
+    geodetic_to_roi_points,
+    headings,
+    place_grid,
+    place_random,
+    read_track_csv,
+    roi_points_to_geodetic,
+)
+
+DATA = Path(__file__).parent / "data"
+TRACKS = Path(__file__).parents[1] / "configs" / "examples" / "tracks"
+
+# Positions are ~6.4e6 m, so float64 rounding is ~1e-9 m; 1 mm is a million times that and
+# a thousand times smaller than one second of pedestrian motion.
+ONE_MM = 1e-3
+# Central difference with h = 1 s on |pos| ~ 6.4e6 m: rounding ~1e-9 m/s, truncation
+# h^2 |jerk|/6 <= (250 m/s)^3 / R^2 / 6 ~ 1e-7 m/s. 1e-5 m/s is far below any speed tested.
+VEL_TOL_M_S = 1e-5
+# Second difference with h = 10 s: rounding 4e-9 m / 100 s^2 ~ 4e-11 m/s^2; the centripetal
+# term of a pedestrian is 3e-7 m/s^2, so 1e-9 m/s^2 still sees it.
+ACC_TOL_M_S2 = 1e-9
+
+
+def ecef(lat, lon, alt=0.0):
+    """Spherical coordinates written out independently of leolink.geometry."""
+    r = R + np.asarray(alt)
+    return np.stack(
+        [r * np.cos(lat) * np.cos(lon), r * np.cos(lat) * np.sin(lon), r * np.sin(lat)], axis=-1
+    )
+
+
+def haversine_m(lat1, lon1, lat2, lon2, radius_m=R):
+    """Great-circle distance, haversine formula."""
+    a = (
+        np.sin((lat2 - lat1) / 2) ** 2
+        + np.cos(lat1) * np.cos(lat2) * np.sin((lon2 - lon1) / 2) ** 2
+    )
+    return 2 * radius_m * np.arcsin(np.sqrt(a))
+
+
+def bearing_rad(lat1, lon1, lat2, lon2):
+    """Initial great-circle bearing from point 1 to point 2, from north clockwise."""
+    y = np.sin(lon2 - lon1) * np.cos(lat2)
+    x = np.cos(lat1) * np.sin(lat2) - np.sin(lat1) * np.cos(lat2) * np.cos(lon2 - lon1)
+    return np.mod(np.arctan2(y, x), 2 * np.pi)
+
+
+def angle_diff(a, b):
+    """Wrapped difference of two angles [rad]."""
+    return np.angle(np.exp(1j * (np.asarray(a) - np.asarray(b))))
+
+
+# --- Static -------------------------------------------------------------------------------
+
+
+def test_static_has_fixed_position_and_zero_velocity():
+    lat, lon, alt = np.radians([10.0, -45.0]), np.radians([20.0, 170.0]), np.array([0.0, 500.0])
+    pop = Static(lat, lon, alt)
+    s0, s1 = pop.state(0.0), pop.state(1234.5)
+    np.testing.assert_allclose(s0.pos_m, ecef(lat, lon, alt), atol=ONE_MM)
+    np.testing.assert_array_equal(s0.pos_m, s1.pos_m)
+    assert not s1.vel_m_s.any() and not s1.acc_m_s2.any()
+    assert s1.vel_m_s.shape == (2, 3) and s1.lat_rad.shape == (2,)
+
+
+# --- ConstantVelocity ---------------------------------------------------------------------
+
+lat_st = st.floats(np.radians(-80), np.radians(80))
+ang_st = st.floats(-np.pi, np.pi)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    lat=lat_st,
+    lon=ang_st,
+    heading=ang_st,
+    speed=st.floats(0.0, 300.0),
+    alt=st.floats(0.0, 12_000.0),
+    t=st.floats(-3600.0, 3600.0),
+)
+def test_constant_velocity_kinematics(lat, lon, heading, speed, alt, t):
+    pop = ConstantVelocity(lat, lon, alt, heading, speed, t0_s=0.0)
+    s = pop.state(t)
+    # Distance along the circle of radius R + alt (speed is |vel|; see the class docstring).
+    d = haversine_m(lat, lon, s.lat_rad, s.lon_rad, radius_m=R + alt)
+    assert d == pytest.approx(speed * abs(t), abs=ONE_MM)
+    np.testing.assert_allclose(s.pos_m, ecef(s.lat_rad, s.lon_rad, alt), atol=ONE_MM)
+    assert np.linalg.norm(s.vel_m_s) == pytest.approx(speed, abs=1e-9)
+    radial = s.pos_m / np.linalg.norm(s.pos_m)
+    assert abs(np.sum(s.vel_m_s * radial)) < 1e-9 * max(speed, 1.0)
+    h = 1.0
+    num_vel = (pop.state(t + h).pos_m - pop.state(t - h).pos_m) / (2 * h)
+    np.testing.assert_allclose(s.vel_m_s, num_vel, atol=VEL_TOL_M_S)
+    h = 10.0
+    num_acc = (pop.state(t + h).pos_m - 2 * s.pos_m + pop.state(t - h).pos_m) / h**2
+    np.testing.assert_allclose(s.acc_m_s2, num_acc, atol=ACC_TOL_M_S2)
+
+
+def test_constant_velocity_starts_along_heading_and_uses_presets():
+    lat, lon = np.radians([30.0, -60.0]), np.radians([0.0, 100.0])
+    heading = np.radians([90.0, 200.0])
+    pop = ConstantVelocity(lat, lon, 0.0, heading, "car", t0_s=100.0)
+    s = pop.state(101.0)  # 30 m after t0
+    np.testing.assert_allclose(bearing_rad(lat, lon, s.lat_rad, s.lon_rad), heading, atol=1e-6)
+    np.testing.assert_allclose(haversine_m(lat, lon, s.lat_rad, s.lon_rad), 30.0, atol=ONE_MM)
+    # centripetal acceleration v^2 / R towards the centre
+    np.testing.assert_allclose(np.linalg.norm(s.acc_m_s2, axis=1), 30.0**2 / R, rtol=1e-9)
+    assert SPEED_PRESETS_M_S == {
+        "static": 0,
+        "pedestrian": 1.4,
+        "car": 30,
+        "train": 100,
+        "ship": 10,
+        "aircraft": 250,
+    }
+    with pytest.raises(ConfigError, match="speed preset 'rocket' is unknown; use one of"):
+        ConstantVelocity(0.0, 0.0, 0.0, 0.0, "rocket")
+    with pytest.raises(ConfigError, match="speed_m_s"):
+        ConstantVelocity(0.0, 0.0, 0.0, 0.0, -1.0)
+
+
+def test_constant_velocity_goes_around_the_world():
+    speed = 250.0
+    period_s = 2 * np.pi * R / speed
+    pop = ConstantVelocity(0.3, 1.0, 0.0, 0.7, speed)
+    np.testing.assert_allclose(pop.state(period_s).pos_m, pop.state(0.0).pos_m, atol=1e-3)
+    half = pop.state(period_s / 2).pos_m
+    np.testing.assert_allclose(half, -pop.state(0.0).pos_m, atol=1e-3)  # antipode
+
+
+# --- Waypoints ----------------------------------------------------------------------------
+
+
+def make_track(lat_deg, lon_deg, alt_m, time_s, ut_id="x"):
+    return Track(
+        np.asarray(time_s, float),
+        np.radians(lat_deg),
+        np.radians(lon_deg),
+        np.asarray(alt_m, float),
+        ut_id=ut_id,
+    )
+
+
+TRACK_A = make_track(
+    [40.0, 40.1, 40.1, 39.9],
+    [-3.0, -3.0, -2.8, -2.9],
+    [0, 0, 100, 100],
+    [0.0, 600.0, 1500.0, 2000.0],
+    "a",
+)
+TRACK_B = make_track([-20.0, -20.5], [150.0, 151.0], [10_000, 10_000], [300.0, 700.0], "b")
+TRACK_C = make_track([5.0], [5.0], [3.0], [50.0], "c")  # one point: always there
+
+
+def test_waypoints_pass_through_waypoints_at_their_times():
+    pop = Waypoints([TRACK_A, TRACK_B])
+    for tr, i in ((TRACK_A, 0), (TRACK_B, 1)):
+        for t, la, lo, al in zip(tr.time_s, tr.lat_rad, tr.lon_rad, tr.alt_m, strict=True):
+            s = pop.state(t)
+            np.testing.assert_allclose(s.pos_m[i], ecef(la, lo, al), atol=ONE_MM)
+            assert s.alt_m[i] == pytest.approx(al)
+
+
+def test_waypoints_segment_speed_is_length_over_duration():
+    pop = Waypoints([TRACK_A, TRACK_B])
+    for seg, tr, i in ((0, TRACK_A, 0), (0, TRACK_B, 1)):
+        a, b = seg, seg + 1
+        length = haversine_m(
+            tr.lat_rad[a], tr.lon_rad[a], tr.lat_rad[b], tr.lon_rad[b], radius_m=R + tr.alt_m[a]
+        )
+        expected = length / (tr.time_s[b] - tr.time_s[a])
+        for f in (0.0, 0.3, 0.9):
+            t = tr.time_s[a] + f * (tr.time_s[b] - tr.time_s[a])
+            assert np.linalg.norm(pop.state(t).vel_m_s[i]) == pytest.approx(expected, rel=1e-9)
+
+
+def test_waypoints_mid_time_is_the_great_circle_midpoint():
+    pop = Waypoints([TRACK_B])
+    ua, ub = (
+        ecef(TRACK_B.lat_rad[0], TRACK_B.lon_rad[0]),
+        ecef(TRACK_B.lat_rad[1], TRACK_B.lon_rad[1]),
+    )
+    mid = (ua + ub) / np.linalg.norm(ua + ub) * (R + 10_000)
+    np.testing.assert_allclose(pop.state(500.0).pos_m[0], mid, atol=ONE_MM)
+
+
+@pytest.mark.parametrize("t", [123.0, 900.0, 1499.0, 1700.0])  # inside segments, some climb
+def test_waypoints_velocity_and_acceleration_are_derivatives(t):
+    pop = Waypoints([TRACK_A])
+    s = pop.state(t)
+    h = 1.0
+    num_vel = (pop.state(t + h).pos_m - pop.state(t - h).pos_m) / (2 * h)
+    np.testing.assert_allclose(s.vel_m_s, num_vel, atol=VEL_TOL_M_S)
+    num_acc = (pop.state(t + h).pos_m - 2 * s.pos_m + pop.state(t - h).pos_m) / h**2
+    # h = 1 s (segments are short): rounding 4e-9 m / 1 s^2; keep 1e-7 m/s^2 < 2 w h' ~ 1e-5
+    np.testing.assert_allclose(s.acc_m_s2, num_acc, atol=1e-7)
+
+
+def test_waypoints_hold_end_points_outside_the_track():
+    pop = Waypoints([TRACK_A, TRACK_B, TRACK_C])
+    for t, idx in ((-10.0, [0, 0, 0]), (2500.0, [-1, -1, -1]), (2000.0, [-1, -1, 0])):
+        s = pop.state(t)
+        for i, tr in enumerate((TRACK_A, TRACK_B, TRACK_C)):
+            k = idx[i]
+            np.testing.assert_allclose(
+                s.pos_m[i], ecef(tr.lat_rad[k], tr.lon_rad[k], tr.alt_m[k]), atol=ONE_MM
+            )
+    s = pop.state(2500.0)
+    assert not s.vel_m_s.any() and not s.acc_m_s2.any()
+    assert not pop.state(100.0).vel_m_s[1:].any()  # b not started, c a single point
+    np.testing.assert_array_equal(pop.time_span_s, [[0, 2000], [300, 700], [50, 50]])
+
+
+def test_waypoints_vectorized_equals_one_ut_at_a_time():
+    rng = np.random.default_rng(7)
+    tracks = []
+    for i in range(12):
+        n = int(rng.integers(1, 9))
+        t = np.cumsum(rng.uniform(1.0, 100.0, n)) + rng.uniform(-200, 200)
+        tracks.append(
+            make_track(
+                rng.uniform(-60, 60) + np.cumsum(rng.normal(0, 0.1, n)),
+                rng.uniform(-180, 180) + np.cumsum(rng.normal(0, 0.1, n)),
+                rng.uniform(0, 1000, n),
+                t,
+                str(i),
+            )
+        )
+    pop = Waypoints(tracks)
+    singles = [Waypoints([tr]) for tr in tracks]
+    for t in np.concatenate([rng.uniform(-300, 1200, 20), tracks[3].time_s]):
+        s = pop.state(t)
+        for i, one in enumerate(singles):
+            si = one.state(t)
+            for f in ("pos_m", "vel_m_s", "acc_m_s2", "lat_rad", "lon_rad", "alt_m"):
+                np.testing.assert_array_equal(getattr(s, f)[i], getattr(si, f)[0])
+
+
+def test_track_validation():
+    with pytest.raises(ConfigError, match="increase strictly"):
+        make_track([0, 1], [0, 1], [0, 0], [5.0, 5.0])
+    with pytest.raises(ConfigError, match="finite"):
+        make_track([0, np.nan], [0, 1], [0, 0], [0.0, 1.0])
+    with pytest.raises(ConfigError, match="antipodal"):
+        Waypoints([make_track([10, -10], [20, -160], [0, 0], [0.0, 1.0])])
+
+
+# --- CSV ----------------------------------------------------------------------------------
+
+
+def test_read_track_csv_two_interleaved_uts():
+    tracks = read_track_csv(DATA / "mobility_two_uts.csv")
+    assert [t.ut_id for t in tracks] == ["walker", "boat"]
+    np.testing.assert_array_equal(tracks[0].time_s, [0, 600, 1200])
+    np.testing.assert_allclose(np.degrees(tracks[0].lat_rad), [40.0, 40.005, 40.005])
+    np.testing.assert_array_equal(tracks[1].alt_m, [0, 0])
+    pop = RecordedTrack(DATA / "mobility_two_uts.csv")
+    # boat: 0.1 deg of longitude at 36 deg N in 100 s
+    expected = haversine_m(*np.radians([36.0, -5.0, 36.0, -4.9])) / 100.0
+    assert np.linalg.norm(pop.state(50.0).vel_m_s[1]) == pytest.approx(expected, rel=1e-9)
+
+
+@pytest.mark.parametrize(("name", "speed_m_s"), [("ship.csv", 10.0), ("car.csv", 30.0)])
+def test_example_tracks(name, speed_m_s):
+    tracks = read_track_csv(TRACKS / name)
+    assert len(tracks) == 1 and 30 <= tracks[0].time_s.size <= 60
+    pop = RecordedTrack(TRACKS / name)
+    t0, t1 = pop.time_span_s[0]
+    speeds = [np.linalg.norm(pop.state(t).vel_m_s[0]) for t in np.linspace(t0, t1, 50)[:-1]]
+    # fixes are rounded to 1e-7 deg (1 cm); made at sea-level distance (car: R+689 m is 0.01 %)
+    np.testing.assert_allclose(speeds, speed_m_s, rtol=2e-3)
+
+
+def write(tmp_path, text):
+    path = tmp_path / "track.csv"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("time_s,lat_deg,lon_deg\n0,1,2\n", r"track.csv: line 1: missing column\(s\) 'alt_m'"),
+        (
+            "# c\ntime_s,lat_deg,lon_deg,alt_m\n0,1,2,0\n0,1,2,0\n",
+            r"line 4, column 'time_s': 0.0 s is not after 0.0 s \(line 3\)",
+        ),
+        (
+            "time_s,lat_deg,lon_deg,alt_m\n0,91,2,0\n",
+            r"line 2, column 'lat_deg': 91.0 is out of \[-90, 90\]",
+        ),
+        (
+            "time_s,lat_deg,lon_deg,alt_m\n0,1,2,0\n1,1,east,0\n",
+            r"line 3, column 'lon_deg': 'east' is not a finite number",
+        ),
+        ("time_s,lat_deg,lon_deg,alt_m\n0,1,2\n", r"line 2: 3 fields, expected 4"),
+        ("time_s,lat_deg,lon_deg,alt_m\n0,1,2,nan\n", r"column 'alt_m': 'nan' is not a finite"),
+        ("# only a comment\n\n", r"empty track file"),
+        ("time_s,lat_deg,lon_deg,alt_m\n", r"no data rows after the header \(line 1\)"),
+    ],
+)
+def test_read_track_csv_errors(tmp_path, text, match):
+    with pytest.raises(TrackFileError, match=match):
+        read_track_csv(write(tmp_path, text))
+
+
+def test_read_track_csv_per_ut_time_order_and_missing_file(tmp_path):
+    text = "time_s,ut,lat_deg,lon_deg,alt_m\n0,a,1,2,0\n5,b,1,2,0\n3,a,1,2,0\n2,b,1,2,0\n"
+    with pytest.raises(TrackFileError, match=r"line 5, .* of ut 'b'"):
+        read_track_csv(write(tmp_path, text))
+    with pytest.raises(LeolinkError, match="nowhere.csv: cannot read track file"):
+        read_track_csv(tmp_path / "nowhere.csv")
+
+
+# --- placement ----------------------------------------------------------------------------
+
+RX_M, RY_M = 534.1e3, 170.5e3  # the paper's ROI (Table 1)
+
+
+def test_place_random_inside_ellipse_and_uniform():
+    rng = np.random.default_rng(1)
+    n = 200_000
+    x, y = place_random(n, RX_M, RY_M, rng)
+    q = (x / RX_M) ** 2 + (y / RY_M) ** 2
+    assert np.all(q <= 1.0)
+    # For uniform points in an ellipse E[x^2] = rx^2/4, so the mean has std rx/(2 sqrt(n)).
+    assert abs(x.mean()) < 5 * RX_M / (2 * np.sqrt(n))
+    assert abs(y.mean()) < 5 * RY_M / (2 * np.sqrt(n))
+    # Area uniformity: a quarter of the points in the half-size ellipse (binomial, 5 sigma).
+    assert abs(np.mean(q <= 0.25) - 0.25) < 5 * np.sqrt(0.25 * 0.75 / n)
+
+
+def test_place_grid_points_inside_and_regular():
+    x, y = place_grid(21, 7, RX_M, RY_M)
+    assert np.all((x / RX_M) ** 2 + (y / RY_M) ** 2 <= 1.0)
+    assert np.any((x == 0) & (y == 0))  # odd counts: the centre is a cell centre
+    np.testing.assert_allclose(np.diff(np.unique(x)), 2 * RX_M / 21)
+    np.testing.assert_allclose(np.diff(np.unique(y)), 2 * RY_M / 7)
+    # brute force count: cells whose centre is inside
+    xs = (np.arange(21) + 0.5) / 21 * 2 - 1
+    ys = (np.arange(7) + 0.5) / 7 * 2 - 1
+    assert x.size == sum(a * a + b * b <= 1 for a in xs for b in ys)
+
+
+def test_headings():
+    np.testing.assert_array_equal(headings(3, heading_rad=1.5), [1.5, 1.5, 1.5])
+    h = headings(1000, rng=np.random.default_rng(0))
+    assert h.min() >= 0 and h.max() < 2 * np.pi and abs(h.mean() - np.pi) < 0.2
+    with pytest.raises(ConfigError, match="heading_rad"):
+        headings(3)
+
+
+@settings(max_examples=80, deadline=None)
+@given(x=st.floats(-2e6, 2e6), y=st.floats(-2e6, 2e6), lat_c=lat_st, lon_c=ang_st, heading=ang_st)
+def test_roi_round_trip(x, y, lat_c, lon_c, heading):
+    lat, lon = roi_points_to_geodetic(x, y, lat_c, lon_c, heading)
+    x2, y2 = geodetic_to_roi_points(lat, lon, lat_c, lon_c, heading)
+    assert x2 == pytest.approx(x, abs=ONE_MM) and y2 == pytest.approx(y, abs=ONE_MM)
+    # Central projection: the arc from the centre is R atan(rho / R).
+    d = haversine_m(lat_c, lon_c, lat, lon)
+    assert d == pytest.approx(R * np.arctan(np.hypot(x, y) / R), abs=ONE_MM)
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 37.0, 90.0, 200.0, 315.0])
+def test_roi_axes_point_along_heading_and_to_its_left(heading_deg):
+    lat_c, lon_c, h = np.radians(48.0), np.radians(11.0), np.radians(heading_deg)
+    lat, lon = roi_points_to_geodetic(
+        np.array([1000.0, 0.0]), np.array([0.0, 1000.0]), lat_c, lon_c, h
+    )
+    az = bearing_rad(lat_c, lon_c, lat, lon)
+    # x > 0 ahead; y > 0 to the left (e_y = u_c x e_x, right-handed with z up). The points
+    # lie on the great circles through the centre tangent to e_x, e_y: exact bearings.
+    assert abs(angle_diff(az[0], h)) < 1e-6
+    assert abs(angle_diff(az[1], h - np.pi / 2)) < 1e-6
+
+
+def test_concat_states():
+    a = Static([0.1, 0.2], [0.3, 0.4]).state(0.0)
+    b = ConstantVelocity(0.5, 0.6, 0.0, 0.0, 10.0).state(5.0)
+    c = concat_states([a, b])
+    assert isinstance(c, UTState) and c.n_ut == 3 and c.pos_m.shape == (3, 3)
+    np.testing.assert_array_equal(c.vel_m_s[2], b.vel_m_s[0])
+    np.testing.assert_array_equal(c.lat_rad[:2], a.lat_rad)
