@@ -1,0 +1,221 @@
+"""Doppler shift, Doppler rate and angular speed of the UT-satellite line of sight.
+
+Sec. 2.2 ("Satellite angular speed and Doppler effects") of [1]: Eq. (doppler_ang),
+Eq. (doppler_ang_max) and its small-ROI shortcut, and the UT Doppler paragraph.
+Positions, velocities and accelerations are given in one Earth-centred frame (ECI or
+ECEF, consistently) as arrays ``(..., 3)``; every function broadcasts, callers add
+axes (``sat_pos_m[:, None, :, :]``). Doppler is first order in ``v / c`` (classical).
+
+Sign convention: positive Doppler = the received frequency is higher = the range is
+shrinking. ``doppler_hz = doppler_sat_hz + doppler_ut_hz = -(f/c) d(range)/dt``.
+
+References
+----------
+.. [1] J. Palacios et al., "A hybrid beamforming design for massive MIMO LEO
+   satellite communications."
+"""
+
+import numpy as np
+
+from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2, SPEED_OF_LIGHT_M_S
+
+__all__ = [
+    "angular_speed_rad_s",
+    "doppler_hz",
+    "doppler_rate_hz_s",
+    "doppler_sat_hz",
+    "doppler_ut_hz",
+    "max_angular_speed_rad_s",
+    "max_doppler_sat_hz",
+    "max_doppler_sat_small_roi_hz",
+    "mean_abs_doppler_ut_hz",
+    "range_rate_m_s",
+]
+
+
+def _dot(a, b):
+    return np.sum(a * b, axis=-1)
+
+
+def _los(from_pos_m, to_pos_m):
+    """Vector, distance and unit vector from ``from`` to ``to`` (distance shape ``(...)``)."""
+    d = np.asarray(to_pos_m, dtype=float) - np.asarray(from_pos_m, dtype=float)
+    rho = np.linalg.norm(d, axis=-1)
+    return d, rho, d / rho[..., None]
+
+
+def _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2):
+    return np.sqrt(gm_m3_s2 / (radius_m + np.asarray(altitude_m, dtype=float)))
+
+
+def doppler_sat_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, freq_hz):
+    """Doppler shift due to the satellite's motion, Eq. (doppler_ang) of [1].
+
+    ``Delta f_sat = <v_sat, (x_u - x_sat) / ||x_u - x_sat||> f / c``
+    (positive when the satellite moves towards the UT).
+
+    Parameters
+    ----------
+    sat_pos_m, sat_vel_m_s : array_like, shape (..., 3)
+        Satellite position [m] and velocity [m/s].
+    ut_pos_m : array_like, shape (..., 3)
+        UT position [m].
+    freq_hz : float or array_like
+        Carrier frequency [Hz].
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Doppler shift [Hz].
+    """
+    _, _, l_su = _los(sat_pos_m, ut_pos_m)
+    return _dot(np.asarray(sat_vel_m_s, dtype=float), l_su) * freq_hz / SPEED_OF_LIGHT_M_S
+
+
+def doppler_ut_hz(ut_pos_m, ut_vel_m_s, sat_pos_m, freq_hz):
+    """Doppler shift due to the UT's motion, Sec. 2.2 of [1].
+
+    ``Delta f_u = <v_u, (x_sat - x_u) / ||x_sat - x_u||> f / c`` (positive when the UT
+    moves towards the satellite). Shapes as in :func:`doppler_sat_hz`.
+    """
+    _, _, l_us = _los(ut_pos_m, sat_pos_m)
+    return _dot(np.asarray(ut_vel_m_s, dtype=float), l_us) * freq_hz / SPEED_OF_LIGHT_M_S
+
+
+def range_rate_m_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
+    """Time derivative of the slant range ``rho' = <v_sat - v_u, l>`` [m/s], shape (...).
+
+    ``l`` is the unit vector UT -> satellite; positive when the range grows.
+    """
+    _, _, l_us = _los(ut_pos_m, sat_pos_m)
+    v_rel = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
+    return _dot(v_rel, l_us)
+
+
+def doppler_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s, freq_hz):
+    """Total Doppler shift ``Delta f_sat + Delta f_u = -(f/c) d(range)/dt`` [Hz], shape (...).
+
+    Shapes as in :func:`doppler_sat_hz`; ``ut_vel_m_s`` (..., 3) [m/s] (0 for a static UT).
+    """
+    return -range_rate_m_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s) * (
+        freq_hz / SPEED_OF_LIGHT_M_S
+    )
+
+
+def doppler_rate_hz_s(
+    sat_pos_m, sat_vel_m_s, sat_acc_m_s2, ut_pos_m, ut_vel_m_s, ut_acc_m_s2=0.0, *, freq_hz
+):
+    """Time derivative of the total Doppler, ``-(f/c) d^2(range)/dt^2`` [Hz/s].
+
+    Exact: with ``r = x_sat - x_u``, ``v = v_sat - v_u``, ``a = a_sat - a_u`` and
+    ``rho = |r|``, ``rho'' = (|v|^2 + <r, a> - rho'^2) / rho``.
+
+    Parameters
+    ----------
+    sat_pos_m, sat_vel_m_s, sat_acc_m_s2 : array_like, shape (..., 3)
+        Satellite state [m], [m/s], [m/s^2].
+    ut_pos_m, ut_vel_m_s : array_like, shape (..., 3)
+        UT position [m] and velocity [m/s].
+    ut_acc_m_s2 : array_like, shape (..., 3), optional
+        UT acceleration [m/s^2] (0: uniform motion; in ECEF a static UT has none).
+    freq_hz : float or array_like, keyword-only
+        Carrier frequency [Hz].
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Doppler rate [Hz/s].
+    """
+    r, rho, l_us = _los(ut_pos_m, sat_pos_m)
+    v = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
+    a = np.asarray(sat_acc_m_s2, dtype=float) - np.asarray(ut_acc_m_s2, dtype=float)
+    rho_dot = _dot(v, l_us)
+    rho_ddot = (_dot(v, v) + _dot(r, a) - rho_dot**2) / rho
+    return -rho_ddot * freq_hz / SPEED_OF_LIGHT_M_S
+
+
+def angular_speed_rad_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
+    """Angular speed of the line of sight seen from the UT, ``|dl/dt|`` [rad/s].
+
+    ``w_rel = |v_rel - <v_rel, l> l| / rho`` with ``v_rel = v_sat - v_u``. For a static
+    UT this is the paper's Eq. (doppler_ang),
+    ``sqrt(1 - <v_sat/|v_sat|, l>^2) |v_sat| / rho``; a moving UT adds its own motion.
+
+    Parameters
+    ----------
+    sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s : array_like, shape (..., 3)
+        As in :func:`doppler_hz`.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Angular speed [rad/s], >= 0.
+    """
+    _, rho, l_us = _los(ut_pos_m, sat_pos_m)
+    v = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
+    v_perp = v - _dot(v, l_us)[..., None] * l_us
+    return np.linalg.norm(v_perp, axis=-1) / rho
+
+
+def max_doppler_sat_hz(rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):
+    """Maximum ``|Delta f_sat|`` over the ROI, Eq. (doppler_ang_max) of [1].
+
+    Reached at the along-track tip of the ROI, the ground point
+    ``R (R u_z + R_x u_x) / sqrt(R^2 + R_x^2)`` (gnomonic projection of ``x = R_x``),
+    at Earth-central angle ``alpha`` with ``tan(alpha) = R_x / R``::
+
+        R R_x / sqrt(R^2 + R_x^2) v_sat / sqrt(R^2 + (R+h)^2 - 2 R^2 (R+h) / sqrt(R^2 + R_x^2)) f/c
+
+    Parameters
+    ----------
+    rx_m : array_like
+        Along-track ROI semi-axis [m] (the paper's Table: 534.1 km).
+    altitude_m : array_like
+        Satellite altitude [m].
+    freq_hz : float or array_like
+        Carrier frequency [Hz].
+    radius_m, gm_m3_s2 : float
+        Earth radius [m] and GM [m^3/s^2].
+
+    Returns
+    -------
+    ndarray
+        Maximum Doppler magnitude [Hz].
+    """
+    rx = np.asarray(rx_m, dtype=float)
+    r_sat = radius_m + np.asarray(altitude_m, dtype=float)
+    q = np.sqrt(radius_m**2 + rx**2)
+    along_m = radius_m * rx / q
+    rho_m = np.sqrt(radius_m**2 + r_sat**2 - 2.0 * radius_m**2 * r_sat / q)
+    v = _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2)
+    return along_m / rho_m * v * freq_hz / SPEED_OF_LIGHT_M_S
+
+
+def max_doppler_sat_small_roi_hz(
+    rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2
+):
+    """The paper's shortcut ``R_x v_sat / h f / c`` of Eq. (doppler_ang_max) [Hz].
+
+    Valid only when ``R_x << h`` (the paper states ``R_x << R_earth``, which is not
+    enough: with the paper's ROI it overestimates by ~10 %, see docs/errata.md).
+    """
+    v = _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2)
+    return np.asarray(rx_m, dtype=float) * v / altitude_m * freq_hz / SPEED_OF_LIGHT_M_S
+
+
+def max_angular_speed_rad_s(altitude_m, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):
+    """Maximum angular speed seen by a static UT, ``v_sat / h`` [rad/s], Eq. (doppler_ang_max).
+
+    Reached at the sub-satellite point (nadir), where the velocity is orthogonal to the
+    line of sight and the range is shortest.
+    """
+    return _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2) / np.asarray(altitude_m, float)
+
+
+def mean_abs_doppler_ut_hz(speed_m_s, freq_hz):
+    """Mean ``|Delta f_u|`` for a direction uniform on the sphere: ``v_u f / (2 c)`` [Hz].
+
+    ``E|cos(theta)| = 1/2`` for ``cos(theta)`` uniform on ``[-1, 1]``. The paper writes
+    ``v_u / 6 f / c`` (Sec. 2.2), which is wrong (docs/errata.md).
+    """
+    return 0.5 * np.asarray(speed_m_s, dtype=float) * freq_hz / SPEED_OF_LIGHT_M_S

@@ -1,0 +1,411 @@
+"""Atmospheric loss on the UT-satellite slant path, Sec. 2.2 of [1].
+
+Four models, built by :func:`atmosphere_model` as ``callable(elevation_rad) -> loss_db``:
+
+- ``fixed``: one number (the paper's Table uses 0.017 dB, see docs/errata.md);
+- ``itu_p676``: gaseous attenuation of ITU-R P.676 via ``itur`` [2];
+- ``itu_p618``: gas + rain + cloud + scintillation of ITU-R P.618 via ``itur`` [3] (opt-in);
+- ``paper``: the paper's own model, the specific attenuation ``A(f, T(h), P(h), rho(h))``
+  of ITU-R P.676 integrated along the slant path from 0 to 81 km through the 1976 US
+  Standard Atmosphere [4], with 7.5 g/m^3 of water vapour at sea level, proportional to
+  the air density up to 2.3 km and zero above.
+
+``itur`` is slow, so every model except ``fixed`` is tabulated once on an elevation
+grid by :class:`AtmosphereTable` and interpolated (vectorized) afterwards.
+
+References
+----------
+.. [1] J. Palacios et al., "A hybrid beamforming design for massive MIMO LEO
+   satellite communications."
+.. [2] ITU-R P.676-12, "Attenuation by atmospheric gases and related effects."
+.. [3] ITU-R P.618-13, "Propagation data and prediction methods required for the design
+   of Earth-space telecommunication systems."
+.. [4] NOAA/NASA/USAF, "U.S. Standard Atmosphere, 1976", NOAA-S/T 76-1562.
+"""
+
+import warnings
+
+import numpy as np
+
+from leolink.constants import EARTH_RADIUS_M
+from leolink.errors import ConfigError
+
+__all__ = [
+    "AtmosphereTable",
+    "atmosphere_from_config",
+    "atmosphere_model",
+    "fixed_loss_db",
+    "itu_p618_db",
+    "itu_p676_db",
+    "paper_model_db",
+    "paper_water_vapour_g_m3",
+    "shell_path_length_m",
+    "site_surface_conditions",
+    "specific_attenuation_db_m",
+    "us_standard_atmosphere",
+]
+
+# --- 1976 US Standard Atmosphere, layers to 86 km (84.852 km geopotential) -----------
+_EARTH_RADIUS_1976_M = 6_356_766.0  # r0 of the geopotential conversion [4]
+_GMR_K_M = 9.80665 * 0.0289644 / 8.31432  # g0 M0 / R* = 0.0341632 K/m [4]
+_H_BASE_M = np.array([0.0, 11e3, 20e3, 32e3, 47e3, 51e3, 71e3])
+_LAPSE_K_M = np.array([-6.5e-3, 0.0, 1e-3, 2.8e-3, 0.0, -2.8e-3, -2.0e-3])
+
+
+def _layer_bases():
+    """Base temperature [K] and pressure [Pa] of each layer, chained from sea level."""
+    t_b, p_b = [288.15], [101_325.0]
+    for i in range(len(_H_BASE_M) - 1):
+        dh, lapse = _H_BASE_M[i + 1] - _H_BASE_M[i], _LAPSE_K_M[i]
+        t_top = t_b[i] + lapse * dh
+        if lapse == 0.0:
+            p_top = p_b[i] * np.exp(-_GMR_K_M * dh / t_b[i])
+        else:
+            p_top = p_b[i] * (t_b[i] / t_top) ** (_GMR_K_M / lapse)
+        t_b.append(t_top)
+        p_b.append(p_top)
+    return np.array(t_b), np.array(p_b)
+
+
+_T_BASE_K, _P_BASE_PA = _layer_bases()
+
+
+def us_standard_atmosphere(altitude_m, geopotential=False):
+    """Temperature and pressure of the 1976 US Standard Atmosphere below 86 km [4].
+
+    Piecewise-linear molecular-scale temperature in geopotential altitude
+    ``H = r0 h / (r0 + h)``; the kinetic-temperature correction above 80 km (< 0.05 %)
+    is neglected.
+
+    Parameters
+    ----------
+    altitude_m : array_like
+        Geometric altitude [m] (geopotential if ``geopotential=True``), 0 to 86 km.
+
+    Returns
+    -------
+    temp_k, pressure_pa : ndarray, shape of ``altitude_m``
+        Temperature [K] and total pressure [Pa].
+    """
+    h = np.asarray(altitude_m, dtype=float)
+    h_geo = h if geopotential else _EARTH_RADIUS_1976_M * h / (_EARTH_RADIUS_1976_M + h)
+    i = np.clip(np.searchsorted(_H_BASE_M, h_geo, side="right") - 1, 0, len(_H_BASE_M) - 1)
+    lapse, t_b, p_b = _LAPSE_K_M[i], _T_BASE_K[i], _P_BASE_PA[i]
+    dh = h_geo - _H_BASE_M[i]
+    temp_k = t_b + lapse * dh
+    iso = lapse == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p_grad = p_b * (t_b / temp_k) ** (_GMR_K_M / np.where(iso, 1.0, lapse))
+    pressure_pa = np.where(iso, p_b * np.exp(-_GMR_K_M * dh / t_b), p_grad)
+    return temp_k, pressure_pa
+
+
+def paper_water_vapour_g_m3(altitude_m, rho0_g_m3=7.5, top_m=2300.0):
+    """The paper's water-vapour profile [g/m^3], Sec. 2.2 of [1].
+
+    ``rho0`` at sea level, proportional to the air density ``P / T`` up to ``top_m``
+    (2.3 km, where the standard atmosphere reaches 0 C), zero above.
+    """
+    h = np.asarray(altitude_m, dtype=float)
+    temp_k, pressure_pa = us_standard_atmosphere(h)
+    density_ratio = (pressure_pa / 101_325.0) * (288.15 / temp_k)
+    return np.where(h <= top_m, rho0_g_m3 * density_ratio, 0.0)
+
+
+def specific_attenuation_db_m(freq_hz, pressure_hpa, rho_g_m3, temp_k):
+    """Gaseous specific attenuation ``gamma_o + gamma_w`` of ITU-R P.676 Annex 1 [dB/m].
+
+    ``pressure_hpa`` is the dry-air pressure [hPa]; arrays broadcast (via ``itur``).
+    """
+    from itur.models import itu676
+
+    gamma = itu676.gamma_exact(freq_hz / 1e9, pressure_hpa, rho_g_m3, temp_k)
+    return np.asarray(getattr(gamma, "value", gamma), dtype=float) / 1e3
+
+
+def shell_path_length_m(elevation_rad, r_low_m, r_high_m, r_ut_m):
+    """Straight-ray path length between the spheres ``r_low`` and ``r_high`` [m].
+
+    For a ray leaving radius ``r_ut`` at elevation ``el``, the distance to radius ``r``
+    is ``s(r) = sqrt(r^2 - r_ut^2 cos^2 el) - r_ut sin el``; the length inside the shell
+    is ``s(r_high) - s(r_low)``. Finite at 0 deg (unlike ``dh / sin el``).
+    """
+    el = np.asarray(elevation_rad, dtype=float)
+    c2 = (r_ut_m * np.cos(el)) ** 2
+    return np.sqrt(r_high_m**2 - c2) - np.sqrt(r_low_m**2 - c2)
+
+
+def paper_model_db(
+    elevation_rad,
+    freq_hz,
+    ut_altitude_m=0.0,
+    top_m=81e3,
+    rho0_g_m3=7.5,
+    vapour_top_m=2300.0,
+    step_m=25.0,
+    radius_m=EARTH_RADIUS_M,
+):
+    """The paper's atmospheric loss ``LP_at = int A(f, T(h), P(h), rho(h)) ds`` [dB].
+
+    Sec. 2.2 of [1]: midpoint rule on shells of ``step_m`` from the UT altitude to
+    ``top_m`` (81 km), spherical-shell straight-ray geometry (refraction neglected),
+    1976 US Standard Atmosphere, the paper's water vapour (:func:`paper_water_vapour_g_m3`).
+    The paper writes ``dh``; the path element along the slant ray is used here.
+
+    Parameters
+    ----------
+    elevation_rad : array_like, shape (...)
+        Elevation of the satellite seen from the UT [rad], 0 to pi/2.
+    freq_hz : float
+        Carrier frequency [Hz].
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Loss [dB]. Memory grows as ``size * n_layers``: use :class:`AtmosphereTable`.
+    """
+    edges_m = np.arange(ut_altitude_m, top_m + 0.5 * step_m, step_m)
+    h_mid = 0.5 * (edges_m[1:] + edges_m[:-1])
+    temp_k, pressure_pa = us_standard_atmosphere(h_mid)
+    rho = paper_water_vapour_g_m3(h_mid, rho0_g_m3, vapour_top_m)
+    e_hpa = rho * temp_k / 216.7  # water-vapour partial pressure, P.676 Eq. (4)
+    gamma_db_m = specific_attenuation_db_m(freq_hz, pressure_pa / 100.0 - e_hpa, rho, temp_k)
+    el = np.asarray(elevation_rad, dtype=float)[..., None]
+    r_ut = radius_m + ut_altitude_m
+    length_m = shell_path_length_m(el, radius_m + edges_m[:-1], radius_m + edges_m[1:], r_ut)
+    return np.sum(gamma_db_m * length_m, axis=-1)
+
+
+def fixed_loss_db(elevation_rad, loss_db):
+    """A constant loss [dB] with the shape of ``elevation_rad``."""
+    return np.full(np.shape(elevation_rad), float(loss_db))
+
+
+def itu_p676_db(
+    elevation_rad, freq_hz, pressure_hpa=1013.25, temp_k=288.15, rho_g_m3=7.5, mode="exact"
+):
+    """Gaseous attenuation on the slant path, ITU-R P.676 via ``itur`` [dB].
+
+    ``mode='exact'`` (default) is the layer-by-layer ray trace of P.676 Annex 1 (curved
+    Earth, refraction; it uses the P.835 reference profiles scaled to the surface
+    ``rho_g_m3`` and ignores ``pressure_hpa``/``temp_k``); ``mode='approx'`` is Annex 2,
+    ``(gamma_o h_o + gamma_w h_w) / sin(el)``, only for 5 to 90 deg. Slow: tabulate.
+
+    Parameters
+    ----------
+    elevation_rad : array_like, shape (n,)
+        Elevation [rad].
+    freq_hz : float
+        Carrier frequency [Hz].
+    pressure_hpa, temp_k, rho_g_m3 : float
+        Surface pressure [hPa], temperature [K], water-vapour density [g/m^3].
+
+    Returns
+    -------
+    ndarray, shape of ``elevation_rad``
+        Loss [dB].
+    """
+    from itur.models import itu676
+
+    el_deg = np.degrees(np.asarray(elevation_rad, dtype=float))
+    if mode == "approx" and np.any(el_deg < 5.0):
+        warnings.warn(
+            "ITU-R P.676 approx mode below 5 deg elevation: use mode='exact'", stacklevel=2
+        )
+    with warnings.catch_warnings():
+        # itur's range check fires at exactly 90 deg too (np.mod(90, 90) = 0 < 5).
+        warnings.filterwarnings("ignore", message=".*only recommended for elevation.*")
+        out = itu676.gaseous_attenuation_slant_path(
+            freq_hz / 1e9, np.atleast_1d(el_deg), rho_g_m3, pressure_hpa, temp_k, mode=mode
+        )
+    return np.asarray(getattr(out, "value", out), dtype=float).reshape(el_deg.shape)
+
+
+def site_surface_conditions(lat_deg, lon_deg, p_percent=50.0):
+    """Surface pressure [hPa], temperature [K], water vapour [g/m^3] and altitude [m] of a site.
+
+    From the maps shipped with ``itur`` (offline): P.1511 altitude, P.835 pressure at
+    that altitude, P.1510 mean surface temperature, P.836 vapour density exceeded
+    ``p_percent`` of the time.
+    """
+    from itur.models import itu835, itu836, itu1510, itu1511
+
+    def val(q):
+        return float(np.squeeze(getattr(q, "value", q)))
+
+    alt_km = val(itu1511.topographic_altitude(lat_deg, lon_deg))
+    return {
+        "pressure_hpa": val(itu835.standard_pressure(alt_km)),
+        "temp_k": val(itu1510.surface_mean_temperature(lat_deg, lon_deg)),
+        "rho_g_m3": val(itu836.surface_water_vapour_density(lat_deg, lon_deg, p_percent, alt_km)),
+        "altitude_m": alt_km * 1e3,
+    }
+
+
+def itu_p618_db(
+    elevation_rad,
+    freq_hz,
+    lat_deg,
+    lon_deg,
+    p_percent=1.0,
+    diameter_m=1.0,
+    include_rain=True,
+    include_clouds=True,
+    include_scintillation=True,
+    include_gas=True,
+):
+    """Total attenuation exceeded ``p_percent`` of the time, ITU-R P.618 via ``itur`` [dB].
+
+    Gas (P.676), rain (P.618/P.837/P.838), clouds (P.840) and scintillation (P.618, for
+    an antenna of ``diameter_m``), at the site ``lat_deg, lon_deg``. ``itur`` warns below
+    5 deg elevation. Slow: tabulate (:class:`AtmosphereTable`).
+    """
+    import itur
+
+    el_deg = np.degrees(np.atleast_1d(np.asarray(elevation_rad, dtype=float)))
+    with warnings.catch_warnings():
+        if np.all(el_deg >= 5.0):  # only the spurious 90 deg warning (np.mod(90, 90) < 5)
+            warnings.filterwarnings("ignore", message=".*only recommended for elevation.*")
+        out = itur.atmospheric_attenuation_slant_path(
+            lat_deg,
+            lon_deg,
+            freq_hz / 1e9,
+            el_deg,
+            p_percent,
+            diameter_m,
+            include_rain=include_rain,
+            include_clouds=include_clouds,
+            include_scintillation=include_scintillation,
+            include_gas=include_gas,
+        )
+    return np.asarray(getattr(out, "value", out), dtype=float).reshape(np.shape(elevation_rad))
+
+
+_HALF_DEGREE_RAD = np.pi / 360.0
+
+
+class AtmosphereTable:
+    """A loss model tabulated on an elevation grid and interpolated (vectorized).
+
+    The table stores ``loss(el) / m(el)``, with ``m`` the path length through a 10 km
+    shell relative to zenith: this ratio is smooth down to 0 deg, where the loss itself
+    bends like ``1 / sin(el)``. Elevations below the grid give NaN (no link).
+
+    Parameters
+    ----------
+    loss_fn : callable
+        ``loss_fn(elevation_rad array) -> loss_db array`` (called once, on the grid).
+    min_elevation_rad : float
+        First grid point [rad].
+    step_rad : float
+        Grid step [rad] (default 0.5 deg); the last point is pi/2.
+    """
+
+    _SHELL_M = 10e3
+
+    def __init__(self, loss_fn, min_elevation_rad=0.0, step_rad=_HALF_DEGREE_RAD):
+        n = int(np.ceil((np.pi / 2 - min_elevation_rad) / step_rad)) + 1
+        self.elevation_rad = np.linspace(min_elevation_rad, np.pi / 2, max(n, 2))
+        self.loss_db = np.asarray(loss_fn(self.elevation_rad), dtype=float)
+        self._ratio = self.loss_db / self._airmass(self.elevation_rad)
+
+    @classmethod
+    def _airmass(cls, elevation_rad):
+        r = EARTH_RADIUS_M
+        return shell_path_length_m(elevation_rad, r, r + cls._SHELL_M, r) / cls._SHELL_M
+
+    def __call__(self, elevation_rad):
+        """Loss [dB] at ``elevation_rad`` (any shape); NaN below the grid."""
+        el = np.minimum(np.asarray(elevation_rad, dtype=float), np.pi / 2)
+        ratio = np.interp(el, self.elevation_rad, self._ratio, left=np.nan)
+        return ratio * self._airmass(el)
+
+
+_KINDS = {
+    "fixed": ("loss_db",),
+    "itu_p676": ("pressure_hpa", "temp_k", "rho_g_m3", "mode", "lat_deg", "lon_deg"),
+    "itu_p618": (
+        "lat_deg",
+        "lon_deg",
+        "p_percent",
+        "diameter_m",
+        "include_rain",
+        "include_clouds",
+        "include_scintillation",
+        "include_gas",
+    ),
+    "paper": ("ut_altitude_m", "top_m", "rho0_g_m3", "vapour_top_m", "step_m"),
+}
+_TABLE_PARAMS = ("min_elevation_deg", "step_deg")
+
+
+def _check_params(kind, params):
+    allowed = _KINDS[kind] + (() if kind == "fixed" else _TABLE_PARAMS)
+    for name in params:
+        if name not in allowed:
+            raise ConfigError(
+                f"atmosphere.{name} is not a parameter of kind {kind!r}; "
+                f"use one of {', '.join(allowed)}"
+            )
+
+
+def atmosphere_model(kind, freq_hz, **params):
+    """Build ``callable(elevation_rad array) -> loss_db array`` for one model.
+
+    Parameters
+    ----------
+    kind : {'fixed', 'itu_p676', 'itu_p618', 'paper'}
+        Model (module docstring). ``fixed`` needs ``loss_db``; ``itu_p618`` needs
+        ``lat_deg, lon_deg``; ``itu_p676`` takes the surface conditions, or a site
+        ``lat_deg, lon_deg`` (:func:`site_surface_conditions`), or the standard values.
+    freq_hz : float
+        Carrier frequency [Hz].
+    **params
+        Model parameters, plus ``min_elevation_deg`` (0) and ``step_deg`` (0.5) of the
+        :class:`AtmosphereTable` for the tabulated kinds.
+
+    Raises
+    ------
+    ConfigError
+        Unknown kind or parameter, or a required parameter missing.
+    """
+    if kind not in _KINDS:
+        raise ConfigError(
+            f"atmosphere.kind = {kind!r} is not allowed; use one of {', '.join(_KINDS)}"
+        )
+    _check_params(kind, params)
+    if kind == "fixed":
+        if "loss_db" not in params:
+            raise ConfigError("atmosphere.loss_db is required for kind 'fixed' [dB]")
+        loss_db = float(params["loss_db"])
+        return lambda elevation_rad: fixed_loss_db(elevation_rad, loss_db)
+    min_el = np.radians(params.pop("min_elevation_deg", 0.0))
+    step = np.radians(params.pop("step_deg", 0.5))
+    if kind == "itu_p676":
+        if "lat_deg" in params or "lon_deg" in params:
+            site = site_surface_conditions(params.pop("lat_deg"), params.pop("lon_deg"))
+            site.pop("altitude_m")
+            params = {**site, **params}
+        fn = itu_p676_db
+    elif kind == "itu_p618":
+        if "lat_deg" not in params or "lon_deg" not in params:
+            raise ConfigError("atmosphere.lat_deg and lon_deg are required for kind 'itu_p618'")
+        fn = itu_p618_db
+    else:
+        fn = paper_model_db
+    return AtmosphereTable(lambda el: fn(el, freq_hz, **params), min_el, step)
+
+
+def atmosphere_from_config(cfg, freq_hz=None):
+    """:func:`atmosphere_model` from a mapping or object with ``kind`` and parameters.
+
+    ``freq_hz`` defaults to ``cfg['freq_hz']``; ``None`` values are dropped.
+    """
+    items = dict(cfg) if hasattr(cfg, "keys") else dict(vars(cfg))
+    items = {k: v for k, v in items.items() if v is not None}
+    kind = items.pop("kind", None)
+    cfg_freq = items.pop("freq_hz", None)
+    freq = freq_hz if freq_hz is not None else cfg_freq
+    if freq is None:
+        raise ConfigError("atmosphere: freq_hz is required (carrier frequency [Hz])")
+    return atmosphere_model(kind, freq, **items)
