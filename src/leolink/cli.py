@@ -75,8 +75,11 @@ def cmd_codebook(args) -> int:
         cols = ["beam_id", "u_x", "u_y", "x_m", "y_m", "lat_deg", "lon_deg"]
         print("  ".join(f"{c:>10}" for c in cols))
         for b in info["beams"]:
-            print("  ".join(f"{b[c]:>10.4f}" if isinstance(b[c], float) else f"{b[c]:>10}"
-                            for c in cols))
+            print(
+                "  ".join(
+                    f"{b[c]:>10.4f}" if isinstance(b[c], float) else f"{b[c]:>10}" for c in cols
+                )
+            )
     return 0
 
 
@@ -84,8 +87,9 @@ def cmd_coverage(args) -> int:
     from leolink.coverage import run_coverage
 
     cfg = _config(args)
-    paths = run_coverage(cfg, Path(args.out), n_grid=args.grid, margin=args.margin,
-                         plots=not args.no_plots)
+    paths = run_coverage(
+        cfg, Path(args.out), n_grid=args.grid, margin=args.margin, plots=not args.no_plots
+    )
     if not args.quiet:
         for p in paths:
             print(p)
@@ -97,14 +101,21 @@ def cmd_run(args) -> int:
 
     cfg = _config(args)
     if args.parquet and "parquet" not in cfg.run.trace_formats:
-        cfg = cfg.model_copy(update={"run": cfg.run.model_copy(
-            update={"trace_formats": [*cfg.run.trace_formats, "parquet"]})})
+        cfg = cfg.model_copy(
+            update={
+                "run": cfg.run.model_copy(
+                    update={"trace_formats": [*cfg.run.trace_formats, "parquet"]}
+                )
+            }
+        )
     result = run(cfg, out_dir=Path(args.out), progress=not args.quiet)
     if not args.quiet:
         o = result.summary["overall"]
-        print(f"wrote {args.out}: {o['n_ut']} UTs, {o['n_epochs']} epochs, "
-              f"{o['handovers']['beam_handover']} beam and {o['handovers']['sat_handover']} "
-              f"satellite handovers, mean SNR {o['snr_db']['mean']:.2f} dB")
+        print(
+            f"wrote {args.out}: {o['n_ut']} UTs, {o['n_epochs']} epochs, "
+            f"{o['handovers']['beam_handover']} beam and {o['handovers']['sat_handover']} "
+            f"satellite handovers, mean SNR {o['snr_db']['mean']:.2f} dB"
+        )
     return 0
 
 
@@ -112,8 +123,14 @@ def cmd_sweep(args) -> int:
     from leolink.sweep import run_sweep
 
     cfg_path = args.config
-    table = run_sweep(cfg_path, args.param, Path(args.out), base_overrides=args.set or [],
-                      workers=args.workers, progress=not args.quiet)
+    table = run_sweep(
+        cfg_path,
+        args.param,
+        Path(args.out),
+        base_overrides=args.set or [],
+        workers=args.workers,
+        progress=not args.quiet,
+    )
     if not args.quiet:
         print(table.to_string(index=False))
     return 0
@@ -127,8 +144,12 @@ def build_parser() -> argparse.ArgumentParser:
     def add(name, func, help_):
         p = sub.add_parser(name, help=help_)
         p.add_argument("config", help="TOML config file (e.g. configs/paper.toml)")
-        p.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
-                       help="override a config value (repeatable)")
+        p.add_argument(
+            "--set",
+            action="append",
+            metavar="SECTION.KEY=VALUE",
+            help="override a config value (repeatable)",
+        )
         p.set_defaults(func=func)
         return p
 
@@ -151,8 +172,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--parquet", action="store_true", help="also write trace.parquet")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
     p = add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries")
-    p.add_argument("--param", action="append", required=True, metavar="SECTION.KEY=V1,V2,...",
-                   help="a parameter and its values (repeatable: the grid is their product)")
+    p.add_argument(
+        "--param",
+        action="append",
+        required=True,
+        metavar="SECTION.KEY=V1,V2,...",
+        help="a parameter and its values (repeatable: the grid is their product)",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
     p.add_argument("--quiet", action="store_true")
@@ -173,8 +199,11 @@ def main(argv=None) -> int:
     except Exception as exc:  # a bug: say so briefly
         if args.debug:
             raise
-        print(f"leolink: internal error: {type(exc).__name__}: {exc} "
-              "(this is a bug; rerun with --debug for the traceback)", file=sys.stderr)
+        print(
+            f"leolink: internal error: {type(exc).__name__}: {exc} "
+            "(this is a bug; rerun with --debug for the traceback)",
+            file=sys.stderr,
+        )
         return EXIT_BUG
 
 

@@ -63,7 +63,9 @@ class ConstellationSection(_Section):
     n_planes: int = _f(83, ge=1, doc="number of orbital planes N_p")
     sats_per_plane: int = _f(53, ge=1, doc="satellites per orbital plane N_s")
     phasing: int = _f(1, ge=0, doc="Walker phasing factor F")
-    pass_time_s: float = _f(60.0, doc="kind = 'pass': time the satellite is over the ROI centre [s]")
+    pass_time_s: float = _f(
+        60.0, doc="kind = 'pass': time the satellite is over the ROI centre [s]"
+    )
     ascending: bool = _f(True, doc="kind = 'pass': pass on the ascending half of the orbit")
     tle_file: str = _f("", doc="kind = 'tle': path of a file of two-line element sets")
     tle_epoch_utc: str = _f("", doc="kind = 'tle': UTC instant of simulation time 0 (ISO 8601)")
@@ -80,7 +82,9 @@ class RoiSection(_Section):
 class LinkSection(_Section):
     freq_hz: float = _f(11.45e9, gt=1e8, lt=1e12, doc="carrier frequency [Hz]")
     bandwidth_hz: float = _f(250e6, gt=0, doc="downlink bandwidth [Hz]")
-    ptx_dbw: float = _f(15.0, doc="transmit power [dBW]; per beam unless power_mode = 'split_total'")
+    ptx_dbw: float = _f(
+        15.0, doc="transmit power [dBW]; per beam unless power_mode = 'split_total'"
+    )
     power_mode: Literal["per_beam", "split_total"] = _f("per_beam", doc="meaning of ptx_dbw")
     cable_loss_db: float = _f(0.0, ge=0, doc="loss between transmitter and array [dB]")
     noise_temp_dbk: float = _f(24.1, doc="receiver noise temperature [dBK]")
@@ -154,7 +158,8 @@ class PopulationSection(_Section):
         "along_track", doc="heading from north [deg], or relative to the satellite ground track"
     )
     waypoints: list[list[float]] = Field(
-        default_factory=list, description="kind = 'waypoints': rows [time_s, lat_deg, lon_deg, alt_m]"
+        default_factory=list,
+        description="kind = 'waypoints': rows [time_s, lat_deg, lon_deg, alt_m]",
     )
     track_file: str = _f("", doc="kind = 'track': CSV with time_s, lat_deg, lon_deg, alt_m[, ut]")
 

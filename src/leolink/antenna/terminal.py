@@ -1,0 +1,206 @@
+"""User-terminal antennas (Sec. 2.1 and 4.1 of [1]): one interface, four models.
+
+Every model has ``gain_db(elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0)``
+(broadcasting). ``off_boresight_rad`` is the pointing error of the terminal beam
+(angle between the beam and the true satellite direction) and ``error_azimuth_rad`` the
+direction of that error around the satellite direction (0: towards higher elevation,
+pi/2: sideways); only the array models (UPA, leaky wave) use them.
+
+Array terminals lie flat (panel normal = local up, panel x axis towards the satellite
+azimuth). A pointing error ``delta`` at error azimuth ``psi`` moves the beam away from the
+satellite direction ``v = (cos el, 0, sin el)`` by direction-cosine offsets
+``du_x = cos(el) (cos(delta) - 1) - sin(delta) cos(psi) sin(el)``,
+``du_y = sin(delta) sin(psi)``.
+
+Below the horizon (``elevation_rad < 0``) the models return the formula value (finite for
+the arrays, NaN for the metasurface); callers (the engine) mask those links.
+
+References
+----------
+.. [1] J. Palacios et al., "A hybrid beamforming design for massive MIMO LEO
+   satellite communications."
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from leolink.antenna.array import ula_gain, upa_gain
+from leolink.errors import ConfigError, require_at_least
+
+
+def pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad):
+    """Offsets ``(du_x, du_y)`` = beam - satellite direction of a flat panel beam off target.
+
+    Parameters
+    ----------
+    elevation_rad, off_boresight_rad, error_azimuth_rad : array_like
+        Satellite elevation, pointing error and its azimuth around the satellite direction [rad].
+
+    Returns
+    -------
+    du_x, du_y : ndarray, broadcast shape
+        Offsets in the panel frame [-].
+    """
+    el, d, psi = np.broadcast_arrays(elevation_rad, off_boresight_rad, error_azimuth_rad)
+    dux = np.cos(el) * (np.cos(d) - 1.0) - np.sin(d) * np.cos(psi) * np.sin(el)
+    return dux, np.sin(d) * np.sin(psi)
+
+
+def leaky_wave_gain_lin(du, n, leakage):
+    """Gain of an n-element line with weights ``exp(-leakage k)``, steered off by ``du``.
+
+    ``|sum_k e^{-a k} e^{i pi k du}|^2 / sum_k e^{-2 a k} = |1 - z^n|^2 / |1 - z|^2 / S``,
+    ``z = e^{-a + i pi du}``, ``S = (1 - e^{-2 a n}) / (1 - e^{-2 a})``. At ``du = 0`` this is
+    the paper's closed form ``(1 - e^{-a n})(1 + e^{-a}) / ((1 + e^{-a n})(1 - e^{-a}))``
+    (Sec. 2.1); ``a -> 0`` gives the Dirichlet kernel (limit used for ``a < 1e-12``).
+
+    Parameters
+    ----------
+    du : array_like
+        Direction-cosine offset from the beam [-].
+    n : int
+        Elements along the axis.
+    leakage : float
+        Amplitude decay per element ``a`` [Np/element], ``>= 0``.
+
+    Returns
+    -------
+    ndarray
+        Linear gain, ``<= coth(a / 2)`` and ``<= n``.
+    """
+    a = float(leakage)
+    if a < 1e-12:
+        return ula_gain(du, n)
+    z = np.exp(-a + 1j * np.pi * np.asarray(du, dtype=float))
+    s = -np.expm1(-2 * a * n) / -np.expm1(-2 * a)
+    return np.abs(1.0 - z**n) ** 2 / np.abs(1.0 - z) ** 2 / s
+
+
+def leaky_wave_peak_gain_lin(n, leakage):
+    """The paper's closed form per dimension, ``(1-e^{-an})(1+e^{-a}) / ((1+e^{-an})(1-e^{-a}))``.
+
+    Equals ``tanh(a n / 2) coth(a / 2)``; the limit ``a -> 0`` is ``n``.
+    """
+    a = np.asarray(leakage, dtype=float)
+    safe = np.where(a > 0, a, 1.0)
+    return np.where(a > 0, np.tanh(safe * n / 2) / np.tanh(safe / 2), n)
+
+
+@dataclass(frozen=True)
+class Isotropic:
+    """0 dBi in every direction."""
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Gain [dB] = 0, broadcast shape of the inputs."""
+        shape = np.broadcast_shapes(*(np.shape(a) for a in (elevation_rad, off_boresight_rad)))
+        return np.zeros(shape)
+
+
+@dataclass(frozen=True)
+class UPATerminal:
+    """Half-wavelength ``n_x x n_y`` UPA, unit-modulus weights (Sec. 2.1, 4.1).
+
+    Average gain with Rician factor K (Sec. 4.1): ``E[max_w |<a_u(v), w>|^2/||w||^2] + 1/K
+    = N + 1/K`` (24 x 24, K = 10: 27.60 dB). With a pointing error the LoS term becomes
+    the UPA Dirichlet gain off the beam; the diffuse term ``1/K`` (Sigma = I) stays.
+    """
+
+    n_x: int
+    n_y: int
+    rician_k: float = np.inf
+
+    def __post_init__(self):
+        require_at_least("terminal.n_x", self.n_x, 1, "elements along x")
+        require_at_least("terminal.n_y", self.n_y, 1, "elements along y")
+        require_at_least("terminal.rician_k", self.rician_k, 1e-12, "Rician factor K > 0")
+
+    def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Linear average gain ``G_LoS(du) + 1/K``."""
+        dux, duy = pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
+        return upa_gain(dux, duy, self.n_x, self.n_y) + 1.0 / self.rician_k
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Average receive gain [dB], broadcast shape of the inputs."""
+        return 10.0 * np.log10(self.gain_lin(elevation_rad, off_boresight_rad, error_azimuth_rad))
+
+
+@dataclass(frozen=True)
+class LeakyWave:
+    """CRLH leaky-wave flat panel, weights decaying as ``e^{-leakage n}`` per dimension (Sec. 2.1).
+
+    ``leakage`` is the amplitude decay per element (leolink's convention; the paper's weight
+    formula would give ``leakage / 2`` per half-wavelength element, see docs/errata.md).
+    The gain never exceeds the threshold ``coth(leakage / 2)^2`` however large the panel.
+    ``rician_k`` adds the diffuse term ``1/K`` as for the UPA (default: none).
+    """
+
+    n_x: int
+    n_y: int
+    leakage: float
+    rician_k: float = np.inf
+
+    def __post_init__(self):
+        require_at_least("terminal.n_x", self.n_x, 1, "elements along x")
+        require_at_least("terminal.n_y", self.n_y, 1, "elements along y")
+        require_at_least("terminal.leakage", self.leakage, 0.0, "decay per element, Np")
+        require_at_least("terminal.rician_k", self.rician_k, 1e-12, "Rician factor K > 0")
+
+    def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Linear gain, product of the two tapered line kernels plus ``1/K``."""
+        dux, duy = pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
+        gx = leaky_wave_gain_lin(dux, self.n_x, self.leakage)
+        return gx * leaky_wave_gain_lin(duy, self.n_y, self.leakage) + 1.0 / self.rician_k
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Gain [dB], broadcast shape of the inputs."""
+        return 10.0 * np.log10(self.gain_lin(elevation_rad, off_boresight_rad, error_azimuth_rad))
+
+
+@dataclass(frozen=True)
+class Metasurface:
+    """Kymeta-like metasurface: ``peak_gain_db + rolloff 10 log10(sin el)`` (cos^r scan roll-off).
+
+    The scan angle from the panel normal is ``90 deg - el``, so ``cos(scan)^r = sin(el)^r``
+    and the gain **falls** at low elevation. The paper prints ``33 - 1.2 * 10 log10(sin el)``
+    (Sec. 2.1), which rises at low elevation; leolink corrects the sign (docs/errata.md).
+    No array factor is known, so pointing errors are ignored. ``el <= 0`` gives -inf/NaN.
+    """
+
+    peak_gain_db: float = 33.0
+    rolloff: float = 1.2
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Gain [dB], broadcast shape of ``elevation_rad`` and ``off_boresight_rad``."""
+        el = np.asarray(elevation_rad, dtype=float) + 0.0 * np.asarray(off_boresight_rad)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.peak_gain_db + self.rolloff * 10.0 * np.log10(np.sin(el))
+
+
+_KINDS = {"isotropic": Isotropic, "upa": UPATerminal, "leaky_wave": LeakyWave}
+_KINDS["metasurface"] = Metasurface
+
+
+def terminal_from_config(kind, **params):
+    """Build a terminal from its config name and parameters.
+
+    Parameters
+    ----------
+    kind : str
+        One of ``isotropic``, ``upa``, ``leaky_wave``, ``metasurface``.
+    **params
+        Constructor arguments (e.g. ``n_x=24, n_y=24, rician_k=10``).
+
+    Raises
+    ------
+    ConfigError
+        Unknown kind or bad parameters.
+    """
+    if kind not in _KINDS:
+        raise ConfigError(
+            f"terminal.kind = {kind!r} is not allowed; use one of {', '.join(sorted(_KINDS))}"
+        )
+    try:
+        return _KINDS[kind](**params)
+    except TypeError as exc:
+        raise ConfigError(f"terminal.kind = {kind!r}: bad parameters {params!r} ({exc})") from exc

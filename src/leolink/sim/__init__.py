@@ -1,0 +1,1 @@
+"""Simulation layer: SimPy processes, mobility, beam controller and output writers."""

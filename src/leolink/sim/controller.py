@@ -1,0 +1,432 @@
+"""Serving-beam selection: pure, vectorized policies and the per-epoch controller step.
+
+Every epoch the simulator evaluates an SNR matrix ``snr_db`` of shape ``(n_ut, n_cand)``
+over candidate (satellite, beam) pairs, flattened as ``cand = sat * n_beam + beam``
+(NaN where the satellite is below the minimum elevation or the beam is not usable).
+:func:`step` picks the serving candidate of every UT in one vectorized call and returns
+the handover/outage events and the closed beam dwells. The paper (Palacios et al.)
+selects the best beam every epoch; it has no handover model, so hysteresis,
+time-to-trigger and prediction are leolink additions.
+
+Policy protocol
+---------------
+A policy is any object with
+
+- ``choose(t_s, snr_db, state, future_snr_db=None) -> target (n_ut,) int``: pure (it must
+  not mutate ``state``). ``snr_db`` is already masked by :func:`step`: NaN marks every
+  unusable candidate (no link, or SNR below the minimum). ``target`` is the candidate the
+  UT should be served by now (``state.serving`` to stay). Wherever a UT has a usable
+  candidate, ``target`` must be usable (or equal to a still-usable serving candidate).
+- ``lookahead_s`` [s]: 0, or the horizon at which the caller must evaluate
+  ``future_snr_db`` (same shape, same masking) from the known ephemeris.
+- ``time_to_trigger_s`` [s] (optional, default 0): :func:`step` switches to a target other
+  than the serving candidate only after the policy asked for that same target on every
+  epoch during this long. A UT whose serving candidate is unusable switches at once.
+
+A new policy is one small class following this protocol; register it in ``POLICIES``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+
+import numpy as np
+
+from leolink.errors import ConfigError, require_at_least
+
+# Epoch times accumulate float rounding (k * 0.1 s); 1 ns is far below any epoch length.
+TIME_TOL_S = 1e-9
+# Predictive ranking: a candidate lost at t + lookahead ranks below every candidate that is
+# still usable then; SNRs lie within +-1000 dB, so this offset keeps the order lexicographic.
+_LOST_PENALTY_DB = 1.0e4
+
+SERVICE_SERVED, SERVICE_HANDOVER, SERVICE_OUTAGE = 0, 1, 2
+#: Trace ``service`` code -> name (index = code).
+SERVICE_NAMES = ("served", "handover", "outage")
+EVENT_KINDS = ("beam_handover", "sat_handover", "outage_start", "outage_end")
+EVENT_COLUMNS = (
+    "time_s",
+    "ut_id",
+    "kind",
+    "from_sat",
+    "from_beam",
+    "to_sat",
+    "to_beam",
+    "snr_before_db",
+    "snr_after_db",
+)
+DWELL_COLUMNS = (
+    "ut_id",
+    "sat_id",
+    "beam_id",
+    "start_s",
+    "end_s",
+    "censored_start",
+    "censored_end",
+)
+
+
+@dataclasses.dataclass
+class ControllerState:
+    """Per-UT controller state, every array of shape ``(n_ut,)``.
+
+    Attributes
+    ----------
+    serving : int64, serving candidate, -1 for none (outage or not yet assigned).
+    pending : int64, candidate waiting for the time-to-trigger, -1 for none.
+    pending_since_s : float64 [s], first epoch at which ``pending`` was asked for.
+    interrupted_until_s : float64 [s], handover execution: no service while t < this.
+    serving_since_s : float64 [s], start of the current dwell (NaN without one).
+    in_outage : bool, no usable candidate since the last ``outage_start``.
+    dwell_censored_start : bool, the current dwell began with the run.
+    n_beam : int or None, beams per satellite, recorded by :func:`step`.
+    """
+
+    serving: np.ndarray
+    pending: np.ndarray
+    pending_since_s: np.ndarray
+    interrupted_until_s: np.ndarray
+    serving_since_s: np.ndarray
+    in_outage: np.ndarray
+    dwell_censored_start: np.ndarray
+    n_beam: int | None = None
+
+    @classmethod
+    def initial(cls, n_ut, t0_s=0.0):
+        """State before the first epoch: nothing assigned (``serving = -1``, not in outage)."""
+        del t0_s  # the first step() call is the run start; kept for the documented signature
+        return cls(
+            serving=np.full(n_ut, -1, np.int64),
+            pending=np.full(n_ut, -1, np.int64),
+            pending_since_s=np.full(n_ut, np.nan),
+            interrupted_until_s=np.full(n_ut, -np.inf),
+            serving_since_s=np.full(n_ut, np.nan),
+            in_outage=np.zeros(n_ut, bool),
+            dwell_censored_start=np.zeros(n_ut, bool),
+        )
+
+    @property
+    def n_ut(self):
+        return self.serving.shape[0]
+
+
+def best_candidate(snr_db):
+    """Per-UT argmax over candidates ignoring NaN.
+
+    Returns ``(index (n_ut,) int64, value (n_ut,) float)``; -1 and NaN where every
+    candidate is NaN. Ties go to the lowest index (``numpy.argmax``).
+    """
+    snr_db = np.asarray(snr_db, float)
+    if snr_db.shape[1] == 0:
+        return np.full(snr_db.shape[0], -1, np.int64), np.full(snr_db.shape[0], np.nan)
+    filled = np.where(np.isnan(snr_db), -np.inf, snr_db)
+    idx = np.argmax(filled, axis=1)
+    val = np.take_along_axis(filled, idx[:, None], axis=1)[:, 0]
+    ok = val > -np.inf
+    return np.where(ok, idx, -1).astype(np.int64), np.where(ok, val, np.nan)
+
+
+def value_at(snr_db, cand):
+    """``snr_db[i, cand[i]]`` per UT, NaN where ``cand < 0``."""
+    snr_db = np.asarray(snr_db, float)
+    cand = np.asarray(cand, np.int64)
+    if snr_db.shape[1] == 0:
+        return np.full(cand.shape, np.nan)
+    val = np.take_along_axis(snr_db, np.maximum(cand, 0)[:, None], axis=1)[:, 0]
+    return np.where(cand >= 0, val, np.nan)
+
+
+def _switch_or_stay(serving, score, margin_db):
+    """Target = best by ``score`` if it strictly beats the serving one by >= margin."""
+    best, best_score = best_candidate(score)
+    serv_score = value_at(score, serving)
+    beats = (best_score - serv_score >= margin_db) & (best_score > serv_score)
+    keep = np.isfinite(serv_score) & ~beats
+    return np.where(keep, serving, best)
+
+
+class MaxSnr:
+    """The paper's rule: serve every UT by its best candidate, re-chosen every epoch."""
+
+    lookahead_s = 0.0
+    time_to_trigger_s = 0.0
+
+    def choose(self, t_s, snr_db, state, future_snr_db=None):
+        return best_candidate(snr_db)[0]
+
+    def __repr__(self):
+        return "MaxSnr()"
+
+
+class Hysteresis:
+    """Switch only when a candidate beats the serving one by >= ``margin_db`` [dB].
+
+    The switch happens once the same candidate has been ahead for ``time_to_trigger_s``
+    [s] (bookkept by :func:`step`, as 3GPP event A3). A tie never triggers a switch. A UT
+    whose serving candidate became unusable goes to its best candidate at once.
+    """
+
+    lookahead_s = 0.0
+
+    def __init__(self, margin_db=3.0, time_to_trigger_s=0.0):
+        require_at_least("controller.margin_db", margin_db, 0.0, "hysteresis margin [dB]")
+        require_at_least("controller.time_to_trigger_s", time_to_trigger_s, 0.0, "[s]")
+        self.margin_db = float(margin_db)
+        self.time_to_trigger_s = float(time_to_trigger_s)
+
+    def choose(self, t_s, snr_db, state, future_snr_db=None):
+        return _switch_or_stay(state.serving, np.asarray(snr_db, float), self.margin_db)
+
+    def __repr__(self):
+        return f"Hysteresis(margin_db={self.margin_db}, time_to_trigger_s={self.time_to_trigger_s})"
+
+
+def predictive_score_db(snr_db, future_snr_db):
+    """Rank of a candidate for :class:`Predictive`: ``min(snr now, snr at t + lookahead)``.
+
+    A candidate unusable at ``t + lookahead`` (NaN there) scores its current SNR minus a
+    large penalty, so it ranks below every candidate still usable then but is still
+    chosen, by current SNR, when no candidate survives. NaN where unusable now.
+    """
+    now = np.asarray(snr_db, float)
+    future = np.asarray(future_snr_db, float)
+    return np.where(np.isnan(future), now - _LOST_PENALTY_DB, np.minimum(now, future))
+
+
+class Predictive:
+    """Hand over to the candidate with the best ``min(snr now, snr at t + lookahead_s)``.
+
+    A switch is due when another candidate beats the serving one by >= ``margin_db`` by
+    that metric (or the serving one became unusable); the UT then avoids a beam that it
+    would leave right away. ``future_snr_db`` comes from the known ephemeris.
+    """
+
+    time_to_trigger_s = 0.0
+
+    def __init__(self, lookahead_s=10.0, margin_db=0.0):
+        require_at_least("controller.lookahead_s", lookahead_s, 0.0, "prediction horizon [s]")
+        require_at_least("controller.margin_db", margin_db, 0.0, "hysteresis margin [dB]")
+        self.lookahead_s = float(lookahead_s)
+        self.margin_db = float(margin_db)
+
+    def choose(self, t_s, snr_db, state, future_snr_db=None):
+        if future_snr_db is None:
+            raise ValueError("Predictive.choose needs future_snr_db evaluated at t + lookahead_s")
+        score = predictive_score_db(snr_db, future_snr_db)
+        return _switch_or_stay(state.serving, score, self.margin_db)
+
+    def __repr__(self):
+        return f"Predictive(lookahead_s={self.lookahead_s}, margin_db={self.margin_db})"
+
+
+POLICIES = {"max_snr": MaxSnr, "hysteresis": Hysteresis, "predictive": Predictive}
+
+
+def policy_from_config(name, **params):
+    """Build a policy by config name (``max_snr``, ``hysteresis``, ``predictive``)."""
+    if name not in POLICIES:
+        allowed = ", ".join(POLICIES)
+        raise ConfigError(f"controller.policy = {name!r} is not allowed; use one of {allowed}")
+    cls = POLICIES[name]
+    allowed_params = [p for p in inspect.signature(cls).parameters]
+    unknown = sorted(set(params) - set(allowed_params))
+    if unknown:
+        raise ConfigError(
+            f"controller.{unknown[0]} is not a parameter of policy {name!r}; "
+            f"allowed: {', '.join(allowed_params) or 'none'}"
+        )
+    return cls(**params)
+
+
+@dataclasses.dataclass
+class StepResult:
+    """Outcome of one :func:`step`.
+
+    ``state``: the new state; ``events`` / ``dwells``: dicts of equal-length 1-D arrays
+    (``EVENT_COLUMNS`` / ``DWELL_COLUMNS``), sorted by ``ut_id``; ``service``: int8
+    ``(n_ut,)`` codes indexing ``SERVICE_NAMES``; ``sat_id``, ``beam_id``: serving
+    satellite and beam ``(n_ut,)``, -1 in outage.
+    """
+
+    state: ControllerState
+    events: dict
+    dwells: dict
+    service: np.ndarray
+    sat_id: np.ndarray
+    beam_id: np.ndarray
+
+
+def _split(cand, n_beam):
+    """Candidate index -> (sat, beam), -1 for -1."""
+    cand = np.asarray(cand, np.int64)
+    return np.where(cand >= 0, cand // n_beam, -1), np.where(cand >= 0, cand % n_beam, -1)
+
+
+def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
+    """Pending bookkeeping. Returns (fire, pending, pending_since_s)."""
+    pending = np.where(wants & ~immediate, target, -1)
+    same = (pending >= 0) & (pending == state.pending)
+    since = np.where(same, state.pending_since_s, np.where(pending >= 0, t_s, np.nan))
+    with np.errstate(invalid="ignore"):
+        waited = t_s - since >= ttt_s - TIME_TOL_S
+    fire = wants & (immediate | waited)
+    return fire, np.where(fire, -1, pending), np.where(fire | (pending < 0), np.nan, since)
+
+
+def _events(t_s, kind_code, old, new, snr_db, n_beam):
+    """Events of UTs with ``kind_code >= 0`` (at most one per UT per epoch)."""
+    ut = np.flatnonzero(kind_code >= 0)
+    from_sat, from_beam = _split(old[ut], n_beam)
+    to_sat, to_beam = _split(new[ut], n_beam)
+    return {
+        "time_s": np.full(ut.size, float(t_s)),
+        "ut_id": ut.astype(np.int64),
+        "kind": np.asarray(EVENT_KINDS)[kind_code[ut]],
+        "from_sat": from_sat,
+        "from_beam": from_beam,
+        "to_sat": to_sat,
+        "to_beam": to_beam,
+        "snr_before_db": value_at(snr_db[ut], old[ut]),
+        "snr_after_db": value_at(snr_db[ut], new[ut]),
+    }
+
+
+def _dwells(ut, cand, start_s, end_s, censored_start, censored_end, n_beam):
+    """Dwell records of the UTs ``ut`` on candidates ``cand``."""
+    sat, beam = _split(cand, n_beam)
+    return {
+        "ut_id": np.asarray(ut, np.int64),
+        "sat_id": sat,
+        "beam_id": beam,
+        "start_s": np.asarray(start_s, float),
+        "end_s": np.broadcast_to(np.asarray(end_s, float), ut.shape).copy(),
+        "censored_start": np.asarray(censored_start, bool),
+        "censored_end": np.full(ut.shape, censored_end, bool),
+    }
+
+
+def _check_targets(policy, target, usable_db, needs, n_cand):
+    """A policy must return a usable candidate wherever one is needed."""
+    ok = (target >= 0) & (target < n_cand)
+    ok[ok] = np.isfinite(value_at(usable_db[ok], target[ok]))
+    bad = np.flatnonzero(needs & ~ok)
+    if bad.size:
+        raise ValueError(
+            f"policy {policy!r} returned an unusable candidate for {bad.size} UT(s), "
+            f"first ut_id {bad[0]} -> {target[bad[0]]}"
+        )
+
+
+def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future_snr_db=None):
+    """Apply ``policy`` to every UT at epoch ``t_s``; returns a :class:`StepResult`.
+
+    Pure: ``state`` is not mutated; the new state is ``result.state``.
+
+    Parameters
+    ----------
+    t_s : float [s], epoch time (the first call is the run start).
+    snr_db : ndarray (n_ut, n_cand) [dB], ``cand = sat * n_beam + beam``; NaN = no link.
+    state : ControllerState
+    policy : object following the policy protocol (module docstring).
+    min_snr_db : float [dB], a candidate below it is unusable; a UT with no usable
+        candidate is in outage (``serving = -1``).
+    handover_time_s : float [s], handover execution: after a (beam or satellite) handover
+        at ``t`` the UT has no service while ``t' < t + handover_time_s`` and the
+        controller does not re-decide for it (an outage still ends it). Leaving an outage
+        and the first assignment have no execution time.
+    n_beam : int, beams per satellite.
+    future_snr_db : ndarray (n_ut, n_cand) [dB] at ``t_s + policy.lookahead_s``, or None.
+
+    Notes
+    -----
+    The first assignment is not a handover: no event; its dwell has ``censored_start``.
+    A UT with no usable candidate at the run start gets an ``outage_start`` event.
+    Dwells run from the epoch a candidate became serving to the epoch it stopped.
+    """
+    snr_db = np.asarray(snr_db, float)
+    with np.errstate(invalid="ignore"):
+        usable_db = np.where(snr_db >= min_snr_db, snr_db, np.nan)
+        future_db = None
+        if future_snr_db is not None:
+            future = np.asarray(future_snr_db, float)
+            future_db = np.where(future >= min_snr_db, future, np.nan)
+    target = np.asarray(policy.choose(t_s, usable_db, state, future_db), np.int64)
+    old = state.serving
+    has_usable = np.isfinite(usable_db).any(axis=1)
+    first = has_usable & (old < 0) & ~state.in_outage
+    interrupted = (old >= 0) & (t_s < state.interrupted_until_s - TIME_TOL_S)
+    _check_targets(policy, target, usable_db, has_usable & ~interrupted, snr_db.shape[1])
+
+    immediate = ~np.isfinite(value_at(usable_db, old))
+    wants = has_usable & (old >= 0) & ~interrupted & (target != old)
+    ttt_s = float(getattr(policy, "time_to_trigger_s", 0.0))
+    handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
+    outage_start = ~has_usable & ~state.in_outage
+    outage_end = has_usable & state.in_outage
+    adopt = handover | outage_end | first
+    new = np.where(adopt, target, np.where(outage_start, -1, old))
+
+    same_sat = _split(target, n_beam)[0] == _split(old, n_beam)[0]
+    kind = np.full(old.shape, -1, np.int64)
+    kind[handover] = np.where(same_sat[handover], 0, 1)
+    kind[outage_start] = 2
+    kind[outage_end] = 3
+    events = _events(t_s, kind, old, new, snr_db, n_beam)
+    closing = np.flatnonzero((handover | outage_start) & (old >= 0))
+    dwells = _dwells(
+        closing,
+        old[closing],
+        state.serving_since_s[closing],
+        t_s,
+        state.dwell_censored_start[closing],
+        False,
+        n_beam,
+    )
+    new_state = ControllerState(
+        serving=new,
+        pending=np.where(adopt | outage_start, -1, pending),
+        pending_since_s=np.where(adopt | outage_start, np.nan, pending_since),
+        interrupted_until_s=np.where(
+            handover,
+            t_s + handover_time_s,
+            np.where(outage_start, -np.inf, state.interrupted_until_s),
+        ),
+        serving_since_s=np.where(adopt, t_s, np.where(outage_start, np.nan, state.serving_since_s)),
+        in_outage=(state.in_outage & ~outage_end) | outage_start,
+        dwell_censored_start=np.where(
+            first, True, np.where(adopt, False, state.dwell_censored_start)
+        ),
+        n_beam=int(n_beam),
+    )
+    return StepResult(
+        new_state, events, dwells, service_codes(t_s, new_state), *_split(new, n_beam)
+    )
+
+
+def service_codes(t_s, state):
+    """Trace ``service`` code per UT (``SERVICE_NAMES``): served, handover or outage."""
+    code = np.full(state.n_ut, SERVICE_SERVED, np.int8)
+    code[(state.serving >= 0) & (t_s < state.interrupted_until_s - TIME_TOL_S)] = SERVICE_HANDOVER
+    code[state.in_outage | (state.serving < 0)] = SERVICE_OUTAGE
+    return code
+
+
+def close_dwells(state, t_end_s, n_beam=None):
+    """Close every open dwell at the run end (``censored_end = True``).
+
+    ``n_beam`` defaults to the one recorded in ``state`` by :func:`step`.
+    """
+    n_beam = state.n_beam if n_beam is None else n_beam
+    ut = np.flatnonzero(state.serving >= 0)
+    if ut.size and n_beam is None:
+        raise ValueError("close_dwells needs n_beam (no step() has recorded it)")
+    return _dwells(
+        ut,
+        state.serving[ut],
+        state.serving_since_s[ut],
+        t_end_s,
+        state.dwell_censored_start[ut],
+        True,
+        n_beam or 1,
+    )
