@@ -5,17 +5,24 @@ SNR that the beam controller needs; ``LinkEngine.serve`` then gives, per UT, eve
 about its serving link: gains, losses, SNR, SINR with the serving satellite's other
 beams as interference, spectral efficiency, throughput, Doppler and angular speed.
 
-Axis order is ``(n_ut, n_sat, n_beam)``; no Python loop over UTs, satellites or beams.
+Public arrays are ``(n_ut, n_sat, n_beam)``. Inside, beam gains are kept beam-major,
+``(n_beam, n_sat, n_ut)``, so every numpy loop runs over the long UT axis; a DFT beam's
+gain is a product of an along-track and a cross-track Dirichlet kernel (paper Sec. 3.2),
+so only ``n_x + n_y`` kernels are evaluated per direction, not ``2 n_beam``.
+No Python loop over UTs, satellites or beams.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from leolink import kinematics
+from leolink.antenna.array import dirichlet_kernels
+from leolink.constants import SPEED_OF_LIGHT_M_S
 from leolink.geometry import body_frame
+from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
 
 __all__ = ["LinkEngine", "LinkParams", "Snapshot", "reuse_colors"]
@@ -35,25 +42,61 @@ class LinkParams:
     noise_temp_dbk: float
     min_elevation_rad: float
 
-    @property
-    def noise_dbw(self) -> float:
-        return float(noise_power_dbw(self.noise_temp_dbk, self.bandwidth_hz))
 
-
-@dataclass
 class Snapshot:
-    """What ``evaluate`` computed for one epoch (arrays over (n_ut, n_sat[, n_beam]))."""
+    """What :meth:`LinkEngine.evaluate` computed for one epoch.
 
-    rel_m: np.ndarray  # (n_ut, n_sat, 3) satellite -> UT vector
-    slant_range_m: np.ndarray  # (n_ut, n_sat)
-    elevation_rad: np.ndarray  # (n_ut, n_sat)
-    visible: np.ndarray  # (n_ut, n_sat) bool, above the minimum elevation
-    gain_tx_lin: np.ndarray  # (n_ut, n_sat, n_beam)
-    gain_rx_db: np.ndarray  # (n_ut, n_sat)
-    fspl_db: np.ndarray  # (n_ut, n_sat)
-    atm_db: np.ndarray  # (n_ut, n_sat)
-    path_snr_lin: np.ndarray  # (n_ut, n_sat) SNR per unit TX gain
-    snr_db: np.ndarray  # (n_ut, n_sat, n_beam), NaN where not visible
+    Attributes
+    ----------
+    rel_m : ndarray, shape (n_ut, n_sat, 3)
+        Satellite -> UT vector [m].
+    slant_range_m, elevation_rad : ndarray, shape (n_ut, n_sat)
+    visible : ndarray of bool, shape (n_ut, n_sat)
+        Above the minimum elevation.
+    path_snr_lin : ndarray, shape (n_ut, n_sat)
+        SNR per unit transmit gain (NaN where not visible).
+    """
+
+    def __init__(self, engine, rel, rho, elevation, visible, kx, ky, path_lin, rx_db):
+        self._engine = engine
+        self.rel_m, self.slant_range_m, self.elevation_rad = rel, rho, elevation
+        self.visible, self.path_snr_lin = visible, path_lin
+        self._kx, self._ky = kx, ky  # kernels, (n_kx, n_sat, n_ut) and (n_ky, n_sat, n_ut)
+        self._rx_db = rx_db  # receive gain (n_ut, n_sat) or a scalar
+
+    @cached_property
+    def gain_tx_bm(self):
+        """Beam-major linear TX gains, shape (n_beam, n_sat, n_ut)."""
+        e = self._engine
+        return self._kx[e.beam_ix] * self._ky[e.beam_iy]
+
+    @property
+    def snr_lin_bm(self):
+        """Beam-major linear SNR, shape (n_beam, n_sat, n_ut); NaN where not visible."""
+        return self.gain_tx_bm * self.path_snr_lin.T
+
+    @property
+    def gain_tx_lin(self):
+        """Linear TX gain of every beam, shape (n_ut, n_sat, n_beam)."""
+        return self.gain_tx_bm.transpose(2, 1, 0)
+
+    @cached_property
+    def snr_db(self):
+        """SNR of every beam [dB], shape (n_ut, n_sat, n_beam); NaN where not visible.
+
+        ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
+        ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products.
+        """
+        e = self._engine
+        with np.errstate(divide="ignore"):
+            lx, ly = 10.0 * np.log10(self._kx), 10.0 * np.log10(self._ky)
+            path_db = 10.0 * np.log10(self.path_snr_lin.T)
+        out = lx[e.beam_ix] + ly[e.beam_iy] + path_db
+        return out.transpose(2, 1, 0)
+
+    @property
+    def gain_rx_db(self):
+        return np.broadcast_to(self._rx_db, self.slant_range_m.shape)
 
 
 def reuse_colors(lattice_ij, n_colors):
@@ -92,23 +135,30 @@ class LinkEngine:
     """
 
     def __init__(self, codebook, terminal, params, atmosphere, colors=None):
-        self.codebook = codebook
-        self.terminal = terminal
-        self.params = params
-        self.atmosphere = atmosphere
-        n_beam = len(codebook.u_xy)
-        self.colors = np.zeros(n_beam, dtype=np.int64) if colors is None else np.asarray(colors)
-        n_colors = int(self.colors.max()) + 1
+        self.codebook, self.terminal = codebook, terminal
+        self.params, self.atmosphere = params, atmosphere
+        u = np.asarray(codebook.u_xy, dtype=float)
+        self.beam_ux, self.beam_ix = np.unique(u[:, 0], return_inverse=True)
+        self.beam_uy, self.beam_iy = np.unique(u[:, 1], return_inverse=True)
+        n_beam = len(u)
+        self.colors = np.zeros(n_beam, np.int64) if colors is None else np.asarray(colors)
+        self.n_colors = int(self.colors.max()) + 1
         # Each colour has 1/n_colors of the band: less noise, less throughput.
-        self.bandwidth_hz = params.bandwidth_hz / n_colors
+        self.bandwidth_hz = params.bandwidth_hz / self.n_colors
         self.noise_dbw = float(noise_power_dbw(params.noise_temp_dbk, self.bandwidth_hz))
-        # same[b, b'] = 1 where b' interferes with b (same colour, other beam)
-        self.same_color = (self.colors[:, None] == self.colors[None, :]).astype(float)
-        np.fill_diagonal(self.same_color, 0.0)
+        # SNR per unit TX gain = K / rho^2 x G_rx / L_atm (Eq. of RSS and FSPL, in watts).
+        k_db = params.ptx_dbw - params.cable_loss_db - self.noise_dbw
+        self._k_lin = (
+            10.0 ** (k_db / 10.0) / (4.0 * np.pi * params.freq_hz / SPEED_OF_LIGHT_M_S) ** 2
+        )
+        self._rx_const = None
+        if getattr(terminal, "elevation_independent", False):
+            self._rx_const = float(terminal.gain_db(np.pi / 2))
+        self._atm_const = getattr(atmosphere, "constant_db", None)
 
     @property
     def n_beam(self) -> int:
-        return len(self.codebook.u_xy)
+        return len(self.beam_ix)
 
     def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s):
         """Geometry, gains and SNR for every (UT, satellite, beam).
@@ -124,27 +174,33 @@ class LinkEngine:
         Snapshot
         """
         p = self.params
-        rel = ut_pos_m[:, None, :] - sat_pos_m[None, :, :]  # satellite -> UT
-        rho = np.sqrt(np.einsum("usk,usk->us", rel, rel))
-        up = ut_pos_m / np.linalg.norm(ut_pos_m, axis=-1, keepdims=True)
-        sin_el = -np.einsum("usk,uk->us", rel, up) / rho
+        rel = ut_pos_m[:, None, :] - sat_pos_m[None, :, :]  # satellite -> UT, (n_ut, n_sat, 3)
+        rho2 = np.einsum("usk,usk->us", rel, rel)
+        rho = np.sqrt(rho2)
+        r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))
+        sin_el = -np.einsum("usk,uk->us", rel, ut_pos_m) / (rho * r_ut[:, None])
         elevation = np.arcsin(np.clip(sin_el, -1.0, 1.0))
         visible = elevation >= p.min_elevation_rad
 
         axes = body_frame(sat_pos_m, sat_vel_m_s)  # (n_sat, 3, 3) rows u_x, u_y, u_z
-        u_xy = np.einsum("usk,sak->usa", rel, axes[:, :2, :]) / rho[..., None]
-        gain_tx = self.codebook.gain_lin(u_xy)  # (n_ut, n_sat, n_beam)
+        inv_rho = 1.0 / rho.T  # (n_sat, n_ut)
+        ux = np.einsum("usk,sk->su", rel, axes[:, 0, :]) * inv_rho
+        uy = np.einsum("usk,sk->su", rel, axes[:, 1, :]) * inv_rho
+        n_sat, n_ut = ux.shape
+        kx = dirichlet_kernels(ux.ravel(), self.beam_ux, self.codebook.n_sub_x)
+        ky = dirichlet_kernels(uy.ravel(), self.beam_uy, self.codebook.n_sub_y)
+        kx = kx.reshape(len(self.beam_ux), n_sat, n_ut)
+        ky = ky.reshape(len(self.beam_uy), n_sat, n_ut)
 
-        loss_fs = fspl_db(rho, p.freq_hz)
-        loss_atm = np.broadcast_to(self.atmosphere(np.maximum(elevation, 0.0)), rho.shape)
-        gain_rx = np.broadcast_to(self.terminal.gain_db(elevation), rho.shape)
-        path_db = p.ptx_dbw - p.cable_loss_db - loss_fs - loss_atm + gain_rx - self.noise_dbw
-        path_lin = np.where(visible, 10.0 ** (path_db / 10.0), np.nan)
-        with np.errstate(divide="ignore"):
-            snr_db = 10.0 * np.log10(gain_tx * path_lin[..., None])
-        return Snapshot(
-            rel, rho, elevation, visible, gain_tx, gain_rx, loss_fs, loss_atm, path_lin, snr_db
-        )
+        rx_db = self._rx_const
+        if rx_db is None:
+            rx_db = self.terminal.gain_db(elevation)
+        atm_db = self._atm_const
+        if atm_db is None:
+            atm_db = self.atmosphere(np.maximum(elevation, 0.0))
+        path = self._k_lin / rho2 * 10.0 ** ((rx_db - atm_db) / 10.0)
+        path = np.where(visible, path, np.nan)
+        return Snapshot(self, rel, rho, elevation, visible, kx, ky, path, rx_db)
 
     def serve(
         self,
@@ -175,50 +231,69 @@ class LinkEngine:
         dict of ndarray, shape (n_ut,)
             Trace columns (SI, dB; angular speed in deg/s).
         """
-        n_ut = len(sat_idx)
         served = sat_idx >= 0
+        _, n_sat, n_ut = snap._kx.shape
         u = np.arange(n_ut)
         s = np.where(served, sat_idx, 0)
         b = np.where(served, beam_idx, 0)
-
-        g_all = snap.gain_tx_lin[u, s]  # (n_ut, n_beam)
-        g_sig = g_all[u, b]
-        g_int = np.einsum("ub,ub->u", g_all, self.same_color[b])
-        path = snap.path_snr_lin[u, s]
+        us = u * n_sat + s  # flat index into (n_ut, n_sat) arrays
+        su = s * n_ut + u  # flat index into (n_sat, n_ut) arrays
+        # Flat gathers: several times faster than fancy indexing with 3 index arrays.
+        plane = n_sat * n_ut
+        g_sig = (
+            snap._kx.reshape(-1)[self.beam_ix[b] * plane + su]
+            * snap._ky.reshape(-1)[self.beam_iy[b] * plane + su]
+        )
+        g_int = self._same_colour_total(snap, s, b, u, su) - g_sig
+        path = snap.path_snr_lin.reshape(-1)[us]
         if rx_fading_lin is not None:
             path = path * rx_fading_lin
         snr = g_sig * path
-        sinr = snr / (g_int * path + 1.0)  # SINR = S / (I + N), both scaled by the noise
-        se = np.log2(1.0 + sinr)
+        sinr = snr / (g_int * path + 1.0)  # S / (I + N), both over the noise (Sec. 4.1)
+        se = np.log1p(sinr) / np.log(2.0)  # log2(1 + SINR), accurate at low SINR
 
-        rel = snap.rel_m[u, s]  # satellite -> UT
-        sat_p = -rel  # UT -> satellite, translation invariant for the kinematics below
-        zero = np.zeros_like(rel)
-        f = self.params.freq_hz
-        d_sat = kinematics.doppler_sat_hz(zero, sat_vel_m_s[s], -sat_p, f)
-        d_ut = kinematics.doppler_ut_hz(zero, ut_vel_m_s, sat_p, f)
-        rate = kinematics.doppler_rate_hz_s(
-            sat_p, sat_vel_m_s[s], sat_acc_m_s2[s], zero, ut_vel_m_s, ut_acc_m_s2, freq_hz=f
+        rho = snap.slant_range_m.reshape(-1)[us]
+        elevation = snap.elevation_rad.reshape(-1)[us]
+        kin = link_kinematics(
+            -snap.rel_m.reshape(-1, 3)[us],
+            sat_vel_m_s[s],
+            ut_vel_m_s,
+            sat_acc_m_s2[s] - ut_acc_m_s2,
+            self.params.freq_hz,
         )
-        w = kinematics.angular_speed_rad_s(sat_p, sat_vel_m_s[s], zero, ut_vel_m_s)
-
-        nan = np.where(served, 1.0, np.nan)
+        nan = 1.0 if served.all() else np.where(served, 1.0, np.nan)
+        if self._rx_const is not None:
+            rx_db = np.full(n_ut, self._rx_const)
+        else:
+            rx_db = snap.gain_rx_db.reshape(-1)[us]
+        if self._atm_const is not None:
+            atm_db = np.full(n_ut, self._atm_const)
+        else:
+            atm_db = self.atmosphere(np.maximum(elevation, 0.0))
         with np.errstate(divide="ignore", invalid="ignore"):
-            cols = {
-                "elevation_deg": np.degrees(snap.elevation_rad[u, s]) * nan,
-                "slant_range_m": snap.slant_range_m[u, s] * nan,
+            return {
+                "elevation_deg": np.degrees(elevation) * nan,
+                "slant_range_m": rho * nan,
                 "gain_tx_db": 10.0 * np.log10(g_sig) * nan,
-                "gain_rx_db": snap.gain_rx_db[u, s] * nan,
-                "fspl_db": snap.fspl_db[u, s] * nan,
-                "atm_db": snap.atm_db[u, s] * nan,
+                "gain_rx_db": rx_db * nan,
+                "fspl_db": fspl_db(rho, self.params.freq_hz) * nan,
+                "atm_db": atm_db * nan,
                 "snr_db": 10.0 * np.log10(snr) * nan,
                 "sinr_db": 10.0 * np.log10(sinr) * nan,
                 "se_bps_hz": se * nan,
-                "throughput_bps": se * self.bandwidth_hz * nan,
-                "doppler_hz": (d_sat + d_ut) * nan,
-                "doppler_sat_hz": d_sat * nan,
-                "doppler_ut_hz": d_ut * nan,
-                "doppler_rate_hz_s": rate * nan,
-                "angular_speed_deg_s": np.degrees(w) * nan,
+                "throughput_bps": se * (self.bandwidth_hz * nan),
+                "doppler_hz": kin["doppler_hz"] * nan,
+                "doppler_sat_hz": kin["doppler_sat_hz"] * nan,
+                "doppler_ut_hz": kin["doppler_ut_hz"] * nan,
+                "doppler_rate_hz_s": kin["doppler_rate_hz_s"] * nan,
+                "angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,
             }
-        return cols
+
+    def _same_colour_total(self, snap, s, b, u, su):
+        """Sum of the TX gains of the beams that share the serving beam's colour."""
+        if self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy):
+            # Full lattice, full reuse: sum_ij kx_i ky_j = (sum_i kx_i)(sum_j ky_j).
+            return snap._kx.sum(axis=0).reshape(-1)[su] * snap._ky.sum(axis=0).reshape(-1)[su]
+        g = snap.gain_tx_bm[:, s, u].T  # (n_ut, n_beam)
+        same = self.colors[None, :] == self.colors[b][:, None]
+        return np.einsum("ub,ub->u", g, same)

@@ -25,6 +25,7 @@ __all__ = [
     "doppler_rate_hz_s",
     "doppler_sat_hz",
     "doppler_ut_hz",
+    "link_kinematics",
     "max_angular_speed_rad_s",
     "max_doppler_sat_hz",
     "max_doppler_sat_small_roi_hz",
@@ -155,6 +156,47 @@ def angular_speed_rad_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
     v = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
     v_perp = v - _dot(v, l_us)[..., None] * l_us
     return np.linalg.norm(v_perp, axis=-1) / rho
+
+
+def link_kinematics(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz):
+    """Doppler (both parts), Doppler rate and angular speed of many links in one pass.
+
+    The same quantities as :func:`doppler_sat_hz`, :func:`doppler_ut_hz`,
+    :func:`doppler_rate_hz_s` and :func:`angular_speed_rad_s`, sharing the range, the
+    unit vector and the range rate (the engine calls this once per epoch).
+    The angular speed uses ``|v_perp|^2 = |v|^2 - rho'^2``.
+
+    Parameters
+    ----------
+    los_m : ndarray, shape (n, 3)
+        UT -> satellite vector [m].
+    sat_vel_m_s, ut_vel_m_s : ndarray, shape (n, 3)
+        Velocities [m/s].
+    rel_acc_m_s2 : ndarray, shape (n, 3)
+        Satellite minus UT acceleration [m/s^2].
+    freq_hz : float
+        Carrier frequency [Hz].
+
+    Returns
+    -------
+    dict of ndarray, shape (n,)
+        ``doppler_sat_hz, doppler_ut_hz, doppler_hz, doppler_rate_hz_s, angular_speed_rad_s``.
+    """
+    rho = np.sqrt(np.einsum("ij,ij->i", los_m, los_m))
+    k = freq_hz / SPEED_OF_LIGHT_M_S
+    v_sat = np.einsum("ij,ij->i", sat_vel_m_s, los_m) / rho
+    v_ut = np.einsum("ij,ij->i", ut_vel_m_s, los_m) / rho
+    v = sat_vel_m_s - ut_vel_m_s
+    v2 = np.einsum("ij,ij->i", v, v)
+    rho_dot = v_sat - v_ut
+    rho_ddot = (v2 + np.einsum("ij,ij->i", los_m, rel_acc_m_s2) - rho_dot**2) / rho
+    return {
+        "doppler_sat_hz": -k * v_sat,
+        "doppler_ut_hz": k * v_ut,
+        "doppler_hz": -k * rho_dot,
+        "doppler_rate_hz_s": -k * rho_ddot,
+        "angular_speed_rad_s": np.sqrt(np.maximum(v2 - rho_dot**2, 0.0)) / rho,
+    }
 
 
 def max_doppler_sat_hz(rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):

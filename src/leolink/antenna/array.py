@@ -29,8 +29,10 @@ from leolink.errors import ConfigError, require_at_least
 # relative error of the limit is (n^2 - 1) x^2 / 3 < 1e-13 for n <= 1e3 at x = 1e-8.
 _SIN_TINY = 1e-8
 # |sin| below which the fast (angle-addition) kernel is recomputed directly: the
-# angle-addition formula loses ~1e-16 / |sin| relative accuracy by cancellation.
-_SIN_RECOMPUTE = 1e-4
+# angle-addition formula loses ~1e-15 / |sin| relative accuracy by cancellation (the
+# numerator's argument n x is up to ~10 rad), so 5e-6 keeps the kernel within 4e-10 of
+# the exact value while the slow path runs for ~1 direction in 10^4.
+_SIN_RECOMPUTE = 5e-6
 # Directions per chunk in beam_gain_lin (temporaries stay in cache).
 _CHUNK = 1024
 
@@ -128,24 +130,40 @@ def explicit_gain(u_xy, weights, nx, ny):
     return np.abs(a.conj() @ f) ** 2 / np.sum(np.abs(f) ** 2, axis=0)
 
 
-def _fast_kernels(u, beam_u, n):
-    """Dirichlet kernels of ``u (m,)`` against each ``beam_u (k,)`` -> (k, m), by angle addition."""
+def dirichlet_kernels(u, beam_u, n):
+    """Dirichlet kernels of ``u (m,)`` against each ``beam_u (k,)`` -> (k, m).
+
+    ``sin(n (x - b)) / sin(x - b)`` by angle subtraction, with ``x = pi u / 2``: four
+    sines/cosines per direction whatever the number of beams, and one small matrix
+    product for all ``k`` beams. Where ``|sin(x - b)|`` is tiny (at a beam peak or a
+    grating lobe) cancellation would cost accuracy, so those few entries are recomputed
+    directly with :func:`ula_gain`.
+    """
+    u = np.asarray(u, dtype=float)
+    beam_u = np.asarray(beam_u, dtype=float)
+    k = beam_u.size
     x = (0.5 * np.pi) * u
-    b = (0.5 * np.pi) * beam_u[:, None]
-    # Directions on the last (contiguous) axis: long inner loops, few beams on axis 0.
-    s = np.sin(x) * np.cos(b)
-    s -= np.cos(x) * np.sin(b)  # sin(x - b)
-    sn = np.sin(n * x) * np.cos(n * b)
-    sn -= np.cos(n * x) * np.sin(n * b)  # sin(n (x - b))
-    s *= s
-    sn *= sn
-    near = s < _SIN_RECOMPUTE**2
-    s *= n
-    g = np.divide(sn, s, out=sn, where=~near)
+    b = (0.5 * np.pi) * beam_u
+    trig = np.empty((4, u.size))
+    np.sin(x, out=trig[0])
+    np.cos(x, out=trig[1])
+    x *= n
+    np.sin(x, out=trig[2])
+    np.cos(x, out=trig[3])
+    coef = np.zeros((2 * k, 4))
+    coef[:k, 0], coef[:k, 1] = np.cos(b), -np.sin(b)  # sin(x - b)
+    coef[k:, 2], coef[k:, 3] = np.cos(n * b), -np.sin(n * b)  # sin(n x - n b)
+    rows = coef @ trig
+    den, g = rows[:k], rows[k:]
+    near = np.abs(den) < _SIN_RECOMPUTE
+    with np.errstate(divide="ignore", invalid="ignore"):  # the near entries are redone below
+        g /= den
+    g *= g
+    g *= 1.0 / n
     np.minimum(g, n, out=g)  # rounding may overshoot the bound n by ~1 ulp
-    if np.any(near):
-        k, m = np.nonzero(near)
-        g[k, m] = ula_gain(u[m] - beam_u[k], n)
+    if near.any():
+        kk, mm = np.nonzero(near)
+        g[kk, mm] = ula_gain(u[mm] - beam_u[kk], n)
     return g
 
 
@@ -179,8 +197,8 @@ def beam_gain_lin(u_xy, beam_u_xy, n_sub_x, n_sub_y):
     # Cache-sized chunks: whole-array temporaries are memory bound and 2-3x slower.
     for start in range(0, flat.shape[0], _CHUNK):
         part = flat[start : start + _CHUNK].T
-        kx = _fast_kernels(part[0], bx, n_sub_x)
-        ky = _fast_kernels(part[1], by, n_sub_y)
+        kx = dirichlet_kernels(part[0], bx, n_sub_x)
+        ky = dirichlet_kernels(part[1], by, n_sub_y)
         out[start : start + _CHUNK] = (kx[inv_x.ravel()] * ky[inv_y.ravel()]).T
     return out.reshape(u_xy.shape[:-1] + (beam_u_xy.shape[0],))
 

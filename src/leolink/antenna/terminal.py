@@ -91,6 +91,9 @@ def leaky_wave_peak_gain_lin(n, leakage):
 class Isotropic:
     """0 dBi in every direction."""
 
+    #: The gain towards the satellite does not depend on its elevation.
+    elevation_independent = True
+
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Gain [dB] = 0, broadcast shape of the inputs."""
         shape = np.broadcast_shapes(*(np.shape(a) for a in (elevation_rad, off_boresight_rad)))
@@ -109,6 +112,9 @@ class UPATerminal:
     n_x: int
     n_y: int
     rician_k: float = np.inf
+    #: Steered at the satellite: without a pointing error the gain does not depend on
+    #: the elevation (a flat panel's element pattern is not modelled).
+    elevation_independent = True
 
     def __post_init__(self):
         require_at_least("terminal.n_x", self.n_x, 1, "elements along x")
@@ -139,6 +145,7 @@ class LeakyWave:
     n_y: int
     leakage: float
     rician_k: float = np.inf
+    elevation_independent = True  # steered at the satellite, as the UPA
 
     def __post_init__(self):
         require_at_least("terminal.n_x", self.n_x, 1, "elements along x")
@@ -169,6 +176,7 @@ class Metasurface:
 
     peak_gain_db: float = 33.0
     rolloff: float = 1.2
+    elevation_independent = False
 
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Gain [dB], broadcast shape of ``elevation_rad`` and ``off_boresight_rad``."""

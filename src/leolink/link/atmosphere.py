@@ -181,6 +181,19 @@ def fixed_loss_db(elevation_rad, loss_db):
     return np.full(np.shape(elevation_rad), float(loss_db))
 
 
+class FixedLoss:
+    """The same loss at every elevation (the paper's Table value), as a model callable.
+
+    ``constant_db`` lets callers skip the per-element evaluation.
+    """
+
+    def __init__(self, loss_db):
+        self.constant_db = float(loss_db)
+
+    def __call__(self, elevation_rad):
+        return fixed_loss_db(elevation_rad, self.constant_db)
+
+
 def itu_p676_db(
     elevation_rad, freq_hz, pressure_hpa=1013.25, temp_k=288.15, rho_g_m3=7.5, mode="exact"
 ):
@@ -378,7 +391,7 @@ def atmosphere_model(kind, freq_hz, **params):
         if "loss_db" not in params:
             raise ConfigError("atmosphere.loss_db is required for kind 'fixed' [dB]")
         loss_db = float(params["loss_db"])
-        return lambda elevation_rad: fixed_loss_db(elevation_rad, loss_db)
+        return FixedLoss(loss_db)
     min_el = np.radians(params.pop("min_elevation_deg", 0.0))
     step = np.radians(params.pop("step_deg", 0.5))
     if kind == "itu_p676":

@@ -85,7 +85,9 @@ def _column_array(name, values, field):
     if values.ndim != 1:
         raise ValueError(f"column {name!r} must be 1-D, got shape {values.shape}")
     if name == "service" and values.dtype.kind in "iu":
-        values = np.asarray(SERVICE_NAMES)[values]
+        # Decode the codes in Arrow (vectorized C++), not through a numpy string array.
+        names = pa.DictionaryArray.from_arrays(pa.array(values.astype(np.int8)), SERVICE_NAMES)
+        return names.cast(pa.string())
     if pa.types.is_string(field.type):
         return pa.array(values.astype(str), pa.string())
     if pa.types.is_integer(field.type):
@@ -146,30 +148,51 @@ class TableWriter:
             options = pacsv.WriteOptions(include_header=False, quoting_style="none")
             self._csv = pacsv.CSVWriter(self._csv_file, self.schema, write_options=options)
         if "parquet" in self.paths:
-            self._parquet = pq.ParquetWriter(self.partial_paths["parquet"], self.schema)
+            # Dictionary encoding only for the string columns: on float columns it costs
+            # ~2 us a row and saves nothing (measured: 2.6 vs 0.36 us/row).
+            strings = [n for n in self.schema.names if n in _STRING_COLUMNS]
+            self._parquet = pq.ParquetWriter(
+                self.partial_paths["parquet"], self.schema, use_dictionary=strings
+            )
 
     def append(self, columns):
-        """Buffer a dict of equal-length 1-D arrays; writes every full chunk."""
+        """Buffer a dict of equal-length 1-D arrays; writes every full chunk.
+
+        The arrays are kept as given until the chunk is written (one Arrow conversion
+        per column per chunk, not per call): do not modify them after appending.
+        """
         if self._done:
             raise ValueError("append() after close() or abort()")
-        table = to_table(columns, self.schema)
-        self._buffer.append(table)
-        self._n_buffered += table.num_rows
+        names = self.schema.names
+        if len(columns) != len(names) or any(n not in columns for n in names):
+            to_table(columns, self.schema)  # raises with the missing/unexpected columns
+        arrays = {n: np.asarray(columns[n]) for n in names}
+        lengths = {a.shape for a in arrays.values()}
+        ids_ok = all(arrays[n].dtype.kind in "iub" for n in names if n in _ID_COLUMNS)
+        if len(lengths) > 1 or len(next(iter(lengths))) != 1 or not ids_ok:
+            to_table(columns, self.schema)  # raises naming the bad column
+        self._buffer.append(arrays)
+        self._n_buffered += len(arrays[names[0]])
         if self._n_buffered >= self.chunk_rows:
             self._flush(final=False)
 
     def _flush(self, final):
-        table = pa.concat_tables(self._buffer) if self._buffer else self.schema.empty_table()
+        names = self.schema.names
+        merged = (
+            {n: np.concatenate([b[n] for b in self._buffer]) for n in names} if self._buffer else {}
+        )
+        n_rows = self._n_buffered
         start = 0
-        while table.num_rows - start >= self.chunk_rows or (final and start < table.num_rows):
-            chunk = table.slice(start, self.chunk_rows).combine_chunks()
+        while n_rows - start >= self.chunk_rows or (final and start < n_rows):
+            stop = min(start + self.chunk_rows, n_rows)
+            chunk = to_table({n: merged[n][start:stop] for n in names}, self.schema)
             if self._csv is not None:
                 self._csv.write_table(chunk)
             if self._parquet is not None:
                 self._parquet.write_table(chunk, row_group_size=self.chunk_rows)
-            start += chunk.num_rows
-        rest = table.slice(start)
-        self._buffer, self._n_buffered = ([rest] if rest.num_rows else []), rest.num_rows
+            start = stop
+        self._buffer = [{n: merged[n][start:] for n in names}] if start < n_rows else []
+        self._n_buffered = n_rows - start
 
     def close(self):
         """Write what is buffered and rename the partial files to their final names."""

@@ -1,0 +1,387 @@
+"""``leolink sweep``: run a grid of config values and tabulate the run summaries.
+
+A parameter is given as ``section.key=v1,v2,...``; each value is parsed as a TOML value
+(as ``--set`` does: ``3``, ``0.5``, ``true``, ``"hysteresis"``; a bare word is a string).
+The grid is the Cartesian product of the parameters, in the order given (the last
+parameter varies fastest). Every point is validated before anything runs, then each
+point is one :func:`leolink.sim.runner.run` into ``out_dir/runs/<point name>``, and the
+table (one row per point: the swept values and the flattened ``summary["overall"]``) is
+written atomically to ``out_dir/sweep.csv`` and ``out_dir/sweep.json`` at the very end,
+so an interrupted sweep never leaves a table that looks complete.
+
+Each run is deterministic from its config (``run.seed``), so the table does not depend on
+``workers`` or on the order in which points finish.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import tomllib
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
+
+import pandas as pd
+import tomli_w
+
+from leolink.errors import ConfigError
+
+__all__ = ["SWEEP_PLOT_METRICS", "flatten_summary", "parse_param", "point_name", "run_sweep"]
+
+#: Metrics drawn by ``plot_sweep`` when exactly one parameter is swept.
+SWEEP_PLOT_METRICS = (
+    "snr_db_mean",
+    "sinr_db_mean",
+    "beam_handovers",
+    "sat_handovers",
+    "outage_fraction",
+    "mean_throughput_bps",
+)
+MAX_NAME_CHARS = 120  # point folder names are cut here (the index prefix keeps them unique)
+_UNSAFE = re.compile(r"[^A-Za-z0-9._=+-]+")
+
+
+# --------------------------------------------------------------------------- the grid
+def parse_param(spec):
+    """Split ``section.key=v1,v2,...`` into the key and its list of values.
+
+    Parameters
+    ----------
+    spec : str
+        E.g. ``"controller.hysteresis_db=0,1.5,3"`` or ``"controller.policy=max_snr,hysteresis"``.
+
+    Returns
+    -------
+    key : str
+    values : list
+        Python values as TOML reads them (int, float, bool, str, list).
+
+    Raises
+    ------
+    ConfigError
+        No ``=``, an empty key, an empty value list or an empty value.
+    """
+    key, sep, raw = spec.partition("=")
+    key = key.strip()
+    if not sep or not key or any(not part for part in key.split(".")):
+        raise ConfigError(f"--param {spec!r} is not allowed: use section.key=v1,v2,...")
+    try:  # the whole list as one TOML array handles quoted strings holding commas
+        values = tomllib.loads(f"v = [{raw}]")["v"]
+    except tomllib.TOMLDecodeError:
+        values = [_scalar(item, key) for item in raw.split(",")]
+    if not values:
+        raise ConfigError(f"--param {key}: no values given; use {key}=v1,v2,...")
+    return key, values
+
+
+def _scalar(item, key):
+    """One value as ``--set`` reads it: TOML if it parses, else the bare string."""
+    item = item.strip()
+    if not item:
+        raise ConfigError(f"--param {key}: an empty value in the list is not allowed")
+    try:
+        return tomllib.loads(f"v = {item}")["v"]
+    except tomllib.TOMLDecodeError:
+        return item
+
+
+def _toml_value(value):
+    """``value`` written as a TOML literal (round-trips through ``tomllib`` exactly)."""
+    return tomli_w.dumps({"v": value}).partition("=")[2].strip()
+
+
+def _text(value):
+    """``value`` for a folder name: strings bare, everything else as its TOML literal."""
+    return value if isinstance(value, str) else _toml_value(value)
+
+
+def point_name(index, point, width=4):
+    """Filesystem-safe folder name of one grid point, e.g. ``0003_controller.hysteresis_db=3``.
+
+    Parameters
+    ----------
+    index : int
+        Position of the point in the grid.
+    point : dict
+        ``{key: value}`` of the swept parameters at this point.
+    width : int
+        Digits of the zero-padded index.
+
+    Returns
+    -------
+    str
+        Only ``A-Z a-z 0-9 . _ = + -``; at most ``MAX_NAME_CHARS`` characters.
+    """
+    body = "_".join(f"{k}={_text(v)}" for k, v in point.items())
+    name = _UNSAFE.sub("_", f"{index:0{width}d}_{body}")
+    return name[:MAX_NAME_CHARS]
+
+
+def _grid(params):
+    """Parsed parameters -> (keys, list of {key: value} points, Cartesian product)."""
+    parsed = [parse_param(spec) for spec in params]
+    keys = [k for k, _ in parsed]
+    dup = {k for k in keys if keys.count(k) > 1}
+    if dup:
+        raise ConfigError(f"--param {sorted(dup)[0]} is given twice; give all its values once")
+    combos = itertools.product(*(values for _, values in parsed))
+    return keys, [dict(zip(keys, combo, strict=True)) for combo in combos]
+
+
+def _overrides(point):
+    return [f"{k}={_toml_value(v)}" for k, v in point.items()]
+
+
+# --------------------------------------------------------------------------- the table
+def flatten_summary(overall):
+    """One flat row of ``summary["overall"]``.
+
+    Nested sections are joined with ``_`` (``snr_db.p5`` -> ``snr_db_p5``,
+    ``dwell.mean_s`` -> ``dwell_mean_s``); handover counts become plural
+    (``handovers.beam_handover`` -> ``beam_handovers``, ``handovers_total`` kept).
+    ``None`` (a statistic of nothing, e.g. the mean dwell without a complete dwell)
+    becomes NaN.
+
+    Parameters
+    ----------
+    overall : dict
+        ``Result.summary["overall"]`` (or the same read back from ``summary.json``).
+
+    Returns
+    -------
+    dict of str to int or float
+    """
+    row = {}
+    for key, value in overall.items():
+        if key == "handovers":
+            for kind, count in value.items():
+                row[kind if kind.endswith(("s", "total")) else f"{kind}s"] = count
+        elif isinstance(value, dict):
+            for sub, item in value.items():
+                row[f"{key}_{sub}"] = item
+        else:
+            row[key] = value
+    return {k: math.nan if v is None else _plain(v) for k, v in row.items()}
+
+
+def _plain(value):
+    return value.item() if hasattr(value, "item") else value
+
+
+# --------------------------------------------------------------------------- one point
+def _run_point(cfg_path, overrides, run_dir, resume):
+    """Run (or, with ``resume``, reuse) one point; return its flat metrics row.
+
+    Top-level so that :class:`~concurrent.futures.ProcessPoolExecutor` can pickle it.
+    A run folder is reused only if its ``summary.json`` exists and its
+    ``config.resolved.toml`` is the config of this point (both are written at the end
+    of a run, the summary first).
+    """
+    import json
+
+    from leolink.config import dump_toml, load_config
+    from leolink.sim.runner import run
+
+    cfg = load_config(cfg_path, overrides)
+    run_dir = Path(run_dir)
+    summary_path = run_dir / "summary.json"
+    resolved_path = run_dir / "config.resolved.toml"
+    if resume and summary_path.exists() and resolved_path.exists():
+        if resolved_path.read_text(encoding="utf-8") == dump_toml(cfg):
+            return flatten_summary(json.loads(summary_path.read_text("utf-8"))["overall"])
+    summary_path.unlink(missing_ok=True)  # an interrupted rerun must not look complete
+    result = run(cfg, out_dir=run_dir)
+    return flatten_summary(result.summary["overall"])
+
+
+# --------------------------------------------------------------------------- executors
+def _progress_bar(n, enabled):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=n, unit="point", desc="leolink sweep", disable=not enabled, leave=False)
+
+
+def _serial(jobs, bar):
+    rows = {}
+    for i, args in jobs:
+        rows[i] = _run_point(*args)
+        bar.update(1)
+    return rows
+
+
+def _processes(jobs, bar, workers):
+    """Run the jobs on ``workers`` processes; on any error cancel what has not started."""
+    rows = {}
+    pool = ProcessPoolExecutor(max_workers=workers)
+    try:
+        pending = {pool.submit(_run_point, *args): i for i, args in jobs}
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                rows[pending.pop(fut)] = fut.result()
+                bar.update(1)
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return rows
+
+
+def _dask(jobs, bar, address):
+    """Run the jobs on a ``dask.distributed`` cluster (only if dask is installed)."""
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        raise ConfigError(
+            f"workers = 'dask://{address}' needs dask.distributed, which is not installed; "
+            "give a number of local processes instead"
+        ) from None
+    rows = {}
+    with Client(address) as client:
+        futures = {client.submit(_run_point, *args, pure=False): i for i, args in jobs}
+        for fut in as_completed(list(futures)):
+            rows[futures[fut]] = fut.result()
+            bar.update(1)
+    return rows
+
+
+def _check_workers(workers):
+    if isinstance(workers, str) and workers.startswith("dask://"):
+        return workers.removeprefix("dask://")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(
+            f"workers = {workers!r} is not allowed; use an integer >= 1 (local processes) "
+            "or 'dask://<scheduler address>'"
+        )
+    return None
+
+
+# --------------------------------------------------------------------------- the sweep
+def _validated_points(cfg_path, keys, points, base):
+    """Load every point's config once, before anything runs; name the failing point."""
+    from leolink.config import load_config
+
+    for point in points:
+        try:
+            load_config(cfg_path, base + _overrides(point))
+        except ConfigError as exc:
+            where = ", ".join(f"{k}={_text(v)}" for k, v in point.items())
+            raise ConfigError(f"sweep point {where}: {exc}") from None
+    return points
+
+
+def _base_overrides(base_overrides, keys, run_plots):
+    """The user's overrides, plus ``run.plots=false`` unless plots were asked for."""
+    base = list(base_overrides or [])
+    asked = "run.plots" in keys or any(o.partition("=")[0].strip() == "run.plots" for o in base)
+    if not run_plots and not asked:
+        base.append("run.plots=false")
+    return base
+
+
+def run_sweep(
+    cfg_path,
+    params,
+    out_dir,
+    base_overrides=None,
+    workers=1,
+    progress=True,
+    *,
+    resume=False,
+    run_plots=False,
+    plot=True,
+):
+    """Run every point of a parameter grid and tabulate the summaries.
+
+    Parameters
+    ----------
+    cfg_path : path-like
+        TOML config file (e.g. ``configs/paper.toml``).
+    params : list of str
+        ``section.key=v1,v2,...``, one per swept parameter; the grid is their product.
+    out_dir : path-like
+        Output folder: ``runs/<point name>/`` per point, ``sweep.csv``, ``sweep.json`` and,
+        with one parameter, ``sweep_<section>_<key>.png``.
+    base_overrides : list of str, optional
+        ``section.key=value`` overrides applied to every point (before the swept values).
+    workers : int or str
+        Local processes (``1`` runs in this process), or ``"dask://<scheduler address>"``.
+    progress : bool
+        Show a progress bar over the points (stderr).
+    resume : bool
+        Reuse run folders whose ``summary.json`` exists and whose resolved config equals
+        the point's config.
+    run_plots : bool
+        Write each run's own plots (off by default, for speed; also on if ``run.plots`` is
+        set explicitly in ``base_overrides`` or ``params``).
+    plot : bool
+        Draw the main metrics against the parameter when exactly one is swept.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per point in grid order: ``point`` (folder name under ``runs/``), the
+        swept parameters (columns named ``section.key``) and the flattened overall summary
+        (see :func:`flatten_summary`).
+
+    Raises
+    ------
+    ConfigError
+        A malformed parameter, an empty value list, a bad ``workers`` or any point whose
+        config is invalid; raised before any run folder is created.
+    """
+    address = _check_workers(workers)
+    keys, points = _grid(params)
+    base = _base_overrides(base_overrides, keys, run_plots)
+    _validated_points(cfg_path, keys, points, base)
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for stale in ("sweep.csv", "sweep.json"):  # a table of an earlier sweep must not linger
+        (out_dir / stale).unlink(missing_ok=True)
+    width = max(4, len(str(len(points) - 1)))
+    names = [point_name(i, p, width) for i, p in enumerate(points)]
+    jobs = [
+        (i, (str(cfg_path), base + _overrides(p), str(out_dir / "runs" / names[i]), resume))
+        for i, p in enumerate(points)
+    ]
+    with _progress_bar(len(jobs), progress) as bar:
+        if address is not None:
+            rows = _dask(jobs, bar, address)
+        elif workers == 1 or len(jobs) == 1:
+            rows = _serial(jobs, bar)
+        else:
+            rows = _processes(jobs, bar, min(workers, len(jobs)))
+
+    table = pd.DataFrame([{"point": names[i], **points[i], **rows[i]} for i in range(len(points))])
+    _write(table, out_dir, cfg_path, keys, base)
+    if plot and len(keys) == 1:
+        _plot(table, out_dir, keys[0])
+    return table
+
+
+def _write(table, out_dir, cfg_path, keys, base):
+    from leolink.io import write_csv_atomic, write_json_atomic
+
+    write_json_atomic(
+        out_dir / "sweep.json",
+        {
+            "config": str(cfg_path),
+            "base_overrides": base,
+            "params": keys,
+            "points": table.to_dict(orient="records"),
+        },
+    )
+    write_csv_atomic(table, out_dir / "sweep.csv")  # last: its presence means "complete"
+
+
+def _plot(table, out_dir, x):
+    """Main metrics vs the swept parameter; skipped if its values mix strings and numbers."""
+    from leolink.plots import plot_sweep
+
+    kinds = {isinstance(v, str) for v in table[x]}
+    if len(kinds) > 1:
+        return []
+    ys = [y for y in SWEEP_PLOT_METRICS if y in table.columns]
+    return plot_sweep(table, out_dir, x, ys)

@@ -1,0 +1,141 @@
+"""The CLI reports user mistakes as one line ``leolink: error: ...`` with exit code 2.
+
+Also ``leolink validate`` on the paper's config: the Table's ROI (534.1 x 170.5 km) fails
+the paper's own coverage condition of Sec. 3.1, the derived 534.1 x 272.4 km one meets it.
+"""
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from leolink.cli import EXIT_USAGE, main
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = str(ROOT / "configs" / "paper.toml")
+DATA = Path(__file__).resolve().parent / "data"
+
+# (id, argv after "validate", text the one error line must contain)
+MISTAKES = [
+    ("missing_file", ["nope/missing.toml"], "missing.toml' does not exist"),
+    ("bad_toml", [str(DATA / "config_invalid_syntax.toml")], "not valid TOML"),
+    ("unknown_top_key", [PAPER, "--set", "foo=1"], "foo is not a known key"),
+    ("unknown_key", [PAPER, "--set", "link.bandwith_hz=1"], "link.bandwith_hz is not a known"),
+    ("wrong_type", [PAPER, "--set", 'link.freq_hz="high"'], "link.freq_hz = 'high'"),
+    ("negative_alt", [PAPER, "--set", "constellation.altitude_m=-1"], "altitude_m = -1"),
+    ("zero_bandwidth", [PAPER, "--set", "link.bandwidth_hz=0"], "link.bandwidth_hz = 0"),
+    (
+        "elevation",
+        [PAPER, "--set", "constellation.min_elevation_deg=95"],
+        "constellation.min_elevation_deg = 95",
+    ),
+    ("n_x", [PAPER, "--set", "satellite_array.n_x=61"], "satellite_array.n_x = 61"),
+    ("terminal", [PAPER, "--set", "terminal.kind=dish"], "terminal.kind = 'dish'"),
+    ("policy", [PAPER, "--set", "controller.policy=greedy"], "controller.policy = 'greedy'"),
+    ("points", [PAPER, "--set", "population.1.y_m=[0.0]"], "needs x_m and y_m"),
+    ("roi_lat", [PAPER, "--set", "roi.center_lat_deg=60"], "roi.center_lat_deg = 60"),
+    ("bad_index", [PAPER, "--set", "population.7.count=3"], "population.7.count: index '7'"),
+    ("no_equals", [PAPER, "--set", "link.freq_hz"], "--set 'link.freq_hz' is not allowed"),
+    (
+        "several",
+        [str(DATA / "config_several_mistakes.toml")],
+        "link.bandwith_hz is not a known key",
+    ),
+]
+
+
+def _check_one_error_line(code, err, needle):
+    assert code == EXIT_USAGE == 2
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("leolink: error: ")
+    assert needle in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"), [m[1:] for m in MISTAKES], ids=[m[0] for m in MISTAKES]
+)
+def test_validate_mistake_exits_2_with_one_line(argv, needle, capsys):
+    code = main(["validate", *argv])
+    out, err = capsys.readouterr()
+    _check_one_error_line(code, err, needle)
+    assert out == ""
+
+
+def test_several_mistakes_all_on_the_one_line(capsys):
+    code = main(["validate", str(DATA / "config_several_mistakes.toml")])
+    _, err = capsys.readouterr()
+    _check_one_error_line(code, err, "link.bandwidth_hz = 0.0")
+    assert "link.bandwith_hz" in err and "min_elevation_deg = 95.0" in err
+
+
+# Other subcommands: only mistakes that fail before any physics runs.
+OTHER = [
+    ("budget", ["--elevation-deg", "30"]),
+    ("codebook", []),
+    ("coverage", ["--out", "OUT"]),
+    ("run", ["--out", "OUT"]),
+    ("sweep", ["--out", "OUT", "--param", "link.ptx_dbw=10,15"]),
+]
+
+
+@pytest.mark.parametrize(("command", "extra"), OTHER, ids=[c for c, _ in OTHER])
+@pytest.mark.parametrize(
+    ("config", "overrides", "needle"),
+    [
+        ("nope/missing.toml", [], "does not exist"),
+        (PAPER, ["--set", "link.bandwith_hz=1"], "link.bandwith_hz is not a known key"),
+        (PAPER, ["--set", "population.9.count=1"], "index '9' is not allowed"),
+    ],
+    ids=["missing_file", "unknown_key", "bad_index"],
+)
+def test_other_subcommands_reject_bad_config(
+    command, extra, config, overrides, needle, tmp_path, capsys
+):
+    if command == "sweep":
+        pytest.importorskip("leolink.sweep")  # being written elsewhere
+    extra = [str(tmp_path / "out") if a == "OUT" else a for a in extra]
+    code = main([command, config, *overrides, *extra])
+    _, err = capsys.readouterr()
+    _check_one_error_line(code, err, needle)
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+def test_real_process_prints_one_line_and_exits_2():
+    cmd = [sys.executable, "-m", "leolink.cli", "validate", PAPER, "--set", "link.bandwith_hz=1"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    _check_one_error_line(proc.returncode, proc.stderr, "link.bandwith_hz is not a known key")
+    assert proc.stdout == ""
+
+
+def test_real_process_validates_paper_config():
+    cmd = [sys.executable, "-m", "leolink.cli", "validate", "configs/paper.toml"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert "leaves gaps" in proc.stdout
+
+
+def _coverage_value(rx_km, ry_km, n_planes=83, n_sats=53, inclination_deg=53.0, radius_km=6371.0):
+    """Sec. 3.1: (pi R / N_s / rx)^2 + (pi R sin(i) / N_p / ry)^2, typed from the paper."""
+    dx = math.pi * radius_km / n_sats
+    dy = math.pi * radius_km * math.sin(math.radians(inclination_deg)) / n_planes
+    return (dx / rx_km) ** 2 + (dy / ry_km) ** 2
+
+
+def test_validate_paper_table_roi_leaves_gaps(capsys):
+    assert main(["validate", PAPER]) == 0
+    out = capsys.readouterr().out
+    value = _coverage_value(534.1, 170.5)
+    assert f"{value:.2f}" == "1.78"  # the Table ROI fails the paper's own condition
+    assert "534.1 x 170.5 km leaves gaps" in out
+    assert f"condition {value:.2f} > 1" in out
+
+
+def test_validate_derived_roi_covers(capsys):
+    assert main(["validate", PAPER, "--set", "roi.semi_axis_y_m=272400"]) == 0
+    out = capsys.readouterr().out
+    assert _coverage_value(534.1, 272.4) <= 1.0
+    assert "534.1 x 272.4 km covers the Earth" in out
