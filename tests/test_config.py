@@ -164,7 +164,7 @@ MISTAKES = [
         ['constellation.kind="tle"'],
         r"constellation\.tle_file is required when constellation\.kind = 'tle'",
     ),
-    (['population.0.speed="rocket"'], r"population\[0\]\.speed = 'rocket' is not allowed"),
+    (['population.0.speed="rocket"'], r"population\.0\.speed = 'rocket' is not allowed"),
 ]
 
 

@@ -7,6 +7,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
+from leolink.io import write_json_atomic, write_text_atomic
 from leolink.sim.controller import (
     EVENT_COLUMNS,
     SERVICE_NAMES,
@@ -21,8 +22,6 @@ from leolink.sim.recorder import (
     SummaryAccumulator,
     TraceWriter,
     grouped_percentiles,
-    write_json_atomic,
-    write_text_atomic,
 )
 
 # float32 sample storage: relative rounding 6e-8, i.e. < 1e-5 dB for |SNR| < 100 dB.

@@ -38,10 +38,27 @@ def cmd_validate(args) -> int:
     verdict = check_coverage(
         rx, ry, c.n_planes, c.sats_per_plane, math.radians(c.inclination_deg), cfg.earth.radius_m
     )
+    _check_files(cfg)
     n_ut = sum(max(p.n_ut, 0) for p in cfg.population)
-    print(f"{args.config}: valid ({len(cfg.population)} populations, {n_ut} UTs before tracks)")
+    n_pop = len(cfg.population)
+    print(
+        f"{args.config}: valid ({n_pop} population{'s' * (n_pop != 1)}, {n_ut} UTs "
+        "besides recorded tracks)"
+    )
     print(verdict.message)
     return 0
+
+
+def _check_files(cfg):
+    """Files a config refers to must exist (checked before anything runs)."""
+    from leolink.errors import ConfigError
+
+    c = cfg.constellation
+    if c.kind == "tle" and not Path(c.tle_file).is_file():
+        raise ConfigError(f"constellation.tle_file = {c.tle_file!r} does not exist")
+    for i, p in enumerate(cfg.population):
+        if p.kind == "track" and not Path(p.track_file).is_file():
+            raise ConfigError(f"population.{i}.track_file = {p.track_file!r} does not exist")
 
 
 def cmd_budget(args) -> int:
@@ -100,6 +117,7 @@ def cmd_run(args) -> int:
     from leolink.sim.runner import run
 
     cfg = _config(args)
+    _check_files(cfg)
     if args.parquet and "parquet" not in cfg.run.trace_formats:
         cfg = cfg.model_copy(
             update={
@@ -110,9 +128,9 @@ def cmd_run(args) -> int:
         )
     result = run(cfg, out_dir=Path(args.out), progress=not args.quiet)
     if not args.quiet:
-        o = result.summary["overall"]
+        o, r = result.summary["overall"], result.summary["run"]
         print(
-            f"wrote {args.out}: {o['n_ut']} UTs, {o['n_epochs']} epochs, "
+            f"wrote {args.out}: {r['n_ut']} UTs, {r['n_epochs']} epochs, "
             f"{o['handovers']['beam_handover']} beam and {o['handovers']['sat_handover']} "
             f"satellite handovers, mean SNR {o['snr_db']['mean']:.2f} dB"
         )
@@ -122,14 +140,16 @@ def cmd_run(args) -> int:
 def cmd_sweep(args) -> int:
     from leolink.sweep import run_sweep
 
-    cfg_path = args.config
+    _config(args)  # config mistakes fail here, before any run
+    workers = int(args.workers) if str(args.workers).isdigit() else args.workers
     table = run_sweep(
-        cfg_path,
+        args.config,
         args.param,
         Path(args.out),
         base_overrides=args.set or [],
-        workers=args.workers,
+        workers=workers,
         progress=not args.quiet,
+        resume=args.resume,
     )
     if not args.quiet:
         print(table.to_string(index=False))
@@ -180,7 +200,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="a parameter and its values (repeatable: the grid is their product)",
     )
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.add_argument(
+        "--workers",
+        default="1",
+        help="parallel processes, or dask://HOST:PORT for a dask.distributed cluster",
+    )
+    p.add_argument(
+        "--resume", action="store_true", help="reuse finished runs of the same points in --out"
+    )
     p.add_argument("--quiet", action="store_true")
     return parser
 

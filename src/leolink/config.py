@@ -244,7 +244,7 @@ def _loc(loc) -> str:
     parts = []
     for p in loc:
         if isinstance(p, int):
-            parts[-1] = f"{parts[-1]}[{p}]" if parts else f"[{p}]"
+            parts.append(str(p))  # population.0.speed, as --set spells it
         elif p not in ("function-after", "function-before") and not str(p).startswith("literal["):
             parts.append(str(p))
     return ".".join(parts)
@@ -313,15 +313,28 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
             value = raw.strip()
         node = data
         parts = key.strip().split(".")
-        for part in parts[:-1]:
+        for depth, part in enumerate(parts[:-1]):
             if isinstance(node, list):
+                _check_table_list(node, item, ".".join(parts[:depth]))
                 node = _index(node, part, key)
             else:
                 node = node.setdefault(part, {})
+            if not isinstance(node, dict | list):
+                raise ConfigError(
+                    f"--set {item!r} is not allowed: {part!r} holds a value, not a table"
+                )
         if isinstance(node, list):
+            _check_table_list(node, item, ".".join(parts[:-1]))
             raise ConfigError(f"--set {item!r}: give an index and a key, e.g. population.0.count=3")
         node[parts[-1]] = value
     return data
+
+
+def _check_table_list(node: list, item: str, name: str):
+    if node and not isinstance(node[0], dict):
+        raise ConfigError(
+            f"--set {item!r} is not allowed: {name} is a list; set it whole, e.g. {name}=[0, 5]"
+        )
 
 
 def _index(node: list, part: str, key: str):
@@ -345,6 +358,10 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> Config:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(f"config file {str(path)!r} does not exist") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"config file {str(path)!r} is not UTF-8 text (byte {exc.start})"
+        ) from None
     except OSError as exc:
         raise ConfigError(f"config file {str(path)!r} cannot be read: {exc.strerror}") from None
     try:

@@ -1,8 +1,9 @@
 """Atomic file writes: a reader never sees a half-written output.
 
-Each writer writes ``NAME.partial`` in the target folder, flushes it to disk and renames
-it over ``NAME`` (``os.replace`` is atomic on one file system). On error the partial file
-is removed.
+Each writer writes ``NAME.partial`` in the target folder and renames it over ``NAME``
+(``os.replace`` is atomic on one file system). On error the partial file is removed.
+This guards against an interrupted or failed run; it does not fsync (durability across
+a power cut would cost ~0.15 s per file on this kind of machine).
 """
 
 from __future__ import annotations
@@ -13,7 +14,15 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_csv_atomic", "write_json_atomic", "write_text_atomic"]
+import numpy as np
+
+__all__ = [
+    "atomic_path",
+    "to_jsonable",
+    "write_csv_atomic",
+    "write_json_atomic",
+    "write_text_atomic",
+]
 
 
 @contextmanager
@@ -33,20 +42,17 @@ def write_text_atomic(path, text):
     """Write ``text`` (UTF-8) to ``path`` atomically; return the path."""
     path = Path(path)
     with atomic_path(path) as tmp:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
+        tmp.write_text(text, encoding="utf-8")
     return path
 
 
-def _clean(obj):
-    """JSON-ready copy: numpy scalars to Python, NaN and inf to None."""
+def to_jsonable(obj):
+    """Recursively convert numpy scalars/arrays to Python; NaN and +-inf -> None."""
     if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if hasattr(obj, "item") and not isinstance(obj, str):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple | np.ndarray):
+        return [to_jsonable(v) for v in (obj.tolist() if isinstance(obj, np.ndarray) else obj)]
+    if isinstance(obj, np.generic):
         obj = obj.item()
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
@@ -55,7 +61,7 @@ def _clean(obj):
 
 def write_json_atomic(path, obj):
     """Write ``obj`` as indented JSON (NaN -> null) atomically; return the path."""
-    return write_text_atomic(path, json.dumps(_clean(obj), indent=2, allow_nan=False) + "\n")
+    return write_text_atomic(path, json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
 
 
 def write_csv_atomic(df, path):

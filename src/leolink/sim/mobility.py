@@ -25,7 +25,6 @@ import numpy as np
 from leolink.constants import EARTH_RADIUS_M
 from leolink.errors import ConfigError, LeolinkError
 from leolink.geometry import (
-    destination_point,
     ecef_to_geodetic,
     enu_basis,
     geodetic_to_ecef,
@@ -207,17 +206,18 @@ class ConstantVelocity:
     def state(self, t_s):
         """State at ``t_s`` [s] (scalar), all UTs at once."""
         r_m = self.radius_m + self.alt_m
-        dist_m = self.speed_m_s * (float(t_s) - self.t0_s)
-        lat, lon = destination_point(
-            self.lat0_rad, self.lon0_rad, self.heading_rad, dist_m, radius_m=r_m
-        )
-        # Tangent of the great circle u(phi) = cos(phi) u0 + sin(phi) e0 at phi = dist / r.
-        phi = (dist_m / r_m)[:, None]
-        tangent = -np.sin(phi) * self._u0 + np.cos(phi) * self._e0
+        # The great circle u(phi) = cos(phi) u0 + sin(phi) e0, phi = distance / r: two
+        # trigonometric calls per UT (the simulator moves every UT every epoch).
+        phi = self.speed_m_s * (float(t_s) - self.t0_s) / r_m
+        c, s = np.cos(phi)[:, None], np.sin(phi)[:, None]
+        up = c * self._u0 + s * self._e0
+        tangent = c * self._e0 - s * self._u0
+        pos = r_m[:, None] * up
+        lat = np.arcsin(np.clip(up[:, 2], -1.0, 1.0))
+        lon = np.arctan2(up[:, 1], up[:, 0])
         vel = self.speed_m_s[:, None] * tangent
-        up = enu_basis(lat, lon)[..., 2, :]
         acc = -(self.speed_m_s**2 / r_m)[:, None] * up
-        return _state_from(lat, lon, self.alt_m.copy(), vel, acc)
+        return UTState(pos, vel, acc, lat, lon, self.alt_m.copy())
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,6 @@ The trace ``service`` column holds the names ``served``, ``handover``, ``outage`
 from __future__ import annotations
 
 import contextlib
-import json
-import math
 import os
 from pathlib import Path
 
@@ -25,6 +23,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from leolink.errors import ConfigError, require_at_least
+from leolink.io import to_jsonable
 from leolink.sim.controller import (
     EVENT_COLUMNS,
     EVENT_KINDS,
@@ -496,39 +495,3 @@ def _records(d, duration, mask):
     cols["censored_start"] = d["censored_start"][mask].tolist()
     cols["censored_end"] = d["censored_end"][mask].tolist()
     return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
-
-
-def to_jsonable(obj):
-    """Recursively convert numpy scalars/arrays to Python; NaN and +-inf -> None."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple | np.ndarray):
-        return [to_jsonable(v) for v in (obj.tolist() if isinstance(obj, np.ndarray) else obj)]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
-def write_text_atomic(path, text):
-    """Write ``text`` to ``path`` via a temporary file and an atomic rename."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
-    return path
-
-
-def write_json_atomic(path, obj):
-    """Write ``obj`` as JSON (NaN -> null, numpy -> Python) atomically."""
-    text = json.dumps(to_jsonable(obj), indent=2, allow_nan=False)
-    return write_text_atomic(path, text + "\n")
