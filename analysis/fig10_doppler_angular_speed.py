@@ -5,7 +5,7 @@ static UT, (c) Doppler from a UT moving at 30 m/s (horizontal, along-track headi
 Closed-form maxima (Eq. doppler_ang_max of the paper) beside the maxima of the maps and a
 brute-force maximum over the ROI boundary: the exact closed form matches the brute force;
 the small-ROI shortcut ``R_x v_sat / h f / c`` is ~10 % high with the paper's ROI
-(docs/_errata/link.md).
+(docs/errata.md).
 
 Run: ``python analysis/fig10_doppler_angular_speed.py [--fast] [--out DIR]``.
 """

@@ -6,7 +6,7 @@ the paper's main 60 x 72 / 5 x 3 array (12 x 24 subarrays, O = 1.2, 15 beams).
 
 Paper (Sec. 5): "with O = 2, only 39 out of 64 potential beams are used"; O = 2.49 uses
 all of them. With the paper's ROI (534.1 x 170.5 km, h = 1300 km) leolink finds 17 and 33
-beams (already in docs/_errata/antenna.md); 39 beams needs O in [2.678, 2.783).
+beams (see docs/errata.md); 39 beams needs O in [2.678, 2.783).
 
 The beam count is computed twice: by ``build_codebook`` (closed-form ray -> ROI-plane
 map) and by brute force here (``geometry.ray_to_ground`` then ``ground_to_roi`` from a
