@@ -1,0 +1,135 @@
+"""The CLI's happy paths (``test_cli_errors.py`` has the mistakes): JSON outputs, plots,
+interruption, warm-up and Earth rotation in a run."""
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from leolink.cli import main
+from leolink.config import load_config
+from leolink.constants import BOLTZMANN_J_K
+from leolink.sim.runner import run
+
+PAPER = "configs/paper.toml"
+BUDGET_KEYS = (
+    "elevation_deg slant_range_m fspl_db atm_db cable_db gain_tx_db gain_rx_db "
+    "rss_dbw noise_dbw snr_db"
+).split()
+
+
+def test_budget_json_has_every_term_and_adds_up(capsys):
+    assert main(["budget", PAPER, "--elevation-deg", "70", "--json"]) == 0
+    b = json.loads(capsys.readouterr().out)
+    assert set(BUDGET_KEYS) <= set(b)
+    # Terms recomputed from the paper's equations (Sec. 2.2), independently of leolink.
+    r_e, h = 6371e3, 1300e3
+    el = math.radians(70)
+    rng = -r_e * math.sin(el) + math.sqrt((r_e * math.sin(el)) ** 2 + 2 * r_e * h + h * h)
+    assert b["slant_range_m"] == pytest.approx(rng, rel=1e-9)
+    fspl = 20 * math.log10(4 * math.pi * rng * 11.45e9 / 299_792_458.0)
+    assert b["fspl_db"] == pytest.approx(fspl, abs=1e-9)
+    noise = 24.1 + 10 * math.log10(BOLTZMANN_J_K) + 10 * math.log10(250e6)
+    assert b["noise_dbw"] == pytest.approx(noise, abs=1e-9)
+    rss = 15.0 - 0.0 + b["gain_tx_db"] - 0.017 - fspl + b["gain_rx_db"]
+    assert b["rss_dbw"] == pytest.approx(rss, abs=1e-9)
+    assert b["snr_db"] == pytest.approx(rss - noise, abs=1e-9)
+
+
+def test_budget_rejects_elevation_outside_range(capsys):
+    assert main(["budget", PAPER, "--elevation-deg", "95"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("leolink: error: --elevation-deg = 95.0 is not allowed")
+
+
+def test_codebook_json_and_plot(tmp_path, capsys):
+    png = tmp_path / "beams.png"
+    assert main(["codebook", PAPER, "--json", "--plot", str(png)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["oversampling"] == 1.2
+    assert len(info["beams"]) == 15  # 5 x 3 RF chains, one beam each (paper Sec. 5)
+    assert {"beam_id", "u_x", "u_y", "x_m", "y_m", "lat_deg", "lon_deg"} <= set(info["beams"][0])
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    # O = 'auto' solves for as many beams as RF chains (the paper's rule).
+    assert main(["codebook", PAPER, "--json", "--set", 'satellite_array.oversampling="auto"']) == 0
+    auto = json.loads(capsys.readouterr().out)
+    assert len(auto["beams"]) == 15
+    assert 1.0996 <= auto["oversampling"] < 1.2843
+
+
+def test_codebook_footprint_of_central_beam_is_the_roi_centre(capsys):
+    main(["codebook", PAPER, "--json"])
+    info = json.loads(capsys.readouterr().out)
+    centre = [b for b in info["beams"] if b["u_x"] == 0 and b["u_y"] == 0][0]
+    assert centre["lat_deg"] == pytest.approx(42.24, abs=1e-9)
+    assert centre["lon_deg"] == pytest.approx(-8.72, abs=1e-9)
+
+
+def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch, capsys):
+    import leolink.engine
+
+    calls = {"n": 0}
+    real = leolink.engine.LinkEngine.serve
+
+    def serve(self, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 50:
+            raise KeyboardInterrupt
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(leolink.engine.LinkEngine, "serve", serve)
+    code = main(["run", PAPER, "--out", str(tmp_path), "--quiet", "--set", "run.chunk_rows=70"])
+    assert code == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_warmup_epochs_are_not_recorded_and_cut_dwells_are_censored():
+    cfg = load_config(PAPER, ["run.plots=false", "run.warmup_s=20", "run.duration_s=100"])
+    cfg = cfg.model_copy(update={"population": cfg.population[:1]})
+    res = run(cfg)
+    assert res.trace.time_s.min() == 20.0 and len(res.trace) == 100
+    assert (res.events.time_s >= 20.0).all()
+    dwell = res.summary["per_ut"][0]["dwell"]
+    first = dwell["censored"][0]
+    # The first dwell began before recording (at 14 s): cut by the start, so censored.
+    assert first["censored_start"] and first["start_s"] < 20.0
+    assert dwell["complete_s"] == pytest.approx([31.0, 31.0])
+
+
+def test_earth_rotation_pass_is_overhead_at_pass_time():
+    cfg = load_config(PAPER, ["run.plots=false", "earth.rotation=true"])
+    res = run(cfg.model_copy(update={"population": cfg.population[:1]}))
+    tr = res.trace.set_index("time_s")
+    assert tr.loc[60.0, "elevation_deg"] == pytest.approx(90.0, abs=1e-6)
+    # A static UT in ECEF: Doppler is antisymmetric about the overhead instant to within
+    # the Earth-rotation term (|v_E| = 340 m/s at 42 deg -> < 13 kHz).
+    d = tr.doppler_hz
+    assert d.loc[0.0] > 0 > d.loc[119.0]
+    assert abs(d.loc[60.0]) < 13e3
+    assert np.isfinite(tr.snr_db).all()
+
+
+def test_run_writes_parquet_with_flag(tmp_path):
+    assert (
+        main(
+            [
+                "run",
+                PAPER,
+                "--out",
+                str(tmp_path),
+                "--quiet",
+                "--parquet",
+                "--set",
+                "run.plots=false",
+                "--set",
+                "run.duration_s=10",
+            ]
+        )
+        == 0
+    )
+    pq = pd.read_parquet(tmp_path / "trace.parquet")
+    csv = pd.read_csv(tmp_path / "trace.csv")
+    assert len(pq) == len(csv) == 7 * 10
