@@ -99,17 +99,23 @@ def test_warmup_epochs_are_not_recorded_and_cut_dwells_are_censored():
     assert dwell["complete_s"] == pytest.approx([31.0, 31.0])
 
 
-def test_earth_rotation_pass_is_overhead_at_pass_time():
+def test_earth_rotation_doppler_is_the_derivative_of_the_ecef_range():
+    """With Earth rotation the trace's Doppler must equal -f/c d(range)/dt of the ECEF
+    ephemeris and the Earth-fixed UT (drop the -w x r term and it is off by ~3 kHz)."""
+    from leolink.geometry import geodetic_to_ecef
+    from leolink.scenario import ephemeris_from_config
+
     cfg = load_config(PAPER, ["run.plots=false", "earth.rotation=true"])
     res = run(cfg.model_copy(update={"population": cfg.population[:1]}))
     tr = res.trace.set_index("time_s")
     assert tr.loc[60.0, "elevation_deg"] == pytest.approx(90.0, abs=1e-6)
-    # A static UT in ECEF: Doppler is antisymmetric about the overhead instant to within
-    # the Earth-rotation term (|v_E| = 340 m/s at 42 deg -> < 13 kHz).
-    d = tr.doppler_hz
-    assert d.loc[0.0] > 0 > d.loc[119.0]
-    assert abs(d.loc[60.0]) < 13e3
-    assert np.isfinite(tr.snr_db).all()
+    eph = ephemeris_from_config(cfg)
+    ut = geodetic_to_ecef(math.radians(42.24), math.radians(-8.72))
+    t = np.array([0.0, 30.0, 90.0, 119.0])
+    h = 1e-3  # central difference: truncation error ~ h^2/6 d3(range)/dt3, below 1 mHz
+    rho = [np.linalg.norm(eph(t + d)[0][:, 0] - ut, axis=-1) for d in (h, -h)]
+    expected = -11.45e9 / 299_792_458.0 * (rho[0] - rho[1]) / (2 * h)
+    np.testing.assert_allclose(tr.loc[t, "doppler_hz"].to_numpy(), expected, atol=0.01)
 
 
 def test_run_writes_parquet_with_flag(tmp_path):

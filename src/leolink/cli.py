@@ -132,9 +132,13 @@ def cmd_run(args) -> int:
         print(
             f"wrote {args.out}: {r['n_ut']} UTs, {r['n_epochs']} epochs, "
             f"{o['handovers']['beam_handover']} beam and {o['handovers']['sat_handover']} "
-            f"satellite handovers, mean SNR {o['snr_db']['mean']:.2f} dB"
+            f"satellite handovers, mean SNR {_db(o['snr_db']['mean'])}"
         )
     return 0
+
+
+def _db(value):
+    return "n/a (never served)" if value is None else f"{value:.2f} dB"
 
 
 def cmd_sweep(args) -> int:

@@ -28,8 +28,14 @@ __all__ = [
 ]
 
 
+#: Most epochs one run may have (their times alone take 8 bytes each).
+MAX_EPOCHS = 1e8
+
+
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False
+    )
 
 
 def _f(default, *, gt=None, ge=None, le=None, lt=None, doc=""):
@@ -48,6 +54,21 @@ class RunSection(_Section):
     chunk_rows: int = _f(200_000, ge=1, doc="trace rows buffered before a write")
     plots: bool = _f(True, doc="write PNG plots next to the traces")
     plot_uts: list[int] = Field(default_factory=lambda: [0], description="UTs shown in plots")
+
+    @model_validator(mode="after")
+    def _check(self):
+        n_epoch = (self.warmup_s + self.duration_s) / self.epoch_s
+        if self.duration_s < self.epoch_s:
+            raise ValueError(
+                f"run.duration_s = {self.duration_s!r} is not allowed: it must be at least one "
+                f"epoch (run.epoch_s = {self.epoch_s!r})"
+            )
+        if n_epoch > MAX_EPOCHS:
+            raise ValueError(
+                f"run.epoch_s = {self.epoch_s!r} is not allowed: {n_epoch:.3g} epochs; use at "
+                f"most {MAX_EPOCHS:.0e} (a longer epoch or a shorter run)"
+            )
+        return self
 
 
 class EarthSection(_Section):
@@ -70,6 +91,20 @@ class ConstellationSection(_Section):
     tle_file: str = _f("", doc="kind = 'tle': path of a file of two-line element sets")
     tle_epoch_utc: str = _f("", doc="kind = 'tle': UTC instant of simulation time 0 (ISO 8601)")
     min_elevation_deg: float = _f(10.0, ge=0.0, le=90.0, doc="lowest usable elevation [deg]")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.tle_epoch_utc:
+            from datetime import datetime
+
+            try:
+                datetime.fromisoformat(self.tle_epoch_utc)
+            except ValueError:
+                raise ValueError(
+                    f"constellation.tle_epoch_utc = {self.tle_epoch_utc!r} is not allowed: use an "
+                    "ISO 8601 date and time, e.g. 2019-12-09T20:42:09Z"
+                ) from None
+        return self
 
 
 class RoiSection(_Section):
@@ -140,6 +175,15 @@ class ControllerSection(_Section):
     lookahead_s: float = _f(0.0, ge=0, doc="predictive policy: look-ahead [s]")
     handover_time_s: float = _f(0.0, ge=0, doc="service interruption per handover [s]")
     min_snr_db: float = _f(-10.0, doc="below this SNR the UT is in outage [dB]")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.policy == "predictive" and not self.lookahead_s > 0:
+            raise ValueError(
+                f"controller.lookahead_s = {self.lookahead_s!r} is not allowed with policy "
+                "'predictive': it needs a look-ahead > 0 s"
+            )
+        return self
 
 
 class PopulationSection(_Section):

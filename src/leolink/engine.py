@@ -25,7 +25,26 @@ from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
 
-__all__ = ["LinkEngine", "LinkParams", "Snapshot", "reuse_colors"]
+__all__ = ["SERVE_COLUMNS", "LinkEngine", "LinkParams", "Snapshot", "reuse_colors"]
+
+#: Columns of :meth:`LinkEngine.serve`, one value per UT.
+SERVE_COLUMNS = (
+    "elevation_deg",
+    "slant_range_m",
+    "gain_tx_db",
+    "gain_rx_db",
+    "fspl_db",
+    "atm_db",
+    "snr_db",
+    "sinr_db",
+    "se_bps_hz",
+    "throughput_bps",
+    "doppler_hz",
+    "doppler_sat_hz",
+    "doppler_ut_hz",
+    "doppler_rate_hz_s",
+    "angular_speed_deg_s",
+)
 
 
 @dataclass(frozen=True)
@@ -231,8 +250,10 @@ class LinkEngine:
         dict of ndarray, shape (n_ut,)
             Trace columns (SI, dB; angular speed in deg/s).
         """
-        served = sat_idx >= 0
         _, n_sat, n_ut = snap._kx.shape
+        if n_sat == 0:  # no satellite to serve anyone this epoch
+            return {name: np.full(n_ut, np.nan) for name in SERVE_COLUMNS}
+        served = sat_idx >= 0
         u = np.arange(n_ut)
         s = np.where(served, sat_idx, 0)
         b = np.where(served, beam_idx, 0)

@@ -16,6 +16,7 @@ import numpy as np
 from leolink.antenna.codebook import build_codebook, find_oversampling, footprint_centres
 from leolink.antenna.terminal import terminal_from_config
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
+from leolink.errors import ConfigError
 from leolink.geometry import (
     ecef_to_geodetic,
     enu_basis,
@@ -45,9 +46,25 @@ def codebook_from_config(cfg):
     rx, ry = cfg.roi_semi_axes_m()
     h, radius = cfg.constellation.altitude_m, cfg.earth.radius_m
     o = a.oversampling
+    n_rf = a.n_rf_x * a.n_rf_y
     if o == "auto":
-        o = find_oversampling(n_sub_x, n_sub_y, a.n_rf_x * a.n_rf_y, rx, ry, h, radius_m=radius)
-    return build_codebook(n_sub_x, n_sub_y, float(o), rx, ry, h, radius_m=radius)
+        o = find_oversampling(n_sub_x, n_sub_y, n_rf, rx, ry, h, radius_m=radius)
+    cb = build_codebook(n_sub_x, n_sub_y, float(o), rx, ry, h, radius_m=radius)
+    if cb.n_beam > n_rf:
+        # Each RF chain drives one subarray and so one beam (paper Sec. 2.1): a codebook
+        # with more beams than chains cannot be radiated at once.
+        raise ConfigError(
+            f"satellite_array.oversampling = {o!r} gives {cb.n_beam} beams over the "
+            f"{rx / 1e3:.1f} x {ry / 1e3:.1f} km ROI, but {n_rf} RF chains drive one beam each; "
+            'use a smaller oversampling ("auto" picks one with a beam per RF chain), more '
+            "RF chains or a smaller ROI"
+        )
+    if cb.n_beam == 0:
+        raise ConfigError(
+            f"satellite_array.oversampling = {o!r} leaves no beam pointing into the "
+            f'{rx / 1e3:.1f} x {ry / 1e3:.1f} km ROI; use a larger oversampling or "auto"'
+        )
+    return cb
 
 
 def terminal_from(cfg):
@@ -213,8 +230,6 @@ def link_budget_at_elevation(cfg, elevation_deg):
     The UT is in the satellite's along-track plane, ahead of the satellite.
     """
     if not 0.0 < elevation_deg <= 90.0:
-        from leolink.errors import ConfigError
-
         raise ConfigError(f"--elevation-deg = {elevation_deg!r} is not allowed; use (0, 90] deg")
     engine = build_engine(cfg)
     radius, h = cfg.earth.radius_m, cfg.constellation.altitude_m

@@ -97,7 +97,10 @@ def candidate_satellites(sat_pos_m, ut_pos_m, min_elevation_rad, serving_sats, r
         return np.arange(n_sat)
     up = ut_pos_m / np.linalg.norm(ut_pos_m, axis=1, keepdims=True)
     centre = up.mean(axis=0)
-    centre /= np.linalg.norm(centre)
+    norm = np.linalg.norm(centre)
+    if norm < 1e-6:  # UTs all over the globe: no useful cone
+        return np.arange(n_sat)
+    centre /= norm
     spread = np.arccos(np.clip(up @ centre, -1.0, 1.0)).max()
     r_sat = np.linalg.norm(sat_pos_m, axis=1)
     # Earth-central angle of the coverage edge at the minimum elevation.
@@ -116,6 +119,8 @@ def _local(cand, n_beam, local_of_sat):
 
 
 def _global(cand, n_beam, sats):
+    """Local candidate -> global; -1 stays -1 (``sats`` may be empty)."""
+    sats = np.append(sats, -1)  # index -1 // n_beam lands here when there is no candidate
     return np.where(cand >= 0, sats[np.maximum(cand, 0) // n_beam] * n_beam + cand % n_beam, -1)
 
 
@@ -169,11 +174,12 @@ class _Decider:
             serving=_global(res.state.serving, nb, sats),
             pending=_global(res.state.pending, nb, sats),
         )
+        padded = np.append(sats, -1)  # safe lookup when no satellite is a candidate
         for table, keys in ((res.events, ("from_sat", "to_sat")), (res.dwells, ("sat_id",))):
             for key in keys:
-                table[key] = np.where(table[key] >= 0, sats[np.maximum(table[key], 0)], -1)
+                table[key] = np.where(table[key] >= 0, padded[table[key]], -1)
         res.local_sat = res.sat_id.copy()
-        res.sat_id = np.where(res.sat_id >= 0, sats[np.maximum(res.sat_id, 0)], -1)
+        res.sat_id = np.where(res.sat_id >= 0, padded[res.sat_id], -1)
         return res
 
 
@@ -200,7 +206,7 @@ class _Monitor:
             self.ut_id = np.arange(n_ut, dtype=np.int64)
         sats = state.cand_sats
         fading = None
-        if self.fading_k is not None:
+        if self.fading_k is not None and len(sats):
             s = np.maximum(res.local_sat, 0)
             n_lin = 10.0 ** (snap.gain_rx_db[self.ut_id, s] / 10.0)
             g = complex_normal(self.ut_keys, state.k)

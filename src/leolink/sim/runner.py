@@ -183,7 +183,7 @@ def run(cfg, out_dir=None, progress=False):
     params = {
         "max_snr": {},
         "hysteresis": {"margin_db": c.hysteresis_db, "time_to_trigger_s": c.time_to_trigger_s},
-        "predictive": {"lookahead_s": c.lookahead_s or 10.0, "margin_db": c.hysteresis_db},
+        "predictive": {"lookahead_s": c.lookahead_s, "margin_db": c.hysteresis_db},
     }
     policy = policy_from_config(c.policy, **params[c.policy])
     decide = _Decider(
