@@ -115,7 +115,9 @@ def enu_basis(lat_rad, lon_rad):
 def body_frame(sat_pos_m, sat_vel_m_s):
     """Satellite body frame: x along-track, z radial (up), y = z x x.
 
-    ``u_z = r/|r|``; ``u_x`` is the unit part of ``v`` orthogonal to ``u_z``;
+    ``u_z = r/|r|``; ``u_x`` is the unit part of ``v`` orthogonal to ``u_z``. With the
+    velocity of an Earth-fixed frame (Earth rotation on), x follows the ground track:
+    a yaw-steered satellite, whose beams stay aligned with the track it draws on the ground.
     ``u_y = u_z x u_x`` (right-handed). The paper (Sec. 3.1) takes ``u_x = v/|v|`` and
     ``u_y = u_x x u_sat``, the opposite sign of y (see docs/errata.md).
 

@@ -18,6 +18,7 @@ References
 import numpy as np
 
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2, SPEED_OF_LIGHT_M_S
+from leolink.orbit import orbital_speed_m_s
 
 __all__ = [
     "angular_speed_rad_s",
@@ -43,10 +44,6 @@ def _los(from_pos_m, to_pos_m):
     d = np.asarray(to_pos_m, dtype=float) - np.asarray(from_pos_m, dtype=float)
     rho = np.linalg.norm(d, axis=-1)
     return d, rho, d / rho[..., None]
-
-
-def _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2):
-    return np.sqrt(gm_m3_s2 / (radius_m + np.asarray(altitude_m, dtype=float)))
 
 
 def doppler_sat_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, freq_hz):
@@ -229,7 +226,7 @@ def max_doppler_sat_hz(rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3
     q = np.sqrt(radius_m**2 + rx**2)
     along_m = radius_m * rx / q
     rho_m = np.sqrt(radius_m**2 + r_sat**2 - 2.0 * radius_m**2 * r_sat / q)
-    v = _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2)
+    v = orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2)
     return along_m / rho_m * v * freq_hz / SPEED_OF_LIGHT_M_S
 
 
@@ -241,7 +238,7 @@ def max_doppler_sat_small_roi_hz(
     Valid only when ``R_x << h`` (the paper states ``R_x << R_earth``, which is not
     enough: with the paper's ROI it overestimates by ~10 %, see docs/errata.md).
     """
-    v = _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2)
+    v = orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2)
     return np.asarray(rx_m, dtype=float) * v / altitude_m * freq_hz / SPEED_OF_LIGHT_M_S
 
 
@@ -251,7 +248,7 @@ def max_angular_speed_rad_s(altitude_m, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EAR
     Reached at the sub-satellite point (nadir), where the velocity is orthogonal to the
     line of sight and the range is shortest.
     """
-    return _orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2) / np.asarray(altitude_m, float)
+    return orbital_speed_m_s(altitude_m, radius_m, gm_m3_s2) / np.asarray(altitude_m, float)
 
 
 def mean_abs_doppler_ut_hz(speed_m_s, freq_hz):

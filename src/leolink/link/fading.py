@@ -19,7 +19,7 @@ References
 
 import numpy as np
 
-__all__ = ["mean_rician_gain_lin", "rician_gain_lin"]
+__all__ = ["mean_rician_gain_lin", "rician_gain_from_draws_lin", "rician_gain_lin"]
 
 
 def mean_rician_gain_lin(n_lin, k):
@@ -66,4 +66,10 @@ def rician_gain_lin(n_lin, k, rng, size=None):
         size = np.broadcast_shapes(n.shape, k.shape)
     # CN(0, 1): real and imaginary parts N(0, 1/2).
     g = (rng.standard_normal(size) + 1j * rng.standard_normal(size)) * np.sqrt(0.5)
-    return np.abs(np.sqrt(n) + g / np.sqrt(k)) ** 2
+    return rician_gain_from_draws_lin(n, k, g)
+
+
+def rician_gain_from_draws_lin(n_lin, k, g):
+    """``|sqrt(N) + g / sqrt(K)|^2`` for given ``g ~ CN(0, 1)`` draws (e.g. counter-based
+    ones of :mod:`leolink.rng`, one per UT and epoch)."""
+    return np.abs(np.sqrt(n_lin) + g / np.sqrt(k)) ** 2

@@ -15,10 +15,10 @@ SimPy owns time only; all decisions are pure functions (``controller.step``).
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
+from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
 from leolink.sim.controller import ControllerState, close_dwells, step
 
@@ -209,9 +209,11 @@ class _Monitor:
         if self.fading_k is not None and len(sats):
             s = np.maximum(res.local_sat, 0)
             n_lin = 10.0 ** (snap.gain_rx_db[self.ut_id, s] / 10.0)
+            # Instantaneous over mean gain (mean 1); the mean receive gain stands in for the
+            # LoS gain N, which is off by 1/K = 0.1 in N = 576 for the paper's UPA.
             g = complex_normal(self.ut_keys, state.k)
             k = self.fading_k
-            fading = np.abs(np.sqrt(n_lin) + g / math.sqrt(k)) ** 2 / (n_lin + 1.0 / k)
+            fading = rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)
         cols = self.engine.serve(
             snap,
             res.local_sat,
