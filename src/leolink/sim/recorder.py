@@ -22,6 +22,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
+from leolink.engine import SERVE_COLUMNS
 from leolink.errors import ConfigError, require_at_least
 from leolink.io import to_jsonable
 from leolink.sim.controller import (
@@ -39,21 +40,7 @@ TRACE_COLUMNS = (
     "beam_id",
     "lat_deg",
     "lon_deg",
-    "elevation_deg",
-    "slant_range_m",
-    "gain_tx_db",
-    "gain_rx_db",
-    "fspl_db",
-    "atm_db",
-    "snr_db",
-    "sinr_db",
-    "se_bps_hz",
-    "throughput_bps",
-    "doppler_hz",
-    "doppler_sat_hz",
-    "doppler_ut_hz",
-    "doppler_rate_hz_s",
-    "angular_speed_deg_s",
+    *SERVE_COLUMNS,  # the serving link, as LinkEngine.serve computes it
     "service",
 )
 _ID_COLUMNS = {"ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam"}
