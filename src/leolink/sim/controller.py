@@ -122,7 +122,7 @@ def best_candidate(snr_db):
         return np.full(snr_db.shape[0], -1, np.int64), np.full(snr_db.shape[0], np.nan)
     filled = np.where(np.isnan(snr_db), -np.inf, snr_db)
     idx = np.argmax(filled, axis=1)
-    val = np.take_along_axis(filled, idx[:, None], axis=1)[:, 0]
+    val = filled.reshape(-1)[np.arange(len(idx)) * filled.shape[1] + idx]
     ok = val > -np.inf
     return np.where(ok, idx, -1).astype(np.int64), np.where(ok, val, np.nan)
 
@@ -133,7 +133,9 @@ def value_at(snr_db, cand):
     cand = np.asarray(cand, np.int64)
     if snr_db.shape[1] == 0:
         return np.full(cand.shape, np.nan)
-    val = np.take_along_axis(snr_db, np.maximum(cand, 0)[:, None], axis=1)[:, 0]
+    # A flat gather: several times cheaper than take_along_axis for a few candidates.
+    flat = np.ascontiguousarray(snr_db).reshape(-1)
+    val = flat[np.arange(len(cand)) * snr_db.shape[1] + np.maximum(cand, 0)]
     return np.where(cand >= 0, val, np.nan)
 
 
@@ -260,7 +262,11 @@ class StepResult:
 def _split(cand, n_beam):
     """Candidate index -> (sat, beam), -1 for -1."""
     cand = np.asarray(cand, np.int64)
-    return np.where(cand >= 0, cand // n_beam, -1), np.where(cand >= 0, cand % n_beam, -1)
+    sat, beam = np.divmod(cand, n_beam)
+    none = cand < 0
+    sat[none] = -1
+    beam[none] = -1
+    return sat, beam
 
 
 def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
