@@ -74,3 +74,25 @@ def test_coverage_cli_writes_csv(tmp_path):
     assert len(df) == 21 * 21
     assert (tmp_path / "config.resolved.toml").exists()
     assert not list(tmp_path.glob("*.partial"))
+
+
+@pytest.mark.parametrize("rotation", ["false", "true"])
+def test_roi_axis_heading_is_the_ground_track_of_the_pass(rotation):
+    """The ROI x axis (used to place UTs) follows the pass's ground track: compare with
+    the bearing between the sub-satellite points 1 s before and after the overhead time."""
+    import math
+
+    from leolink.geometry import ecef_to_geodetic
+    from leolink.scenario import ephemeris_from_config, track_heading_rad
+
+    cfg = load_config(PAPER, [f"earth.rotation={rotation}"])
+    pos = ephemeris_from_config(cfg)(np.array([59.0, 61.0]))[0][:, 0]
+    lat, lon, _ = ecef_to_geodetic(pos)
+    # Initial bearing of the great circle from the first to the second point.
+    dlon = lon[1] - lon[0]
+    bearing = math.atan2(
+        math.sin(dlon) * math.cos(lat[1]),
+        math.cos(lat[0]) * math.sin(lat[1]) - math.sin(lat[0]) * math.cos(lat[1]) * math.cos(dlon),
+    )
+    # 2 s of a ~6 km/s track curves the bearing by far less than 1e-3 rad.
+    assert track_heading_rad(cfg) == pytest.approx(bearing, abs=1e-3)

@@ -7,17 +7,22 @@ that passes over the ROI centre, at its overhead instant.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from leolink.geometry import ecef_to_geodetic, roi_to_ground
-from leolink.orbit import Ephemeris, pass_over
 from leolink.roi import in_ellipse
+from leolink.scenario import build_engine, overhead_satellite
 
-__all__ = ["COVERAGE_COLUMNS", "coverage_grid", "evaluate_points", "run_coverage"]
+__all__ = [
+    "COVERAGE_COLUMNS",
+    "coverage_grid",
+    "evaluate_points",
+    "overhead_satellite",
+    "run_coverage",
+]
 
 COVERAGE_COLUMNS = [
     "x_m",
@@ -32,27 +37,6 @@ COVERAGE_COLUMNS = [
     "angular_speed_deg_s",
     "in_roi",
 ]
-
-
-def overhead_satellite(cfg):
-    """Position, velocity and acceleration, each (1, 3), of the satellite over the ROI centre."""
-    c, e = cfg.constellation, cfg.earth
-    el = pass_over(
-        math.radians(cfg.roi.center_lat_deg),
-        math.radians(cfg.roi.center_lon_deg),
-        0.0,
-        c.altitude_m,
-        math.radians(c.inclination_deg),
-        ascending=c.ascending,
-        earth_rotation=e.rotation,
-        radius_m=e.radius_m,
-        gm_m3_s2=e.gm_m3_s2,
-    )
-    eph = Ephemeris.from_elements(
-        el, earth_rotation=e.rotation, radius_m=e.radius_m, gm_m3_s2=e.gm_m3_s2
-    )
-    pos, vel, acc = eph(0.0)
-    return pos[0], vel[0], acc[0]
 
 
 def evaluate_points(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, sat_acc_m_s2, chunk=250_000):
@@ -88,8 +72,6 @@ def evaluate_points(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, sat_acc_m_s2, chun
 
 def coverage_grid(cfg, n_grid=201, margin=1.1):
     """Evaluate the ROI-plane grid; returns a DataFrame with :data:`COVERAGE_COLUMNS`."""
-    from leolink.scenario import build_engine
-
     engine = build_engine(cfg)
     rx, ry = cfg.roi_semi_axes_m()
     x = np.linspace(-margin * rx, margin * rx, n_grid)

@@ -35,6 +35,7 @@ __all__ = [
     "codebook_table",
     "ephemeris_from_config",
     "link_budget_at_elevation",
+    "overhead_satellite",
     "track_heading_rad",
 ]
 
@@ -170,22 +171,39 @@ def ephemeris_from_config(cfg):
     )
 
 
-def track_heading_rad(cfg, ephemeris=None):
+def overhead_satellite(cfg):
+    """Position, velocity and acceleration, each (1, 3), of a satellite of the configured
+    orbit (altitude, inclination, ascending or descending) right over the ROI centre."""
+    c, e = cfg.constellation, cfg.earth
+    el = pass_over(
+        math.radians(cfg.roi.center_lat_deg),
+        math.radians(cfg.roi.center_lon_deg),
+        0.0,
+        c.altitude_m,
+        math.radians(c.inclination_deg),
+        ascending=c.ascending,
+        earth_rotation=e.rotation,
+        radius_m=e.radius_m,
+        gm_m3_s2=e.gm_m3_s2,
+    )
+    eph = Ephemeris.from_elements(
+        el, earth_rotation=e.rotation, radius_m=e.radius_m, gm_m3_s2=e.gm_m3_s2
+    )
+    pos, vel, acc = eph(0.0)
+    return pos[0], vel[0], acc[0]
+
+
+def track_heading_rad(cfg):
     """Azimuth (from north, clockwise) of the ROI x axis at the ROI centre.
 
-    For a pass, the satellite's velocity at the overhead instant seen in the local
-    horizon of the centre; otherwise the ground track of an ascending orbit of the
-    configured inclination crossing the centre's latitude (sin az = cos i / cos lat).
+    The velocity, in the local horizon of the centre, of a satellite of the configured
+    orbit passing right over it (with Earth rotation on: its Earth-fixed velocity, i.e.
+    the direction of its ground track there).
     """
     lat, lon = math.radians(cfg.roi.center_lat_deg), math.radians(cfg.roi.center_lon_deg)
-    c = cfg.constellation
-    if c.kind == "pass":
-        eph = ephemeris_from_config(cfg) if ephemeris is None else ephemeris
-        _, vel, _ = eph(c.pass_time_s)
-        east, north, _ = enu_basis(lat, lon)
-        return math.atan2(float(vel[0, 0] @ east), float(vel[0, 0] @ north))
-    inc = math.radians(c.inclination_deg)
-    return math.asin(max(-1.0, min(1.0, math.cos(inc) / math.cos(lat))))
+    _, vel, _ = overhead_satellite(cfg)
+    east, north, _ = enu_basis(lat, lon)
+    return math.atan2(float(vel[0] @ east), float(vel[0] @ north))
 
 
 @dataclass
@@ -208,7 +226,7 @@ def build_scenario(cfg):
         codebook,
         build_engine(cfg, codebook),
         eph,
-        track_heading_rad(cfg, eph),
+        track_heading_rad(cfg),
         cfg.roi_semi_axes_m(),
     )
 
