@@ -119,20 +119,43 @@ def _epoch_times(run_cfg):
     return run_cfg.start_s + k * run_cfg.epoch_s, n_warm
 
 
-def _progress(env, times, enabled):
-    """A tqdm bar over simulated time, fed by a low-priority SimPy process."""
-    if not enabled:
-        return None
+def _advance(env, times, epoch_s, progress):
+    """Run the SimPy environment to the end; with ``progress``, in ~200 slices that feed a
+    tqdm bar on stderr (simulated seconds done, epochs per wall-clock second)."""
+    if not progress:
+        env.run()
+        return
     from tqdm import tqdm
 
-    bar = tqdm(
-        total=float(times[-1] - times[0]),
-        unit="s sim",
-        desc="leolink run",
-        bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} s sim "
-        "[{elapsed}<{remaining}, {postfix}]",
+    total_s = len(times) * epoch_s
+    step = max(1, len(times) // 200)
+    t_wall = time.perf_counter()
+    fmt = (
+        "{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} s simulated "
+        "[{elapsed}<{remaining}{postfix}]"
     )
-    return bar
+    with tqdm(total=total_s, desc="leolink run", bar_format=fmt, mininterval=0.5) as bar:
+        for done in range(step, len(times) + step, step):
+            # Stop half an epoch before the next slice so each slice ends on whole epochs.
+            env.run(until=float(times[0]) + (min(done, len(times)) - 0.5) * epoch_s)
+            bar.n = min(done, len(times)) * epoch_s
+            rate = min(done, len(times)) / max(time.perf_counter() - t_wall, 1e-9)
+            bar.set_postfix_str(f"{rate:,.0f} epochs/s", refresh=False)
+            bar.refresh()
+        env.run()
+
+
+def _policy(ctrl):
+    """The configured beam-selection policy."""
+    params = {
+        "max_snr": {},
+        "hysteresis": {
+            "margin_db": ctrl.hysteresis_db,
+            "time_to_trigger_s": ctrl.time_to_trigger_s,
+        },
+        "predictive": {"lookahead_s": ctrl.lookahead_s, "margin_db": ctrl.hysteresis_db},
+    }
+    return policy_from_config(ctrl.policy, **params[ctrl.policy])
 
 
 def run(cfg, out_dir=None, progress=False):
@@ -180,12 +203,7 @@ def run(cfg, out_dir=None, progress=False):
         return ut.pos_m, pos[0], vel[0]
 
     c = cfg.controller
-    params = {
-        "max_snr": {},
-        "hysteresis": {"margin_db": c.hysteresis_db, "time_to_trigger_s": c.time_to_trigger_s},
-        "predictive": {"lookahead_s": c.lookahead_s, "margin_db": c.hysteresis_db},
-    }
-    policy = policy_from_config(c.policy, **params[c.policy])
+    policy = _policy(c)
     decide = _Decider(
         scen.engine,
         policy,
@@ -213,27 +231,12 @@ def run(cfg, out_dir=None, progress=False):
     env.process(beam_controller(env, state, decide, epoch))
     env.process(link_monitor(env, state, monitor, epoch))
 
-    bar = _progress(env, times, progress)
     t_wall = time.perf_counter()
     try:
-        if bar is None:
-            env.run()
-        else:
-            step = max(1, len(times) // 200)
-            for i in range(0, len(times), step):
-                env.run(until=float(times[0]) + (i + step) * epoch - 0.5 * epoch)
-                bar.n = min(float(times[-1] - times[0]), float(env.now - times[0]))
-                rate = (i + step) / max(time.perf_counter() - t_wall, 1e-9)
-                bar.set_postfix_str(f"{rate:,.0f} epochs/s")
-            env.run()
-            bar.n = bar.total
-            bar.refresh()
+        _advance(env, times, epoch, progress)
     except BaseException:
-        recorder.abort()
+        recorder.abort()  # nothing half-written is left behind
         raise
-    finally:
-        if bar is not None:
-            bar.close()
     t_end = float(times[-1]) + epoch
     recorder.add_dwells(final_dwells(state, t_end, scen.engine.n_beam), float(times[n_warm]))
     trace, events = recorder.close()
