@@ -34,4 +34,5 @@ def row(name, value, unit, aim=None, better="higher"):
             f"  (aim {'>=' if better == 'higher' else '<='} {aim:,.3g} {unit}: "
             f"{'met' if ok else 'NOT met'})"
         )
-    print(f"  {name:<48} {value:>14,.3f} {unit}{verdict}")
+    text = f"{value:>14.3e}" if 0 < abs(value) < 1e-3 else f"{value:>14,.3f}"
+    print(f"  {name:<48} {text} {unit}{verdict}")

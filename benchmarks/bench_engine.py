@@ -97,8 +97,8 @@ def main(argv=None):
     cfg = load_config(PAPER)
     engine = build_engine(cfg)
     closed_vs_explicit(engine)
-    engine_throughput(cfg, engine)
     million_points(cfg, engine, args.points)
+    engine_throughput(cfg, engine)
 
 
 if __name__ == "__main__":
