@@ -139,3 +139,28 @@ def test_run_writes_parquet_with_flag(tmp_path):
     pq = pd.read_parquet(tmp_path / "trace.parquet")
     csv = pd.read_csv(tmp_path / "trace.csv")
     assert len(pq) == len(csv) == 7 * 10
+
+
+def test_budget_with_the_paper_atmosphere_model(capsys):
+    """The tabulated atmosphere inside the engine agrees with a direct evaluation of the
+    paper's 1976-standard-atmosphere integral (2 deg table: within 2e-4 relative)."""
+    from leolink.link.atmosphere import paper_model_db
+
+    assert (
+        main(
+            [
+                "budget",
+                PAPER,
+                "--elevation-deg",
+                "40",
+                "--json",
+                "--set",
+                'atmosphere.model="paper"',
+            ]
+        )
+        == 0
+    )
+    b = json.loads(capsys.readouterr().out)
+    direct = float(paper_model_db(np.radians(40.0), 11.45e9))
+    assert b["atm_db"] == pytest.approx(direct, rel=2e-4)
+    assert 0.05 < b["atm_db"] < 0.2  # zenith 0.059 dB over sin(40 deg), roughly
