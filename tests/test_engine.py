@@ -173,8 +173,8 @@ def test_budget_matches_engine_and_paper_upa_gain():
     assert b["slant_range_m"] == pytest.approx(H, abs=1e-3)
     assert b["gain_rx_db"] == pytest.approx(27.6, abs=0.05)  # paper: "a gain of 27.6 dB"
     assert b["gain_tx_db"] == pytest.approx(10 * np.log10(12 * 24), abs=0.2)  # near a peak
-    # Engine SNR (linear path) vs the dB sum of the budget terms (scenario): two computations.
-    assert b["snr_db"] == pytest.approx(b["rss_dbw"] - b["noise_dbw"], abs=1e-9)
+    # Engine SNR (linear path) vs the dB sum of the budget terms (link.budget): two ways.
+    assert b["engine_snr_db"] == pytest.approx(b["snr_db"], abs=1e-9)
 
 
 def test_split_total_power_divides_by_beam_count():

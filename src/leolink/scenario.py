@@ -25,6 +25,7 @@ from leolink.geometry import (
     roi_to_ground,
 )
 from leolink.link.atmosphere import atmosphere_model
+from leolink.link.budget import LinkBudget
 from leolink.orbit import Ephemeris, pass_over, read_tle_file, walker_delta
 
 __all__ = [
@@ -262,31 +263,26 @@ def link_budget_at_elevation(cfg, elevation_deg):
     zero = np.zeros((1, 3))
     cols = engine.serve(snap, np.array([0]), np.array([best]), zero, zero, sat_vel, zero)
     p = engine.params
-    gain_tx_db = float(cols["gain_tx_db"][0])
-    rss = (
-        p.ptx_dbw
-        - p.cable_loss_db
-        + gain_tx_db
-        - float(cols["atm_db"][0])
-        - float(cols["fspl_db"][0])
-        + float(cols["gain_rx_db"][0])
-    )
+    # The budget term by term with the link module's formulas (Sec. 2.2); the engine gave
+    # the geometry, the gains and the SINR (tests check that both SNRs agree).
+    budget = LinkBudget.compute(
+        elevation_deg=elevation_deg,
+        slant_range_m=float(cols["slant_range_m"][0]),
+        freq_hz=p.freq_hz,
+        ptx_dbw=p.ptx_dbw,
+        gain_tx_db=float(cols["gain_tx_db"][0]),
+        gain_rx_db=float(cols["gain_rx_db"][0]),
+        noise_temp_dbk=p.noise_temp_dbk,
+        bandwidth_hz=engine.bandwidth_hz,
+        atm_db=float(cols["atm_db"][0]),
+        cable_db=p.cable_loss_db,
+    ).as_dict()
     return {
-        "elevation_deg": float(elevation_deg),
-        "slant_range_m": float(cols["slant_range_m"][0]),
+        **budget,
         "freq_hz": p.freq_hz,
         "bandwidth_hz": engine.bandwidth_hz,
-        "ptx_dbw": p.ptx_dbw,
-        "cable_db": p.cable_loss_db,
-        "gain_tx_db": gain_tx_db,
-        "eirp_dbw": p.ptx_dbw - p.cable_loss_db + gain_tx_db,
-        "fspl_db": float(cols["fspl_db"][0]),
-        "atm_db": float(cols["atm_db"][0]),
-        "gain_rx_db": float(cols["gain_rx_db"][0]),
-        "rss_dbw": rss,
-        "noise_dbw": engine.noise_dbw,
-        "snr_db": float(cols["snr_db"][0]),
         "sinr_db": float(cols["sinr_db"][0]),
+        "engine_snr_db": float(cols["snr_db"][0]),
         "best_beam": best,
         "n_beam": engine.n_beam,
         "terminal": cfg.terminal.kind,
