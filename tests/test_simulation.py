@@ -234,3 +234,45 @@ def test_predictive_policy_hands_over_earlier_on_a_pass():
     lead = plain.time_s.to_numpy() - pred.time_s.to_numpy()
     assert np.all(lead >= 0.0) and np.all(lead <= 10.0)
     assert lead.max() > 0.0
+
+
+@pytest.mark.parametrize("policy", ["max_snr", "hysteresis", "predictive"])
+def test_trace_events_and_summary_tell_the_same_story(policy):
+    """Invariants across the three outputs, on a small Walker constellation with Earth
+    rotation, moving UTs, handover execution time and outages."""
+    over = [
+        'constellation.kind="walker"',
+        "constellation.n_planes=12",
+        "constellation.sats_per_plane=10",
+        "constellation.min_elevation_deg=25",
+        'satellite_array.oversampling="auto"',
+        "earth.rotation=true",
+        "run.duration_s=600",
+        "run.epoch_s=5",
+        "run.plots=false",
+        f'controller.policy="{policy}"',
+        "controller.hysteresis_db=1.0",
+        "controller.lookahead_s=15.0",
+        "controller.handover_time_s=5.0",
+        "controller.min_snr_db=-25.0",
+        "population.1.count=6",
+        'population.1.placement="random"',
+    ]
+    res = run(load_config(PAPER, over))
+    tr = res.trace.sort_values(["ut_id", "time_s"])
+    outage = tr.service == "outage"
+    assert ((tr.sat_id == -1) == outage).all() and ((tr.beam_id == -1) == outage).all()
+    assert tr.snr_db[outage].isna().all() and tr.snr_db[~outage].notna().all()
+    ev = res.events
+    # Every change of serving (satellite, beam) between two served epochs is an event.
+    prev = tr.groupby("ut_id")[["sat_id", "beam_id"]].shift()
+    served_both = (tr.sat_id >= 0) & (prev.sat_id >= 0)
+    changed = served_both & ((tr.sat_id != prev.sat_id) | (tr.beam_id != prev.beam_id))
+    n_handovers = ev.kind.isin(["beam_handover", "sat_handover"]).sum()
+    assert changed.sum() == n_handovers
+    sat_change = served_both & (tr.sat_id != prev.sat_id)
+    assert sat_change.sum() == (ev.kind == "sat_handover").sum() > 0
+    counts = res.summary["overall"]["handovers"]
+    for kind in ("beam_handover", "sat_handover", "outage_start", "outage_end"):
+        assert counts[kind] == (ev.kind == kind).sum()
+    assert res.summary["overall"]["outage_fraction"] == pytest.approx(outage.mean())
