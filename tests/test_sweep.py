@@ -203,4 +203,4 @@ def test_parallel_rows_follow_the_grid_not_completion_order(tmp_path):
         PAPER, ["run.duration_s=40,4"], tmp_path, base_overrides=BASE[1:], workers=2, progress=False
     )
     n_ut = 7  # the paper config's populations: 1 + 4 + 1 + 1 UTs, epoch_s = 1 s
-    assert list(table["n_epochs"]) == [n_ut * 40, n_ut * 4]
+    assert list(table["n_ut_epochs"]) == [n_ut * 40, n_ut * 4]

@@ -159,7 +159,8 @@ def flatten_summary(overall):
                 row[kind if kind.endswith(("s", "total")) else f"{kind}s"] = count
         elif isinstance(value, dict):
             for sub, item in value.items():
-                row[f"{key}_{sub}"] = item
+                if not isinstance(item, list):  # lists (all dwell times) stay in summary.json
+                    row[f"{key}_{sub}"] = item
         else:
             row[key] = value
     return {k: math.nan if v is None else _plain(v) for k, v in row.items()}

@@ -419,6 +419,7 @@ class SummaryAccumulator:
         ]
         overall = {
             "n_complete": int(complete.sum()),
+            "complete_s": duration[complete].tolist(),
             "n_censored": int(cens.sum()),
             "mean_s": duration[complete].mean() if complete.any() else None,
             "median_s": np.median(duration[complete]) if complete.any() else None,
@@ -455,7 +456,7 @@ class SummaryAccumulator:
         n_all = self.n_epochs.sum()
         overall = {
             "n_ut": self.n_ut,
-            "n_epochs": n_all,
+            "n_ut_epochs": n_all,
             "handovers": _handover_counts({k: c.sum() for k, c in counts.items()}),
             "dwell": dwell_all,
             "outage_fraction": self.n_outage.sum() / n_all if n_all else None,
