@@ -133,16 +133,17 @@ def body_frame(sat_pos_m, sat_vel_m_s):
     ndarray, shape (..., 3, 3)
         Rows ``u_x, u_y, u_z``; ``frame @ d`` expresses ``d`` in the body frame.
     """
-    u_z = _unit(sat_pos_m)
-    v = np.asarray(sat_vel_m_s, dtype=float)
-    u_x = _unit(v - _dot(v, u_z)[..., None] * u_z)
-    u_x, u_z = np.broadcast_arrays(u_x, u_z)
-    # u_z x u_x written out: np.cross costs ~70 us of overhead per call on small arrays,
-    # and the simulator builds this frame every epoch.
-    zx, zy, zz = u_z[..., 0], u_z[..., 1], u_z[..., 2]
-    xx, xy, xz = u_x[..., 0], u_x[..., 1], u_x[..., 2]
-    u_y = np.stack([zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx], axis=-1)
-    return np.stack([u_x, u_y, u_z], axis=-2)
+    # Few satellites, every epoch: written for little per-call overhead (np.cross and
+    # np.linalg.norm cost more in dispatch than in arithmetic on such small arrays).
+    r, v = np.broadcast_arrays(np.asarray(sat_pos_m, float), np.asarray(sat_vel_m_s, float))
+    frame = np.empty(r.shape[:-1] + (3, 3))
+    u_x, u_y, u_z = frame[..., 0, :], frame[..., 1, :], frame[..., 2, :]
+    np.divide(r, np.sqrt(np.einsum("...k,...k->...", r, r))[..., None], out=u_z)
+    t = v - np.einsum("...k,...k->...", v, u_z)[..., None] * u_z
+    np.divide(t, np.sqrt(np.einsum("...k,...k->...", t, t))[..., None], out=u_x)
+    for i, (j, k) in enumerate(((1, 2), (2, 0), (0, 1))):  # u_y = u_z x u_x
+        u_y[..., i] = u_z[..., j] * u_x[..., k] - u_z[..., k] * u_x[..., j]
+    return frame
 
 
 def look_angles(ut_pos_m, sat_pos_m):
