@@ -20,7 +20,7 @@ import numpy as np
 
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
-from leolink.sim.controller import ControllerState, close_dwells, step
+from leolink.sim.controller import SERVICE_HANDOVER, ControllerState, close_dwells, step
 
 __all__ = [
     "SimState",
@@ -224,7 +224,7 @@ class _Monitor:
             state.sat_acc_m_s2[sats],
             rx_fading_lin=fading,
         )
-        handover = res.service == 1  # interrupted by handover execution: no throughput
+        handover = res.service == SERVICE_HANDOVER  # handover execution: no throughput
         cols["se_bps_hz"] = np.where(handover, 0.0, cols["se_bps_hz"])
         cols["throughput_bps"] = np.where(handover, 0.0, cols["throughput_bps"])
         cols.update(
