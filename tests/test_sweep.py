@@ -204,3 +204,21 @@ def test_parallel_rows_follow_the_grid_not_completion_order(tmp_path):
     )
     n_ut = 7  # the paper config's populations: 1 + 4 + 1 + 1 UTs, epoch_s = 1 s
     assert list(table["n_ut_epochs"]) == [n_ut * 40, n_ut * 4]
+
+
+def test_dask_cluster_gives_the_same_table(tmp_path):
+    """``workers="dask://ADDRESS"`` (the ``dist`` extra): same table as one process."""
+    distributed = pytest.importorskip("dask.distributed")
+    base = ['controller.policy="hysteresis"', "run.duration_s=10"]
+    params = ["controller.hysteresis_db=0,3"]
+    local = run_sweep(PAPER, params, tmp_path / "local", base_overrides=base, progress=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster:
+        remote = run_sweep(
+            PAPER,
+            params,
+            tmp_path / "dask",
+            base_overrides=base,
+            workers=f"dask://{cluster.scheduler_address}",
+            progress=False,
+        )
+    pd.testing.assert_frame_equal(remote, local)
