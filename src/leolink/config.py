@@ -126,6 +126,9 @@ class LinkSection(_Section):
     rician_k: float = _f(10.0, gt=0, doc="Rician factor K_r (linear)")
     fading: Literal["mean", "rician"] = _f("mean", doc="paper's mean receive gain or random draws")
     reuse_colors: Literal[1, 3, 4] = _f(1, doc="frequency-reuse colours (1 = full reuse)")
+    interference: Literal["serving_satellite", "all_satellites"] = _f(
+        "serving_satellite", doc="whose other beams interfere (the paper: the serving satellite's)"
+    )
 
 
 class AtmosphereSection(_Section):

@@ -21,6 +21,7 @@ import numpy as np
 
 from leolink.antenna.array import dirichlet_kernels
 from leolink.constants import SPEED_OF_LIGHT_M_S
+from leolink.errors import ConfigError
 from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
@@ -118,6 +119,19 @@ class Snapshot:
         return np.broadcast_to(self._rx_db, self.slant_range_m.shape)
 
 
+def _panel_direction_cosines(ut_pos_m, los_unit):
+    """Direction cosines ``(v.east, v.north)`` of unit vectors ``los_unit (n_ut, n_sat, 3)``
+    in the frame of a flat UT panel facing up (spherical Earth), shape (n_ut, n_sat, 2)."""
+    x, y = ut_pos_m[:, 0], ut_pos_m[:, 1]
+    horiz = np.sqrt(x * x + y * y)
+    east = np.stack([-y / horiz, x / horiz, np.zeros_like(x)], axis=-1)
+    up = ut_pos_m / np.linalg.norm(ut_pos_m, axis=1, keepdims=True)
+    north = np.cross(up, east)
+    return np.stack(
+        [np.einsum("usk,uk->us", los_unit, east), np.einsum("usk,uk->us", los_unit, north)], axis=-1
+    )
+
+
 def reuse_colors(lattice_ij, n_colors):
     """Frequency-reuse colour of each beam from its lattice indices (i, j).
 
@@ -153,7 +167,14 @@ class LinkEngine:
         Reuse colour per beam; only beams of the serving beam's colour interfere.
     """
 
-    def __init__(self, codebook, terminal, params, atmosphere, colors=None):
+    def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False):
+        if other_satellites and not hasattr(terminal, "pattern_lin"):
+            raise ConfigError(
+                f"link.interference = 'all_satellites' needs the terminal's pattern, and "
+                f"{type(terminal).__name__} has none (the paper gives the metasurface's peak "
+                "gain and roll-off only); use 'serving_satellite' or another terminal"
+            )
+        self.other_satellites = bool(other_satellites)
         self.codebook, self.terminal = codebook, terminal
         self.params, self.atmosphere = params, atmosphere
         u = np.asarray(codebook.u_xy, dtype=float)
@@ -218,8 +239,15 @@ class LinkEngine:
         if atm_db is None:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))
         path = self._k_lin / rho2 * 10.0 ** ((rx_db - atm_db) / 10.0)
-        path = np.where(visible, path, np.nan)
-        return Snapshot(self, rel, rho, elevation, visible, kx, ky, path, rx_db)
+        snap = Snapshot(
+            self, rel, rho, elevation, visible, kx, ky, np.where(visible, path, np.nan), rx_db
+        )
+        if self.other_satellites:
+            # Any satellite above the horizon interferes, usable or not: its path without
+            # the UT gain, and its direction in the UT panel's (east, north) cosines.
+            snap.path_no_rx_lin = np.where(elevation > 0.0, path / 10.0 ** (rx_db / 10.0), 0.0)
+            snap.u_panel = _panel_direction_cosines(ut_pos_m, -rel / rho[..., None])
+        return snap
 
     def serve(
         self,
@@ -270,7 +298,10 @@ class LinkEngine:
         if rx_fading_lin is not None:
             path = path * rx_fading_lin
         snr = g_sig * path
-        sinr = snr / (g_int * path + 1.0)  # S / (I + N), both over the noise (Sec. 4.1)
+        i_other = 0.0
+        if self.other_satellites and n_sat > 1:
+            i_other = self._other_satellites_interference(snap, s, b, u)
+        sinr = snr / (g_int * path + i_other + 1.0)  # S / (I + N), over the noise (Sec. 4.1)
         se = np.log1p(sinr) / np.log(2.0)  # log2(1 + SINR), accurate at low SINR
 
         rho = snap.slant_range_m.reshape(-1)[us]
@@ -309,6 +340,21 @@ class LinkEngine:
                 "doppler_rate_hz_s": kin["doppler_rate_hz_s"] * nan,
                 "angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,
             }
+
+    def _other_satellites_interference(self, snap, s, b, u):
+        """Interference over noise from the beams of the other satellites, per UT.
+
+        Their beams of the serving beam's colour, at full power, seen through the UT
+        antenna pointed at the serving satellite (``terminal.pattern_lin``).
+        """
+        bm = snap.gain_tx_bm  # (n_beam, n_sat, n_ut)
+        same = (self.colors[None, :] == self.colors[b][:, None]).astype(float)  # (n_ut, n_beam)
+        tx = np.einsum("bsu,ub->us", bm, same)  # same-colour TX gain of each satellite
+        du = snap.u_panel - snap.u_panel[u, s][:, None, :]
+        rx = self.terminal.pattern_lin(du[..., 0], du[..., 1])  # (n_ut, n_sat)
+        contrib = tx * rx * snap.path_no_rx_lin
+        contrib[u, s] = 0.0  # the serving satellite is counted by _same_colour_total
+        return contrib.sum(axis=1)
 
     def _same_colour_total(self, snap, s, b, u, su):
         """Sum of the TX gains of the beams that share the serving beam's colour."""

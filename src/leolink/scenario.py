@@ -125,7 +125,14 @@ def build_engine(cfg, codebook=None):
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
     )
     colors = reuse_colors(codebook.lattice_index, cfg.link.reuse_colors)
-    return LinkEngine(codebook, terminal_from(cfg), params, atmosphere_from(cfg), colors)
+    return LinkEngine(
+        codebook,
+        terminal_from(cfg),
+        params,
+        atmosphere_from(cfg),
+        colors,
+        other_satellites=cfg.link.interference == "all_satellites",
+    )
 
 
 def ephemeris_from_config(cfg):

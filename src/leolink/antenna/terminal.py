@@ -99,6 +99,10 @@ class Isotropic:
         shape = np.broadcast_shapes(*(np.shape(a) for a in (elevation_rad, off_boresight_rad)))
         return np.zeros(shape)
 
+    def pattern_lin(self, du_x, du_y):
+        """Gain towards a direction offset by ``(du_x, du_y)`` from the beam: 1."""
+        return np.ones(np.broadcast_shapes(np.shape(du_x), np.shape(du_y)))
+
 
 @dataclass(frozen=True)
 class UPATerminal:
@@ -123,8 +127,14 @@ class UPATerminal:
 
     def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Linear average gain ``G_LoS(du) + 1/K``."""
-        dux, duy = pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
-        return upa_gain(dux, duy, self.n_x, self.n_y) + 1.0 / self.rician_k
+        return self.pattern_lin(
+            *pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
+        )
+
+    def pattern_lin(self, du_x, du_y):
+        """Linear gain towards a direction ``(du_x, du_y)`` off the beam, in the panel's
+        direction cosines: ``G_LoS(du) + 1/K`` (the diffuse part does not depend on it)."""
+        return upa_gain(du_x, du_y, self.n_x, self.n_y) + 1.0 / self.rician_k
 
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Average receive gain [dB], broadcast shape of the inputs."""
@@ -155,9 +165,14 @@ class LeakyWave:
 
     def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Linear gain, product of the two tapered line kernels plus ``1/K``."""
-        dux, duy = pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
-        gx = leaky_wave_gain_lin(dux, self.n_x, self.leakage)
-        return gx * leaky_wave_gain_lin(duy, self.n_y, self.leakage) + 1.0 / self.rician_k
+        return self.pattern_lin(
+            *pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
+        )
+
+    def pattern_lin(self, du_x, du_y):
+        """Linear gain towards a direction ``(du_x, du_y)`` off the beam (panel frame)."""
+        gx = leaky_wave_gain_lin(du_x, self.n_x, self.leakage)
+        return gx * leaky_wave_gain_lin(du_y, self.n_y, self.leakage) + 1.0 / self.rician_k
 
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Gain [dB], broadcast shape of the inputs."""

@@ -131,7 +131,9 @@ class _Decider:
         self.engine, self.policy = engine, policy
         self.min_snr_db = ctrl_cfg.min_snr_db
         self.handover_time_s = ctrl_cfg.handover_time_s
-        self.min_el, self.radius_m = min_elevation_rad, radius_m
+        # With interference from other satellites, every satellite above the horizon counts.
+        self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
+        self.radius_m = radius_m
         self.future_state = future_state  # t -> (ut_pos, sat_pos, sat_vel), for prediction
 
     def __call__(self, state):
