@@ -436,3 +436,15 @@ def test_tle_example_puts_the_iss_over_the_roi_centre_at_60_s():
     assert lon_deg == pytest.approx(cfg.roi.center_lon_deg, abs=0.02)
     height_m = math.sqrt(x * x + y * y + z * z) - cfg.earth.radius_m
     assert height_m == pytest.approx(cfg.constellation.altitude_m, abs=2e3)
+
+
+def test_config_reference_doc_is_up_to_date():
+    """docs/config.md is generated from the models: regenerate it with
+    ``python -m leolink.config > docs/config.md`` when a key changes."""
+    from leolink.config import Config, reference_markdown
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "config.md").read_text()
+    assert doc == reference_markdown() + "\n"
+    for section in Config.model_fields:
+        if section != "source":
+            assert f"`[{section}]`" in doc or f"`[[{section}]]`" in doc

@@ -110,8 +110,12 @@ class ConstellationSection(_Section):
 class RoiSection(_Section):
     center_lat_deg: float = _f(42.24, ge=-90.0, le=90.0, doc="ROI centre latitude [deg]")
     center_lon_deg: float = _f(-8.72, ge=-180.0, le=360.0, doc="ROI centre longitude [deg]")
-    semi_axis_x_m: float | None = _f(None, gt=0, doc="ROI semi-axis along-track [m]")
-    semi_axis_y_m: float | None = _f(None, gt=0, doc="ROI semi-axis cross-track [m]")
+    semi_axis_x_m: float | None = _f(
+        None, gt=0, doc="ROI semi-axis along-track [m]; none: derived (Sec. 3.1)"
+    )
+    semi_axis_y_m: float | None = _f(
+        None, gt=0, doc="ROI semi-axis cross-track [m]; none: derived (Sec. 3.1)"
+    )
 
 
 class LinkSection(_Section):
@@ -438,3 +442,66 @@ def _resolve_paths(cfg: Config, base: Path) -> Config:
 def dump_toml(cfg: Config) -> str:
     """The resolved config as TOML (every default written out)."""
     return tomli_w.dumps(cfg.to_dict())
+
+
+# -- reference documentation ------------------------------------------------------
+
+
+def _type_text(annotation) -> str:
+    """``float | None`` -> ``float or none``, ``Literal['a', 'b']`` -> ``'a', 'b'``."""
+    import typing
+
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is Literal:
+        return ", ".join(repr(a) for a in args)
+    if origin is list:
+        return f"list of {_type_text(args[0])}"
+    if args and origin is not Annotated:  # a union
+        return " or ".join("none" if a is type(None) else _type_text(a) for a in args)
+    return getattr(annotation, "__name__", str(annotation))
+
+
+def _allowed_text(info) -> str:
+    bounds = []
+    for m in info.metadata:
+        for name, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+            value = getattr(m, name, None)
+            if value is not None:
+                bounds.append(f"{sym} {value:g}")
+    return ", ".join(bounds)
+
+
+def reference_markdown() -> str:
+    """Every config key with its type, default, bounds and meaning, as Markdown
+    (``docs/config.md`` is this text; a test keeps it in step with the models)."""
+    lines = [
+        "# Config reference",
+        "",
+        "One TOML file describes a run (`configs/paper.toml` is the paper's Table). Every key",
+        "is optional; the defaults are the paper's. Override any key from the command line",
+        "with `--set section.key=value` (lists of tables by index: `population.0.count=3`).",
+        "Generated from `leolink/config.py` by `python -m leolink.config`.",
+        "",
+    ]
+    sections = [(name, f.annotation) for name, f in Config.model_fields.items() if name != "source"]
+    for name, model in sections:
+        model = getattr(model, "__args__", [model])[0]  # list[PopulationSection] -> the model
+        title = f"[[{name}]]" if name == "population" else f"[{name}]"
+        lines += [
+            f"## `{title}`",
+            "",
+            "| key | type | default | allowed | meaning |",
+            "|---|---|---|---|---|",
+        ]
+        for key, info in model.model_fields.items():
+            default = info.default_factory() if info.default_factory else info.default
+            lines.append(
+                f"| `{key}` | {_type_text(info.annotation)} | `{default!r}` | "
+                f"{_allowed_text(info)} | {info.description or ''} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":  # python -m leolink.config > docs/config.md
+    print(reference_markdown())
