@@ -22,7 +22,7 @@ import numpy as np
 from leolink.antenna.array import dirichlet_kernels
 from leolink.constants import SPEED_OF_LIGHT_M_S
 from leolink.errors import ConfigError
-from leolink.geometry import body_frame
+from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
 
@@ -121,15 +121,10 @@ class Snapshot:
 
 def _panel_direction_cosines(ut_pos_m, los_unit):
     """Direction cosines ``(v.east, v.north)`` of unit vectors ``los_unit (n_ut, n_sat, 3)``
-    in the frame of a flat UT panel facing up (spherical Earth), shape (n_ut, n_sat, 2)."""
-    x, y = ut_pos_m[:, 0], ut_pos_m[:, 1]
-    horiz = np.sqrt(x * x + y * y)
-    east = np.stack([-y / horiz, x / horiz, np.zeros_like(x)], axis=-1)
-    up = ut_pos_m / np.linalg.norm(ut_pos_m, axis=1, keepdims=True)
-    north = np.cross(up, east)
-    return np.stack(
-        [np.einsum("usk,uk->us", los_unit, east), np.einsum("usk,uk->us", los_unit, north)], axis=-1
-    )
+    in the frame of a flat UT panel facing up, shape (n_ut, n_sat, 2)."""
+    lat, lon, _ = ecef_to_geodetic(ut_pos_m)
+    east_north = enu_basis(lat, lon)[:, :2, :]  # (n_ut, 2, 3)
+    return np.einsum("usk,uak->usa", los_unit, east_north)
 
 
 def reuse_colors(lattice_ij, n_colors):

@@ -6,9 +6,8 @@ ray from the satellite hits the ground inside the ROI ellipse ``(x/R_x)^2 + (y/R
 of the ROI plane (the paper's gnomonic parametrization, Sec. 3.1).
 
 The geometry here is the canonical one: satellite at ``(0, 0, R + h)``, velocity along
-``+x``, so body axes = ECI axes. The ray/ground/ROI-plane maps are small closed forms
-(``_ray_to_roi_plane``, ``_roi_radius_to_u``); they coincide with ``geometry.ray_to_ground``
-and ``geometry.ground_to_roi`` for that geometry.
+``+x``, so body axes = ECI axes; rays, ground points and the ROI plane are mapped with
+:mod:`leolink.geometry`.
 
 References
 ----------
@@ -23,6 +22,7 @@ import numpy as np
 from leolink.antenna.array import beam_gain_lin
 from leolink.constants import EARTH_RADIUS_M
 from leolink.errors import LeolinkError, require_at_least
+from leolink.geometry import direction_cosines, ground_to_roi, ray_to_ground, roi_to_ground
 
 
 def dft_lattice(n_sub, oversampling):
@@ -56,24 +56,25 @@ def _lattice_k(n_sub, oversampling):
     return np.rint(dft_lattice(n_sub, oversampling) * oversampling * n_sub / 2.0).astype(int)
 
 
+_ALONG_TRACK = np.array([1.0, 0.0, 0.0])  # canonical satellite velocity direction
+
+
+def _canonical_satellite(altitude_m, radius_m):
+    return np.array([0.0, 0.0, radius_m + altitude_m])
+
+
 def _ray_to_roi_plane(u_xy, altitude_m, radius_m):
     """ROI-plane (x, y) [m] where the ray u_xy (..., 2) hits the sphere; NaN if it misses."""
-    u_xy = np.asarray(u_xy, dtype=float)
-    ux, uy = u_xy[..., 0], u_xy[..., 1]
-    with np.errstate(invalid="ignore"):
-        dz = -np.sqrt(1.0 - ux**2 - uy**2)
-        s = radius_m + altitude_m
-        # |s e_z + t d|^2 = R^2, nearest root: t = -s dz - sqrt(s^2 dz^2 - (s^2 - R^2))
-        t = -s * dz - np.sqrt((s * dz) ** 2 - (s**2 - radius_m**2))
-        pz = s + t * dz
-        return radius_m * t * ux / pz, radius_m * t * uy / pz  # gnomonic: x = R p_x / p_z
+    sat = _canonical_satellite(altitude_m, radius_m)
+    ground = ray_to_ground(sat, _ALONG_TRACK, u_xy, radius_m)
+    return ground_to_roi(ground, sat, _ALONG_TRACK, radius_m)
 
 
 def _roi_radius_to_u(rho_m, altitude_m, radius_m):
     """|u| of the ray that hits the ROI-plane radius rho_m [m] (azimuth is preserved by the map)."""
-    gamma = np.arctan(rho_m / radius_m)  # Earth central angle of the ground point
-    nadir = np.arctan2(radius_m * np.sin(gamma), radius_m + altitude_m - radius_m * np.cos(gamma))
-    return np.sin(nadir)
+    sat = _canonical_satellite(altitude_m, radius_m)
+    ground = roi_to_ground(rho_m, 0.0, sat, _ALONG_TRACK, radius_m)
+    return np.hypot(*np.moveaxis(direction_cosines(sat, _ALONG_TRACK, ground), -1, 0))
 
 
 @dataclass(frozen=True)
