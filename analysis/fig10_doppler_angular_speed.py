@@ -17,8 +17,8 @@ import sys
 import numpy as np
 from _common import figure, paper_config, parse_args, report, roi_outline, save
 
+from leolink.app.scenario import overhead_satellite
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.coverage import overhead_satellite
 from leolink.geometry import body_frame, look_angles, roi_to_ground
 from leolink.kinematics import (
     angular_speed_rad_s,

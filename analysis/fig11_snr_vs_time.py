@@ -22,10 +22,10 @@ import sys
 import numpy as np
 from _common import figure, paper_config, parse_args, report, roi_outline, save
 
+from leolink.app.run import run
+from leolink.app.scenario import build_scenario
 from leolink.geometry import geodetic_to_ecef, ground_to_roi, ray_to_ground
 from leolink.orbit import orbital_speed_m_s
-from leolink.scenario import build_scenario
-from leolink.sim.runner import run
 
 SNAPSHOT_TIMES_S = (0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0)
 PAPER_DWELL_S = 30.0
@@ -61,7 +61,7 @@ def snapshot_panel(ax, scen, cfg, trace0):
     times = t_trace[nearest]
     pos, vel, _ = scen.ephemeris(times)
     beams = trace0["beam_id"].to_numpy().astype(int)[nearest]
-    boresight = ray_to_ground(pos[:, 0], vel[:, 0], scen.codebook.u_xy[beams], radius)
+    boresight = ray_to_ground(pos[:, 0], vel[:, 0], scen.engine.codebook.u_xy[beams], radius)
     bx, by = ground_to_roi(boresight, p0[0, 0], v0[0, 0], radius)
     sx, sy = ground_to_roi(pos[:, 0], p0[0, 0], v0[0, 0], radius)
     rx, ry = cfg.roi_semi_axes_m()
@@ -83,7 +83,7 @@ def snapshot_panel(ax, scen, cfg, trace0):
 def main(argv=None):
     args = parse_args(argv, __doc__)
     epoch_s = 1.0 if args.fast else 0.1
-    cfg = paper_config(["run.plots=false", f"run.epoch_s={epoch_s}"])
+    cfg = paper_config(["output.plots.enabled=false", f"run.epoch_s={epoch_s}"])
     scen = build_scenario(cfg)
     result = run(cfg)
     trace0 = result.trace[result.trace["ut_id"] == 0].sort_values("time_s")
@@ -114,7 +114,7 @@ def main(argv=None):
         "dwell_complete_s": dwell["complete_s"],
         "dwell_mean_s": dwell["mean_s"],
         "paper_dwell_s": PAPER_DWELL_S,
-        "dwell_closed_form_s": closed_form_dwells_s(cfg, scen.codebook),
+        "dwell_closed_form_s": closed_form_dwells_s(cfg, scen.engine.codebook),
         "snr_db_max": float(trace0["snr_db"].max()),
         "snr_db_min": float(trace0["snr_db"].min()),
         "snr_db_swing": float(trace0["snr_db"].max() - trace0["snr_db"].min()),

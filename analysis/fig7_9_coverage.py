@@ -22,9 +22,10 @@ import numpy as np
 from _common import figure, paper_config, parse_args, report, roi_outline, save
 
 from leolink.antenna.codebook import footprint_centres
-from leolink.coverage import coverage_grid, evaluate_points, overhead_satellite
+from leolink.app.coverage import coverage_grid
+from leolink.app.scenario import build_engine, overhead_satellite
+from leolink.coverage import evaluate_points
 from leolink.geometry import ray_to_ground, roi_to_ground
-from leolink.scenario import build_engine
 
 TERMINALS = ("upa", "leaky_wave", "metasurface")
 BOUND_4_DB = 10.0 * np.log10(1.0 / 3.0)  # -4.77 dB

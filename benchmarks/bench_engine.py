@@ -15,10 +15,10 @@ import numpy as np
 from _common import PAPER, best_of, peak_rss_mib, row
 
 from leolink.antenna.array import explicit_gain
+from leolink.app.scenario import build_engine, overhead_satellite
 from leolink.config import load_config
-from leolink.coverage import evaluate_points, overhead_satellite
+from leolink.coverage import evaluate_points
 from leolink.geometry import roi_to_ground
-from leolink.scenario import build_engine
 
 
 def closed_vs_explicit(engine, n_dir=2000):
@@ -62,7 +62,7 @@ def million_points(cfg, engine, n_points):
 
 def engine_throughput(cfg, engine, n_ut=1000, n_epoch=300):
     """evaluate + serve per epoch on one satellite moving over n_ut static UTs."""
-    from leolink.scenario import ephemeris_from_config
+    from leolink.app.scenario import ephemeris_from_config
 
     rx, ry = cfg.roi_semi_axes_m()
     rng = np.random.default_rng(3)

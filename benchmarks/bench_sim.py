@@ -17,15 +17,15 @@ from pathlib import Path
 import numpy as np
 from _common import PAPER, peak_rss_mib, row
 
+from leolink.app.run import run
 from leolink.config import load_config
-from leolink.sim.runner import run
 
 
 def scenario(n_ut, n_epoch):
     half = n_ut // 2
     over = [
-        "run.plots=false",
-        'run.trace_formats=["parquet"]',
+        "output.plots.enabled=false",
+        'output.trace.formats=["parquet"]',
         f"run.epoch_s={120.0 / n_epoch!r}",
         "run.duration_s=120.0",
         "population.0.count=1",
@@ -46,13 +46,11 @@ def scenario(n_ut, n_epoch):
 
 def engine_alone(cfg):
     """The engine calls of the run, without SimPy, controller or recorder."""
-    from leolink.coverage import overhead_satellite  # noqa: F401  (same scenario objects)
-    from leolink.scenario import build_scenario
+    from leolink.app.scenario import build_scenario
     from leolink.sim.mobility import concat_states
-    from leolink.sim.populations import populations_from_config
 
     scen = build_scenario(cfg)
-    pops = populations_from_config(cfg, scen.heading_rad, np.random.default_rng(0))
+    pops = scen.populations
     n_epoch = int(round(cfg.run.duration_s / cfg.run.epoch_s))
     times = cfg.run.start_s + np.arange(n_epoch) * cfg.run.epoch_s
     pos, vel, acc = scen.ephemeris(times)

@@ -5,8 +5,8 @@ python examples/budget.py
 
 from pathlib import Path
 
+from leolink.app.reports import link_budget_at_elevation
 from leolink.config import load_config
-from leolink.scenario import link_budget_at_elevation
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "paper.toml"
 

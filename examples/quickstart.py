@@ -10,7 +10,7 @@ from leolink.config import load_config
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "paper.toml"
 
-cfg = load_config(CONFIG, ["run.plots=false"])
+cfg = load_config(CONFIG, ["output.plots.enabled=false"])
 result = leolink.run(cfg)  # everything in memory: no out_dir
 
 ut0 = result.trace[result.trace.ut_id == 0]

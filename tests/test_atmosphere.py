@@ -3,14 +3,17 @@
 import csv
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from leolink.config import parse_config
 from leolink.errors import ConfigError
 from leolink.link.atmosphere import (
+    ATMOSPHERES,
     AtmosphereTable,
-    atmosphere_from_config,
+    FixedConfig,
     atmosphere_model,
     itu_p676_db,
     paper_model_db,
@@ -134,21 +137,27 @@ def test_table_interpolation_error_itu_p676():
     np.testing.assert_allclose(table(el), itu_p676_db(el, F_HZ), rtol=2e-3)
 
 
-def test_factory_kinds_and_errors():
+def test_factory_kinds():
     fixed = atmosphere_model("fixed", F_HZ, loss_db=0.017)
     np.testing.assert_array_equal(fixed(np.zeros((2, 3))), np.full((2, 3), 0.017))
     paper = atmosphere_model("paper", F_HZ, step_m=200.0, min_elevation_deg=10.0, step_deg=2.0)
     assert paper(np.radians(45.0)) == pytest.approx(
         paper_model_db(np.radians(45.0), F_HZ, step_m=200.0), rel=1e-3
     )
-    with pytest.raises(ConfigError, match="kind = 'rain' is not allowed; use one of fixed"):
-        atmosphere_model("rain", F_HZ)
-    with pytest.raises(ConfigError, match="loss_db is required"):
-        atmosphere_model("fixed", F_HZ)
-    with pytest.raises(ConfigError, match="atmosphere.foo is not a parameter of kind 'paper'"):
-        atmosphere_model("paper", F_HZ, foo=1)
-    cfg = {"kind": "fixed", "loss_db": 0.5, "freq_hz": F_HZ}
-    assert atmosphere_from_config(cfg)(0.3) == 0.5
+
+
+def test_registry_builds_every_model_and_config_refuses_bad_ones():
+    ctx = SimpleNamespace(freq_hz=F_HZ, table_min_elevation_deg=10.0)
+    assert ATMOSPHERES.build("fixed", FixedConfig(loss_db=0.5), ctx)(0.3) == 0.5
+    paper = ATMOSPHERES.build("paper", None, ctx)
+    assert paper(np.radians(45.0)) == pytest.approx(paper_model_db(np.radians(45.0), F_HZ), 1e-3)
+    assert np.isnan(paper(np.radians(5.0)))  # below the table: no link
+    with pytest.raises(ConfigError, match="atmosphere.model = 'rain' is not allowed"):
+        parse_config({"atmosphere": {"model": "rain"}})
+    with pytest.raises(ConfigError, match="atmosphere.paper.foo is not a known key"):
+        parse_config({"atmosphere": {"model": "paper", "paper": {"foo": 1}}})
+    with pytest.raises(ConfigError, match="atmosphere.fixed.loss_db = -1"):
+        parse_config({"atmosphere": {"fixed": {"loss_db": -1}}})
 
 
 def test_site_conditions_and_p618_opt_in():

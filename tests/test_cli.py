@@ -8,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from leolink.app.run import run
 from leolink.cli import main
 from leolink.config import load_config
 from leolink.constants import BOLTZMANN_J_K
-from leolink.sim.runner import run
 
 PAPER = "configs/paper.toml"
 BUDGET_KEYS = (
@@ -80,14 +80,18 @@ def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch, 
         return real(self, *a, **k)
 
     monkeypatch.setattr(leolink.engine.LinkEngine, "serve", serve)
-    code = main(["run", PAPER, "--out", str(tmp_path), "--quiet", "--set", "run.chunk_rows=70"])
+    code = main(
+        ["run", PAPER, "--out", str(tmp_path), "--quiet", "--set", "output.trace.chunk_rows=70"]
+    )
     assert code == 130
     assert "interrupted" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
 def test_warmup_epochs_are_not_recorded_and_cut_dwells_are_censored():
-    cfg = load_config(PAPER, ["run.plots=false", "run.warmup_s=20", "run.duration_s=100"])
+    cfg = load_config(
+        PAPER, ["output.plots.enabled=false", "run.warmup_s=20", "run.duration_s=100"]
+    )
     cfg = cfg.model_copy(update={"population": cfg.population[:1]})
     res = run(cfg)
     assert res.trace.time_s.min() == 20.0 and len(res.trace) == 100
@@ -102,10 +106,10 @@ def test_warmup_epochs_are_not_recorded_and_cut_dwells_are_censored():
 def test_earth_rotation_doppler_is_the_derivative_of_the_ecef_range():
     """With Earth rotation the trace's Doppler must equal -f/c d(range)/dt of the ECEF
     ephemeris and the Earth-fixed UT (drop the -w x r term and it is off by ~3 kHz)."""
+    from leolink.app.scenario import ephemeris_from_config
     from leolink.geometry import geodetic_to_ecef
-    from leolink.scenario import ephemeris_from_config
 
-    cfg = load_config(PAPER, ["run.plots=false", "earth.rotation=true"])
+    cfg = load_config(PAPER, ["output.plots.enabled=false", "earth.rotation=true"])
     res = run(cfg.model_copy(update={"population": cfg.population[:1]}))
     tr = res.trace.set_index("time_s")
     assert tr.loc[60.0, "elevation_deg"] == pytest.approx(90.0, abs=1e-6)
@@ -129,7 +133,7 @@ def test_run_writes_parquet_with_flag(tmp_path):
                 "--quiet",
                 "--parquet",
                 "--set",
-                "run.plots=false",
+                "output.plots.enabled=false",
                 "--set",
                 "run.duration_s=10",
             ]

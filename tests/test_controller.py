@@ -5,19 +5,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from leolink.config import parse_config
 from leolink.errors import ConfigError
 from leolink.sim.controller import (
     SERVICE_HANDOVER,
     SERVICE_OUTAGE,
     SERVICE_SERVED,
     ControllerState,
-    Hysteresis,
-    MaxSnr,
-    Predictive,
     close_dwells,
-    policy_from_config,
     step,
 )
+from leolink.sim.policies import Hysteresis, MaxSnr, Predictive
 
 HANDOVER_KINDS = ("beam_handover", "sat_handover")
 
@@ -231,17 +229,20 @@ def test_policies_and_step_do_not_mutate_state():
         np.testing.assert_array_equal(getattr(state, k), v)
 
 
-def test_policy_from_config():
-    assert isinstance(policy_from_config("max_snr"), MaxSnr)
-    h = policy_from_config("hysteresis", margin_db=2.0, time_to_trigger_s=0.5)
-    assert (h.margin_db, h.time_to_trigger_s) == (2.0, 0.5)
-    assert policy_from_config("predictive", lookahead_s=4.0).lookahead_s == 4.0
-    with pytest.raises(ConfigError, match="max_snr, hysteresis, predictive"):
-        policy_from_config("greedy")
-    with pytest.raises(ConfigError, match="allowed: margin_db, time_to_trigger_s"):
-        policy_from_config("hysteresis", lookahead_s=3.0)
-    with pytest.raises(ConfigError, match="margin_db = -1"):
-        policy_from_config("hysteresis", margin_db=-1)
+def test_policies_from_the_config_tables():
+    def policy(**controller):
+        return parse_config({"controller": controller}).controller.build()
+
+    assert isinstance(policy(), MaxSnr)
+    h = policy(policy="hysteresis", hysteresis={"margin_db": 2.0, "time_to_trigger_s": 0.5})
+    assert isinstance(h, Hysteresis) and (h.margin_db, h.time_to_trigger_s) == (2.0, 0.5)
+    assert policy(policy="predictive", predictive={"lookahead_s": 4.0}).lookahead_s == 4.0
+    with pytest.raises(ConfigError, match="'max_snr', 'hysteresis' or 'predictive'"):
+        policy(policy="greedy")
+    with pytest.raises(ConfigError, match="controller.hysteresis.lookahead_s is not a known key"):
+        policy(policy="hysteresis", hysteresis={"lookahead_s": 3.0})
+    with pytest.raises(ConfigError, match="controller.hysteresis.margin_db = -1"):
+        policy(policy="hysteresis", hysteresis={"margin_db": -1})
 
 
 def test_a_policy_returning_an_unusable_candidate_is_an_error():

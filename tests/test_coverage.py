@@ -4,10 +4,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from leolink.app.coverage import COVERAGE_COLUMNS, coverage_grid
+from leolink.app.reports import codebook_table, link_budget_at_elevation
+from leolink.app.scenario import build_engine, overhead_satellite
 from leolink.config import load_config
-from leolink.coverage import COVERAGE_COLUMNS, coverage_grid, evaluate_points, overhead_satellite
+from leolink.coverage import evaluate_points
 from leolink.geometry import look_angles, roi_to_ground
-from leolink.scenario import build_engine, codebook_table, link_budget_at_elevation
 
 PAPER = "configs/paper.toml"
 
@@ -82,8 +84,8 @@ def test_roi_axis_heading_is_the_ground_track_of_the_pass(rotation):
     the bearing between the sub-satellite points 1 s before and after the overhead time."""
     import math
 
+    from leolink.app.scenario import ephemeris_from_config, track_heading_rad
     from leolink.geometry import ecef_to_geodetic
-    from leolink.scenario import ephemeris_from_config, track_heading_rad
 
     cfg = load_config(PAPER, [f"earth.rotation={rotation}"])
     pos = ephemeris_from_config(cfg)(np.array([59.0, 61.0]))[0][:, 0]

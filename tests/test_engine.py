@@ -11,11 +11,13 @@ from hypothesis import strategies as st
 from leolink.antenna.array import HybridArray, explicit_gain
 from leolink.antenna.codebook import Codebook
 from leolink.antenna.terminal import Isotropic, UPATerminal
+from leolink.app.reports import link_budget_at_elevation
+from leolink.app.scenario import build_engine, codebook_from_config
 from leolink.config import load_config
 from leolink.constants import BOLTZMANN_J_K, SPEED_OF_LIGHT_M_S
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.geometry import geodetic_to_ecef
-from leolink.scenario import build_engine, codebook_from_config, link_budget_at_elevation
+from leolink.link.atmosphere import FixedLoss
 
 PAPER = "configs/paper.toml"
 R = 6_371_000.0
@@ -42,7 +44,7 @@ def _ground_points(n, rng, max_angle_rad=0.08):
 def test_engine_tx_gain_equals_explicit_hybrid_precoder():
     cfg = load_config(PAPER)
     cb = codebook_from_config(cfg)
-    engine = LinkEngine(cb, Isotropic(), _params(), lambda el: 0.0 * el)
+    engine = LinkEngine(cb, Isotropic(), _params(), FixedLoss(0.0))
     rng = np.random.default_rng(7)
     ut = _ground_points(40, rng)
     sat_pos, sat_vel = _canonical_sat()
@@ -81,7 +83,7 @@ def _two_or_four_beam_engine(k, ptx_dbw):
     else:
         u = np.array([[sx * step / 2, sy * step / 2] for sx in (-1, 1) for sy in (-1, 1)])
     cb = Codebook(u, np.arange(k), 1.2, n, n)
-    return LinkEngine(cb, Isotropic(), _params(ptx_dbw), lambda el: 0.0 * el)
+    return LinkEngine(cb, Isotropic(), _params(ptx_dbw), FixedLoss(0.0))
 
 
 @settings(max_examples=25, deadline=None)
@@ -188,7 +190,7 @@ def test_below_min_elevation_is_nan():
         codebook_from_config(load_config(PAPER)),
         UPATerminal(24, 24, 10.0),
         _params(min_el_deg=10.0),
-        lambda el: 0.0 * el,
+        FixedLoss(0.0),
     )
     sat_pos, sat_vel = _canonical_sat()
     # The satellite is over the pole of the canonical frame: the equator is below its horizon,
@@ -205,7 +207,7 @@ def test_serve_on_two_satellites_equals_a_per_ut_reference(reuse):
     """Two satellites of a Walker constellation, Earth rotation on, UTs moving, reuse
     colours: every served UT's link recomputed one by one with explicit steering vectors."""
     from leolink.antenna.array import steering_vector
-    from leolink.scenario import build_scenario
+    from leolink.app.scenario import build_scenario
 
     cfg = load_config(
         "configs/examples/walker.toml",
@@ -275,7 +277,7 @@ def test_interference_from_other_satellites_equals_a_per_ut_reference():
     horizon, through the UT's 24 x 24 UPA pointed at the serving satellite (explicit
     steering vectors, panel facing up, x east, y north), add to the interference."""
     from leolink.antenna.array import steering_vector
-    from leolink.scenario import build_scenario
+    from leolink.app.scenario import build_scenario
 
     cfg = load_config(
         "configs/examples/walker.toml",

@@ -10,22 +10,21 @@ from hypothesis import strategies as st
 
 from leolink.constants import EARTH_RADIUS_M as R
 from leolink.errors import ConfigError, LeolinkError
+from leolink.io.tracks import TrackFileError, read_track_csv
+from leolink.placement import (
+    geodetic_to_roi_points,
+    place_grid,
+    place_random,
+    roi_points_to_geodetic,
+)
 from leolink.sim.mobility import (
     SPEED_PRESETS_M_S,
     ConstantVelocity,
-    RecordedTrack,
     Static,
     Track,
-    TrackFileError,
     UTState,
     Waypoints,
     concat_states,
-    geodetic_to_roi_points,
-    headings,
-    place_grid,
-    place_random,
-    read_track_csv,
-    roi_points_to_geodetic,
 )
 
 DATA = Path(__file__).parent / "data"
@@ -275,7 +274,7 @@ def test_read_track_csv_two_interleaved_uts():
     np.testing.assert_array_equal(tracks[0].time_s, [0, 600, 1200])
     np.testing.assert_allclose(np.degrees(tracks[0].lat_rad), [40.0, 40.005, 40.005])
     np.testing.assert_array_equal(tracks[1].alt_m, [0, 0])
-    pop = RecordedTrack(DATA / "mobility_two_uts.csv")
+    pop = Waypoints(read_track_csv(DATA / "mobility_two_uts.csv"))
     # boat: 0.1 deg of longitude at 36 deg N in 100 s
     expected = haversine_m(*np.radians([36.0, -5.0, 36.0, -4.9])) / 100.0
     assert np.linalg.norm(pop.state(50.0).vel_m_s[1]) == pytest.approx(expected, rel=1e-9)
@@ -285,7 +284,7 @@ def test_read_track_csv_two_interleaved_uts():
 def test_example_tracks(name, speed_m_s):
     tracks = read_track_csv(TRACKS / name)
     assert len(tracks) == 1 and 30 <= tracks[0].time_s.size <= 60
-    pop = RecordedTrack(TRACKS / name)
+    pop = Waypoints(tracks)
     t0, t1 = pop.time_span_s[0]
     speeds = [np.linalg.norm(pop.state(t).vel_m_s[0]) for t in np.linspace(t0, t1, 50)[:-1]]
     # fixes are rounded to 1e-7 deg (1 cm); made at sea-level distance (car: R+689 m is 0.01 %)
@@ -361,14 +360,6 @@ def test_place_grid_points_inside_and_regular():
     xs = (np.arange(21) + 0.5) / 21 * 2 - 1
     ys = (np.arange(7) + 0.5) / 7 * 2 - 1
     assert x.size == sum(a * a + b * b <= 1 for a in xs for b in ys)
-
-
-def test_headings():
-    np.testing.assert_array_equal(headings(3, heading_rad=1.5), [1.5, 1.5, 1.5])
-    h = headings(1000, rng=np.random.default_rng(0))
-    assert h.min() >= 0 and h.max() < 2 * np.pi and abs(h.mean() - np.pi) < 0.2
-    with pytest.raises(ConfigError, match="heading_rad"):
-        headings(3)
 
 
 @settings(max_examples=80, deadline=None)

@@ -12,6 +12,7 @@ from sgp4.earth_gravity import wgs72
 from leolink.constants import EARTH_RADIUS_M, EARTH_ROTATION_RAD_S
 from leolink.errors import ConfigError, LeolinkError
 from leolink.geometry import ecef_to_geodetic
+from leolink.io.tle import read_tle_file
 from leolink.orbit import (
     Elements,
     Ephemeris,
@@ -21,7 +22,6 @@ from leolink.orbit import (
     orbital_period_s,
     orbital_speed_m_s,
     pass_over,
-    read_tle_file,
     tle_state,
     walker_delta,
 )

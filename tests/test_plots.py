@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 
-from leolink import plots
 from leolink.errors import LeolinkError
+from leolink.io import plots
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 MIN_PNG_BYTES = 10_000  # a blank 150-dpi figure with only axes is ~15 kB; a stub is < 1 kB
@@ -187,7 +187,7 @@ def test_many_uts_get_a_rate_histogram():
     summary["per_ut"] = [
         {"ut_id": u, "dwell_times_s": [], "handovers": {"beam_handover": u % 4}} for u in range(40)
     ]
-    ax = plots._handovers(trace, summary).axes[0]
+    ax = plots._handovers(float(np.ptp(trace["time_s"])), summary).axes[0]
     assert "1/min" in ax.get_xlabel()
     heights = [patch.get_height() for patch in ax.patches]
     assert sum(heights) == 40  # every UT in one bin; rates 0..3 per minute

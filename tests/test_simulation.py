@@ -7,12 +7,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from leolink.config import load_config
+from leolink.app.reports import codebook_table
+from leolink.app.run import run
+from leolink.app.scenario import build_engine, ephemeris_from_config, track_heading_rad
+from leolink.config import load_config, parse_config, updated
 from leolink.coverage import evaluate_points
 from leolink.geometry import ground_to_roi, roi_to_ground
-from leolink.scenario import build_engine, codebook_table, ephemeris_from_config, track_heading_rad
-from leolink.sim.mobility import roi_points_to_geodetic
-from leolink.sim.runner import run
+from leolink.placement import roi_points_to_geodetic
 
 PAPER = "configs/paper.toml"
 TRACE_COLUMNS = (
@@ -27,7 +28,7 @@ EVENT_COLUMNS = (
 
 
 def _one_ut(extra=()):
-    return load_config(PAPER, ["run.plots=false", *extra])
+    return load_config(PAPER, ["output.plots.enabled=false", *extra])
 
 
 def _centre_only(cfg):
@@ -37,7 +38,7 @@ def _centre_only(cfg):
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("paper")
-    cfg = load_config(PAPER, ['run.trace_formats=["csv", "parquet"]'])
+    cfg = load_config(PAPER, ['output.trace.formats=["csv", "parquet"]'])
     return run(cfg, out_dir=out), out
 
 
@@ -55,12 +56,9 @@ def test_output_contract(paper_run):
         assert (out / name).exists(), name
     assert not list(out.glob("*.partial"))
     # The resolved config reproduces the run's config.
-    assert load_config(out / "config.resolved.toml") == load_config(PAPER).model_copy(
-        update={
-            "source": str(out / "config.resolved.toml"),
-            "run": load_config(PAPER, ['run.trace_formats=["csv", "parquet"]']).run,
-        }
-    )
+    resolved = load_config(out / "config.resolved.toml").model_copy(update={"source": ""})
+    expected = load_config(PAPER, ['output.trace.formats=["csv", "parquet"]'])
+    assert resolved == expected.model_copy(update={"source": ""})
 
 
 def test_dwell_times_of_centre_ut_match_coverage_map_along_track():
@@ -78,7 +76,7 @@ def test_dwell_times_of_centre_ut_match_coverage_map_along_track():
 
     ut = geodetic_to_ecef(lat, lon)
     x, y = ground_to_roi(ut, pos[:, 0], vel[:, 0])
-    from leolink.coverage import overhead_satellite
+    from leolink.app.scenario import overhead_satellite
 
     sp, sv, sa = overhead_satellite(cfg)
     ground = roi_to_ground(x, y, sp[0], sv[0])
@@ -102,7 +100,7 @@ def test_dwell_times_of_centre_ut_match_coverage_map_along_track():
 
 def test_same_seed_same_trace_whatever_the_chunk_size(tmp_path):
     over = [
-        "run.plots=false",
+        "output.plots.enabled=false",
         'population.1.placement="random"',
         "population.1.count=20",
         "population.2.count=5",
@@ -110,8 +108,8 @@ def test_same_seed_same_trace_whatever_the_chunk_size(tmp_path):
         'population.2.heading_deg="random"',
         'link.fading="rician"',
     ]
-    a = run(load_config(PAPER, [*over, "run.chunk_rows=7"]), out_dir=tmp_path / "a")
-    b = run(load_config(PAPER, [*over, "run.chunk_rows=100000"]), out_dir=tmp_path / "b")
+    a = run(load_config(PAPER, [*over, "output.trace.chunk_rows=7"]), out_dir=tmp_path / "a")
+    b = run(load_config(PAPER, [*over, "output.trace.chunk_rows=100000"]), out_dir=tmp_path / "b")
     assert (tmp_path / "a/trace.csv").read_bytes() == (tmp_path / "b/trace.csv").read_bytes()
     assert (tmp_path / "a/events.csv").read_bytes() == (tmp_path / "b/events.csv").read_bytes()
     assert a.summary["overall"] == b.summary["overall"]
@@ -140,10 +138,9 @@ def _zigzag_config():
         [float(a), math.degrees(b), math.degrees(c), 0.0]
         for a, b, c in zip(t, lat, lon, strict=False)
     ]
-    pop = cfg.population[0].model_copy(
-        update={"kind": "waypoints", "waypoints": rows, "name": "zigzag"}
-    )
-    return cfg.model_copy(update={"population": [pop]})
+    data = cfg.model_dump(mode="json")
+    data["population"] = [{"kind": "waypoints", "waypoints": rows, "name": "zigzag"}]
+    return parse_config(data)
 
 
 def _count(result, kind="beam_handover"):
@@ -151,14 +148,18 @@ def _count(result, kind="beam_handover"):
     return int((ev.kind == kind).sum())
 
 
-def _with_controller(cfg, **kw):
-    return cfg.model_copy(update={"controller": cfg.controller.model_copy(update=kw)})
+def _with_controller(cfg, policy=None, **params):
+    """``cfg`` with another policy and its parameters, or shared controller keys."""
+    sets = [f"controller.policy={policy}"] if policy else []
+    prefix = f"controller.{policy}." if policy else "controller."
+    sets += [f"{prefix}{k}={v}" for k, v in params.items()]
+    return updated(cfg, sets)
 
 
 def test_hysteresis_removes_ping_pong():
     cfg = _zigzag_config()
     plain = run(cfg)
-    hyst = run(_with_controller(cfg, policy="hysteresis", hysteresis_db=3.0))
+    hyst = run(_with_controller(cfg, policy="hysteresis", margin_db=3.0))
     ev = plain.events
     # Ping-pong: a handover straight back to the beam just left.
     back = (
@@ -178,10 +179,14 @@ def test_hysteresis_removes_ping_pong():
 
 @pytest.mark.parametrize("margin_db", [0.5, 1.0, 3.0])
 def test_hysteresis_never_increases_handovers(margin_db):
-    over = ["run.plots=false", 'population.1.placement="random"', "population.1.count=30"]
+    over = [
+        "output.plots.enabled=false",
+        'population.1.placement="random"',
+        "population.1.count=30",
+    ]
     cfg = load_config(PAPER, over)
     plain = run(cfg).summary["overall"]["handovers"]["beam_handover"]
-    hyst = run(_with_controller(cfg, policy="hysteresis", hysteresis_db=margin_db))
+    hyst = run(_with_controller(cfg, policy="hysteresis", margin_db=margin_db))
     assert hyst.summary["overall"]["handovers"]["beam_handover"] <= plain
 
 
@@ -211,7 +216,7 @@ def test_walker_constellation_gives_satellite_handovers():
         "constellation.min_elevation_deg=25",
         "run.duration_s=900",
         "run.epoch_s=5",
-        "run.plots=false",
+        "output.plots.enabled=false",
     ]
     cfg = load_config(PAPER, over)
     cfg = cfg.model_copy(update={"population": cfg.population[:2]})
@@ -249,10 +254,10 @@ def test_trace_events_and_summary_tell_the_same_story(policy):
         "earth.rotation=true",
         "run.duration_s=600",
         "run.epoch_s=5",
-        "run.plots=false",
+        "output.plots.enabled=false",
         f'controller.policy="{policy}"',
-        "controller.hysteresis_db=1.0",
-        "controller.lookahead_s=15.0",
+        "controller.hysteresis.margin_db=1.0",
+        "controller.predictive.lookahead_s=15.0",
         "controller.handover_time_s=5.0",
         "controller.min_snr_db=-25.0",
         "population.1.count=6",

@@ -16,16 +16,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import leolink.sim.runner as runner
+import leolink.app.run as runner
+from leolink.app.sweep import parse_param, point_name, run_sweep
 from leolink.cli import EXIT_USAGE, main
 from leolink.config import load_config
 from leolink.errors import ConfigError
-from leolink.sweep import parse_param, point_name, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "configs" / "paper.toml"
 BASE = ["run.duration_s=6", 'controller.policy="hysteresis"']
-PARAMS = ["controller.hysteresis_db=0,3", "link.ptx_dbw=15,9.5"]
+PARAMS = ["controller.hysteresis.margin_db=0,3", "link.ptx_dbw=15,9.5"]
 
 # summary["overall"] path -> table column, written out by hand (independent of the code)
 METRIC_PATHS = {
@@ -63,11 +63,11 @@ def serial(tmp_path_factory):
 def test_one_row_per_grid_point(serial):
     out, table = serial
     assert len(table) == 4
-    assert list(table.columns[:3]) == ["point", "controller.hysteresis_db", "link.ptx_dbw"]
+    assert list(table.columns[:3]) == ["point", "controller.hysteresis.margin_db", "link.ptx_dbw"]
     # Cartesian product in the given order, the last parameter fastest
-    pairs = list(zip(table["controller.hysteresis_db"], table["link.ptx_dbw"], strict=True))
+    pairs = list(zip(table["controller.hysteresis.margin_db"], table["link.ptx_dbw"], strict=True))
     assert pairs == [(0, 15), (0, 9.5), (3, 15), (3, 9.5)]
-    assert table["point"].iloc[1] == "0001_controller.hysteresis_db=0_link.ptx_dbw=9.5"
+    assert table["point"].iloc[1] == "0001_controller.hysteresis.margin_db=0_link.ptx_dbw=9.5"
     for name in table["point"]:
         run_dir = out / "runs" / name
         assert (run_dir / "summary.json").exists()
@@ -78,7 +78,7 @@ def test_one_row_per_grid_point(serial):
 def test_table_matches_direct_runs(serial):
     _, table = serial
     for row in table.itertuples(index=False):
-        point = [f"controller.hysteresis_db={row[1]}", f"link.ptx_dbw={row[2]}"]
+        point = [f"controller.hysteresis.margin_db={row[1]}", f"link.ptx_dbw={row[2]}"]
         summary = runner.run(load_config(PAPER, [*BASE, *point])).summary
         for column, path in METRIC_PATHS.items():
             got, want = table.loc[table["point"] == row.point, column].item(), _get(summary, path)
@@ -94,7 +94,7 @@ def test_written_csv_and_json_match_table(serial):
     import json
 
     doc = json.loads((out / "sweep.json").read_text())
-    assert doc["params"] == ["controller.hysteresis_db", "link.ptx_dbw"]
+    assert doc["params"] == ["controller.hysteresis.margin_db", "link.ptx_dbw"]
     assert [p["point"] for p in doc["points"]] == list(table["point"])
 
 
@@ -107,11 +107,17 @@ def test_two_workers_give_the_same_table(serial, tmp_path):
 @pytest.mark.parametrize(
     ("spec", "text"),
     [
-        ("controller.hysteresis_db", "--param 'controller.hysteresis_db' is not allowed"),
+        (
+            "controller.hysteresis.margin_db",
+            "--param 'controller.hysteresis.margin_db' is not allowed",
+        ),
         ("=0,3", "--param '=0,3' is not allowed"),
-        ("controller.hysteresis_db=", "controller.hysteresis_db: no values"),
-        ("controller.hysteresis_db=0,,3", "controller.hysteresis_db: an empty value"),
-        ("controller.hysteresis_db=0,-1", "controller.hysteresis_db = -1 is not allowed"),
+        ("controller.hysteresis.margin_db=", "controller.hysteresis.margin_db: no values"),
+        ("controller.hysteresis.margin_db=0,,3", "controller.hysteresis.margin_db: an empty value"),
+        (
+            "controller.hysteresis.margin_db=0,-1",
+            "controller.hysteresis.margin_db = -1 is not allowed",
+        ),
         ("controller.policy=max_snr,greedy", "controller.policy = 'greedy' is not allowed"),
         ("controller.hysteresys_db=1", "controller.hysteresys_db is not a known key"),
     ],
@@ -132,8 +138,8 @@ def test_duplicate_param_and_bad_workers(tmp_path):
 
 
 def test_parse_param_reads_toml_values():
-    assert parse_param("controller.hysteresis_db=0, 1.5,3") == (
-        "controller.hysteresis_db",
+    assert parse_param("controller.hysteresis.margin_db=0, 1.5,3") == (
+        "controller.hysteresis.margin_db",
         [0, 1.5, 3],
     )
     assert parse_param("controller.policy=max_snr,hysteresis")[1] == ["max_snr", "hysteresis"]
@@ -151,13 +157,13 @@ def test_point_names_are_safe_folder_names(values):
 
 def test_one_param_plots_and_cli(tmp_path):
     out = tmp_path / "cli"
-    argv = ["sweep", str(PAPER), "--param", "controller.hysteresis_db=0,3"]
+    argv = ["sweep", str(PAPER), "--param", "controller.hysteresis.margin_db=0,3"]
     argv += ["--set", 'controller.policy="hysteresis"', "--set", "run.duration_s=20"]
     assert main([*argv, "--out", str(out), "--quiet"]) == 0
     table = pd.read_csv(out / "sweep.csv")
-    assert list(table["controller.hysteresis_db"]) == [0, 3]
-    assert (out / "sweep_controller_hysteresis_db.png").stat().st_size > 0
-    bad = ["sweep", str(PAPER), "--param", "controller.hysteresis_db=-3", "--out", str(out)]
+    assert list(table["controller.hysteresis.margin_db"]) == [0, 3]
+    assert (out / "sweep_controller_hysteresis_margin_db.png").stat().st_size > 0
+    bad = ["sweep", str(PAPER), "--param", "controller.hysteresis.margin_db=-3", "--out", str(out)]
     assert main([*bad, "--quiet"]) == EXIT_USAGE
 
 
@@ -165,7 +171,7 @@ def _counting_run(monkeypatch, fail_at=None):
     """Patch ``runner.run`` to count calls (and raise KeyboardInterrupt at call ``fail_at``)."""
     real, calls = runner.run, []
 
-    def fake(cfg, out_dir=None, progress=False):
+    def fake(cfg, out_dir=None, progress=None):
         calls.append(out_dir)
         if len(calls) == fail_at:
             raise KeyboardInterrupt
@@ -210,7 +216,7 @@ def test_dask_cluster_gives_the_same_table(tmp_path):
     """``workers="dask://ADDRESS"`` (the ``dist`` extra): same table as one process."""
     distributed = pytest.importorskip("dask.distributed")
     base = ['controller.policy="hysteresis"', "run.duration_s=10"]
-    params = ["controller.hysteresis_db=0,3"]
+    params = ["controller.hysteresis.margin_db=0,3"]
     local = run_sweep(PAPER, params, tmp_path / "local", base_overrides=base, progress=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster:
         remote = run_sweep(

@@ -1,9 +1,12 @@
 """Tests of leolink.antenna.terminal: UPA, leaky wave, metasurface, factory."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from leolink.antenna.array import explicit_gain, steering_vector
+from leolink.antenna.panel import pointing_offsets
 from leolink.antenna.terminal import (
     Isotropic,
     LeakyWave,
@@ -11,9 +14,8 @@ from leolink.antenna.terminal import (
     UPATerminal,
     leaky_wave_gain_lin,
     leaky_wave_peak_gain_lin,
-    pointing_offsets,
-    terminal_from_config,
 )
+from leolink.config import parse_config
 from leolink.errors import ConfigError
 
 PAPER_ROUNDING_DB = 0.05  # the paper prints one decimal
@@ -88,13 +90,18 @@ def test_isotropic_and_broadcasting():
     assert g.shape == (5, 3)
 
 
-def test_terminal_from_config():
-    t = terminal_from_config("upa", n_x=24, n_y=24, rician_k=10)
-    assert isinstance(t, UPATerminal)
-    assert isinstance(terminal_from_config("metasurface"), Metasurface)
+def test_terminals_from_the_config_tables():
+    def terminal(**section):
+        cfg = parse_config({"terminal": section, "link": {"rician_k": 10.0}})
+        return cfg.terminal.build(SimpleNamespace(rician_k=cfg.link.rician_k))
+
+    assert terminal() == UPATerminal(24, 24, 10.0)
+    assert terminal(kind="metasurface") == Metasurface(33.0, 1.2)
+    leaky = terminal(kind="leaky_wave", leaky_wave={"n_x": 8, "n_y": 8, "leakage": 0.2})
+    assert leaky == LeakyWave(8, 8, 0.2)
     with pytest.raises(ConfigError, match="terminal.kind = 'dish' is not allowed"):
-        terminal_from_config("dish")
-    with pytest.raises(ConfigError, match="bad parameters"):
-        terminal_from_config("leaky_wave", n_x=24)
-    with pytest.raises(ConfigError, match="terminal.leakage = -0.1"):
-        terminal_from_config("leaky_wave", n_x=24, n_y=24, leakage=-0.1)
+        terminal(kind="dish")
+    with pytest.raises(ConfigError, match="terminal.leaky_wave.leakage = -0.1"):
+        terminal(kind="leaky_wave", leaky_wave={"leakage": -0.1})
+    with pytest.raises(ConfigError, match="terminal.upa.n_x = 24.0 is not allowed"):
+        terminal(upa={"n_x": 24.0})  # a float count is refused (strict types)

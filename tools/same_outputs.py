@@ -25,15 +25,27 @@ COMPARED = ("trace.csv", "events.csv", "summary.json", "trace.parquet")
 
 
 def configs(tree):
-    return [tree / "configs" / "paper.toml", *sorted((tree / "configs" / "examples").glob("*.toml"))]
+    return [
+        tree / "configs" / "paper.toml",
+        *sorted((tree / "configs" / "examples").glob("*.toml")),
+    ]
 
 
 def run_all(tree, out):
     env = dict(os.environ, PYTHONPATH=str(tree / "src"))
     for cfg in configs(tree):
         dest = out / cfg.stem
-        cmd = [sys.executable, "-m", "leolink.cli", "run", str(cfg), "--out", str(dest),
-               "--parquet", "--quiet", "--set", "run.plots=false"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "leolink.cli",
+            "run",
+            str(cfg),
+            "--out",
+            str(dest),
+            "--parquet",
+            "--quiet",
+        ]
         subprocess.run(cmd, env=env, check=True, cwd=tree)
 
 
@@ -63,18 +75,26 @@ def main(argv=None):
     work = Path(args.keep or tempfile.mkdtemp(prefix="same_outputs_"))
     base_tree = work / "base_tree"
     if not base_tree.exists():
-        subprocess.run(["git", "worktree", "add", "--detach", str(base_tree), args.base],
-                       cwd=ROOT, check=True, capture_output=True)
+        subprocess.run(
+            ["git", "worktree", "add", "--detach", str(base_tree), args.base],
+            cwd=ROOT,
+            check=True,
+            capture_output=True,
+        )
     try:
         run_all(base_tree, work / "base")
         run_all(ROOT, work / "head")
     finally:
-        subprocess.run(["git", "worktree", "remove", "--force", str(base_tree)], cwd=ROOT,
-                       capture_output=True)
+        subprocess.run(
+            ["git", "worktree", "remove", "--force", str(base_tree)], cwd=ROOT, capture_output=True
+        )
     bad = 0
     for cfg in configs(ROOT):
-        diffs = [n for n in COMPARED if not same(work / "base" / cfg.stem / n,
-                                                 work / "head" / cfg.stem / n, n)]
+        diffs = [
+            n
+            for n in COMPARED
+            if not same(work / "base" / cfg.stem / n, work / "head" / cfg.stem / n, n)
+        ]
         bad += bool(diffs)
         print(f"{cfg.stem:>12}: {'identical' if not diffs else 'DIFFERS: ' + ', '.join(diffs)}")
     return 1 if bad else 0

@@ -12,8 +12,8 @@ __version__ = "0.1.0"
 __all__ = ["ConfigError", "LeolinkError", "__version__", "run"]
 
 
-def run(config, **kwargs):
-    """Run a simulation; see :func:`leolink.sim.runner.run`."""
-    from leolink.sim.runner import run as _run
+def run(config, out_dir=None, progress=None):
+    """Run a simulation; see :func:`leolink.app.run.run`."""
+    from leolink.app.run import run as _run
 
-    return _run(config, **kwargs)
+    return _run(config, out_dir=out_dir, progress=progress)

@@ -19,12 +19,16 @@ EXIT_INTERRUPTED = 130
 
 
 def _config(args):
-    from leolink.config import load_config
+    from leolink.config import load_config, updated
 
     overrides = list(args.set or [])
     if getattr(args, "seed", None) is not None:
         overrides.append(f"run.seed={args.seed}")
-    return load_config(args.config, overrides)
+    cfg = load_config(args.config, overrides)
+    if getattr(args, "parquet", False) and "parquet" not in cfg.output.trace.formats:
+        formats = ", ".join(f'"{f}"' for f in [*cfg.output.trace.formats, "parquet"])
+        cfg = updated(cfg, [f"output.trace.formats=[{formats}]"])
+    return cfg
 
 
 def cmd_validate(args) -> int:
@@ -57,12 +61,13 @@ def _check_files(cfg):
     if c.kind == "tle" and not Path(c.tle_file).is_file():
         raise ConfigError(f"constellation.tle_file = {c.tle_file!r} does not exist")
     for i, p in enumerate(cfg.population):
-        if p.kind == "track" and not Path(p.track_file).is_file():
-            raise ConfigError(f"population.{i}.track_file = {p.track_file!r} does not exist")
+        path = getattr(p, "track_file", "")
+        if path and not Path(path).is_file():
+            raise ConfigError(f"population.{i}.track_file = {path!r} does not exist")
 
 
 def cmd_budget(args) -> int:
-    from leolink.scenario import link_budget_at_elevation
+    from leolink.app.reports import link_budget_at_elevation
 
     cfg = _config(args)
     budget = link_budget_at_elevation(cfg, args.elevation_deg)
@@ -77,12 +82,12 @@ def cmd_budget(args) -> int:
 
 
 def cmd_codebook(args) -> int:
-    from leolink.scenario import codebook_table
+    from leolink.app.reports import codebook_table
 
     cfg = _config(args)
     info = codebook_table(cfg)
     if args.plot:
-        from leolink.plots import plot_codebook
+        from leolink.io.plots import plot_codebook
 
         plot_codebook(cfg, info, Path(args.plot))
     if args.json:
@@ -101,7 +106,7 @@ def cmd_codebook(args) -> int:
 
 
 def cmd_coverage(args) -> int:
-    from leolink.coverage import run_coverage
+    from leolink.app.coverage import run_coverage
 
     cfg = _config(args)
     paths = run_coverage(
@@ -114,19 +119,13 @@ def cmd_coverage(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from leolink.sim.runner import run
+    from leolink.app.progress import progress_bar
+    from leolink.app.run import run
 
     cfg = _config(args)
     _check_files(cfg)
-    if args.parquet and "parquet" not in cfg.run.trace_formats:
-        cfg = cfg.model_copy(
-            update={
-                "run": cfg.run.model_copy(
-                    update={"trace_formats": [*cfg.run.trace_formats, "parquet"]}
-                )
-            }
-        )
-    result = run(cfg, out_dir=Path(args.out), progress=not args.quiet)
+    with progress_bar("leolink run", enabled=not args.quiet) as progress:
+        result = run(cfg, out_dir=Path(args.out), progress=progress)
     if not args.quiet:
         o, r = result.summary["overall"], result.summary["run"]
         print(
@@ -142,7 +141,7 @@ def _db(value):
 
 
 def cmd_sweep(args) -> int:
-    from leolink.sweep import run_sweep
+    from leolink.app.sweep import run_sweep
 
     _config(args)  # config mistakes fail here, before any run
     workers = int(args.workers) if str(args.workers).isdigit() else args.workers

@@ -14,15 +14,15 @@ No Python loop over UTs, satellites or beams.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from leolink.antenna.array import dirichlet_kernels
+from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.errors import ConfigError
-from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
+from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
 
@@ -63,11 +63,14 @@ class LinkParams:
     min_elevation_rad: float
 
 
+@dataclass
 class Snapshot:
     """What :meth:`LinkEngine.evaluate` computed for one epoch.
 
     Attributes
     ----------
+    engine : LinkEngine
+        The engine that computed it (beam lattice indices).
     rel_m : ndarray, shape (n_ut, n_sat, 3)
         Satellite -> UT vector [m].
     slant_range_m, elevation_rad : ndarray, shape (n_ut, n_sat)
@@ -75,20 +78,33 @@ class Snapshot:
         Above the minimum elevation.
     path_snr_lin : ndarray, shape (n_ut, n_sat)
         SNR per unit transmit gain (NaN where not visible).
+    kx, ky : ndarray, shapes (n_kx, n_sat, n_ut) and (n_ky, n_sat, n_ut)
+        Along- and cross-track Dirichlet kernels of the distinct beam cosines.
+    rx_db : ndarray, shape (n_ut, n_sat), or float
+        UT receive gain towards each satellite [dB].
+    path_no_rx_lin, u_panel : ndarray or None
+        With other-satellite interference: the path without the UT gain, (n_ut, n_sat),
+        zero below the horizon; each satellite's direction in the UT panel's cosines,
+        (n_ut, n_sat, 2).
     """
 
-    def __init__(self, engine, rel, rho, elevation, visible, kx, ky, path_lin, rx_db):
-        self._engine = engine
-        self.rel_m, self.slant_range_m, self.elevation_rad = rel, rho, elevation
-        self.visible, self.path_snr_lin = visible, path_lin
-        self._kx, self._ky = kx, ky  # kernels, (n_kx, n_sat, n_ut) and (n_ky, n_sat, n_ut)
-        self._rx_db = rx_db  # receive gain (n_ut, n_sat) or a scalar
+    engine: LinkEngine = field(repr=False)
+    rel_m: np.ndarray
+    slant_range_m: np.ndarray
+    elevation_rad: np.ndarray
+    visible: np.ndarray
+    path_snr_lin: np.ndarray
+    kx: np.ndarray
+    ky: np.ndarray
+    rx_db: np.ndarray | float
+    path_no_rx_lin: np.ndarray | None = None
+    u_panel: np.ndarray | None = None
 
     @cached_property
     def gain_tx_bm(self):
         """Beam-major linear TX gains, shape (n_beam, n_sat, n_ut)."""
-        e = self._engine
-        return self._kx[e.beam_ix] * self._ky[e.beam_iy]
+        e = self.engine
+        return self.kx[e.beam_ix] * self.ky[e.beam_iy]
 
     @property
     def snr_lin_bm(self):
@@ -107,24 +123,16 @@ class Snapshot:
         ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
         ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products.
         """
-        e = self._engine
+        e = self.engine
         with np.errstate(divide="ignore"):
-            lx, ly = 10.0 * np.log10(self._kx), 10.0 * np.log10(self._ky)
+            lx, ly = 10.0 * np.log10(self.kx), 10.0 * np.log10(self.ky)
             path_db = 10.0 * np.log10(self.path_snr_lin.T)
         out = lx[e.beam_ix] + ly[e.beam_iy] + path_db
         return out.transpose(2, 1, 0)
 
     @property
     def gain_rx_db(self):
-        return np.broadcast_to(self._rx_db, self.slant_range_m.shape)
-
-
-def _panel_direction_cosines(ut_pos_m, los_unit):
-    """Direction cosines ``(v.east, v.north)`` of unit vectors ``los_unit (n_ut, n_sat, 3)``
-    in the frame of a flat UT panel facing up, shape (n_ut, n_sat, 2)."""
-    lat, lon, _ = ecef_to_geodetic(ut_pos_m)
-    east_north = enu_basis(lat, lon)[:, :2, :]  # (n_ut, 2, 3)
-    return np.einsum("usk,uak->usa", los_unit, east_north)
+        return np.broadcast_to(self.rx_db, self.slant_range_m.shape)
 
 
 def reuse_colors(lattice_ij, n_colors):
@@ -153,22 +161,19 @@ class LinkEngine:
     codebook : leolink.antenna.codebook.Codebook
         Beams (direction cosines in the satellite body frame); all active, each fed
         ``params.ptx_dbw``.
-    terminal : object with ``gain_db(elevation_rad)``
+    terminal : leolink.antenna.terminal.TerminalAntenna
         UT antenna, steered at the serving satellite (paper Sec. 4.1).
     params : LinkParams
-    atmosphere : callable
+    atmosphere : leolink.link.atmosphere.AtmosphereModel
         ``atmosphere(elevation_rad) -> loss_db``, broadcasting.
     colors : ndarray of int, shape (n_beam,), optional
         Reuse colour per beam; only beams of the serving beam's colour interfere.
+    other_satellites : bool
+        Add the beams of every other satellite above the horizon as interference,
+        through ``terminal.pattern_lin`` (which must not be None).
     """
 
     def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False):
-        if other_satellites and not hasattr(terminal, "pattern_lin"):
-            raise ConfigError(
-                f"link.interference = 'all_satellites' needs the terminal's pattern, and "
-                f"{type(terminal).__name__} has none (the paper gives the metasurface's peak "
-                "gain and roll-off only); use 'serving_satellite' or another terminal"
-            )
         self.other_satellites = bool(other_satellites)
         self.codebook, self.terminal = codebook, terminal
         self.params, self.atmosphere = params, atmosphere
@@ -187,9 +192,9 @@ class LinkEngine:
             10.0 ** (k_db / 10.0) / (4.0 * np.pi * params.freq_hz / SPEED_OF_LIGHT_M_S) ** 2
         )
         self._rx_const = None
-        if getattr(terminal, "elevation_independent", False):
+        if terminal.elevation_independent:
             self._rx_const = float(terminal.gain_db(np.pi / 2))
-        self._atm_const = getattr(atmosphere, "constant_db", None)
+        self._atm_const = atmosphere.constant_db
 
     @property
     def n_beam(self) -> int:
@@ -235,13 +240,13 @@ class LinkEngine:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))
         path = self._k_lin / rho2 * 10.0 ** ((rx_db - atm_db) / 10.0)
         snap = Snapshot(
-            self, rel, rho, elevation, visible, kx, ky, np.where(visible, path, np.nan), rx_db
+            self, rel, rho, elevation, visible, np.where(visible, path, np.nan), kx, ky, rx_db
         )
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
-            # the UT gain, and its direction in the UT panel's (east, north) cosines.
+            # the UT gain, and its direction in the UT panel frame.
             snap.path_no_rx_lin = np.where(elevation > 0.0, path / 10.0 ** (rx_db / 10.0), 0.0)
-            snap.u_panel = _panel_direction_cosines(ut_pos_m, -rel / rho[..., None])
+            snap.u_panel = panel_direction_cosines(panel_basis(ut_pos_m), -rel / rho[..., None])
         return snap
 
     def serve(
@@ -273,7 +278,7 @@ class LinkEngine:
         dict of ndarray, shape (n_ut,)
             Trace columns (SI, dB; angular speed in deg/s).
         """
-        _, n_sat, n_ut = snap._kx.shape
+        _, n_sat, n_ut = snap.kx.shape
         if n_sat == 0:  # no satellite to serve anyone this epoch
             return {name: np.full(n_ut, np.nan) for name in SERVE_COLUMNS}
         served = sat_idx >= 0
@@ -285,8 +290,8 @@ class LinkEngine:
         # Flat gathers: several times faster than fancy indexing with 3 index arrays.
         plane = n_sat * n_ut
         g_sig = (
-            snap._kx.reshape(-1)[self.beam_ix[b] * plane + su]
-            * snap._ky.reshape(-1)[self.beam_iy[b] * plane + su]
+            snap.kx.reshape(-1)[self.beam_ix[b] * plane + su]
+            * snap.ky.reshape(-1)[self.beam_iy[b] * plane + su]
         )
         g_int = self._same_colour_total(snap, s, b, u, su) - g_sig
         path = snap.path_snr_lin.reshape(-1)[us]
@@ -355,7 +360,7 @@ class LinkEngine:
         """Sum of the TX gains of the beams that share the serving beam's colour."""
         if self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy):
             # Full lattice, full reuse: sum_ij kx_i ky_j = (sum_i kx_i)(sum_j ky_j).
-            return snap._kx.sum(axis=0).reshape(-1)[su] * snap._ky.sum(axis=0).reshape(-1)[su]
+            return snap.kx.sum(axis=0).reshape(-1)[su] * snap.ky.sum(axis=0).reshape(-1)[su]
         g = snap.gain_tx_bm[:, s, u].T  # (n_ut, n_beam)
         same = self.colors[None, :] == self.colors[b][:, None]
         return np.einsum("ub,ub->u", g, same)

@@ -5,12 +5,11 @@ sphere (no J2); TLEs go through ``sgp4`` with TEME taken as the inertial frame.
 """
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from leolink.constants import EARTH_RADIUS_M, EARTH_ROTATION_RAD_S, GM_EARTH_M3_S2
-from leolink.errors import ConfigError, LeolinkError
+from leolink.errors import ConfigError
 
 __all__ = [
     "Elements",
@@ -21,7 +20,6 @@ __all__ = [
     "orbital_period_s",
     "orbital_speed_m_s",
     "pass_over",
-    "read_tle_file",
     "tle_state",
     "walker_delta",
 ]
@@ -245,54 +243,6 @@ def eci_to_ecef(pos_m, vel_m_s, acc_m_s2, t_s, gmst0_rad=0.0, rotation_rad_s=EAR
     vel_f = rot(vel - np.cross(w, pos))
     acc_f = rot(acc) - 2.0 * np.cross(w, vel_f) - np.cross(w, np.cross(w, pos_f))
     return pos_f, vel_f, acc_f
-
-
-def _tle_checksum_ok(line):
-    digits = sum(int(ch) for ch in line[:68] if ch.isdigit()) + line[:68].count("-")
-    return line[68].isdigit() and digits % 10 == int(line[68])
-
-
-def _check_tle_line(path, lineno, line, number):
-    template = f"{number} NNNNNC NNNNNAAA ... (69 columns, checksum in column 69)"
-    if len(line) < 69 or not line.startswith(f"{number} "):
-        raise LeolinkError(
-            f"{path}:{lineno}: malformed TLE line {number}: {line!r}; expected {template}"
-        )
-    if not _tle_checksum_ok(line):
-        raise LeolinkError(f"{path}:{lineno}: TLE line {number} checksum fails: {line!r}")
-
-
-def read_tle_file(path):
-    """Read a 2-line or 3-line (named) TLE file.
-
-    Returns
-    -------
-    list of (name, line1, line2)
-        ``name`` is ``""`` for 2-line entries.
-
-    Raises
-    ------
-    LeolinkError
-        Naming the file and line of a malformed TLE.
-    """
-    lines = [(i + 1, ln.rstrip()) for i, ln in enumerate(Path(path).read_text().splitlines())]
-    lines = [(i, ln) for i, ln in lines if ln.strip()]
-    out, k = [], 0
-    while k < len(lines):
-        name = ""
-        if not lines[k][1].startswith("1 "):
-            name = lines[k][1].strip()
-            name = name[2:].strip() if name.startswith("0 ") else name
-            k += 1
-        if k + 1 >= len(lines):
-            lineno = lines[k][0] if k < len(lines) else lines[-1][0]
-            raise LeolinkError(f"{path}:{lineno}: incomplete TLE (expected two lines after name)")
-        (n1, l1), (n2, l2) = lines[k], lines[k + 1]
-        _check_tle_line(path, n1, l1, 1)
-        _check_tle_line(path, n2, l2, 2)
-        out.append((name, l1, l2))
-        k += 2
-    return out
 
 
 def _two_body_acc(pos_m, gm_m3_s2):

@@ -64,7 +64,7 @@ class Entry(Generic[T]):
     """One registered kind."""
 
     name: str
-    factory: Callable[..., T]
+    factory: Callable[..., T] | None
     config: type[Params]
     build: Callable[[Params, Any], T] | None
     doc: str
@@ -74,6 +74,7 @@ class Entry(Generic[T]):
         params = self.config() if params is None else params
         if self.build is not None:
             return self.build(params, context)
+        assert self.factory is not None  # add() always gives a build function
         return self.factory(**dict(params))
 
 
@@ -104,21 +105,40 @@ class Registry(Generic[T]):
         replace: bool = False,
     ) -> Callable[[Callable[..., T]], Callable[..., T]]:
         """Decorator registering a class or factory function under ``name``."""
+        self._check(name, config)
+
+        def decorate(factory: Callable[..., T]) -> Callable[..., T]:
+            doc = (factory.__doc__ or "").strip().splitlines()
+            self._add(Entry(name, factory, config, build, doc[0] if doc else ""), replace)
+            return factory
+
+        return decorate
+
+    def add(
+        self,
+        name: str,
+        build: Callable[[Params, Any], T],
+        *,
+        doc: str,
+        config: type[Params] = NoParams,
+        replace: bool = False,
+    ) -> None:
+        """Register a builder function ``build(params, context)`` under ``name``."""
+        self._check(name, config)
+        self._add(Entry(name, None, config, build, doc), replace)
+
+    def _check(self, name: str, config: type[Params]) -> None:
         if not name.isidentifier():
             raise ValueError(f"{self.key}: {name!r} is not a valid name (letters, digits, _)")
         if not (isinstance(config, type) and issubclass(config, Params)):
             raise TypeError(f"{self.key} {name!r}: config must be a leolink.registry.Params")
 
-        def decorate(factory: Callable[..., T]) -> Callable[..., T]:
-            global _current
-            if name in self._entries and not replace:
-                raise ValueError(f"{self.key} {name!r} is registered already")
-            doc = (factory.__doc__ or "").strip().splitlines()
-            self._entries[name] = Entry(name, factory, config, build, doc[0] if doc else "")
-            _current = next(_generation)
-            return factory
-
-        return decorate
+    def _add(self, entry: Entry[T], replace: bool) -> None:
+        global _current
+        if entry.name in self._entries and not replace:
+            raise ValueError(f"{self.key} {entry.name!r} is registered already")
+        self._entries[entry.name] = entry
+        _current = next(_generation)
 
     def __contains__(self, name: object) -> bool:
         return name in self._entries
@@ -138,7 +158,9 @@ class Registry(Generic[T]):
             return self._entries[name]
         except KeyError:
             allowed = ", ".join(repr(n) for n in self._entries)
-            raise ConfigError(f"{self.key} = {name!r} is not allowed; use one of {allowed}") from None
+            raise ConfigError(
+                f"{self.key} = {name!r} is not allowed; use one of {allowed}"
+            ) from None
 
     def build(self, name: str, params: Params | None = None, context: Any = None) -> T:
         """Build entry ``name``; checks the result against the protocol."""

@@ -26,7 +26,6 @@ from leolink.antenna.terminal import (
     LeakyWave,
     Metasurface,
     UPATerminal,
-    terminal_from_config,
 )
 
 __all__ = [
@@ -47,7 +46,6 @@ __all__ = [
     "oversampling_interval",
     "quantization_loss_db",
     "steering_vector",
-    "terminal_from_config",
     "ula_gain",
     "upa_gain",
 ]

@@ -56,25 +56,28 @@ def _lattice_k(n_sub, oversampling):
     return np.rint(dft_lattice(n_sub, oversampling) * oversampling * n_sub / 2.0).astype(int)
 
 
-_ALONG_TRACK = np.array([1.0, 0.0, 0.0])  # canonical satellite velocity direction
+#: Direction of the canonical satellite's velocity (its body x axis).
+CANONICAL_ALONG_TRACK = np.array([1.0, 0.0, 0.0])
 
 
-def _canonical_satellite(altitude_m, radius_m):
+def canonical_satellite(altitude_m, radius_m=EARTH_RADIUS_M):
+    """Position [m] of the canonical satellite: over the pole, moving along +x, so that its
+    body axes are the Earth-centred axes (the geometry of codebook design)."""
     return np.array([0.0, 0.0, radius_m + altitude_m])
 
 
 def _ray_to_roi_plane(u_xy, altitude_m, radius_m):
     """ROI-plane (x, y) [m] where the ray u_xy (..., 2) hits the sphere; NaN if it misses."""
-    sat = _canonical_satellite(altitude_m, radius_m)
-    ground = ray_to_ground(sat, _ALONG_TRACK, u_xy, radius_m)
-    return ground_to_roi(ground, sat, _ALONG_TRACK, radius_m)
+    sat = canonical_satellite(altitude_m, radius_m)
+    ground = ray_to_ground(sat, CANONICAL_ALONG_TRACK, u_xy, radius_m)
+    return ground_to_roi(ground, sat, CANONICAL_ALONG_TRACK, radius_m)
 
 
 def _roi_radius_to_u(rho_m, altitude_m, radius_m):
     """|u| of the ray that hits the ROI-plane radius rho_m [m] (azimuth is preserved by the map)."""
-    sat = _canonical_satellite(altitude_m, radius_m)
-    ground = roi_to_ground(rho_m, 0.0, sat, _ALONG_TRACK, radius_m)
-    return np.hypot(*np.moveaxis(direction_cosines(sat, _ALONG_TRACK, ground), -1, 0))
+    sat = canonical_satellite(altitude_m, radius_m)
+    ground = roi_to_ground(rho_m, 0.0, sat, CANONICAL_ALONG_TRACK, radius_m)
+    return np.hypot(*np.moveaxis(direction_cosines(sat, CANONICAL_ALONG_TRACK, ground), -1, 0))
 
 
 @dataclass(frozen=True)
@@ -258,7 +261,9 @@ def find_oversampling(n_sub_x, n_sub_y, n_rf, rx_m, ry_m, altitude_m, radius_m=E
 
 
 __all__ = [
+    "CANONICAL_ALONG_TRACK",
     "Codebook",
+    "canonical_satellite",
     "build_codebook",
     "dft_lattice",
     "find_oversampling",

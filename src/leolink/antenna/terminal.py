@@ -6,11 +6,13 @@ Every model has ``gain_db(elevation_rad, off_boresight_rad=0.0, error_azimuth_ra
 direction of that error around the satellite direction (0: towards higher elevation,
 pi/2: sideways); only the array models (UPA, leaky wave) use them.
 
-Array terminals lie flat (panel normal = local up, panel x axis towards the satellite
-azimuth). A pointing error ``delta`` at error azimuth ``psi`` moves the beam away from the
-satellite direction ``v = (cos el, 0, sin el)`` by direction-cosine offsets
-``du_x = cos(el) (cos(delta) - 1) - sin(delta) cos(psi) sin(el)``,
-``du_y = sin(delta) sin(psi)``.
+Array terminals lie flat in the UT panel frame of :mod:`leolink.antenna.panel` (the one
+frame of the engine and of pointing errors); a pointing error moves the beam off the
+satellite direction by the offsets of :func:`~leolink.antenna.panel.pointing_offsets`
+(the satellite taken due east of the panel, so panel x points towards it).
+
+Every model is registered in :data:`TERMINALS` (config ``terminal.kind``) with its
+parameter model; the engine relies only on the :class:`TerminalAntenna` protocol.
 
 Below the horizon (``elevation_rad < 0``) the models return the formula value (finite for
 the arrays, NaN for the metasurface); callers (the engine) mask those links.
@@ -21,30 +23,68 @@ References
    satellite communications."
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
+from pydantic import Field
 
 from leolink.antenna.array import ula_gain, upa_gain
-from leolink.errors import ConfigError, require_at_least
+from leolink.antenna.panel import pointing_offsets
+from leolink.registry import Params, Registry
+
+__all__ = [
+    "TERMINALS",
+    "Isotropic",
+    "LeakyWave",
+    "Metasurface",
+    "TerminalAntenna",
+    "UPATerminal",
+    "leaky_wave_gain_lin",
+    "leaky_wave_peak_gain_lin",
+]
 
 
-def pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad):
-    """Offsets ``(du_x, du_y)`` = beam - satellite direction of a flat panel beam off target.
+@runtime_checkable
+class TerminalAntenna(Protocol):
+    """What the engine needs of a UT antenna steered at its serving satellite.
 
-    Parameters
-    ----------
-    elevation_rad, off_boresight_rad, error_azimuth_rad : array_like
-        Satellite elevation, pointing error and its azimuth around the satellite direction [rad].
-
-    Returns
-    -------
-    du_x, du_y : ndarray, broadcast shape
-        Offsets in the panel frame [-].
+    ``gain_db(elevation_rad, off_boresight_rad, error_azimuth_rad)`` [dB] broadcasts;
+    ``elevation_independent`` says whether it depends on the elevation at all (then the
+    engine evaluates it once); ``pattern_lin(du_x, du_y)`` is the linear gain towards a
+    direction offset by panel direction cosines from the beam, or None for a model
+    without a pattern (it cannot weigh other satellites' beams).
     """
-    el, d, psi = np.broadcast_arrays(elevation_rad, off_boresight_rad, error_azimuth_rad)
-    dux = np.cos(el) * (np.cos(d) - 1.0) - np.sin(d) * np.cos(psi) * np.sin(el)
-    return dux, np.sin(d) * np.sin(psi)
+
+    elevation_independent: bool
+    pattern_lin: Callable[..., np.ndarray] | None
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0): ...
+
+
+#: Terminal antennas by config name (``terminal.kind``).
+TERMINALS: Registry[TerminalAntenna] = Registry("terminal.kind", protocol=TerminalAntenna)
+
+
+def _panel_field(doc):
+    return Field(24, ge=1, le=4096, description=doc)
+
+
+class UpaConfig(Params):
+    n_x: int = _panel_field("elements along x")
+    n_y: int = _panel_field("elements along y")
+
+
+class LeakyWaveConfig(Params):
+    n_x: int = _panel_field("elements along x")
+    n_y: int = _panel_field("elements along y")
+    leakage: float = Field(0.05, gt=0.0, le=10.0, description="amplitude decay per element [Np]")
+
+
+class MetasurfaceConfig(Params):
+    peak_gain_db: float = Field(33.0, ge=-20.0, le=80.0, description="gain at broadside [dB]")
+    rolloff: float = Field(1.2, ge=0.0, le=20.0, description="cos-power scan roll-off")
 
 
 def leaky_wave_gain_lin(du, n, leakage):
@@ -87,6 +127,7 @@ def leaky_wave_peak_gain_lin(n, leakage):
     return np.where(a > 0, np.tanh(safe * n / 2) / np.tanh(safe / 2), n)
 
 
+@TERMINALS.register("isotropic")
 @dataclass(frozen=True)
 class Isotropic:
     """0 dBi in every direction."""
@@ -104,6 +145,11 @@ class Isotropic:
         return np.ones(np.broadcast_shapes(np.shape(du_x), np.shape(du_y)))
 
 
+@TERMINALS.register(
+    "upa",
+    config=UpaConfig,
+    build=lambda p, ctx: UPATerminal(p.n_x, p.n_y, getattr(ctx, "rician_k", np.inf)),
+)
 @dataclass(frozen=True)
 class UPATerminal:
     """Half-wavelength ``n_x x n_y`` UPA, unit-modulus weights (Sec. 2.1, 4.1).
@@ -119,11 +165,6 @@ class UPATerminal:
     #: Steered at the satellite: without a pointing error the gain does not depend on
     #: the elevation (a flat panel's element pattern is not modelled).
     elevation_independent = True
-
-    def __post_init__(self):
-        require_at_least("terminal.n_x", self.n_x, 1, "elements along x")
-        require_at_least("terminal.n_y", self.n_y, 1, "elements along y")
-        require_at_least("terminal.rician_k", self.rician_k, 1e-12, "Rician factor K > 0")
 
     def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Linear average gain ``G_LoS(du) + 1/K``."""
@@ -141,6 +182,7 @@ class UPATerminal:
         return 10.0 * np.log10(self.gain_lin(elevation_rad, off_boresight_rad, error_azimuth_rad))
 
 
+@TERMINALS.register("leaky_wave", config=LeakyWaveConfig)
 @dataclass(frozen=True)
 class LeakyWave:
     """CRLH leaky-wave flat panel, weights decaying as ``e^{-leakage n}`` per dimension (Sec. 2.1).
@@ -156,12 +198,6 @@ class LeakyWave:
     leakage: float
     rician_k: float = np.inf
     elevation_independent = True  # steered at the satellite, as the UPA
-
-    def __post_init__(self):
-        require_at_least("terminal.n_x", self.n_x, 1, "elements along x")
-        require_at_least("terminal.n_y", self.n_y, 1, "elements along y")
-        require_at_least("terminal.leakage", self.leakage, 0.0, "decay per element, Np")
-        require_at_least("terminal.rician_k", self.rician_k, 1e-12, "Rician factor K > 0")
 
     def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Linear gain, product of the two tapered line kernels plus ``1/K``."""
@@ -179,6 +215,7 @@ class LeakyWave:
         return 10.0 * np.log10(self.gain_lin(elevation_rad, off_boresight_rad, error_azimuth_rad))
 
 
+@TERMINALS.register("metasurface", config=MetasurfaceConfig)
 @dataclass(frozen=True)
 class Metasurface:
     """Kymeta-like metasurface: ``peak_gain_db + rolloff 10 log10(sin el)`` (cos^r scan roll-off).
@@ -192,38 +229,10 @@ class Metasurface:
     peak_gain_db: float = 33.0
     rolloff: float = 1.2
     elevation_independent = False
+    pattern_lin = None  # no array factor: it cannot weigh other satellites' beams
 
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Gain [dB], broadcast shape of ``elevation_rad`` and ``off_boresight_rad``."""
         el = np.asarray(elevation_rad, dtype=float) + 0.0 * np.asarray(off_boresight_rad)
         with np.errstate(divide="ignore", invalid="ignore"):
             return self.peak_gain_db + self.rolloff * 10.0 * np.log10(np.sin(el))
-
-
-_KINDS = {"isotropic": Isotropic, "upa": UPATerminal, "leaky_wave": LeakyWave}
-_KINDS["metasurface"] = Metasurface
-
-
-def terminal_from_config(kind, **params):
-    """Build a terminal from its config name and parameters.
-
-    Parameters
-    ----------
-    kind : str
-        One of ``isotropic``, ``upa``, ``leaky_wave``, ``metasurface``.
-    **params
-        Constructor arguments (e.g. ``n_x=24, n_y=24, rician_k=10``).
-
-    Raises
-    ------
-    ConfigError
-        Unknown kind or bad parameters.
-    """
-    if kind not in _KINDS:
-        raise ConfigError(
-            f"terminal.kind = {kind!r} is not allowed; use one of {', '.join(sorted(_KINDS))}"
-        )
-    try:
-        return _KINDS[kind](**params)
-    except TypeError as exc:
-        raise ConfigError(f"terminal.kind = {kind!r}: bad parameters {params!r} ({exc})") from exc

@@ -1,49 +1,110 @@
-"""Atomic file writes: a reader never sees a half-written output.
+"""The one atomic writer: a reader never sees a half-written output.
 
-Each writer writes ``NAME.partial`` in the target folder and renames it over ``NAME``
-(``os.replace`` is atomic on one file system). On error the partial file is removed.
-This guards against an interrupted or failed run; it does not fsync (durability across
-a power cut would cost ~0.15 s per file on this kind of machine).
+Every output file is first written to a temporary file created next to its target (same
+folder, so the final ``os.replace`` is an atomic rename on one file system), named
+``NAME.<random>.partial``, created exclusively and never through a symbolic link
+(``O_CREAT | O_EXCL | O_NOFOLLOW``): a planted ``NAME.partial`` link cannot redirect the
+write. :class:`PendingFiles` holds several such files and renames them all when the
+writer commits, or removes them all when it aborts (an error, Ctrl-C, SIGTERM). The
+rename replaces a symbolic link at the final name by the file itself, never its target.
+This guards against an interrupted or failed run; it does not fsync (durability across a
+power cut would cost ~0.15 s per file on this kind of machine).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import secrets
 from contextlib import contextmanager
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
 __all__ = [
-    "atomic_path",
+    "PARTIAL_SUFFIX",
+    "PendingFiles",
+    "atomic_file",
     "to_jsonable",
     "write_csv_atomic",
     "write_json_atomic",
     "write_text_atomic",
 ]
 
+PARTIAL_SUFFIX = ".partial"
+_FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+
+
+class PendingFiles:
+    """Temporary files renamed to their targets together on :meth:`commit`.
+
+    Use as a context manager (commit on success, abort on error) or call the methods.
+    """
+
+    def __init__(self):
+        self._items: list[tuple[Path, Path, BinaryIO]] = []
+
+    def open(self, path) -> BinaryIO:
+        """A new binary file that becomes ``path`` on commit."""
+        path = Path(path)
+        tmp = path.with_name(f"{path.name}.{secrets.token_hex(4)}{PARTIAL_SUFFIX}")
+        handle = os.fdopen(os.open(tmp, _FLAGS, 0o644), "wb")
+        self._items.append((tmp, path, handle))
+        return handle
+
+    @property
+    def targets(self) -> list[Path]:
+        """Final paths, in the order opened."""
+        return [final for _, final, _ in self._items]
+
+    def commit(self) -> list[Path]:
+        """Close every file and rename it to its target; returns the targets."""
+        try:
+            for _, _, handle in self._items:
+                handle.close()
+            for tmp, final, _ in self._items:
+                os.replace(tmp, final)
+        except BaseException:
+            self.abort()
+            raise
+        targets, self._items = self.targets, []
+        return targets
+
+    def abort(self) -> None:
+        """Close and remove every temporary file (already renamed ones stay)."""
+        for tmp, _, handle in self._items:
+            with contextlib.suppress(Exception):
+                handle.close()
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+        self._items = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()
+        return False
+
 
 @contextmanager
-def atomic_path(path):
-    """Yield a temporary path next to ``path``; rename it to ``path`` on success."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+def atomic_file(path):
+    """Yield a binary file that replaces ``path`` when the block ends without error."""
+    with PendingFiles() as pending:
+        yield pending.open(path)
 
 
 def write_text_atomic(path, text):
     """Write ``text`` (UTF-8) to ``path`` atomically; return the path."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return path
+    with atomic_file(path) as f:
+        f.write(text.encode("utf-8"))
+    return Path(path)
 
 
 def to_jsonable(obj):
@@ -66,7 +127,6 @@ def write_json_atomic(path, obj):
 
 def write_csv_atomic(df, path):
     """Write a DataFrame as CSV (no index) atomically; return the path."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False)
-    return path
+    with atomic_file(path) as f:
+        df.to_csv(f, index=False)
+    return Path(path)

@@ -1,6 +1,6 @@
 """Link budget, atmospheric loss and UT fading (Sec. 2.2 and 4 of the paper)."""
 
-from leolink.link.atmosphere import AtmosphereTable, atmosphere_from_config, atmosphere_model
+from leolink.link.atmosphere import ATMOSPHERES, AtmosphereTable, atmosphere_model
 from leolink.link.budget import (
     LinkBudget,
     db,
@@ -19,7 +19,7 @@ from leolink.link.fading import mean_rician_gain_lin, rician_gain_lin
 __all__ = [
     "AtmosphereTable",
     "LinkBudget",
-    "atmosphere_from_config",
+    "ATMOSPHERES",
     "atmosphere_model",
     "db",
     "fspl_db",

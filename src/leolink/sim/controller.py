@@ -1,45 +1,23 @@
-"""Serving-beam selection: pure, vectorized policies and the per-epoch controller step.
+"""The per-epoch controller step: policy, time-to-trigger, outage, handover execution.
 
 Every epoch the simulator evaluates an SNR matrix ``snr_db`` of shape ``(n_ut, n_cand)``
 over candidate (satellite, beam) pairs, flattened as ``cand = sat * n_beam + beam``
 (NaN where the satellite is below the minimum elevation or the beam is not usable).
-:func:`step` picks the serving candidate of every UT in one vectorized call and returns
-the handover/outage events and the closed beam dwells. The paper (Palacios et al.)
-selects the best beam every epoch; it has no handover model, so hysteresis,
-time-to-trigger and prediction are leolink additions.
-
-Policy protocol
----------------
-A policy is any object with
-
-- ``choose(t_s, snr_db, state, future_snr_db=None) -> target (n_ut,) int``: pure (it must
-  not mutate ``state``). ``snr_db`` is already masked by :func:`step`: NaN marks every
-  unusable candidate (no link, or SNR below the minimum). ``target`` is the candidate the
-  UT should be served by now (``state.serving`` to stay). Wherever a UT has a usable
-  candidate, ``target`` must be usable (or equal to a still-usable serving candidate).
-- ``lookahead_s`` [s]: 0, or the horizon at which the caller must evaluate
-  ``future_snr_db`` (same shape, same masking) from the known ephemeris.
-- ``time_to_trigger_s`` [s] (optional, default 0): :func:`step` switches to a target other
-  than the serving candidate only after the policy asked for that same target on every
-  epoch during this long. A UT whose serving candidate is unusable switches at once.
-
-A new policy is one small class following this protocol; register it in ``POLICIES``.
+:func:`step` picks the serving candidate of every UT in one vectorized call with a policy
+of :mod:`leolink.sim.policies` and returns the handover/outage events and the closed beam
+dwells.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import inspect
 
 import numpy as np
 
-from leolink.errors import ConfigError, require_at_least
+from leolink.sim.policies import best_candidate, value_at  # noqa: F401  (re-exported)
 
 # Epoch times accumulate float rounding (k * 0.1 s); 1 ns is far below any epoch length.
 TIME_TOL_S = 1e-9
-# Predictive ranking: a candidate lost at t + lookahead ranks below every candidate that is
-# still usable then; SNRs lie within +-1000 dB, so this offset keeps the order lexicographic.
-_LOST_PENALTY_DB = 1.0e4
 
 SERVICE_SERVED, SERVICE_HANDOVER, SERVICE_OUTAGE = 0, 1, 2
 #: Trace ``service`` code -> name (index = code).
@@ -109,136 +87,6 @@ class ControllerState:
     @property
     def n_ut(self):
         return self.serving.shape[0]
-
-
-def best_candidate(snr_db):
-    """Per-UT argmax over candidates ignoring NaN.
-
-    Returns ``(index (n_ut,) int64, value (n_ut,) float)``; -1 and NaN where every
-    candidate is NaN. Ties go to the lowest index (``numpy.argmax``).
-    """
-    snr_db = np.asarray(snr_db, float)
-    if snr_db.shape[1] == 0:
-        return np.full(snr_db.shape[0], -1, np.int64), np.full(snr_db.shape[0], np.nan)
-    filled = np.where(np.isnan(snr_db), -np.inf, snr_db)
-    idx = np.argmax(filled, axis=1)
-    val = filled.reshape(-1)[np.arange(len(idx)) * filled.shape[1] + idx]
-    ok = val > -np.inf
-    return np.where(ok, idx, -1).astype(np.int64), np.where(ok, val, np.nan)
-
-
-def value_at(snr_db, cand):
-    """``snr_db[i, cand[i]]`` per UT, NaN where ``cand < 0``."""
-    snr_db = np.asarray(snr_db, float)
-    cand = np.asarray(cand, np.int64)
-    if snr_db.shape[1] == 0:
-        return np.full(cand.shape, np.nan)
-    # A flat gather: several times cheaper than take_along_axis for a few candidates.
-    flat = np.ascontiguousarray(snr_db).reshape(-1)
-    val = flat[np.arange(len(cand)) * snr_db.shape[1] + np.maximum(cand, 0)]
-    return np.where(cand >= 0, val, np.nan)
-
-
-def _switch_or_stay(serving, score, margin_db):
-    """Target = best by ``score`` if it strictly beats the serving one by >= margin."""
-    best, best_score = best_candidate(score)
-    serv_score = value_at(score, serving)
-    beats = (best_score - serv_score >= margin_db) & (best_score > serv_score)
-    keep = np.isfinite(serv_score) & ~beats
-    return np.where(keep, serving, best)
-
-
-class MaxSnr:
-    """The paper's rule: serve every UT by its best candidate, re-chosen every epoch."""
-
-    lookahead_s = 0.0
-    time_to_trigger_s = 0.0
-
-    def choose(self, t_s, snr_db, state, future_snr_db=None):
-        return best_candidate(snr_db)[0]
-
-    def __repr__(self):
-        return "MaxSnr()"
-
-
-class Hysteresis:
-    """Switch only when a candidate beats the serving one by >= ``margin_db`` [dB].
-
-    The switch happens once the same candidate has been ahead for ``time_to_trigger_s``
-    [s] (bookkept by :func:`step`, as 3GPP event A3). A tie never triggers a switch. A UT
-    whose serving candidate became unusable goes to its best candidate at once.
-    """
-
-    lookahead_s = 0.0
-
-    def __init__(self, margin_db=3.0, time_to_trigger_s=0.0):
-        require_at_least("controller.margin_db", margin_db, 0.0, "hysteresis margin [dB]")
-        require_at_least("controller.time_to_trigger_s", time_to_trigger_s, 0.0, "[s]")
-        self.margin_db = float(margin_db)
-        self.time_to_trigger_s = float(time_to_trigger_s)
-
-    def choose(self, t_s, snr_db, state, future_snr_db=None):
-        return _switch_or_stay(state.serving, np.asarray(snr_db, float), self.margin_db)
-
-    def __repr__(self):
-        return f"Hysteresis(margin_db={self.margin_db}, time_to_trigger_s={self.time_to_trigger_s})"
-
-
-def predictive_score_db(snr_db, future_snr_db):
-    """Rank of a candidate for :class:`Predictive`: ``min(snr now, snr at t + lookahead)``.
-
-    A candidate unusable at ``t + lookahead`` (NaN there) scores its current SNR minus a
-    large penalty, so it ranks below every candidate still usable then but is still
-    chosen, by current SNR, when no candidate survives. NaN where unusable now.
-    """
-    now = np.asarray(snr_db, float)
-    future = np.asarray(future_snr_db, float)
-    return np.where(np.isnan(future), now - _LOST_PENALTY_DB, np.minimum(now, future))
-
-
-class Predictive:
-    """Hand over to the candidate with the best ``min(snr now, snr at t + lookahead_s)``.
-
-    A switch is due when another candidate beats the serving one by >= ``margin_db`` by
-    that metric (or the serving one became unusable); the UT then avoids a beam that it
-    would leave right away. ``future_snr_db`` comes from the known ephemeris.
-    """
-
-    time_to_trigger_s = 0.0
-
-    def __init__(self, lookahead_s=10.0, margin_db=0.0):
-        require_at_least("controller.lookahead_s", lookahead_s, 0.0, "prediction horizon [s]")
-        require_at_least("controller.margin_db", margin_db, 0.0, "hysteresis margin [dB]")
-        self.lookahead_s = float(lookahead_s)
-        self.margin_db = float(margin_db)
-
-    def choose(self, t_s, snr_db, state, future_snr_db=None):
-        if future_snr_db is None:
-            raise ValueError("Predictive.choose needs future_snr_db evaluated at t + lookahead_s")
-        score = predictive_score_db(snr_db, future_snr_db)
-        return _switch_or_stay(state.serving, score, self.margin_db)
-
-    def __repr__(self):
-        return f"Predictive(lookahead_s={self.lookahead_s}, margin_db={self.margin_db})"
-
-
-POLICIES = {"max_snr": MaxSnr, "hysteresis": Hysteresis, "predictive": Predictive}
-
-
-def policy_from_config(name, **params):
-    """Build a policy by config name (``max_snr``, ``hysteresis``, ``predictive``)."""
-    if name not in POLICIES:
-        allowed = ", ".join(POLICIES)
-        raise ConfigError(f"controller.policy = {name!r} is not allowed; use one of {allowed}")
-    cls = POLICIES[name]
-    allowed_params = [p for p in inspect.signature(cls).parameters]
-    unknown = sorted(set(params) - set(allowed_params))
-    if unknown:
-        raise ConfigError(
-            f"controller.{unknown[0]} is not a parameter of policy {name!r}; "
-            f"allowed: {', '.join(allowed_params) or 'none'}"
-        )
-    return cls(**params)
 
 
 @dataclasses.dataclass
@@ -366,7 +214,7 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
 
     immediate = ~np.isfinite(value_at(usable_db, old))
     wants = has_usable & (old >= 0) & ~interrupted & (target != old)
-    ttt_s = float(getattr(policy, "time_to_trigger_s", 0.0))
+    ttt_s = float(policy.time_to_trigger_s)
     handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
     outage_start = ~has_usable & ~state.in_outage
     outage_end = has_usable & state.in_outage

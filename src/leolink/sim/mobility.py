@@ -1,55 +1,30 @@
-"""User-terminal (UT) mobility: populations that give every UT's state at a time ``t``.
+"""User-terminal (UT) motion models: every UT's state at a time ``t``, all UTs at once.
 
-A *population* is one object holding ``n_ut`` terminals of one mobility model. Its
-``state(t_s)`` returns a :class:`UTState` for all its UTs at once (vectorized; no Python
-loop over UTs). Frame: Earth-centred, Earth-fixed, spherical Earth of radius
-``EARTH_RADIUS_M`` (the inertial frame when Earth rotation is off; the caller adds the
-rotation). Populations: :class:`Static`, :class:`ConstantVelocity`, :class:`Waypoints`
-and :class:`RecordedTrack` (waypoints read from CSV with :func:`read_track_csv`).
-
-Placement helpers map points of the ROI plane of Sec. 3.1 of [1] to the ground with the
-paper's central (gnomonic) projection ``p = R (R u_c + x e_x + y e_y)/sqrt(R^2+x^2+y^2)``.
-
-References
-----------
-.. [1] J. Palacios et al., "A hybrid beamforming design for massive MIMO LEO satellite
-   communications", Sec. 3.1.
+A motion model holds ``n_ut`` terminals; its ``state(t_s)`` returns a :class:`UTState`
+for all of them (vectorized; no Python loop over UTs). Frame: Earth-centred, Earth-fixed,
+spherical Earth of radius ``EARTH_RADIUS_M`` (the inertial frame when Earth rotation is
+off). Models: :class:`Static`, :class:`ConstantVelocity` (great circles) and
+:class:`Waypoints` (time-stamped tracks: configured waypoints, recorded CSV/GPX files).
+How config populations become these objects: :mod:`leolink.sim.populations`.
 """
 
-import csv
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from leolink.constants import EARTH_RADIUS_M
-from leolink.errors import ConfigError, LeolinkError
-from leolink.geometry import (
-    ecef_to_geodetic,
-    enu_basis,
-    geodetic_to_ecef,
-    great_circle_velocity,
-    ground_to_roi,
-    roi_to_ground,
-)
+from leolink.errors import ConfigError
+from leolink.geometry import ecef_to_geodetic, enu_basis, geodetic_to_ecef, great_circle_velocity
 
 __all__ = [
     "SPEED_PRESETS_M_S",
     "ConstantVelocity",
-    "RecordedTrack",
     "Static",
     "Track",
-    "TrackFileError",
     "UTState",
     "Waypoints",
     "concat_states",
-    "geodetic_to_roi_points",
-    "headings",
-    "place_grid",
-    "place_random",
-    "read_track_csv",
     "resolve_speed_m_s",
-    "roi_points_to_geodetic",
 ]
 
 #: Typical ground speeds [m/s], usable by name in configs.
@@ -61,10 +36,6 @@ SPEED_PRESETS_M_S = {
     "ship": 10.0,
     "aircraft": 250.0,
 }
-
-
-class TrackFileError(LeolinkError, ValueError):
-    """A recorded-track CSV file that leolink cannot read (names file, line, column)."""
 
 
 @dataclass(frozen=True)
@@ -128,11 +99,6 @@ def _vec(a, n, name):
         return np.broadcast_to(np.asarray(a, dtype=float), (n,)).copy()
     except ValueError:
         raise ConfigError(f"{name} has shape {np.shape(a)}; expected a scalar or ({n},)") from None
-
-
-def _state_from(lat, lon, alt, vel, acc):
-    """UTState with positions from geodetic coordinates."""
-    return UTState(geodetic_to_ecef(lat, lon, alt), vel, acc, lat, lon, alt)
 
 
 class Static:
@@ -363,226 +329,3 @@ class Waypoints:
         """First and last waypoint time of every UT, shape (n_ut, 2) [s]."""
         last = self._time_s[np.arange(self.n_ut), self._n_pt - 1]
         return np.stack([self._time_s[:, 0], last], axis=-1)
-
-
-class RecordedTrack(Waypoints):
-    """A :class:`Waypoints` population read from a CSV file (see :func:`read_track_csv`).
-
-    Parameters
-    ----------
-    path : str or path-like
-        CSV file with columns ``time_s, lat_deg, lon_deg, alt_m`` and optionally ``ut``.
-    radius_m : float
-        Earth radius [m].
-    """
-
-    def __init__(self, path, radius_m=EARTH_RADIUS_M):
-        self.path = path
-        super().__init__(read_track_csv(path), radius_m=radius_m)
-
-
-_TRACK_COLUMNS = ("time_s", "lat_deg", "lon_deg", "alt_m")
-_TRACK_LIMITS = {  # column: (low, high, meaning)
-    "lat_deg": (-90.0, 90.0, "latitude"),
-    "lon_deg": (-180.0, 360.0, "longitude"),
-    "alt_m": (-11_000.0, 100_000.0, "height between the deepest ocean and 100 km"),
-}
-
-
-def _data_lines(path):
-    """(line number, parsed fields) of the non-blank, non-``#`` lines of a CSV file."""
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            lines = f.read().splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TrackFileError(f"{path}: cannot read track file ({exc})") from None
-    return [
-        (i, [c.strip() for c in next(csv.reader([s]))])
-        for i, s in enumerate(lines, 1)
-        if s.strip() and not s.lstrip().startswith("#")
-    ]
-
-
-def _parse_row(path, line_no, header, fields):
-    """Dict column -> float (and ``ut`` str) of one CSV row, validated."""
-    if len(fields) != len(header):
-        raise TrackFileError(
-            f"{path}: line {line_no}: {len(fields)} fields, expected "
-            f"{len(header)} ({', '.join(header)})"
-        )
-    row = dict(zip(header, fields, strict=True))
-    out = {"ut": row.get("ut", "")}
-    for col in _TRACK_COLUMNS:
-        try:
-            value = float(row[col])
-        except ValueError:
-            value = math.nan
-        if not math.isfinite(value):
-            raise TrackFileError(
-                f"{path}: line {line_no}, column '{col}': {row[col]!r} is not a finite number"
-            )
-        low, high, meaning = _TRACK_LIMITS.get(col, (-math.inf, math.inf, ""))
-        if not low <= value <= high:
-            raise TrackFileError(
-                f"{path}: line {line_no}, column '{col}': {value!r} is out "
-                f"of [{low:g}, {high:g}] ({meaning})"
-            )
-        out[col] = value
-    return out
-
-
-def read_track_csv(path):
-    """Read time-stamped UT tracks from a CSV file.
-
-    Format: optional ``#`` comment lines, a header with ``time_s, lat_deg, lon_deg, alt_m``
-    and optionally ``ut`` (a label; rows of several UTs may be interleaved), other columns
-    ignored. Within each UT, times must increase strictly. Without a ``ut`` column the file
-    holds one track labelled by the file name (without extension).
-
-    Parameters
-    ----------
-    path : str or path-like
-        CSV file.
-
-    Returns
-    -------
-    list of Track
-        One per UT, in order of first appearance.
-
-    Raises
-    ------
-    TrackFileError
-        Naming the file, the line, the column and the problem.
-    """
-    rows = _data_lines(path)
-    if not rows:
-        raise TrackFileError(
-            f"{path}: empty track file; expected a header line {', '.join(_TRACK_COLUMNS)}[, ut]"
-        )
-    header_line, header = rows[0]
-    missing = [c for c in _TRACK_COLUMNS if c not in header]
-    if missing:
-        raise TrackFileError(
-            f"{path}: line {header_line}: missing column(s) "
-            f"{', '.join(map(repr, missing))}; found {', '.join(header)}"
-        )
-    default_ut = str(path).replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
-    tracks, last = {}, {}
-    for line_no, fields in rows[1:]:
-        row = _parse_row(path, line_no, header, fields)
-        ut = row["ut"] if "ut" in header else default_ut
-        if ut in last and not row["time_s"] > last[ut][0]:
-            raise TrackFileError(
-                f"{path}: line {line_no}, column 'time_s': {row['time_s']!r} s is not after "
-                f"{last[ut][0]!r} s (line {last[ut][1]}) of ut {ut!r}; times must increase"
-            )
-        last[ut] = (row["time_s"], line_no)
-        tracks.setdefault(ut, []).append([row[c] for c in _TRACK_COLUMNS])
-    if not tracks:
-        raise TrackFileError(f"{path}: no data rows after the header (line {header_line})")
-    out = []
-    for ut, values in tracks.items():
-        t, lat, lon, alt = np.array(values).T
-        out.append(Track(t, np.radians(lat), np.radians(lon), alt, ut_id=ut))
-    return out
-
-
-def _roi_frame(lat_c_rad, lon_c_rad, track_heading_rad, radius_m):
-    """A stand-in 'satellite' (position, velocity) whose body frame is the ROI frame."""
-    up = enu_basis(lat_c_rad, lon_c_rad)[..., 2, :]
-    e_x = great_circle_velocity(lat_c_rad, lon_c_rad, track_heading_rad, 1.0)
-    return radius_m * up, e_x
-
-
-def roi_points_to_geodetic(
-    x_m, y_m, lat_c_rad, lon_c_rad, track_heading_rad, radius_m=EARTH_RADIUS_M
-):
-    """ROI-plane points to the ground, central projection of Sec. 3.1 of [1].
-
-    ``p = R (R u_c + x e_x + y e_y) / sqrt(R^2 + x^2 + y^2)`` with ``u_c`` the centre's unit
-    vector, ``e_x`` the unit tangent at the centre along ``track_heading_rad`` and
-    ``e_y = u_c x e_x`` (x along-track, z up, right-handed: y points left of the track).
-    The paper writes ``u_y = u_x x u_sat``, the opposite sign (see docs/errata.md).
-
-    Parameters
-    ----------
-    x_m, y_m : array_like, shape (...)
-        Along-track and cross-track coordinates [m].
-    lat_c_rad, lon_c_rad : float
-        ROI centre [rad].
-    track_heading_rad : float
-        Azimuth of the along-track axis at the centre, from north clockwise [rad].
-    radius_m : float
-        Earth radius [m].
-
-    Returns
-    -------
-    lat_rad, lon_rad : ndarray, shape (...)
-        Ground points [rad].
-    """
-    centre, e_x = _roi_frame(lat_c_rad, lon_c_rad, track_heading_rad, radius_m)
-    pos = roi_to_ground(x_m, y_m, centre, e_x, radius_m=radius_m)
-    lat, lon, _ = ecef_to_geodetic(pos, radius_m=radius_m)
-    return lat, lon
-
-
-def geodetic_to_roi_points(
-    lat_rad, lon_rad, lat_c_rad, lon_c_rad, track_heading_rad, radius_m=EARTH_RADIUS_M
-):
-    """Inverse of :func:`roi_points_to_geodetic`: ``x = R p.e_x / p.u_c``, ``y = R p.e_y / p.u_c``.
-
-    Returns ``(x_m, y_m)`` with shape of the inputs; NaN for points on the far hemisphere.
-    """
-    centre, e_x = _roi_frame(lat_c_rad, lon_c_rad, track_heading_rad, radius_m)
-    pos = geodetic_to_ecef(lat_rad, lon_rad, 0.0, radius_m=radius_m)
-    return ground_to_roi(pos, centre, e_x, radius_m=radius_m)
-
-
-def place_random(n, rx_m, ry_m, rng):
-    """``n`` points uniform over the area of the ellipse ``(x/rx)^2 + (y/ry)^2 <= 1``.
-
-    Uniform in the ROI plane; on the ground the density falls by the projection's area
-    factor ``(1 + rho^2/R^2)^(3/2)`` (about 1 % at 534 km from the centre).
-
-    Parameters
-    ----------
-    n : int
-        Number of points.
-    rx_m, ry_m : float
-        Along-track and cross-track semi-axes [m].
-    rng : numpy.random.Generator
-        Random source.
-
-    Returns
-    -------
-    x_m, y_m : ndarray, shape (n,)
-        ROI-plane coordinates [m].
-    """
-    rho = np.sqrt(rng.random(n))  # sqrt: uniform in area, not in radius
-    ang = 2.0 * np.pi * rng.random(n)
-    return rx_m * rho * np.cos(ang), ry_m * rho * np.sin(ang)
-
-
-def place_grid(n_x, n_y, rx_m, ry_m):
-    """Centres of an ``n_x`` by ``n_y`` grid of cells on the ellipse's bounding box, kept
-    where inside the ellipse (so fewer than ``n_x n_y`` points, ordered x fastest).
-
-    Returns
-    -------
-    x_m, y_m : ndarray, shape (n_inside,)
-        ROI-plane coordinates [m].
-    """
-    x = rx_m * ((np.arange(n_x) + 0.5) * 2.0 / n_x - 1.0)
-    y = ry_m * ((np.arange(n_y) + 0.5) * 2.0 / n_y - 1.0)
-    xx, yy = np.meshgrid(x, y)
-    inside = (xx / rx_m) ** 2 + (yy / ry_m) ** 2 <= 1.0
-    return xx[inside], yy[inside]
-
-
-def headings(n, rng=None, heading_rad=None):
-    """UT headings [rad]: all equal to ``heading_rad``, or uniform on [0, 2 pi) from ``rng``."""
-    if heading_rad is not None:
-        return np.full(n, float(heading_rad))
-    if rng is None:
-        raise ConfigError("headings: give heading_rad (fixed) or rng (random uniform)")
-    return 2.0 * np.pi * rng.random(n)

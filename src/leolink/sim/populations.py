@@ -1,101 +1,188 @@
-"""Config ``[[population]]`` tables -> mobility objects (one object per population)."""
+"""UT populations: one registry of mobility kinds, each with its own parameter model.
+
+A config ``[[population]]`` table names a ``kind`` of :data:`MOBILITY`; its keys are that
+kind's parameter model (validated once, when the config is loaded) and its builder turns
+them into a motion model of :mod:`leolink.sim.mobility`. Placement in the ROI plane is
+:mod:`leolink.placement`; headings ``along_track`` / ``against_track`` / ``cross_track``
+are relative to the ROI x axis (the satellites' ground track at the ROI centre).
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
+from pydantic import Field, model_validator
 
-from leolink.sim.mobility import (
-    ConstantVelocity,
-    RecordedTrack,
-    Static,
-    Track,
-    Waypoints,
-    place_grid,
-    place_random,
-    resolve_speed_m_s,
-    roi_points_to_geodetic,
-)
+from leolink.placement import grid_points, place_random, roi_points_to_geodetic
+from leolink.registry import Params, Registry
+from leolink.sim.mobility import SPEED_PRESETS_M_S, ConstantVelocity, Static, Track, Waypoints
 
-__all__ = ["populations_from_config"]
+__all__ = [
+    "MOBILITY",
+    "MotionModel",
+    "PopulationContext",
+    "PopulationParams",
+]
 
 
-def _grid_points(count, rx_m, ry_m):
-    """About ``count`` grid points inside the ellipse (the densest grid that has enough,
-    thinned evenly to exactly ``count``)."""
-    n = max(1, math.ceil(math.sqrt(count * 4.0 / math.pi)))
-    while True:
-        nx = max(1, round(n * math.sqrt(rx_m / ry_m)))
-        ny = max(1, round(n * math.sqrt(ry_m / rx_m)))
-        x, y = place_grid(nx, ny, rx_m, ry_m)
-        if len(x) >= count:
-            keep = np.round(np.linspace(0, len(x) - 1, count)).astype(int)
-            return x[keep], y[keep]
-        n += 1
+@runtime_checkable
+class MotionModel(Protocol):
+    """``n_ut`` terminals whose ``state(t_s)`` is a :class:`~leolink.sim.mobility.UTState`."""
+
+    n_ut: int
+
+    def state(self, t_s: float): ...
 
 
-def _start_points(pop, rx_m, ry_m, rng):
-    if pop.placement == "center":
-        return np.zeros(pop.count), np.zeros(pop.count)
-    if pop.placement == "points":
-        return np.asarray(pop.x_m, float), np.asarray(pop.y_m, float)
-    if pop.placement == "random":
-        return place_random(pop.count, rx_m, ry_m, rng)
-    return _grid_points(pop.count, rx_m, ry_m)
+#: Mobility kinds by config name (``population.<i>.kind``).
+MOBILITY: Registry[MotionModel] = Registry("population.kind", protocol=MotionModel)
 
 
-def _headings(pop, n, track_heading_rad, rng):
-    h = pop.heading_deg
-    if h == "random":
-        return rng.uniform(0.0, 2.0 * np.pi, n)
-    rule = {"along_track": 0.0, "against_track": np.pi, "cross_track": np.pi / 2}
-    if isinstance(h, str):
-        return np.full(n, track_heading_rad + rule[h])
-    return np.full(n, math.radians(h))
+@dataclasses.dataclass(frozen=True)
+class PopulationContext:
+    """What a population builder needs beyond its own table."""
+
+    center_lat_rad: float
+    center_lon_rad: float
+    semi_axes_m: tuple[float, float]
+    track_heading_rad: float  # azimuth of the ROI x axis at the centre
+    rng: np.random.Generator  # the run's generator: random placement and headings
+    t0_s: float  # first epoch of the run
+    radius_m: float
 
 
-def populations_from_config(cfg, track_heading_rad, rng):
-    """Mobility objects of every ``[[population]]``, in config order.
+class PopulationParams(Params):
+    """Keys every population has."""
 
-    Parameters
-    ----------
-    cfg : Config
-    track_heading_rad : float
-        Azimuth of the ROI x axis at the ROI centre (placement and relative headings).
-    rng : numpy.random.Generator
-        For random placement and headings (the run's generator).
+    name: str = Field("ut", min_length=1, max_length=64, description="label of the population")
 
-    Returns
-    -------
-    list of (PopulationSection, mobility object)
-    """
-    rx, ry = cfg.roi_semi_axes_m()
-    lat_c, lon_c = math.radians(cfg.roi.center_lat_deg), math.radians(cfg.roi.center_lon_deg)
-    radius = cfg.earth.radius_m
-    out = []
-    for pop in cfg.population:
-        if pop.kind == "track":
-            out.append((pop, RecordedTrack(pop.track_file, radius_m=radius)))
-            continue
-        if pop.kind == "waypoints":
-            w = np.asarray(pop.waypoints, float)
-            track = Track(w[:, 0], np.radians(w[:, 1]), np.radians(w[:, 2]), w[:, 3], pop.name)
-            out.append((pop, Waypoints([track], radius_m=radius)))
-            continue
-        x, y = _start_points(pop, rx, ry, rng)
-        lat, lon = roi_points_to_geodetic(x, y, lat_c, lon_c, track_heading_rad, radius)
-        speed = pop.speed_m_s if pop.speed_m_s is not None else resolve_speed_m_s(pop.speed or 0.0)
-        if pop.kind == "static" or speed == 0.0:
-            out.append((pop, Static(lat, lon, pop.alt_m)))
-        else:
-            heading = _headings(pop, len(x), track_heading_rad, rng)
-            out.append(
-                (
-                    pop,
-                    ConstantVelocity(
-                        lat, lon, pop.alt_m, heading, speed, t0_s=cfg.run.start_s, radius_m=radius
-                    ),
-                )
+    @property
+    def n_ut(self) -> int:
+        """Number of UTs, -1 if known only once a file is read."""
+        return -1
+
+
+class PlacedParams(PopulationParams):
+    """Populations placed in the ROI plane."""
+
+    count: int = Field(1, ge=1, le=10_000_000, description="number of UTs (random/grid/center)")
+    placement: Literal["center", "points", "random", "grid"] = Field(
+        "center", description="where the UTs start"
+    )
+    x_m: list[float] = Field(default_factory=list, description="placement points: ROI-plane x [m]")
+    y_m: list[float] = Field(default_factory=list, description="placement points: ROI-plane y [m]")
+    alt_m: float = Field(0.0, ge=-500.0, le=20_000.0, description="altitude above the sphere [m]")
+
+    @model_validator(mode="after")
+    def _points(self):
+        if self.placement == "points" and (not self.x_m or len(self.x_m) != len(self.y_m)):
+            raise ValueError(
+                f"population '{self.name}': placement = 'points' needs x_m and y_m lists of one "
+                f"length (got {len(self.x_m)} and {len(self.y_m)})"
             )
-    return out
+        return self
+
+    @property
+    def n_ut(self) -> int:
+        return len(self.x_m) if self.placement == "points" else self.count
+
+
+class MovingParams(PlacedParams):
+    speed_m_s: float | None = Field(None, ge=0.0, le=1000.0, description="ground speed [m/s]")
+    speed: Literal["static", "pedestrian", "car", "train", "ship", "aircraft"] | None = Field(
+        None, description="speed preset (m/s: " + ", ".join(
+            f"{k} {v:g}" for k, v in SPEED_PRESETS_M_S.items()) + ")"
+    )  # fmt: skip
+    heading_deg: float | Literal["random", "along_track", "against_track", "cross_track"] = Field(
+        "along_track", description="heading from north [deg], or relative to the ground track"
+    )
+
+    @model_validator(mode="after")
+    def _speed(self):
+        if self.speed_m_s is None and self.speed is None:
+            raise ValueError(
+                f"population '{self.name}': kind = 'constant_velocity' needs speed_m_s or speed"
+            )
+        if isinstance(self.heading_deg, float) and not -360.0 <= self.heading_deg <= 360.0:
+            raise ValueError(
+                f"population '{self.name}': heading_deg = {self.heading_deg!r} is not allowed: "
+                "use [-360, 360] deg from north, or a relative heading name"
+            )
+        return self
+
+
+class WaypointsParams(PopulationParams):
+    waypoints: list[list[float]] = Field(
+        default_factory=list, description="rows [time_s, lat_deg, lon_deg, alt_m]"
+    )
+
+    @model_validator(mode="after")
+    def _rows(self):
+        if len(self.waypoints) < 2:
+            raise ValueError(f"population '{self.name}': kind = 'waypoints' needs >= 2 rows")
+        return self
+
+    @property
+    def n_ut(self) -> int:
+        return 1
+
+
+def _start_points(p, ctx):
+    rx, ry = ctx.semi_axes_m
+    if p.placement == "center":
+        x, y = np.zeros(p.count), np.zeros(p.count)
+    elif p.placement == "points":
+        x, y = np.asarray(p.x_m, float), np.asarray(p.y_m, float)
+    elif p.placement == "random":
+        x, y = place_random(p.count, rx, ry, ctx.rng)
+    else:
+        x, y = grid_points(p.count, rx, ry)
+    return roi_points_to_geodetic(
+        x, y, ctx.center_lat_rad, ctx.center_lon_rad, ctx.track_heading_rad, ctx.radius_m
+    )
+
+
+_RELATIVE_HEADING_RAD = {"along_track": 0.0, "against_track": math.pi, "cross_track": math.pi / 2}
+
+
+def _headings(p, n, ctx):
+    if p.heading_deg == "random":
+        return ctx.rng.uniform(0.0, 2.0 * np.pi, n)
+    if isinstance(p.heading_deg, str):
+        return np.full(n, ctx.track_heading_rad + _RELATIVE_HEADING_RAD[p.heading_deg])
+    return np.full(n, math.radians(p.heading_deg))
+
+
+def _static(p, ctx):
+    lat, lon = _start_points(p, ctx)
+    return Static(lat, lon, p.alt_m)
+
+
+def _moving(p, ctx):
+    lat, lon = _start_points(p, ctx)
+    speed = p.speed_m_s if p.speed_m_s is not None else SPEED_PRESETS_M_S[p.speed]
+    if speed == 0.0:
+        return Static(lat, lon, p.alt_m)
+    heading = _headings(p, len(lat), ctx)
+    return ConstantVelocity(lat, lon, p.alt_m, heading, speed, t0_s=ctx.t0_s, radius_m=ctx.radius_m)
+
+
+def _waypoints(p, ctx):
+    w = np.asarray(p.waypoints, float)
+    track = Track(w[:, 0], np.radians(w[:, 1]), np.radians(w[:, 2]), w[:, 3], p.name)
+    return Waypoints([track], radius_m=ctx.radius_m)
+
+
+MOBILITY.add("static", _static, config=PlacedParams, doc="UTs that do not move")
+MOBILITY.add(
+    "constant_velocity",
+    _moving,
+    config=MovingParams,
+    doc="UTs on great circles at constant speed and height",
+)
+MOBILITY.add(
+    "waypoints", _waypoints, config=WaypointsParams, doc="one UT through configured waypoints"
+)

@@ -7,7 +7,7 @@ processes start together and wait one epoch each, so the order holds):
 2. :func:`ut_motion`, one per mobility population, moves that population's UTs;
 3. :func:`beam_controller` evaluates the engine for every (UT, satellite, beam) and
    re-picks the serving beam of every UT with the configured policy;
-4. :func:`link_monitor` computes the serving links and hands rows to the recorder.
+4. :func:`link_monitor` computes the serving links and streams the epoch to the sinks.
 
 SimPy owns time only; all decisions are pure functions (``controller.step``).
 """
@@ -18,9 +18,11 @@ import dataclasses
 
 import numpy as np
 
+from leolink.engine import Snapshot
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
-from leolink.sim.controller import SERVICE_HANDOVER, ControllerState, close_dwells, step
+from leolink.sim.controller import SERVICE_HANDOVER, ControllerState, StepResult, close_dwells, step
+from leolink.sim.streams import EpochFrame
 
 __all__ = [
     "SimState",
@@ -51,9 +53,9 @@ class SimState:
     sat_pos_m: np.ndarray | None = None  # (n_sat, 3)
     sat_vel_m_s: np.ndarray | None = None
     sat_acc_m_s2: np.ndarray | None = None
-    snapshot: object = None  # engine Snapshot of the candidate satellites
+    snapshot: Snapshot | None = None  # engine Snapshot of the candidate satellites
     cand_sats: np.ndarray | None = None  # global ids of the snapshot's satellites
-    decision: object = None  # controller StepResult (ids global)
+    decision: StepResult | None = None  # controller decision (ids global)
 
     @property
     def t_s(self) -> float:
@@ -127,10 +129,11 @@ def _global(cand, n_beam, sats):
 class _Decider:
     """Runs ``controller.step`` on the candidate satellites, translating ids."""
 
-    def __init__(self, engine, policy, ctrl_cfg, min_elevation_rad, radius_m, future_state):
+    def __init__(
+        self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad, radius_m, future_state
+    ):
         self.engine, self.policy = engine, policy
-        self.min_snr_db = ctrl_cfg.min_snr_db
-        self.handover_time_s = ctrl_cfg.handover_time_s
+        self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
         self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
         self.radius_m = radius_m
@@ -147,7 +150,7 @@ class _Decider:
         n_ut = len(state.ut_pos_m)
         snr = snap.snr_db.reshape(n_ut, -1)
         future = None
-        if getattr(self.policy, "lookahead_s", 0.0) > 0.0:
+        if self.policy.lookahead_s > 0.0:
             ut_f, sat_pos_f, sat_vel_f = self.future_state(state.t_s + self.policy.lookahead_s)
             future = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats]).snr_db.reshape(n_ut, -1)
         if len(sats) == len(state.sat_pos_m):  # every satellite: ids need no translation
@@ -194,10 +197,10 @@ def beam_controller(env, state, decide, epoch_s):
 
 
 class _Monitor:
-    """Serving links of every UT -> trace rows, events and summary statistics."""
+    """Serving links of every UT -> epoch frames for the sinks."""
 
-    def __init__(self, engine, recorder, fading_k=None, ut_keys=None):
-        self.engine, self.recorder = engine, recorder
+    def __init__(self, engine, sink, fading_k=None, ut_keys=None):
+        self.engine, self.sink = engine, sink
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.ut_id = None
 
@@ -239,7 +242,15 @@ class _Monitor:
             service=res.service,
         )
         if state.recording:
-            self.recorder.add_epoch(cols, res.events, res.dwells, state.times_s[state.n_warmup])
+            start_s = state.times_s[state.n_warmup]
+            frame = EpochFrame(
+                state.k - state.n_warmup,
+                state.t_s,
+                cols,
+                res.events,
+                warmup_censored(res.dwells, start_s),
+            )
+            self.sink.epoch(frame)
 
 
 def link_monitor(env, state, monitor, epoch_s):
@@ -249,6 +260,15 @@ def link_monitor(env, state, monitor, epoch_s):
         yield env.timeout(epoch_s)
 
 
+def warmup_censored(dwells, record_start_s):
+    """Dwells that began before recording (in the warm-up) are cut by the start: censored."""
+    return {
+        **dwells,
+        "censored_start": dwells["censored_start"] | (dwells["start_s"] < record_start_s),
+    }
+
+
 def final_dwells(state, t_end_s, n_beam):
     """Dwells still open at the end of the run (censored at the end)."""
-    return close_dwells(state.controller, t_end_s, n_beam)
+    dwells = close_dwells(state.controller, t_end_s, n_beam)
+    return warmup_censored(dwells, state.times_s[state.n_warmup])

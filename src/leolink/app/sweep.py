@@ -181,8 +181,8 @@ def _run_point(cfg_path, overrides, run_dir, resume):
     """
     import json
 
+    from leolink.app.run import run
     from leolink.config import dump_toml, load_config
-    from leolink.sim.runner import run
 
     cfg = load_config(cfg_path, overrides)
     run_dir = Path(run_dir)
@@ -273,11 +273,13 @@ def _validated_points(cfg_path, keys, points, base):
 
 
 def _base_overrides(base_overrides, keys, run_plots):
-    """The user's overrides, plus ``run.plots=false`` unless plots were asked for."""
+    """The user's overrides, plus ``output.plots.enabled=false`` unless plots were asked for."""
     base = list(base_overrides or [])
-    asked = "run.plots" in keys or any(o.partition("=")[0].strip() == "run.plots" for o in base)
+    asked = "output.plots.enabled" in keys or any(
+        o.partition("=")[0].strip() == "output.plots.enabled" for o in base
+    )
     if not run_plots and not asked:
-        base.append("run.plots=false")
+        base.append("output.plots.enabled=false")
     return base
 
 
@@ -314,8 +316,8 @@ def run_sweep(
         Reuse run folders whose ``summary.json`` exists and whose resolved config equals
         the point's config.
     run_plots : bool
-        Write each run's own plots (off by default, for speed; also on if ``run.plots`` is
-        set explicitly in ``base_overrides`` or ``params``).
+        Write each run's own plots (off by default, for speed; also on if
+        ``output.plots.enabled`` is set explicitly in ``base_overrides`` or ``params``).
     plot : bool
         Draw the main metrics against the parameter when exactly one is swept.
 
@@ -363,7 +365,7 @@ def run_sweep(
 
 
 def _write(table, out_dir, cfg_path, keys, base):
-    from leolink.io import write_csv_atomic, write_json_atomic
+    from leolink.io.atomic import write_csv_atomic, write_json_atomic
 
     write_json_atomic(
         out_dir / "sweep.json",
@@ -379,7 +381,7 @@ def _write(table, out_dir, cfg_path, keys, base):
 
 def _plot(table, out_dir, x):
     """Main metrics vs the swept parameter; skipped if its values mix strings and numbers."""
-    from leolink.plots import plot_sweep
+    from leolink.io.plots import plot_sweep
 
     kinds = {isinstance(v, str) for v in table[x]}
     if len(kinds) > 1:

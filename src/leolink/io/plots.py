@@ -1,10 +1,10 @@
 """PNG plots of coverage maps, codebooks, run traces and sweeps.
 
 Every figure is a :class:`matplotlib.figure.Figure` drawn on the non-interactive Agg
-canvas (no display, no pyplot state). Files are written atomically: each figure goes to
-``name.png.partial`` first; once every figure of a call has been rendered the partial
-files are renamed with :func:`os.replace`. If anything fails, the partial files of that
-call are removed and the error propagates, so a reader never sees a truncated PNG.
+canvas (no display, no pyplot state). Files are written atomically
+(:class:`leolink.io.atomic.PendingFiles`): every figure of a call is rendered to a
+partial file, then all are renamed; if anything fails the partial files are removed and
+the error propagates, so a reader never sees a truncated PNG.
 
 The inputs are the run's output contract (``docs/architecture.md``, DESIGN "Output
 contract"): the coverage grid, ``trace``, ``events`` and ``summary`` of ``leolink run``.
@@ -12,13 +12,13 @@ contract"): the coverage grid, ``trace``, ``events`` and ``summary`` of ``leolin
 
 from __future__ import annotations
 
-import os
 import warnings
 from pathlib import Path
 
 import numpy as np
 
 from leolink.errors import LeolinkError
+from leolink.io.atomic import PendingFiles
 
 DPI = 150
 MAP_WIDTH_IN = 8.0  # coverage maps; the height follows the grid aspect
@@ -41,48 +41,24 @@ def _figure(n_rows=1, n_cols=1, *, figsize=(7.0, 5.0), **subplot_kw):
     return fig, axes
 
 
-class _AtomicPngs:
-    """Render figures to ``*.png.partial``; rename all on success, remove all on error."""
+class _AtomicPngs(PendingFiles):
+    """Figures rendered to partial files; all renamed together when the block succeeds."""
 
     def __init__(self, out_dir):
+        super().__init__()
         self.out_dir = Path(out_dir)
-        self.pending = []  # (partial, final)
+        self.written = []
 
     def __enter__(self):
         self.out_dir.mkdir(parents=True, exist_ok=True)
         return self
 
     def save(self, fig, name):
-        final = self.out_dir / name
-        partial = final.with_name(final.name + ".partial")
-        self.pending.append((partial, final))
         try:
-            fig.savefig(partial, format="png", dpi=DPI)
+            fig.savefig(self.open(self.out_dir / name), format="png", dpi=DPI)
         finally:
             fig.clear()  # release the artists; Figure objects are not kept by pyplot
-
-    def __exit__(self, exc_type, exc, tb):
-        if exc_type is None:
-            try:
-                for partial, final in self.pending:
-                    os.replace(partial, final)
-                return False
-            except BaseException:
-                self._cleanup()
-                raise
-        self._cleanup()
-        return False
-
-    def _cleanup(self):
-        for partial, _ in self.pending:
-            try:
-                partial.unlink()
-            except FileNotFoundError:
-                pass
-
-    @property
-    def written(self):
-        return [final for _, final in self.pending]
+        self.written.append(self.out_dir / name)
 
 
 def _grid(df, column):
@@ -432,7 +408,7 @@ def _dwell_hist(summary):
     return fig
 
 
-def _handovers(trace, summary):
+def _handovers(duration_s, summary):
     per_ut = summary.get("per_ut", [])
     ut_ids = np.array([u["ut_id"] for u in per_ut], dtype=int)
     counts = {
@@ -441,7 +417,6 @@ def _handovers(trace, summary):
     }
     fig, axes = _figure(figsize=(8.0, 4.5))
     ax = axes[0, 0]
-    duration_s = float(np.ptp(trace["time_s"].to_numpy(float))) if len(trace) else 0.0
     if ut_ids.size > MAX_BARS_UT and duration_s > 0:
         rate_per_min = sum(counts.values()) / (duration_s / 60.0)
         ax.hist(rate_per_min, bins="auto", color="tab:blue", edgecolor="white")
@@ -466,7 +441,7 @@ def _handovers(trace, summary):
     return fig
 
 
-def plot_run(trace, events, summary, out_dir, ut_ids=(0,)):
+def plot_run(trace, events, summary, out_dir, ut_ids=(0,), duration_s=None):
     """Time series and statistics of a ``leolink run``.
 
     Parameters
@@ -483,6 +458,8 @@ def plot_run(trace, events, summary, out_dir, ut_ids=(0,)):
         Directory (created if missing).
     ut_ids : sequence of int
         UTs shown in the time plots; ids absent from the trace are skipped.
+    duration_s : float, optional
+        Recorded time span of the run [s] (handover rates); default from ``trace``.
 
     Returns
     -------
@@ -494,7 +471,9 @@ def plot_run(trace, events, summary, out_dir, ut_ids=(0,)):
         out.save(_snr_time(trace, events, uts), "snr_time.png")
         out.save(_doppler_time(trace, uts), "doppler_time.png")
         out.save(_dwell_hist(summary), "dwell_hist.png")
-        out.save(_handovers(trace, summary), "handovers.png")
+        if duration_s is None:
+            duration_s = float(np.ptp(trace["time_s"].to_numpy(float))) if len(trace) else 0.0
+        out.save(_handovers(duration_s, summary), "handovers.png")
     return out.written
 
 

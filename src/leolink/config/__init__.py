@@ -1,0 +1,195 @@
+"""Run configuration: one TOML file, validated once into pydantic models.
+
+The schema is :mod:`leolink.config.schema` (sections with fixed keys) plus the sections
+that :mod:`leolink.config.kinds` builds from the registries of the pluggable kinds.
+Every mistake is reported once, at the edge, as a :class:`~leolink.errors.ConfigError`
+that names the key, the value and what is allowed, e.g.::
+
+    link.bandwidth_hz = 0.0 is not allowed: input should be greater than 0 (downlink bandwidth [Hz])
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any
+
+import tomli_w
+from pydantic import Field, ValidationError, create_model, model_validator
+
+from leolink.config import kinds
+from leolink.config.messages import reword
+from leolink.config.overrides import apply_overrides
+from leolink.config.schema import (
+    ConstellationSection,
+    EarthSection,
+    LinkSection,
+    RoiSection,
+    RunSection,
+    SatelliteArraySection,
+    Section,
+)
+from leolink.errors import ConfigError
+from leolink.registry import REGISTRIES, generation
+
+__all__ = [
+    "ConfigBase",
+    "apply_overrides",
+    "config_model",
+    "dump_toml",
+    "load_config",
+    "parse_config",
+    "updated",
+]
+
+
+class ControllerBase(kinds.SelectorSection):
+    """``[controller]``: the policy and what every policy shares."""
+
+    handover_time_s: float = Field(
+        0.0, ge=0.0, le=3600.0, description="service interruption per handover [s]"
+    )
+    min_snr_db: float = Field(
+        -10.0, ge=-100.0, le=100.0, description="below this SNR the UT is in outage [dB]"
+    )
+
+
+class ConfigBase(Section):
+    """A whole run. Sections mirror the TOML tables; see :func:`config_model`."""
+
+    source: str = Field("", exclude=True, description="where the config came from")
+
+    @model_validator(mode="after")
+    def _check(self):
+        c = self.constellation
+        if c.kind == "pass" and abs(self.roi.center_lat_deg) > min(
+            c.inclination_deg, 180.0 - c.inclination_deg
+        ):
+            raise ValueError(
+                f"roi.center_lat_deg = {self.roi.center_lat_deg!r} is not allowed: an orbit "
+                f"inclined {c.inclination_deg} deg never passes over it (|lat| <= inclination)"
+            )
+        if c.kind == "tle" and not c.tle_file:
+            raise ValueError("constellation.tle_file is required when constellation.kind = 'tle'")
+        return self
+
+    def roi_semi_axes_m(self) -> tuple[float, float]:
+        """ROI semi-axes: the configured ones, else the paper's design (Sec. 3.1)."""
+        from leolink.roi import roi_semi_axes_m
+
+        c, r = self.constellation, self.roi
+        rx, ry = roi_semi_axes_m(
+            c.n_planes, c.sats_per_plane, math.radians(c.inclination_deg), self.earth.radius_m
+        )
+        rx = r.semi_axis_x_m if r.semi_axis_x_m is not None else float(rx)
+        ry = r.semi_axis_y_m if r.semi_axis_y_m is not None else float(ry)
+        return rx, ry
+
+    def to_dict(self) -> dict[str, Any]:
+        """The config as plain data: every default written out; of the per-kind tables,
+        the chosen kind's and those the file gave."""
+        data = self.model_dump(mode="json", exclude_none=True)
+        for name in type(self).model_fields:
+            section = getattr(self, name)
+            if isinstance(section, kinds.SelectorSection):
+                for entry in section.registry.names():
+                    if entry != section.chosen and entry not in section.model_fields_set:
+                        data[name].pop(entry, None)
+        return data
+
+
+@functools.cache
+def _model(gen):
+    del gen  # cache key only
+    kinds.load_owners()
+    sel = kinds.selector_section
+    sections = {
+        "run": RunSection,
+        "earth": EarthSection,
+        "constellation": ConstellationSection,
+        "roi": RoiSection,
+        "link": LinkSection,
+        "atmosphere": sel("AtmosphereSection", REGISTRIES["atmosphere.model"], "model", "fixed",
+                          doc="atmospheric loss model"),
+        "satellite_array": SatelliteArraySection,
+        "terminal": sel("TerminalSection", REGISTRIES["terminal.kind"], "kind", "upa",
+                        doc="UT antenna"),
+        "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
+                          "max_snr", base=ControllerBase, doc="beam selection policy"),
+        "output": kinds.output_section(REGISTRIES["output"]),
+    }  # fmt: skip
+    fields: dict[str, Any] = {k: (m, Field(default_factory=m)) for k, m in sections.items()}
+    fields["population"] = (
+        Annotated[list[kinds.population_union()], Field(min_length=1)],  # type: ignore[misc]
+        Field(default_factory=lambda: [{"kind": "static"}], validate_default=True),
+    )
+    return create_model("Config", __base__=ConfigBase, **fields)
+
+
+def config_model() -> type[ConfigBase]:
+    """The current config model (rebuilt when a kind is registered)."""
+    return _model(generation())
+
+
+def parse_config(data: dict, source: str = "") -> ConfigBase:
+    """Validate a config given as a dict (as read from TOML)."""
+    model = config_model()
+    try:
+        cfg = model.model_validate(data)
+    except ValidationError as exc:
+        raise reword(exc, model, source) from None
+    return cfg.model_copy(update={"source": source})
+
+
+def _resolve_files(node, base: Path):
+    """Keys ending in ``_file`` are paths relative to the config file's folder."""
+    if isinstance(node, dict):
+        return {
+            k: str(base / v)
+            if k.endswith("_file") and isinstance(v, str) and v and not Path(v).is_absolute()
+            else _resolve_files(v, base)
+            for k, v in node.items()
+        }
+    if isinstance(node, list):
+        return [_resolve_files(v, base) for v in node]
+    return node
+
+
+def load_config(path: str | Path, overrides: list[str] | None = None) -> ConfigBase:
+    """Read, override and validate a TOML config file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"config file {str(path)!r} does not exist") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"config file {str(path)!r} is not UTF-8 text (byte {exc.start})"
+        ) from None
+    except OSError as exc:
+        raise ConfigError(f"config file {str(path)!r} cannot be read: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    data = _resolve_files(apply_overrides(data, overrides), path.parent)
+    return parse_config(data, source=str(path))
+
+
+def updated(cfg: ConfigBase, overrides: list[str]) -> ConfigBase:
+    """A validated copy of ``cfg`` with ``--set``-style overrides applied."""
+    data = cfg.model_dump(mode="json", exclude_none=True)
+    return parse_config(apply_overrides(data, overrides), source=cfg.source)
+
+
+def dump_toml(cfg: ConfigBase) -> str:
+    """The resolved config as TOML (every default written out)."""
+    return tomli_w.dumps(cfg.to_dict())
+
+
+def __getattr__(name):  # ``leolink.config.Config``: the current model
+    if name == "Config":
+        return config_model()
+    raise AttributeError(name)

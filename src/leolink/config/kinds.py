@@ -1,0 +1,136 @@
+"""Config sections built from the registries of the pluggable kinds.
+
+Three shapes, each validated once, when the config is loaded:
+
+- a *selector* section: one key chooses an entry, and every entry has its own table
+  named after it, e.g. ``[terminal] kind = "upa"`` with ``[terminal.upa] n_x = 24``
+  (tables of the kinds not chosen may stay, so ``--set terminal.kind=...`` switches);
+- the *population* list: each ``[[population]]`` table is the parameter model of its
+  ``kind`` (a discriminated union; ``kind`` defaults to ``"static"``);
+- the *output* section: one table per sink, each with ``enabled``.
+
+The models are rebuilt when an entry is registered (``leolink.registry.generation``),
+so a kind added by a plugin module is known to the loader, to ``leolink validate`` and
+to ``docs/config.md`` without any edit here.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+from typing import Annotated, Any, ClassVar, Literal, Union
+
+from pydantic import Discriminator, Field, Tag, create_model
+
+from leolink.config.schema import Section
+from leolink.registry import REGISTRIES, Params, Registry, generation
+
+__all__ = ["OWNERS", "SelectorSection", "OutputSection", "load_owners", "population_union"]
+
+#: Modules that own a registry or register entries (imported before a schema is built).
+OWNERS = (
+    "leolink.antenna.terminal",
+    "leolink.link.atmosphere",
+    "leolink.sim.policies",
+    "leolink.sim.populations",
+    "leolink.io.tracks",
+    "leolink.io.sinks",
+)
+
+
+def load_owners():
+    """Import the modules that fill the registries."""
+    for name in OWNERS:
+        importlib.import_module(name)
+
+
+class SelectorSection(Section):
+    """A section where ``selector`` names an entry of ``registry``."""
+
+    selector: ClassVar[str]
+    registry: ClassVar[Registry]
+
+    @property
+    def chosen(self) -> str:
+        """The name of the chosen entry."""
+        return getattr(self, self.selector)
+
+    @property
+    def params(self) -> Params:
+        """The chosen entry's validated parameters."""
+        return getattr(self, self.chosen)
+
+    def build(self, context: Any = None):
+        """Build the chosen entry."""
+        return self.registry.build(self.chosen, self.params, context)
+
+
+class OutputSection(Section):
+    """One table per output sink."""
+
+    registry: ClassVar[Registry]
+
+    def enabled(self) -> list[tuple[str, Params]]:
+        """``(name, params)`` of every enabled sink, in registration order."""
+        return [(n, getattr(self, n)) for n in self.registry.names() if getattr(self, n).enabled]
+
+
+def _tables(registry, reserved):
+    fields = {}
+    for name in registry.names():
+        if name in reserved:
+            raise ValueError(f"{registry.key} entry {name!r} clashes with a key of its section")
+        cfg = registry[name].config
+        fields[name] = (cfg, Field(default_factory=cfg, description=registry[name].doc))
+    return fields
+
+
+def selector_section(title, registry, selector, default, base=SelectorSection, doc=""):
+    """A :class:`SelectorSection` model for ``registry`` (one table per entry)."""
+    names = registry.names()
+    if default not in names:
+        raise ValueError(f"{registry.key}: default {default!r} is not registered")
+    reserved = set(base.model_fields) | {selector}
+    model = create_model(
+        title,
+        __base__=base,
+        **{selector: (Literal[names], Field(default, description=doc))},  # type: ignore[valid-type]
+        **_tables(registry, reserved),
+    )
+    model.selector, model.registry = selector, registry
+    return model
+
+
+def output_section(registry):
+    """The ``[output]`` model: one table per sink of ``registry``."""
+    model = create_model("OutputSection", __base__=OutputSection, **_tables(registry, set()))
+    model.registry = registry
+    return model
+
+
+def _kind_of(value):
+    if isinstance(value, dict):
+        return value.get("kind", "static")
+    return getattr(value, "kind", None)
+
+
+@functools.cache
+def _population_models(gen):
+    del gen  # cache key only
+    registry = REGISTRIES["population.kind"]
+    models = []
+    for name in registry.names():
+        base = registry[name].config
+        model = create_model(
+            f"{name.title().replace('_', '')}Population",
+            __base__=base,
+            kind=(Literal[name], Field(name, description="motion model")),  # type: ignore[valid-type]
+        )
+        models.append(Annotated[model, Tag(name)])
+    return tuple(models)
+
+
+def population_union():
+    """``[[population]]`` item type: a union of the mobility kinds tagged by ``kind``."""
+    members = _population_models(generation())
+    return Annotated[Union[members], Discriminator(_kind_of)]  # noqa: UP007

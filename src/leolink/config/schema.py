@@ -1,0 +1,150 @@
+"""The config sections with fixed keys (``[run]``, ``[earth]``, ``[constellation]``, ...).
+
+Sections whose keys depend on a chosen kind (terminal, atmosphere, controller policy,
+populations, outputs) are built from the registries in :mod:`leolink.config.kinds`.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2
+
+__all__ = [
+    "MAX_EPOCHS",
+    "ConstellationSection",
+    "EarthSection",
+    "LinkSection",
+    "RoiSection",
+    "RunSection",
+    "SatelliteArraySection",
+    "Section",
+]
+
+#: Most epochs one run may have (their times alone take 8 bytes each).
+MAX_EPOCHS = 1e8
+
+
+class Section(BaseModel):
+    """A config table: unknown keys, NaN/inf and type coercions are refused."""
+
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False, strict=True
+    )
+
+
+def _f(default, *, gt=None, ge=None, le=None, lt=None, doc=""):
+    return Field(default, gt=gt, ge=ge, le=le, lt=lt, description=doc)
+
+
+class RunSection(Section):
+    seed: int = _f(20201, ge=0, doc="seed of the run's random generator")
+    epoch_s: float = _f(1.0, gt=0, doc="time step between two controller decisions [s]")
+    start_s: float = _f(0.0, doc="simulation time of the first epoch [s]")
+    duration_s: float = _f(120.0, gt=0, doc="simulated time after the warm-up [s]")
+    warmup_s: float = _f(0.0, ge=0, doc="simulated time before recording starts [s]")
+
+    @model_validator(mode="after")
+    def _check(self):
+        n_epoch = (self.warmup_s + self.duration_s) / self.epoch_s
+        if self.duration_s < self.epoch_s:
+            raise ValueError(
+                f"run.duration_s = {self.duration_s!r} is not allowed: it must be at least one "
+                f"epoch (run.epoch_s = {self.epoch_s!r})"
+            )
+        if n_epoch > MAX_EPOCHS:
+            raise ValueError(
+                f"run.epoch_s = {self.epoch_s!r} is not allowed: {n_epoch:.3g} epochs; use at "
+                f"most {MAX_EPOCHS:.0e} (a longer epoch or a shorter run)"
+            )
+        return self
+
+
+class EarthSection(Section):
+    radius_m: float = _f(EARTH_RADIUS_M, gt=6.0e6, lt=6.5e6, doc="spherical Earth radius [m]")
+    gm_m3_s2: float = _f(GM_EARTH_M3_S2, gt=0, doc="Earth's gravitational parameter [m^3/s^2]")
+    rotation: bool = _f(False, doc="rotate the Earth under the orbits (ECEF frame)")
+
+
+class ConstellationSection(Section):
+    kind: Literal["pass", "walker", "tle"] = _f("pass", doc="how satellites are placed")
+    altitude_m: float = _f(1_300_000.0, gt=100_000.0, lt=40_000_000.0, doc="orbit altitude [m]")
+    inclination_deg: float = _f(53.0, ge=0.0, le=180.0, doc="orbital plane inclination [deg]")
+    n_planes: int = _f(83, ge=1, doc="number of orbital planes N_p")
+    sats_per_plane: int = _f(53, ge=1, doc="satellites per orbital plane N_s")
+    phasing: int = _f(1, ge=0, doc="Walker phasing factor F")
+    pass_time_s: float = _f(
+        60.0, doc="kind = 'pass': time the satellite is over the ROI centre [s]"
+    )
+    ascending: bool = _f(True, doc="kind = 'pass': pass on the ascending half of the orbit")
+    tle_file: str = _f("", doc="kind = 'tle': path of a file of two-line element sets")
+    tle_epoch_utc: str = _f("", doc="kind = 'tle': UTC instant of simulation time 0 (ISO 8601)")
+    min_elevation_deg: float = _f(10.0, ge=0.0, le=90.0, doc="lowest usable elevation [deg]")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.tle_epoch_utc:
+            from datetime import datetime
+
+            try:
+                datetime.fromisoformat(self.tle_epoch_utc)
+            except ValueError:
+                raise ValueError(
+                    f"constellation.tle_epoch_utc = {self.tle_epoch_utc!r} is not allowed: use an "
+                    "ISO 8601 date and time, e.g. 2019-12-09T20:42:09Z"
+                ) from None
+        return self
+
+
+class RoiSection(Section):
+    center_lat_deg: float = _f(42.24, ge=-90.0, le=90.0, doc="ROI centre latitude [deg]")
+    center_lon_deg: float = _f(-8.72, ge=-180.0, le=360.0, doc="ROI centre longitude [deg]")
+    semi_axis_x_m: float | None = _f(
+        None, gt=0, doc="ROI semi-axis along-track [m]; none: derived (Sec. 3.1)"
+    )
+    semi_axis_y_m: float | None = _f(
+        None, gt=0, doc="ROI semi-axis cross-track [m]; none: derived (Sec. 3.1)"
+    )
+
+
+class LinkSection(Section):
+    freq_hz: float = _f(11.45e9, gt=1e8, lt=1e12, doc="carrier frequency [Hz]")
+    bandwidth_hz: float = _f(250e6, gt=0, doc="downlink bandwidth [Hz]")
+    ptx_dbw: float = _f(
+        15.0, doc="transmit power [dBW]; per beam unless power_mode = 'split_total'"
+    )
+    power_mode: Literal["per_beam", "split_total"] = _f("per_beam", doc="meaning of ptx_dbw")
+    cable_loss_db: float = _f(0.0, ge=0, doc="loss between transmitter and array [dB]")
+    noise_temp_dbk: float = _f(24.1, doc="receiver noise temperature [dBK]")
+    rician_k: float = _f(10.0, gt=0, doc="Rician factor K_r (linear)")
+    fading: Literal["mean", "rician"] = _f("mean", doc="paper's mean receive gain or random draws")
+    reuse_colors: Literal[1, 3, 4] = _f(1, doc="frequency-reuse colours (1 = full reuse)")
+    interference: Literal["serving_satellite", "all_satellites"] = _f(
+        "serving_satellite", doc="whose other beams interfere (the paper: the serving satellite's)"
+    )
+
+
+class SatelliteArraySection(Section):
+    n_x: int = _f(60, ge=1, doc="elements along-track")
+    n_y: int = _f(72, ge=1, doc="elements cross-track")
+    n_rf_x: int = _f(5, ge=1, doc="RF chains (subarrays) along-track")
+    n_rf_y: int = _f(3, ge=1, doc="RF chains (subarrays) cross-track")
+    oversampling: float | Literal["auto"] = _f(1.2, doc="DFT oversampling factor O, or 'auto'")
+
+    @model_validator(mode="after")
+    def _check(self):
+        for axis in ("x", "y"):
+            n, n_rf = getattr(self, f"n_{axis}"), getattr(self, f"n_rf_{axis}")
+            if n % n_rf:
+                raise ValueError(
+                    f"satellite_array.n_{axis} = {n} is not allowed: it must be a multiple of "
+                    f"n_rf_{axis} = {n_rf} (equal subarrays, one per RF chain)"
+                )
+        if self.oversampling != "auto" and not self.oversampling > 0:
+            raise ValueError(
+                f"satellite_array.oversampling = {self.oversampling!r} is not allowed: "
+                "use a number > 0 or 'auto'"
+            )
+        return self

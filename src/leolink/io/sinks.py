@@ -1,0 +1,183 @@
+"""Sinks of a run's stream (:mod:`leolink.sim.streams`): files, tables in memory, plots.
+
+Output sinks are a pluggable kind: :data:`SINKS` holds one entry per ``[output.<name>]``
+table of the config, each with an ``enabled`` switch and its own keys. A sink is built
+with the context ``out_dir`` (a folder, or None for a run kept in memory) and
+``summary`` (the run's :class:`~leolink.io.summary.SummaryAccumulator`, fed first). A sink
+that writes files lists them, once finished, in its ``files`` attribute (the run's
+manifest is made of these lists).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import pandas as pd
+import pyarrow as pa
+from pydantic import Field
+
+from leolink.io.tables import EVENT_SCHEMA, TRACE_SCHEMA, EventLog, TraceWriter, to_table
+from leolink.registry import Params, Registry
+from leolink.sim.streams import Sink
+
+__all__ = ["SINKS", "EventSink", "MemorySink", "PlotSink", "SinkParams", "TraceSink"]
+
+#: Output sinks by config name (``[output.<name>]``).
+SINKS: Registry[Sink] = Registry("output", protocol=Sink)
+
+
+class SinkParams(Params):
+    """Keys every sink has."""
+
+    enabled: bool = Field(False, description="write this output")
+
+
+def _trace_columns(columns):
+    return {name: columns[name] for name in TRACE_SCHEMA.names}
+
+
+class TraceSink:
+    """``trace.csv`` and/or ``trace.parquet``, chunk by chunk (:class:`TraceWriter`)."""
+
+    def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
+        self.out_dir, self.formats, self.chunk_rows = Path(out_dir), tuple(formats), chunk_rows
+        self.writer, self.files = None, []
+
+    def start(self, info):
+        self.writer = TraceWriter(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows)
+
+    def epoch(self, frame):
+        self.writer.append(_trace_columns(frame.columns))
+
+    def finish(self, final):
+        self.files = list(self.writer.close().values())
+
+    def abort(self):
+        if self.writer is not None:
+            self.writer.abort()
+
+
+class EventSink:
+    """``events.csv``, in the order the controller emits events (time, then UT)."""
+
+    def __init__(self, out_dir, chunk_rows=200_000):
+        self.out_dir, self.chunk_rows = Path(out_dir), chunk_rows
+        self.writer, self.files = None, []
+
+    def start(self, info):
+        self.writer = EventLog(self.out_dir, formats=("csv",), chunk_rows=self.chunk_rows)
+
+    def epoch(self, frame):
+        if len(frame.events["ut_id"]):
+            self.writer.append(frame.events)
+
+    def finish(self, final):
+        self.files = list(self.writer.close().values())
+
+    def abort(self):
+        if self.writer is not None:
+            self.writer.abort()
+
+
+class MemorySink:
+    """Trace and events kept in memory as Arrow tables (a run without an output folder)."""
+
+    def __init__(self):
+        self._trace, self._events = [], []
+
+    def start(self, info):
+        self._trace, self._events = [], []
+
+    def epoch(self, frame):
+        self._trace.append(to_table(_trace_columns(frame.columns), TRACE_SCHEMA))
+        if len(frame.events["ut_id"]):
+            self._events.append(to_table(frame.events, EVENT_SCHEMA))
+
+    def finish(self, final):
+        pass
+
+    def abort(self):
+        self._trace, self._events = [], []
+
+    def trace(self) -> pd.DataFrame:
+        if not self._trace:
+            return TRACE_SCHEMA.empty_table().to_pandas()
+        return pa.concat_tables(self._trace).to_pandas()
+
+    def events(self) -> pd.DataFrame:
+        return pa.concat_tables([EVENT_SCHEMA.empty_table(), *self._events]).to_pandas()
+
+
+class PlotSink:
+    """The run's PNG plots, drawn at the end from the streamed statistics and the rows of
+    the chosen UTs only (bounded memory: never the whole trace)."""
+
+    def __init__(self, out_dir, summary, ut_ids=(0,)):
+        self.out_dir, self.summary, self.ut_ids = Path(out_dir), summary, list(ut_ids)
+        self._rows, self._events, self.files = [], [], []
+
+    def start(self, info):
+        self._rows, self._events = [], []
+        self._span = [None, None]
+
+    def epoch(self, frame):
+        cols = frame.columns
+        keep = pd.Index(cols["ut_id"]).isin(self.ut_ids)
+        if keep.any():
+            self._rows.append(to_table(_trace_columns(cols), TRACE_SCHEMA).filter(pa.array(keep)))
+        ev = frame.events
+        if len(ev["ut_id"]):
+            table = to_table(ev, EVENT_SCHEMA)
+            self._events.append(table.filter(pa.array(pd.Index(ev["ut_id"]).isin(self.ut_ids))))
+        self._span = [frame.t_s if self._span[0] is None else self._span[0], frame.t_s]
+
+    def finish(self, final):
+        from leolink.io.plots import plot_run
+
+        rows = pa.concat_tables([TRACE_SCHEMA.empty_table(), *self._rows]).to_pandas()
+        events = pa.concat_tables([EVENT_SCHEMA.empty_table(), *self._events]).to_pandas()
+        span = 0.0 if self._span[0] is None else self._span[1] - self._span[0]
+        self.files = plot_run(
+            rows, events, self.summary.summary(), self.out_dir, self.ut_ids, duration_s=span
+        )
+
+    def abort(self):
+        self._rows, self._events = [], []
+
+
+class TraceParams(SinkParams):
+    enabled: bool = Field(True, description="write trace.csv / trace.parquet")
+    formats: list[Literal["csv", "parquet"]] = Field(
+        default_factory=lambda: ["csv"], min_length=1, description="trace files to write"
+    )
+    chunk_rows: int = Field(200_000, ge=1, le=100_000_000, description="rows per written chunk")
+
+
+class EventsParams(SinkParams):
+    enabled: bool = Field(True, description="write events.csv")
+
+
+class PlotsParams(SinkParams):
+    enabled: bool = Field(True, description="write PNG plots next to the traces")
+    uts: list[int] = Field(default_factory=lambda: [0], description="UTs shown in the time plots")
+
+
+SINKS.add(
+    "trace",
+    lambda p, ctx: TraceSink(ctx.out_dir, p.formats, p.chunk_rows),
+    config=TraceParams,
+    doc="one row per UT per epoch (CSV and/or Parquet)",
+)
+SINKS.add(
+    "events",
+    lambda p, ctx: EventSink(ctx.out_dir),
+    config=EventsParams,
+    doc="handovers and outages, one row each",
+)
+SINKS.add(
+    "plots",
+    lambda p, ctx: PlotSink(ctx.out_dir, ctx.summary, p.uts),
+    config=PlotsParams,
+    doc="SNR/SINR and Doppler vs time, dwell and handover plots (PNG)",
+)

@@ -1,0 +1,111 @@
+"""What the simulator streams out: epoch frames, to sinks that the caller supplies.
+
+``sim`` writes no file. Every recorded epoch it hands each sink an :class:`EpochFrame`
+(the trace columns of every UT, the events and the dwells closed at that epoch); at the
+end a :class:`FinalFrame` (the dwells still open, censored by the end). Sinks that the
+CLI and :func:`leolink.run` wire by default (trace and event files, the summary
+statistics, plots) live in :mod:`leolink.io.sinks`; any object following :class:`Sink`
+works.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["EpochFrame", "FinalFrame", "RunInfo", "Sink", "SinkGroup"]
+
+
+@dataclasses.dataclass(frozen=True)
+class RunInfo:
+    """What a sink knows before the first frame.
+
+    Attributes
+    ----------
+    n_ut, n_sat, n_beam : int
+    epoch_s : float [s]
+    start_s : float [s], first recorded epoch (after the warm-up).
+    n_epochs : int, recorded epochs.
+    population : tuple of str, the population name of every UT (``n_ut``).
+    """
+
+    n_ut: int
+    n_sat: int
+    n_beam: int
+    epoch_s: float
+    start_s: float
+    n_epochs: int
+    population: tuple[str, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class EpochFrame:
+    """One recorded epoch.
+
+    Attributes
+    ----------
+    k : int, index of the recorded epoch (0 = first after the warm-up).
+    t_s : float [s]
+    columns : dict of ndarray (n_ut,), the trace columns (``leolink.io.tables.TRACE_COLUMNS``
+        and possibly more); ``service`` as int8 codes of ``controller.SERVICE_NAMES``.
+    events : dict of 1-D arrays, ``controller.EVENT_COLUMNS``, this epoch's events.
+    dwells : dict of 1-D arrays, ``controller.DWELL_COLUMNS``, dwells closed this epoch
+        (``censored_start`` also set for dwells that began in the warm-up).
+    """
+
+    k: int
+    t_s: float
+    columns: dict[str, np.ndarray]
+    events: dict[str, np.ndarray]
+    dwells: dict[str, np.ndarray]
+
+
+@dataclasses.dataclass(frozen=True)
+class FinalFrame:
+    """The end of the run: ``end_s`` [s] and the dwells still open (``censored_end``)."""
+
+    end_s: float
+    dwells: dict[str, np.ndarray]
+
+
+@runtime_checkable
+class Sink(Protocol):
+    """Receives the stream of one run: ``start``, ``epoch`` per recorded epoch, ``finish``;
+    ``abort`` instead of ``finish`` when the run fails or is interrupted (a sink that
+    writes files then removes what it had not finished)."""
+
+    def start(self, info: RunInfo) -> None: ...
+
+    def epoch(self, frame: EpochFrame) -> None: ...
+
+    def finish(self, final: FinalFrame) -> None: ...
+
+    def abort(self) -> None: ...
+
+
+class SinkGroup:
+    """Forward the stream to several sinks, in order; on error abort all of them."""
+
+    def __init__(self, sinks):
+        self.sinks = list(sinks)
+        for sink in self.sinks:
+            if not isinstance(sink, Sink):
+                raise TypeError(f"{type(sink).__name__} does not follow the Sink protocol")
+
+    def start(self, info):
+        for sink in self.sinks:
+            sink.start(info)
+
+    def epoch(self, frame):
+        for sink in self.sinks:
+            sink.epoch(frame)
+
+    def finish(self, final):
+        for sink in self.sinks:
+            sink.finish(final)
+
+    def abort(self):
+        for sink in self.sinks:
+            sink.abort()
