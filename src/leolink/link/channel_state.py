@@ -44,8 +44,8 @@ Randomness: the innovations ``w_k`` of pair (UT, satellite) at epoch ``k`` are a
 function of (UT key from :func:`leolink.rng.ut_keys`, satellite id, ``k``), so states do
 not depend on chunking, ordering, candidate-set order or worker count. State is carried
 per candidate slot, ``(n_ut, n_slot)`` arrays aligned with the satellite ids of the
-current candidates (memory O(n_ut x n_slot), independent of the constellation size: about
-24 bytes a pair, 0.5 MB for 1000 UTs x 20 candidates). A pair that was not a candidate
+current candidates (memory O(n_ut x n_slot), independent of the constellation size:
+48 bytes a pair in float64, 1 MB for 1000 UTs x 20 candidates). A pair that was not a candidate
 at the previous epoch starts from the stationary N(0, 1) distribution. Time chunks must
 hand the state on; UT chunks need nothing.
 
@@ -177,8 +177,10 @@ class ChannelState:
 
     Attributes (all shape (n_ut, n_slot); slot ``j`` of UT ``i`` is satellite
     ``sat_id[i, j]``, ``-1`` an empty slot):
-    ``sat_id`` (int64), ``z_los``, ``z_sf_los``, ``z_sf_nlos`` (float32, N(0, 1)),
-    ``elevation_rad``, ``azimuth_rad`` (float32, geometry of that epoch);
+    ``sat_id`` (int64), ``z_los``, ``z_sf_los``, ``z_sf_nlos`` (float64, N(0, 1)),
+    ``elevation_rad``, ``azimuth_rad`` (float64, geometry of that epoch; kept exact so that
+    an unchanged geometry gives a zero displacement, not a rounding residue that
+    ``sqrt(1 - rho^2)`` would amplify);
     ``epoch`` (int, -1 before the first :func:`advance`).
     """
 
@@ -193,7 +195,7 @@ class ChannelState:
 
 def empty_state(n_ut):
     """A state with no pair yet (every pair of the first epoch starts stationary)."""
-    f = np.zeros((n_ut, 0), dtype=np.float32)
+    f = np.zeros((n_ut, 0))
     return ChannelState(np.zeros((n_ut, 0), dtype=np.int64), f, f, f, f, f, -1)
 
 
@@ -309,7 +311,7 @@ def _carry(state, sat_id):
     for name in fields:
         values = getattr(state, name)
         if values.shape[1] == 0:
-            values = np.zeros(old_id.shape, dtype=np.float32)
+            values = np.zeros(old_id.shape)
         prev[name] = np.where(had, np.take_along_axis(values, idx, axis=1), 0.0)
     return had, prev
 
@@ -351,10 +353,10 @@ def advance(state, model, ut_keys, sat_id, elevation_rad, azimuth_rad, ut_step_m
     w = innovations(pair_keys(ut_keys, sat_id), epoch)
     dists = (model.los_corr_distance_m, model.sf_corr_distance_los_m, model.sf_corr_distance_nlos_m)
     z = [
-        ar1_step(prev[name], distance_m, d, w[i]).astype(np.float32)
+        ar1_step(prev[name], distance_m, d, w[i])
         for i, (name, d) in enumerate(zip(("z_los", "z_sf_los", "z_sf_nlos"), dists, strict=True))
     ]
-    return ChannelState(sat_id, *z, el.astype(np.float32), az.astype(np.float32), int(epoch))
+    return ChannelState(sat_id, *z, el, az, int(epoch))
 
 
 class LinkTerms(NamedTuple):
@@ -388,7 +390,7 @@ def link_terms(state, model):
         ``clutter_db = CL(el)`` if NLoS (Tables 6.6.2-1..3); ``open``: always LoS, 0 dB.
     """
     valid = state.sat_id >= 0
-    el_deg = np.degrees(state.elevation_rad.astype(float))
+    el_deg = np.degrees(state.elevation_rad)
     name, band = model.environment, model.band
     if name == "open":
         los = np.ones(el_deg.shape, dtype=bool)
