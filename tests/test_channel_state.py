@@ -109,6 +109,22 @@ def test_shadowing_decorrelates_along_a_straight_track_as_exp_minus_d_over_dcorr
             assert abs(r - rho) < N_SIGMA * (1 - rho**2) / np.sqrt(n_ut) + 1e-3, (field, lag)
 
 
+def test_shadow_db_follows_the_field_of_the_current_state():
+    # Dense urban with a long NLoS distance: while a UT stays NLoS its shadow_db / sigma
+    # decorrelates over 120 m, while it stays LoS over 37 m (one field per link state).
+    model = cs.environment_model("dense_urban", 11.45e9, sf_corr_distance_nlos_m=120.0)
+    n_ut, step_m, lag = 8000, 6.0, 10
+    states = track_states(model, n_ut, step_m, lag + 1)
+    t0, t1 = cs.link_terms(states[0], model), cs.link_terms(states[lag], model)
+    sigma = {True: 2.4, False: 14.6}  # Table 6.6.2-1, Ka band, 40 deg
+    for los, d_corr in ((True, 37.0), (False, 120.0)):
+        same = (t0.los[:, 0] == los) & (t1.los[:, 0] == los)
+        rho = np.exp(-lag * step_m / d_corr)
+        r = np.corrcoef(t0.shadow_db[same, 0] / sigma[los], t1.shadow_db[same, 0] / sigma[los])
+        assert same.sum() > 1500
+        assert abs(r[0, 1] - rho) < N_SIGMA * (1 - rho**2) / np.sqrt(same.sum()), los
+
+
 def test_los_state_decorrelates_as_a_thresholded_exponential_field():
     # Independent model: LoS = {Z < t}, (Z0, ZL) bivariate normal with correlation
     # exp(-d/d_corr), so P(LoS at both) = Phi2(t, t; rho) (TR 38.901 clause 7.6.3.3).
@@ -156,7 +172,6 @@ def test_effective_displacement_is_the_shift_of_the_rays_piercing_point():
 
 
 def test_scalar_ut_step_is_the_mean_square_over_travel_directions():
-    g = np.random.default_rng(6)
     el0, el1 = np.radians([[20.0]]), np.radians([[24.0]])
     az0, az1 = np.radians([[100.0]]), np.radians([[93.0]])
     step_m = 12.0
@@ -165,7 +180,6 @@ def test_scalar_ut_step_is_the_mean_square_over_travel_directions():
     d2 = [cs.effective_displacement_m(v[None, :], el0, az0, el1, az1, 20.0)[0, 0] ** 2 for v in vec]
     got = cs.effective_displacement_m(np.array([step_m]), el0, az0, el1, az1, 20.0)[0, 0]
     assert got**2 == pytest.approx(np.mean(d2), rel=1e-12)
-    assert g is not None
 
 
 def test_static_ut_decorrelates_as_the_satellite_moves_and_not_at_zenith():
@@ -178,6 +192,11 @@ def test_static_ut_decorrelates_as_the_satellite_moves_and_not_at_zenith():
         np.zeros(1), np.radians([[10.0]]), [[1.0]], np.radians([[11.0]]), [[1.0]], 15.0
     )
     assert low[0, 0] == pytest.approx(7.90, abs=0.01)
+    # Below 10 deg the piercing point is held at its 10-degree place (the tables' floor).
+    below = cs.effective_displacement_m(
+        np.zeros(1), np.radians([[3.0]]), [[1.0]], np.radians([[10.0]]), [[1.0]], 15.0
+    )
+    assert below[0, 0] == pytest.approx(0.0, abs=1e-12)
 
 
 def changing_candidates(n_ut, n_epoch, n_sat_total=40, n_slot=8, seed=2):
@@ -257,6 +276,8 @@ def test_seed_and_satellite_select_independent_streams():
     assert abs(np.corrcoef(a.z_los[:, 0], b.z_los[:, 0])[0, 1]) < limit
     assert abs(np.corrcoef(a.z_los[:, 0], a.z_los[:, 1])[0, 1]) < limit
     assert abs(np.corrcoef(a.z_los[:, 0], a.z_sf_los[:, 0])[0, 1]) < limit
+    assert abs(np.corrcoef(a.z_los[:, 0], a.z_sf_nlos[:, 0])[0, 1]) < limit
+    assert abs(np.corrcoef(a.z_sf_los[:, 0], a.z_sf_nlos[:, 0])[0, 1]) < limit
 
 
 def test_open_environment_is_always_los_with_zero_loss():

@@ -13,19 +13,11 @@ exponential correlation along the distance the pair's ray moved since the last e
   TR 38.901 generates its large-scale parameters per state; ``shadow_db`` is
   ``sigma_SF(elevation, state) * z`` of the current state (TR 38.811 Tables 6.6.2-1..3).
 
-Correlation distances [m] (defaults of :func:`environment_model`, overridable):
-
-============  =========  =======  ========  =====================================
-environment   LoS state  SF LoS   SF NLoS   source
-============  =========  =======  ========  =====================================
-dense_urban   50         37       50        LoS state: TR 38.901 Table 7.6.3.1-2
-urban         50         37       50        (UMa/UMi 50 m, RMa 60 m);
-suburban      50         37       50        SF: TR 38.811 Tables 6.7.2-1a..8b
-rural         60         37       120       (as TR 38.901 Table 7.5-6 UMa, RMa)
-============  =========  =======  ========  =====================================
-
-Mapping the four NTN environments onto UMa (dense urban, urban, suburban) and RMa
-(rural) for the LoS-state distance is a leolink choice: TR 38.811 gives none.
+Correlation distances [m] (defaults of :func:`environment_model`, overridable): LoS state
+50 (dense urban, urban, suburban) and 60 (rural), TR 38.901 Table 7.6.3.1-2 for UMa/UMi
+and RMa, mapped onto the NTN environments by leolink (TR 38.811 gives none); shadowing
+37 in LoS and 50 in NLoS (120 for rural), TR 38.811 Tables 6.7.2-1a..8b (the values of
+TR 38.901 Table 7.5-6 for UMa and RMa).
 
 Motion of the ray (leolink choice, for docs/errata.md): LoS and shadowing are taken to be
 set by obstacles at one characteristic height ``h`` above the UT antenna
@@ -40,14 +32,12 @@ lowest tabulated angle. If only the distance the UT moved is known (not its dire
 the two shifts are added in quadrature (exact in mean square for a random relative
 direction).
 
-Randomness: the innovations ``w_k`` of pair (UT, satellite) at epoch ``k`` are a pure
-function of (UT key from :func:`leolink.rng.ut_keys`, satellite id, ``k``), so states do
-not depend on chunking, ordering, candidate-set order or worker count. State is carried
-per candidate slot, ``(n_ut, n_slot)`` arrays aligned with the satellite ids of the
-current candidates (memory O(n_ut x n_slot), independent of the constellation size:
-48 bytes a pair in float64, 1 MB for 1000 UTs x 20 candidates). A pair that was not a candidate
-at the previous epoch starts from the stationary N(0, 1) distribution. Time chunks must
-hand the state on; UT chunks need nothing.
+Randomness: the innovations ``w_k`` of a pair at epoch ``k`` are a pure function of (UT
+key of :func:`leolink.rng.ut_keys`, satellite id, ``k``): no dependence on chunking,
+order of the candidates or workers. State lives in ``(n_ut, n_slot)`` arrays aligned with
+the current candidates' ids (48 bytes a pair, 1 MB for 1000 UTs x 20 candidates, whatever
+the constellation size); a pair absent from the previous state starts from the
+stationary N(0, 1). Time chunks must hand the state on; UT chunks need nothing.
 
 References
 ----------
