@@ -1,0 +1,400 @@
+"""Spatially consistent, seeded LoS state and shadowing per (UT, satellite) pair.
+
+Each pair carries three standard Gaussian driving variables, evolved by an AR(1) /
+exponential correlation along the distance the pair's ray moved since the last epoch,
+``z_k = rho z_{k-1} + sqrt(1 - rho^2) w_k`` with ``rho = exp(-d / d_corr)``
+(the exponential autocorrelation of TR 38.901 Eq. (7.4-5) [2], used by its clause 7.6.3):
+
+- ``z_los`` decides the state: the correlated uniform ``Phi(z_los)`` below the LoS
+  probability of TR 38.811 Table 6.6.1-1 at the current elevation means LoS
+  (TR 38.901 clause 7.6.3.3 [2]); since the probability is interpolated in elevation and
+  ``z_los`` moves continuously, the state flips only where the threshold crosses it;
+- ``z_sf_los`` and ``z_sf_nlos``: two independent shadowing fields, one per link state as
+  TR 38.901 generates its large-scale parameters per state; ``shadow_db`` is
+  ``sigma_SF(elevation, state) * z`` of the current state (TR 38.811 Tables 6.6.2-1..3).
+
+Correlation distances [m] (defaults of :func:`environment_model`, overridable): LoS state
+50 (dense urban, urban, suburban) and 60 (rural), TR 38.901 Table 7.6.3.1-2 for UMa/UMi
+and RMa, mapped onto the NTN environments by leolink (TR 38.811 gives none); shadowing
+37 in LoS and 50 in NLoS (120 for rural), TR 38.811 Tables 6.7.2-1a..8b (the values of
+TR 38.901 Table 7.5-6 for UMa and RMa).
+
+Motion of the ray (leolink choice, for docs/errata.md): LoS and shadowing are taken to be
+set by obstacles at one characteristic height ``h`` above the UT antenna
+(``clutter_height_m``; defaults 20 / 15 / 8 / 3.5 m for dense urban / urban / suburban /
+rural). The ray to the satellite pierces that height at ``P = x_UT + h cot(el) u(az)``
+(``u`` the horizontal unit vector of the azimuth), and the distance that drives the
+decorrelation is ``|P_k - P_{k-1}|``. A UT that moves by ``dx`` under a fixed satellite
+direction moves ``P`` by exactly ``dx`` (the terrestrial case of TR 38.901); a static UT
+decorrelates as the satellite crosses the sky, slowly near zenith (``P`` stays above the
+UT) and fast at low elevation. The elevation in ``cot`` is clamped at 10 degrees, the
+lowest tabulated angle. If only the distance the UT moved is known (not its direction),
+the two shifts are added in quadrature (exact in mean square for a random relative
+direction).
+
+Randomness: the innovations ``w_k`` of a pair at epoch ``k`` are a pure function of (UT
+key of :func:`leolink.rng.ut_keys`, satellite id, ``k``): no dependence on chunking,
+order of the candidates or workers. State lives in ``(n_ut, n_slot)`` arrays aligned with
+the current candidates' ids (48 bytes a pair, 1 MB for 1000 UTs x 20 candidates, whatever
+the constellation size); a pair absent from the previous state starts from the
+stationary N(0, 1). Time chunks must hand the state on; UT chunks need nothing.
+
+References
+----------
+.. [1] 3GPP TR 38.811 V15.4.0 (2020-09), clauses 6.6.1, 6.6.2, 6.6.6, 6.7.2.
+.. [2] 3GPP TR 38.901 V17.0.0 (2022-03), "Study on channel model for frequencies from
+   0.5 to 100 GHz", Eq. (7.4-5), clauses 7.5, 7.6.3; Tables 7.5-6, 7.6.3.1-2.
+"""
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from scipy.special import ndtri
+
+from leolink import rng as lrng
+from leolink.errors import ConfigError
+from leolink.link import environment as env
+
+__all__ = [
+    "ChannelState",
+    "EnvironmentModel",
+    "LinkTerms",
+    "advance",
+    "ar1_step",
+    "effective_displacement_m",
+    "empty_state",
+    "environment_model",
+    "innovations",
+    "link_terms",
+    "pair_keys",
+    "ray_clutter_offset_m",
+]
+
+# (LoS-state, SF LoS, SF NLoS correlation distance [m], clutter height above the UT [m]).
+_DEFAULTS = {
+    "open": (50.0, 37.0, 50.0, 0.0),
+    "rural": (60.0, 37.0, 120.0, 3.5),
+    "suburban": (50.0, 37.0, 50.0, 8.0),
+    "urban": (50.0, 37.0, 50.0, 15.0),
+    "dense_urban": (50.0, 37.0, 50.0, 20.0),
+}
+_MIN_ELEVATION_RAD = np.radians(10.0)  # lowest tabulated angle of TR 38.811
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+# Separates the environment's streams from any other use of the same UT keys.
+_DOMAIN = np.uint64(0x6C62272E07BB0142)
+
+
+@dataclass(frozen=True)
+class EnvironmentModel:
+    """Resolved environment parameters of one UT population (see :func:`environment_model`)."""
+
+    environment: str
+    freq_hz: float
+    band: str
+    los_corr_distance_m: float
+    sf_corr_distance_los_m: float
+    sf_corr_distance_nlos_m: float
+    clutter_height_m: float
+    scintillation: bool = False
+    geomagnetic_latitude_deg: float | None = None
+
+
+def environment_model(
+    environment,
+    freq_hz,
+    band=None,
+    scintillation=False,
+    geomagnetic_latitude_deg=None,
+    los_corr_distance_m=None,
+    sf_corr_distance_los_m=None,
+    sf_corr_distance_nlos_m=None,
+    clutter_height_m=None,
+):
+    """Validate and resolve an environment once, at the edge (ConfigError on bad values).
+
+    Parameters
+    ----------
+    environment : str
+        One of :data:`leolink.link.environment.ENVIRONMENTS`.
+    freq_hz : float
+        Carrier frequency [Hz].
+    band : {None, "s", "ka"}
+        Table band; ``None``: :func:`leolink.link.environment.band_for_frequency`.
+    scintillation : bool
+        Add the clause 6.6.6 scintillation margin (off: the paper neglects it).
+    geomagnetic_latitude_deg : float, optional
+        Needed with ``scintillation`` below 6 GHz.
+    los_corr_distance_m, sf_corr_distance_los_m, sf_corr_distance_nlos_m : float, optional
+        Correlation distances [m]; defaults in the module docstring.
+    clutter_height_m : float, optional
+        Obstacle height above the UT antenna [m] for the ray shift; module docstring.
+
+    Returns
+    -------
+    EnvironmentModel
+    """
+    env.validate_environment(environment)
+    defaults = _DEFAULTS[environment]
+    given = (los_corr_distance_m, sf_corr_distance_los_m, sf_corr_distance_nlos_m)
+    names = ("los_corr_distance_m", "sf_corr_distance_los_m", "sf_corr_distance_nlos_m")
+    dists = [d if v is None else float(v) for v, d in zip(given, defaults[:3], strict=True)]
+    for name, value in zip(names, dists, strict=True):
+        if not value > 0.0:
+            raise ConfigError(f"{name} = {value!r} is not allowed; use a value > 0 (metres)")
+    height = defaults[3] if clutter_height_m is None else float(clutter_height_m)
+    if not height >= 0.0:
+        raise ConfigError(f"clutter_height_m = {height!r} is not allowed; use a value >= 0")
+    model = EnvironmentModel(
+        environment,
+        float(freq_hz),
+        env.band_for_frequency(freq_hz, band),
+        *dists,
+        height,
+        bool(scintillation),
+        geomagnetic_latitude_deg,
+    )
+    if scintillation:  # fail now, not at the first epoch, if the latitude is missing
+        env.scintillation_db(45.0, model.freq_hz, geomagnetic_latitude_deg)
+    return model
+
+
+@dataclass(frozen=True)
+class ChannelState:
+    """Driving variables of the (UT, candidate satellite) pairs after one epoch.
+
+    Attributes (all shape (n_ut, n_slot); slot ``j`` of UT ``i`` is satellite
+    ``sat_id[i, j]``, ``-1`` an empty slot):
+    ``sat_id`` (int64), ``z_los``, ``z_sf_los``, ``z_sf_nlos`` (float64, N(0, 1)),
+    ``elevation_rad``, ``azimuth_rad`` (float64, geometry of that epoch; kept exact so that
+    an unchanged geometry gives a zero displacement, not a rounding residue that
+    ``sqrt(1 - rho^2)`` would amplify);
+    ``epoch`` (int, -1 before the first :func:`advance`).
+    """
+
+    sat_id: np.ndarray
+    z_los: np.ndarray
+    z_sf_los: np.ndarray
+    z_sf_nlos: np.ndarray
+    elevation_rad: np.ndarray
+    azimuth_rad: np.ndarray
+    epoch: int = -1
+
+
+def empty_state(n_ut):
+    """A state with no pair yet (every pair of the first epoch starts stationary)."""
+    f = np.zeros((n_ut, 0))
+    return ChannelState(np.zeros((n_ut, 0), dtype=np.int64), f, f, f, f, f, -1)
+
+
+def _mix(z):
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+def pair_keys(ut_keys, sat_id):
+    """64-bit key of each (UT, satellite) pair (SplitMix64 of the UT key and the id).
+
+    Parameters
+    ----------
+    ut_keys : ndarray of uint64, shape (n_ut,)
+        From :func:`leolink.rng.ut_keys` (the UT's key, whatever chunk it is in).
+    sat_id : array_like of int, shape (n_ut, n_slot)
+
+    Returns
+    -------
+    ndarray of uint64, shape (n_ut, n_slot)
+    """
+    sat = np.asarray(sat_id).astype(np.int64).view(np.uint64)
+    with np.errstate(over="ignore"):
+        sat_key = _mix(sat * _GOLDEN + _DOMAIN)
+        return _mix(np.asarray(ut_keys, dtype=np.uint64)[:, None] ^ sat_key)
+
+
+def innovations(keys, epoch):
+    """Three independent N(0, 1) draws per pair for ``epoch``: (w_los, w_sf_los, w_sf_nlos).
+
+    Box-Muller through :func:`leolink.rng.complex_normal` (real and imaginary parts of a
+    CN(0, 1) draw are independent N(0, 1/2)) at counters ``2 epoch`` and ``2 epoch + 1``.
+
+    Returns
+    -------
+    ndarray, shape (3, n_ut, n_slot)
+    """
+    g0 = lrng.complex_normal(keys, 2 * epoch)
+    g1 = lrng.complex_normal(keys, 2 * epoch + 1)
+    return np.sqrt(2.0) * np.stack([g0.real, g0.imag, g1.real])
+
+
+def ar1_step(z_prev, distance_m, corr_distance_m, w):
+    """Exponentially correlated Gaussian step, TR 38.901 Eq. (7.4-5) [2].
+
+    ``rho = exp(-d / d_corr)``, ``z = rho z_prev + sqrt(1 - rho^2) w``: keeps N(0, 1)
+    stationary and gives ``corr(z(x), z(x + d)) = exp(-d / d_corr)`` along a track.
+    ``distance_m = inf`` (rho = 0) starts a new pair from the stationary distribution.
+
+    Parameters
+    ----------
+    z_prev, distance_m, w : array_like, broadcastable
+        Previous value, distance moved [m], fresh N(0, 1) innovation.
+    corr_distance_m : float
+        Correlation distance [m], > 0.
+    """
+    rho = np.exp(-np.asarray(distance_m, dtype=float) / corr_distance_m)
+    return rho * z_prev + np.sqrt(1.0 - rho * rho) * w
+
+
+def ray_clutter_offset_m(elevation_rad, azimuth_rad, clutter_height_m):
+    """Horizontal offset (east, north) [m] from the UT of the ray's piercing point at ``h``.
+
+    ``h cot(max(el, 10 deg)) (sin az, cos az)``; azimuth from north towards east, as
+    :func:`leolink.geometry.look_angles`.
+
+    Returns
+    -------
+    ndarray, shape (..., 2)
+    """
+    el = np.maximum(np.asarray(elevation_rad, dtype=float), _MIN_ELEVATION_RAD)
+    r_m = clutter_height_m / np.tan(el)
+    return np.stack([r_m * np.sin(azimuth_rad), r_m * np.cos(azimuth_rad)], axis=-1)
+
+
+def effective_displacement_m(ut_step_m, el_prev_rad, az_prev_rad, el_rad, az_rad, clutter_height_m):
+    """Distance the ray's piercing point moved between two epochs (module docstring).
+
+    Parameters
+    ----------
+    ut_step_m : ndarray, shape (n_ut, 2) or (n_ut,)
+        UT displacement since the last epoch: (east, north) [m], or its length [m] only
+        (then added in quadrature to the ray shift).
+    el_prev_rad, az_prev_rad, el_rad, az_rad : ndarray, shape (n_ut, n_slot)
+        Elevation and azimuth at the previous and the current epoch [rad].
+    clutter_height_m : float
+
+    Returns
+    -------
+    ndarray, shape (n_ut, n_slot)
+        Distance [m], >= 0.
+    """
+    shift = ray_clutter_offset_m(el_rad, az_rad, clutter_height_m) - ray_clutter_offset_m(
+        el_prev_rad, az_prev_rad, clutter_height_m
+    )
+    step = np.asarray(ut_step_m, dtype=float)
+    if step.ndim == 2:
+        return np.hypot(*np.moveaxis(step[:, None, :] + shift, -1, 0))
+    return np.sqrt(step[:, None] ** 2 + np.sum(shift * shift, axis=-1))
+
+
+def _carry(state, sat_id):
+    """Previous values aligned with the new slots, and which slots had a previous value."""
+    old_id = state.sat_id
+    if old_id.shape[1] == 0:  # pad so that argmax has an axis to reduce
+        old_id = np.full((sat_id.shape[0], 1), -1, dtype=np.int64)
+    match = (sat_id[:, :, None] == old_id[:, None, :]) & (sat_id[:, :, None] >= 0)
+    had = match.any(axis=-1)
+    idx = match.argmax(axis=-1)
+    fields = ("z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "azimuth_rad")
+    prev = {}
+    for name in fields:
+        values = getattr(state, name)
+        if values.shape[1] == 0:
+            values = np.zeros(old_id.shape)
+        prev[name] = np.where(had, np.take_along_axis(values, idx, axis=1), 0.0)
+    return had, prev
+
+
+def advance(state, model, ut_keys, sat_id, elevation_rad, azimuth_rad, ut_step_m, epoch):
+    """Advance every (UT, candidate satellite) pair to ``epoch``; pure (returns a new state).
+
+    Parameters
+    ----------
+    state : ChannelState
+        State after the previous epoch (:func:`empty_state` at the start).
+    model : EnvironmentModel
+    ut_keys : ndarray of uint64, shape (n_ut,)
+        Per-UT keys (:func:`leolink.rng.ut_keys`), the same whatever the chunking.
+    sat_id : array_like of int, shape (n_ut, n_slot)
+        Current candidates of each UT (serving and interfering paths), ``-1`` padding.
+    elevation_rad, azimuth_rad : array_like, shape (n_ut, n_slot)
+        Current geometry of each pair [rad].
+    ut_step_m : array_like, shape (n_ut, 2) or (n_ut,)
+        UT displacement since the state's epoch [m] (:func:`effective_displacement_m`).
+    epoch : int
+        Epoch index (> ``state.epoch``); keys the innovations.
+
+    Returns
+    -------
+    ChannelState
+        Slots aligned with ``sat_id``.
+    """
+    if not epoch > state.epoch:
+        raise ValueError(f"epoch = {epoch!r} must exceed the state's epoch {state.epoch}")
+    sat_id = np.asarray(sat_id, dtype=np.int64)
+    el = np.asarray(elevation_rad, dtype=float)
+    az = np.asarray(azimuth_rad, dtype=float)
+    had, prev = _carry(state, sat_id)
+    moved_m = effective_displacement_m(
+        ut_step_m, prev["elevation_rad"], prev["azimuth_rad"], el, az, model.clutter_height_m
+    )
+    distance_m = np.where(had, moved_m, np.inf)  # new pair: rho = 0, stationary start
+    w = innovations(pair_keys(ut_keys, sat_id), epoch)
+    dists = (model.los_corr_distance_m, model.sf_corr_distance_los_m, model.sf_corr_distance_nlos_m)
+    z = [
+        ar1_step(prev[name], distance_m, d, w[i])
+        for i, (name, d) in enumerate(zip(("z_los", "z_sf_los", "z_sf_nlos"), dists, strict=True))
+    ]
+    return ChannelState(sat_id, *z, el, az, int(epoch))
+
+
+class LinkTerms(NamedTuple):
+    """Environment terms of each pair, shape (n_ut, n_slot); NaN / False in empty slots.
+
+    ``los`` (bool), ``shadow_db`` (zero-mean, positive = more loss), ``clutter_db``
+    (NLoS only), ``scintillation_db`` (margin), ``extra_loss_db`` (their sum, to subtract
+    from the pair's SNR, or from an interferer's received power).
+    """
+
+    los: np.ndarray
+    shadow_db: np.ndarray
+    clutter_db: np.ndarray
+    scintillation_db: np.ndarray
+    extra_loss_db: np.ndarray
+
+
+def link_terms(state, model):
+    """LoS state, shadowing, clutter and scintillation of every pair of ``state``.
+
+    Parameters
+    ----------
+    state : ChannelState
+    model : EnvironmentModel
+
+    Returns
+    -------
+    LinkTerms
+        ``los = Phi(z_los) < P_LoS(el)`` (TR 38.901 clause 7.6.3.3 with TR 38.811
+        Table 6.6.1-1); ``shadow_db = sigma_SF(el, los) z_sf`` of the current state and
+        ``clutter_db = CL(el)`` if NLoS (Tables 6.6.2-1..3); ``open``: always LoS, 0 dB.
+    """
+    valid = state.sat_id >= 0
+    el_deg = np.degrees(state.elevation_rad)
+    name, band = model.environment, model.band
+    if name == "open":
+        los = np.ones(el_deg.shape, dtype=bool)
+        shadow_db = np.zeros(el_deg.shape)
+        clutter_db = np.zeros(el_deg.shape)
+    else:
+        # Compare in the Gaussian domain: Phi(z) < p  <=>  z < Phi^-1(p) (exact, no erf).
+        los = state.z_los < ndtri(env.los_probability(el_deg, name))
+        z_sf = np.where(los, state.z_sf_los, state.z_sf_nlos)
+        shadow_db = env.shadow_sigma_db(el_deg, name, band, los) * z_sf
+        clutter_db = np.where(los, 0.0, env.clutter_loss_db(el_deg, name, band))
+    if model.scintillation:
+        scint_db = env.scintillation_db(el_deg, model.freq_hz, model.geomagnetic_latitude_deg)
+    else:
+        scint_db = np.zeros(el_deg.shape)
+    terms = [np.where(valid, t, np.nan) for t in (shadow_db, clutter_db, scint_db)]
+    return LinkTerms(los & valid, *terms, terms[0] + terms[1] + terms[2])

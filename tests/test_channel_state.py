@@ -1,0 +1,313 @@
+"""Spatially consistent LoS / shadowing process (leolink.link.channel_state).
+
+Statistical tests compare against TR 38.811 V15.4.0 numbers typed here (Table 6.6.1-1,
+Tables 6.6.2-1..3) and against the exponential autocorrelation of TR 38.901 Eq. (7.4-5),
+each with a tolerance of 4 standard errors of the estimator.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.stats import multivariate_normal, norm
+
+from leolink import rng as lrng
+from leolink.link import channel_state as cs
+
+N_SIGMA = 4.0
+
+
+def run(model, keys, sat_id, el_rad, az_rad, steps_m, epochs, state=None):
+    """Advance through a list of epochs; geometry and steps may be per-epoch lists."""
+    state = cs.empty_state(len(keys)) if state is None else state
+    out = []
+    for k, epoch in enumerate(epochs):
+        pick = [x[k] if isinstance(x, list) else x for x in (sat_id, el_rad, az_rad, steps_m)]
+        state = cs.advance(state, model, keys, *pick, epoch)
+        out.append(state)
+    return out
+
+
+def fixed_geometry(n_ut, n_slot, elevation_deg, seed=7):
+    sat_id = np.tile(np.arange(n_slot), (n_ut, 1))
+    el = np.full((n_ut, n_slot), np.radians(elevation_deg))
+    az = np.random.default_rng(seed).uniform(0, 2 * np.pi, (n_ut, n_slot))
+    return sat_id, el, az
+
+
+@pytest.mark.parametrize(
+    ("environment", "elevation_deg", "p_los"),
+    [
+        ("dense_urban", 30.0, 0.398),  # Table 6.6.1-1, tabulated
+        ("urban", 35.0, (0.493 + 0.613) / 2),  # interpolated between 30 and 40 deg
+        ("rural", 10.0, 0.782),
+        ("suburban", 5.0, 0.782),  # clamped to the 10-degree row
+    ],
+)
+def test_los_fraction_equals_table_6_6_1_1_within_binomial_error(environment, elevation_deg, p_los):
+    n_ut, n_slot = 4000, 5
+    model = cs.environment_model(environment, 11.45e9)
+    keys = lrng.ut_keys(11, n_ut)
+    sat_id, el, az = fixed_geometry(n_ut, n_slot, elevation_deg)
+    step = np.tile([3.0, 4.0], (n_ut, 1))  # 5 m per epoch: stationarity must hold after moving
+    for state in run(model, keys, sat_id, el, az, step, [0, 1, 5]):
+        los = cs.link_terms(state, model).los
+        n = los.size
+        assert abs(los.mean() - p_los) < N_SIGMA * np.sqrt(p_los * (1 - p_los) / n)
+
+
+@pytest.mark.parametrize(
+    ("environment", "freq_hz", "elevation_deg", "sigma_los", "sigma_nlos", "cl_nlos"),
+    [
+        ("dense_urban", 2.0e9, 30.0, 2.9, 12.4, 29.0),  # Table 6.6.2-1, S band
+        ("urban", 11.45e9, 50.0, 4.0, 6.0, 34.6),  # Table 6.6.2-2, Ka band
+        ("suburban", 11.45e9, 10.0, 1.9, 10.7, 29.5),  # Table 6.6.2-3, Ka band
+        ("rural", 2.0e9, 20.0, 1.14, 9.08, 18.17),  # Table 6.6.2-3, S band
+    ],
+)
+def test_shadowing_std_and_clutter_equal_tables_6_6_2(
+    environment, freq_hz, elevation_deg, sigma_los, sigma_nlos, cl_nlos
+):
+    n_ut, n_slot = 4000, 10
+    model = cs.environment_model(environment, freq_hz)
+    keys = lrng.ut_keys(12, n_ut)
+    sat_id, el, az = fixed_geometry(n_ut, n_slot, elevation_deg)
+    (state,) = run(model, keys, sat_id, el, az, np.zeros(n_ut), [3])
+    t = cs.link_terms(state, model)
+    for mask, sigma in ((t.los, sigma_los), (~t.los, sigma_nlos)):
+        x = t.shadow_db[mask]
+        n = x.size
+        assert n > 500
+        assert abs(x.mean()) < N_SIGMA * sigma / np.sqrt(n)  # zero-mean
+        assert abs(x.std() - sigma) < N_SIGMA * sigma / np.sqrt(2 * n)
+    assert np.all(t.clutter_db[t.los] == 0.0)
+    assert t.clutter_db[~t.los] == pytest.approx(cl_nlos, abs=1e-9)
+    assert np.allclose(t.extra_loss_db, t.shadow_db + t.clutter_db)
+
+
+def track_states(model, n_ut, step_m, n_epoch, seed=21):
+    """Every UT drives straight east ``step_m`` per epoch under a fixed satellite direction."""
+    keys = lrng.ut_keys(seed, n_ut)
+    sat_id, el, az = fixed_geometry(n_ut, 1, 40.0)
+    step = np.tile([step_m, 0.0], (n_ut, 1))
+    return run(model, keys, sat_id, el, az, step, list(range(n_epoch)))
+
+
+@pytest.mark.parametrize("environment", ["urban", "rural"])
+def test_shadowing_decorrelates_along_a_straight_track_as_exp_minus_d_over_dcorr(environment):
+    model = cs.environment_model(environment, 11.45e9)
+    n_ut, step_m = 6000, 6.0
+    states = track_states(model, n_ut, step_m, 31)
+    for field, d_corr in (
+        ("z_sf_los", 37.0),
+        ("z_sf_nlos", 50.0 if environment == "urban" else 120.0),
+    ):
+        z0 = getattr(states[0], field)[:, 0]
+        for lag in (1, 5, 15, 30):
+            rho = np.exp(-lag * step_m / d_corr)
+            r = np.corrcoef(z0, getattr(states[lag], field)[:, 0])[0, 1]
+            assert abs(r - rho) < N_SIGMA * (1 - rho**2) / np.sqrt(n_ut) + 1e-3, (field, lag)
+
+
+def test_shadow_db_follows_the_field_of_the_current_state():
+    # Dense urban with a long NLoS distance: while a UT stays NLoS its shadow_db / sigma
+    # decorrelates over 120 m, while it stays LoS over 37 m (one field per link state).
+    model = cs.environment_model("dense_urban", 11.45e9, sf_corr_distance_nlos_m=120.0)
+    n_ut, step_m, lag = 8000, 6.0, 10
+    states = track_states(model, n_ut, step_m, lag + 1)
+    t0, t1 = cs.link_terms(states[0], model), cs.link_terms(states[lag], model)
+    sigma = {True: 2.4, False: 14.6}  # Table 6.6.2-1, Ka band, 40 deg
+    for los, d_corr in ((True, 37.0), (False, 120.0)):
+        same = (t0.los[:, 0] == los) & (t1.los[:, 0] == los)
+        rho = np.exp(-lag * step_m / d_corr)
+        r = np.corrcoef(t0.shadow_db[same, 0] / sigma[los], t1.shadow_db[same, 0] / sigma[los])
+        assert same.sum() > 1500
+        assert abs(r[0, 1] - rho) < N_SIGMA * (1 - rho**2) / np.sqrt(same.sum()), los
+
+
+def test_los_state_decorrelates_as_a_thresholded_exponential_field():
+    # Independent model: LoS = {Z < t}, (Z0, ZL) bivariate normal with correlation
+    # exp(-d/d_corr), so P(LoS at both) = Phi2(t, t; rho) (TR 38.901 clause 7.6.3.3).
+    model = cs.environment_model("dense_urban", 11.45e9, los_corr_distance_m=30.0)
+    n_ut, step_m = 8000, 4.0
+    states = track_states(model, n_ut, step_m, 21)
+    p = 0.468  # Table 6.6.1-1, dense urban, 40 deg
+    t = norm.ppf(p)
+    los0 = cs.link_terms(states[0], model).los[:, 0]
+    for lag in (1, 3, 8, 20):
+        rho = np.exp(-lag * step_m / 30.0)
+        both = multivariate_normal(cov=[[1, rho], [rho, 1]]).cdf([t, t])
+        expected = (both - p * p) / (p * (1 - p))
+        r = np.corrcoef(los0, cs.link_terms(states[lag], model).los[:, 0])[0, 1]
+        assert abs(r - expected) < N_SIGMA / np.sqrt(n_ut), lag
+
+
+def test_no_motion_no_change_of_state():
+    model = cs.environment_model("urban", 11.45e9)
+    keys = lrng.ut_keys(3, 50)
+    sat_id, el, az = fixed_geometry(50, 4, 55.0)
+    states = run(model, keys, sat_id, el, az, np.zeros((50, 2)), [0, 1, 2, 9])
+    for s in states[1:]:
+        for f in ("z_los", "z_sf_los", "z_sf_nlos"):
+            assert np.array_equal(getattr(s, f), getattr(states[0], f))
+
+
+def brute_force_piercing_point(el, az, h):
+    """Explicit ray-plane intersection: UT at origin, unit look vector, plane z = h."""
+    d = np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], axis=-1)
+    t = h / d[..., 2]
+    return (t[..., None] * d)[..., :2]
+
+
+def test_effective_displacement_is_the_shift_of_the_rays_piercing_point():
+    g = np.random.default_rng(5)
+    n_ut, n_slot, h = 40, 6, 15.0
+    el0, el1 = (np.radians(g.uniform(10, 90, (n_ut, n_slot))) for _ in range(2))
+    az0, az1 = (g.uniform(0, 2 * np.pi, (n_ut, n_slot)) for _ in range(2))
+    step = g.normal(0, 10, (n_ut, 2))
+    ut_after = step[:, None, :] + brute_force_piercing_point(el1, az1, h)
+    expected = np.linalg.norm(ut_after - brute_force_piercing_point(el0, az0, h), axis=-1)
+    got = cs.effective_displacement_m(step, el0, az0, el1, az1, h)
+    assert got == pytest.approx(expected, rel=1e-12, abs=1e-9)
+
+
+def test_scalar_ut_step_is_the_mean_square_over_travel_directions():
+    el0, el1 = np.radians([[20.0]]), np.radians([[24.0]])
+    az0, az1 = np.radians([[100.0]]), np.radians([[93.0]])
+    step_m = 12.0
+    heading = np.linspace(0, 2 * np.pi, 360, endpoint=False)  # exact for a trig polynomial
+    vec = np.stack([step_m * np.sin(heading), step_m * np.cos(heading)], axis=-1)
+    d2 = [cs.effective_displacement_m(v[None, :], el0, az0, el1, az1, 20.0)[0, 0] ** 2 for v in vec]
+    got = cs.effective_displacement_m(np.array([step_m]), el0, az0, el1, az1, 20.0)[0, 0]
+    assert got**2 == pytest.approx(np.mean(d2), rel=1e-12)
+
+
+def test_static_ut_decorrelates_as_the_satellite_moves_and_not_at_zenith():
+    # Zenith pass: the piercing point stays above the UT, 0.2 deg of motion moves it by mm.
+    el = np.radians([[89.9]]), np.radians([[90.0]])
+    near_zenith = cs.effective_displacement_m(np.zeros(1), el[0], [[0.0]], el[1], [[np.pi]], 15.0)
+    assert near_zenith[0, 0] < 0.03
+    # Low elevation: 15 / tan(10 deg) - 15 / tan(11 deg) = 85.07 - 77.17 = 7.90 m.
+    low = cs.effective_displacement_m(
+        np.zeros(1), np.radians([[10.0]]), [[1.0]], np.radians([[11.0]]), [[1.0]], 15.0
+    )
+    assert low[0, 0] == pytest.approx(7.90, abs=0.01)
+    # Below 10 deg the piercing point is held at its 10-degree place (the tables' floor).
+    below = cs.effective_displacement_m(
+        np.zeros(1), np.radians([[3.0]]), [[1.0]], np.radians([[10.0]]), [[1.0]], 15.0
+    )
+    assert below[0, 0] == pytest.approx(0.0, abs=1e-12)
+
+
+def changing_candidates(n_ut, n_epoch, n_sat_total=40, n_slot=8, seed=2):
+    """Candidate sets that change from epoch to epoch, with padding, and random geometry."""
+    g = np.random.default_rng(seed)
+    ids, els, azs, steps = [], [], [], []
+    for _ in range(n_epoch):
+        sat = np.array([g.choice(n_sat_total, n_slot, replace=False) for _ in range(n_ut)])
+        sat[g.random((n_ut, n_slot)) < 0.1] = -1  # empty slots
+        ids.append(sat)
+        els.append(np.radians(g.uniform(5, 90, (n_ut, n_slot))))
+        azs.append(g.uniform(0, 2 * np.pi, (n_ut, n_slot)))
+        steps.append(g.normal(0, 8, (n_ut, 2)))
+    return ids, els, azs, steps
+
+
+FIELDS = ("sat_id", "z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "azimuth_rad")
+
+
+def chunked_run(model, keys, data, epochs, bounds):
+    parts = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        sub = [[x[a:b] for x in series] for series in data]
+        parts.append(run(model, keys[a:b], *sub, epochs)[-1])
+    return {f: np.concatenate([getattr(p, f) for p in parts]) for f in FIELDS}
+
+
+def test_same_states_whatever_the_chunking_of_uts():
+    n_ut, epochs = 300, [0, 1, 2, 4, 5, 6, 7, 9, 10, 11]
+    model = cs.environment_model("dense_urban", 11.45e9)
+    keys = lrng.ut_keys(2024, n_ut)
+    data = changing_candidates(n_ut, len(epochs))
+    whole = run(model, keys, *data, epochs)[-1]
+    for bounds in ([0, 7, 150, 300], [0, 1, 2, 299, 300]):
+        parts = chunked_run(model, keys, data, epochs, bounds)
+        for f in FIELDS:
+            assert np.array_equal(getattr(whole, f), parts[f]), f
+
+
+@settings(max_examples=20, deadline=None)
+@given(split=st.integers(1, 29), seed=st.integers(0, 2**16))
+def test_chunking_and_slot_order_do_not_change_any_pair(split, seed):
+    n_ut, epochs = 30, [0, 1, 2, 3]
+    model = cs.environment_model("suburban", 2e9)
+    keys = lrng.ut_keys(seed, n_ut)
+    ids, els, azs, steps = changing_candidates(n_ut, len(epochs), n_slot=5, seed=seed)
+    whole = run(model, keys, ids, els, azs, steps, epochs)[-1]
+    parts = chunked_run(model, keys, (ids, els, azs, steps), epochs, [0, split, n_ut])
+    perm = np.random.default_rng(seed).permutation(5)
+    shuffled = run(model, keys, *[[x[:, perm] for x in s] for s in (ids, els, azs)], steps, epochs)
+    for f in FIELDS:
+        assert np.array_equal(getattr(whole, f), parts[f])
+        assert np.array_equal(getattr(whole, f)[:, perm], getattr(shuffled[-1], f))
+
+
+def test_a_pair_that_returns_restarts_from_the_stationary_distribution():
+    model = cs.environment_model("urban", 11.45e9)
+    keys = lrng.ut_keys(9, 20)
+    el, az = np.full((20, 1), np.radians(40.0)), np.zeros((20, 1))
+    seen = run(model, keys, np.full((20, 1), 7), el, az, np.zeros(20), [0, 1])[-1]
+    gone = cs.advance(seen, model, keys, np.full((20, 1), 8), el, az, np.zeros(20), 2)
+    back = cs.advance(gone, model, keys, np.full((20, 1), 7), el, az, np.zeros(20), 3)
+    fresh = cs.advance(
+        cs.empty_state(20), model, keys, np.full((20, 1), 7), el, az, np.zeros(20), 3
+    )
+    for f in FIELDS:
+        assert np.array_equal(getattr(back, f), getattr(fresh, f))
+    assert not np.array_equal(back.z_los, seen.z_los)
+
+
+def test_seed_and_satellite_select_independent_streams():
+    model = cs.environment_model("urban", 11.45e9)
+    sat_id, el, az = fixed_geometry(2000, 2, 40.0)
+    a = run(model, lrng.ut_keys(1, 2000), sat_id, el, az, np.zeros(2000), [0])[0]
+    b = run(model, lrng.ut_keys(2, 2000), sat_id, el, az, np.zeros(2000), [0])[0]
+    limit = N_SIGMA / np.sqrt(2000)
+    assert abs(np.corrcoef(a.z_los[:, 0], b.z_los[:, 0])[0, 1]) < limit
+    assert abs(np.corrcoef(a.z_los[:, 0], a.z_los[:, 1])[0, 1]) < limit
+    assert abs(np.corrcoef(a.z_los[:, 0], a.z_sf_los[:, 0])[0, 1]) < limit
+    assert abs(np.corrcoef(a.z_los[:, 0], a.z_sf_nlos[:, 0])[0, 1]) < limit
+    assert abs(np.corrcoef(a.z_sf_los[:, 0], a.z_sf_nlos[:, 0])[0, 1]) < limit
+
+
+def test_open_environment_is_always_los_with_zero_loss():
+    model = cs.environment_model("open", 11.45e9)
+    ids, els, azs, steps = changing_candidates(100, 3)
+    state = run(model, lrng.ut_keys(0, 100), ids, els, azs, steps, [0, 1, 2])[-1]
+    t = cs.link_terms(state, model)
+    valid = state.sat_id >= 0
+    assert np.all(t.los == valid)
+    for x in (t.shadow_db, t.clutter_db, t.scintillation_db, t.extra_loss_db):
+        assert np.all(x[valid] == 0.0) and np.all(np.isnan(x[~valid]))
+
+
+def test_scintillation_margin_enters_the_extra_loss():
+    # 20 GHz, 30 deg: 0.30 dB (Table 6.6.6.2.1-1), on top of shadowing and clutter.
+    model = cs.environment_model("urban", 20e9, scintillation=True)
+    sat_id, el, az = fixed_geometry(200, 3, 30.0)
+    (state,) = run(model, lrng.ut_keys(4, 200), sat_id, el, az, np.zeros(200), [0])
+    t = cs.link_terms(state, model)
+    assert t.scintillation_db == pytest.approx(0.30, abs=1e-6)
+    assert np.allclose(t.extra_loss_db - t.shadow_db - t.clutter_db, 0.30, atol=1e-6)
+
+
+def test_invalid_parameters_and_epoch_order():
+    with pytest.raises(cs.ConfigError, match=r"los_corr_distance_m = 0.0 is not allowed"):
+        cs.environment_model("urban", 11.45e9, los_corr_distance_m=0.0)
+    with pytest.raises(cs.ConfigError, match="geomagnetic_latitude_deg is required"):
+        cs.environment_model("urban", 2e9, scintillation=True)
+    model = cs.environment_model("urban", 11.45e9)
+    sat_id, el, az = fixed_geometry(3, 1, 40.0)
+    (state,) = run(model, lrng.ut_keys(0, 3), sat_id, el, az, np.zeros(3), [5])
+    with pytest.raises(ValueError, match="must exceed the state's epoch 5"):
+        cs.advance(state, model, lrng.ut_keys(0, 3), sat_id, el, az, np.zeros(3), 5)
