@@ -11,8 +11,8 @@ from leolink.link.figures import (
     cn0_dbhz,
     cnr_db,
     ebn0_db,
-    eirp_density_dbw_mhz,
     eirp_dbw,
+    eirp_density_dbw_mhz,
     eirp_from_density_dbw,
     esn0_db,
     g_over_t_db_k,
@@ -74,7 +74,8 @@ def test_hand_budget_tr38821_ka_with_dvbs2x_acm():
     #   R_s   = 400 MHz / 1.1                                 = 363.6364 Mbaud (85.6067 dBHz)
     #   Es/N0 = 94.5763 - 85.6067                             = 8.9697 dB
     #   ACM: thresholds <= 8.4697 dB: best is 16APSK 2/3-L (8.43 dB, 2.635236 bit/symbol);
-    #   margin = 8.9697 - (8.43 + 0.5) = 0.0397 dB; throughput 2.635236 x 363.6364e6 = 958.268 Mbit/s
+    #   margin = 8.9697 - (8.43 + 0.5) = 0.0397 dB;
+    #   throughput 2.635236 x 363.6364e6 = 958.268 Mbit/s
     eirp = eirp_from_density_dbw(4.0, 400e6)
     t_sys = system_noise_temp_k(150.0, 1.2)
     gt = g_over_t_db_k(39.7, noise_temp_k=t_sys)
@@ -97,7 +98,11 @@ def test_hand_budget_tr38821_ka_with_dvbs2x_acm():
 
 def test_g_over_t_matches_the_tr38821_expression():
     # TR 38.821 Table 6.1.1.1-3 writes G/T = G - NF - 10 log10(T0 + (Ta - T0) 10^(-NF/10)).
-    g, nf, ta = np.array([39.7, 0.0, 30.0]), np.array([1.2, 7.0, 3.0]), np.array([150.0, 290.0, 50.0])
+    g, nf, ta = (
+        np.array([39.7, 0.0, 30.0]),
+        np.array([1.2, 7.0, 3.0]),
+        np.array([150.0, 290.0, 50.0]),
+    )
     tr_form = g - nf - 10 * np.log10(290.0 + (ta - 290.0) * 10 ** (-nf / 10))
     ours = g_over_t_db_k(g, noise_temp_k=system_noise_temp_k(ta, nf))
     np.testing.assert_allclose(ours, tr_form, atol=1e-12)

@@ -75,9 +75,11 @@ def element_factor_lin(scan_rad, exponent=DEFAULT_SCAN_EXPONENT):
     ndarray, broadcast shape
         Linear factor in ``[0, 1]``, 1 on the normal.
     """
-    c = np.cos(np.asarray(scan_rad, dtype=float))
-    front = c > 0.0
-    return np.where(front, np.where(front, c, 1.0) ** np.asarray(exponent, dtype=float), 0.0)
+    theta = np.asarray(scan_rad, dtype=float)
+    # Test the angle, not cos > 0: cos(pi/2) is 6e-17 in floating point.
+    front = np.abs(theta) < 0.5 * np.pi
+    c = np.where(front, np.cos(theta), 1.0)
+    return np.where(front, c ** np.asarray(exponent, dtype=float), 0.0)
 
 
 def scan_loss_db(scan_rad, exponent=DEFAULT_SCAN_EXPONENT):
