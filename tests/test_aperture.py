@@ -61,10 +61,16 @@ def test_airy_landmarks():
 def test_boresight_small_angles_and_back():
     ka = KA_BAND_KA
     assert circular_aperture_pattern_lin(0.0, ka) == 1.0
-    # Across the switch to the series 1 - u^2/8 (|u| = 1e-4): continuous to 1e-12.
-    u = np.array([0.99e-4, 1.01e-4])
-    g = circular_aperture_pattern_lin(np.arcsin(u / ka), ka)
-    np.testing.assert_allclose(g, 1.0 - u**2 / 8.0, atol=1e-12)
+    # Either side of the switch to the series (|u| = 1e-4) the pattern equals the direct
+    # aperture integral (exact to ~1e-15 at such small u), so the two branches join.
+    u = np.array([0.5e-4, 0.99e-4, 1.01e-4, 2e-4])
+    theta = np.arcsin(u / ka)
+    np.testing.assert_allclose(
+        circular_aperture_pattern_lin(theta, ka),
+        _aperture_integral_pattern(theta, ka),
+        rtol=0.0,
+        atol=1e-13,
+    )
     assert circular_aperture_pattern_lin(np.radians(120.0), ka) == 0.0  # behind: not defined
     np.testing.assert_allclose(
         circular_aperture_pattern_lin(np.radians([-3.0, 3.0]), ka),

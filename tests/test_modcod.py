@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from leolink.link.modcod import (
+    ModcodTable,
     modcod_names,
     modcod_spectral_efficiency,
     modcod_table,
@@ -140,6 +141,25 @@ def test_named_choices_at_thresholds():
         "256APSK 3/4",
         "",
     ]
+
+
+def test_custom_table_ties():
+    # Equal thresholds: the higher efficiency wins; equal efficiencies: the lower threshold.
+    t = ModcodTable(
+        names=("A", "B", "C", "D"),
+        spectral_efficiency_bit_sym=np.array([1.0, 1.5, 1.5, 2.0]),
+        esn0_ideal_db=np.array([3.0, 3.0, 2.0, 6.0]),
+        sources=("test",) * 4,
+    )
+    got = select_modcod([1.9, 2.0, 3.0, 5.9, 6.0], table=t)
+    assert list(modcod_names(got, table=t)) == ["", "C", "C", "C", "D"]
+    assert (
+        select_modcod(
+            3.0,
+            table=ModcodTable(("A", "B"), np.array([1.0, 1.5]), np.array([3.0, 3.0]), ("t", "t")),
+        )
+        == 1
+    )
 
 
 def test_margin_shifts_every_threshold():

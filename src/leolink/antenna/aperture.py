@@ -40,7 +40,8 @@ __all__ = [
 
 #: ``u`` at which ``(2 J1(u) / u)^2 = 1/2`` (root of the half-power equation, 7 digits).
 HALF_POWER_U = 1.6163399
-# Below this |u| the series 1 - u^2/8 replaces 4 J1(u)^2/u^2 (error < u^4/192 < 1e-18).
+# Below this |u| the series (2 J1(u)/u)^2 = 1 - u^2/4 + 5 u^4/192 - ... replaces the quotient
+# (truncation error < 3e-18; the quotient itself loses digits as u -> 0).
 _U_TINY = 1e-4
 
 
@@ -81,7 +82,7 @@ def circular_aperture_pattern_lin(theta_rad, ka):
     u = np.asarray(ka, dtype=float) * np.sin(theta)
     tiny = np.abs(u) < _U_TINY
     safe_u = np.where(tiny, 1.0, u)
-    g = np.where(tiny, 1.0 - u * u / 8.0, 4.0 * (j1(safe_u) / safe_u) ** 2)
+    g = np.where(tiny, 1.0 - 0.25 * u * u, 4.0 * (j1(safe_u) / safe_u) ** 2)
     return np.where(np.abs(theta) <= 0.5 * np.pi, g, 0.0)
 
 

@@ -69,7 +69,9 @@ class ModcodTable:
     @functools.cached_property
     def _frontier(self):
         """Thresholds sorted ascending and, at each, the row of best efficiency so far."""
-        order = np.lexsort((-self.spectral_efficiency_bit_sym, self.esn0_ideal_db))
+        # Stable: rows identical in (threshold, eta) keep the file order. Within equal
+        # thresholds the running argmax below finds the best eta whatever their order.
+        order = np.argsort(self.esn0_ideal_db, kind="stable")
         eta = self.spectral_efficiency_bit_sym[order]
         # Running argmax; strict '>' keeps the first (lowest-threshold) of equal etas.
         best_before = np.concatenate(([-np.inf], np.maximum.accumulate(eta)[:-1]))
