@@ -23,11 +23,11 @@ noise bandwidth of the matched filter is ``R_s``, hence ``Es/N0 = C / (N0 R_s)``
 
 References
 ----------
-.. [1] 3GPP TR 38.821 V16.1.0, Sec. 6.1.3.1 (CNR) and Table 6.1.1.1-3 (UE G/T from gain,
+.. [1] 3GPP TR 38.821 V16.0.0, Sec. 6.1.3.1 (CNR) and Table 6.1.1.1-3 (UE G/T from gain,
    antenna temperature and noise figure).
-.. [2] ETSI EN 302 307-1 V1.4.1, clause 5.6 (baseband shaping, roll-off).
-.. [3] G. Maral, M. Bousquet, "Satellite Communications Systems", 5th ed., Wiley 2009,
-   Sec. 5.5 (C/N0, G/T, Es/N0).
+.. [2] ETSI EN 302 307-1 V1.4.1, clause 5.6 (baseband shaping and quadrature modulation).
+.. [3] G. Maral, M. Bousquet, "Satellite Communications Systems", 5th ed., Wiley 2009
+   (C/N0, G/T and Es/N0 in the link budget).
 """
 
 import numpy as np

@@ -20,7 +20,8 @@ The table is read once (``importlib.resources``, cached); selection is vectorize
 
 References
 ----------
-.. [1] ETSI EN 302 307-1 V1.4.1, "DVB-S2", Table 13 and clause 5.5.2.
+.. [1] ETSI EN 302 307-1 V1.4.1, "DVB-S2", Table 13 (Es/N0 at QEF), Table 5a (BCH, clause
+   5.3.1) and clause 5.5.2 (90-symbol PL header), from which the efficiencies follow.
 .. [2] ETSI EN 302 307-2 V1.1.1, "DVB-S2 Extensions (DVB-S2X)", Table 20a.
 """
 
