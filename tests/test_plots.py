@@ -1,6 +1,8 @@
 """Tests of leolink.plots: files exist, are whole PNGs at 150 dpi, are written atomically."""
 
+import json
 import struct
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -8,7 +10,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from leolink.errors import LeolinkError
-from leolink.io import plots
+from leolink.io import coverage_plots, plots
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 MIN_PNG_BYTES = 10_000  # a blank 150-dpi figure with only axes is ~15 kB; a stub is < 1 kB
@@ -78,12 +80,15 @@ def run_data(n_time=61):
         "per_ut": [
             {
                 "ut_id": 0,
-                "dwell_times_s": [15.0],
+                "dwell": {"complete_s": [15.0], "censored": []},
                 "handovers": {"beam_handover": 1, "sat_handover": 1},
             },  # fmt: skip
-            {"ut_id": 1, "dwell_times_s": [], "handovers": {}},
+            {"ut_id": 1, "dwell": {"complete_s": [], "censored": []}, "handovers": {}},
         ],
-        "overall": {"handovers": {"beam_handover": 1, "sat_handover": 1}, "dwell_times_s": [15.0]},
+        "overall": {
+            "handovers": {"beam_handover": 1, "sat_handover": 1},
+            "dwell": {"complete_s": [15.0]},
+        },
     }
     return trace, events, summary
 
@@ -118,7 +123,7 @@ RUN_FILES = ["snr_time.png", "doppler_time.png", "dwell_hist.png", "handovers.pn
 
 def test_grid_reshape_recovers_the_field_from_shuffled_rows():
     df = coverage_df(np.random.default_rng(1))
-    x_m, y_m, snr = plots._grid(df, "snr_db")
+    x_m, y_m, snr = coverage_plots._grid(df, "snr_db")
     assert snr.shape == (11, 21)
     xx, yy = np.meshgrid(x_m, y_m)  # the closed form, evaluated on the sorted axes
     np.testing.assert_allclose(snr, 20 - 10 * ((xx / 600e3) ** 2 + (yy / 300e3) ** 2))
@@ -126,7 +131,7 @@ def test_grid_reshape_recovers_the_field_from_shuffled_rows():
 
 def test_beam_ids_are_written_at_cell_centroids():
     df = coverage_df(np.random.default_rng(2))
-    fig = plots._beam_map(df, ROI_AXES_M, "t")
+    fig = coverage_plots._beam_map(df, ROI_AXES_M, "t")
     texts = {t.get_text(): t.get_position() for t in fig.axes[0].texts}
     assert sorted(texts) == [str(b) for b in range(6)]
     # Centroid of the grid nodes inside each known cell, from the cell bounds (not from best_beam).
@@ -147,7 +152,7 @@ def test_plot_coverage_writes_all_maps_at_150_dpi_despite_nan_and_no_beam(tmp_pa
     df = coverage_df(np.random.default_rng(3))
     df.loc[df.index[:50], ["snr_db", "sinr_db", "se_bps_hz", "doppler_hz"]] = np.nan
     df.loc[df.index[:50], "best_beam"] = -1  # no serving beam: drawn grey
-    paths = plots.plot_coverage(df, tmp_path, ROI_AXES_M, " (t = 0 s)")
+    paths = coverage_plots.plot_coverage(df, tmp_path, ROI_AXES_M, " (t = 0 s)")
     assert_pngs(paths, tmp_path, COVERAGE_FILES)
     # maps are 8 in wide; at 150 dpi that is 1200 px (constrained layout keeps the size)
     assert png_size_px(tmp_path / "coverage_snr.png")[0] == 8 * 150
@@ -161,7 +166,7 @@ def test_plot_codebook(tmp_path):
     ]  # fmt: skip
     info = {"oversampling": 2.49, "roi_semi_axes_m": [534.1e3, 170.5e3], "beams": beams}
     path = tmp_path / "codebook.png"
-    assert plots.plot_codebook(None, info, path) == [path]
+    assert coverage_plots.plot_codebook(None, info, path) == [path]
     assert_pngs([path], tmp_path, ["codebook.png"])
 
 
@@ -173,7 +178,7 @@ def test_plot_run_with_handovers_outage_and_missing_uts(tmp_path):
 
 def test_plot_run_with_empty_events_and_no_dwell(tmp_path):
     trace, events, summary = run_data()
-    summary["overall"]["dwell_times_s"] = []
+    summary["overall"]["dwell"]["complete_s"] = []
     paths = plots.plot_run(trace, events.iloc[:0], summary, tmp_path, ut_ids=(1, 99))
     assert_pngs(paths, tmp_path, RUN_FILES)
     texts = [t.get_text() for t in plots._dwell_hist(summary).axes[0].texts]
@@ -185,7 +190,12 @@ def test_plot_run_with_empty_events_and_no_dwell(tmp_path):
 def test_many_uts_get_a_rate_histogram():
     trace, _, summary = run_data()  # trace spans 60 s = 1 min
     summary["per_ut"] = [
-        {"ut_id": u, "dwell_times_s": [], "handovers": {"beam_handover": u % 4}} for u in range(40)
+        {
+            "ut_id": u,
+            "dwell": {"complete_s": [], "censored": []},
+            "handovers": {"beam_handover": u % 4},
+        }
+        for u in range(40)
     ]
     ax = plots._handovers(float(np.ptp(trace["time_s"])), summary).axes[0]
     assert "1/min" in ax.get_xlabel()
@@ -207,7 +217,9 @@ def test_unwritable_directory_raises_and_leaves_nothing(tmp_path):
     blocker = tmp_path / "a_file"
     blocker.write_text("not a directory")
     with pytest.raises(OSError):  # root ignores chmod, so block with a file in the path
-        plots.plot_coverage(coverage_df(np.random.default_rng(5)), blocker / "out", ROI_AXES_M)
+        coverage_plots.plot_coverage(
+            coverage_df(np.random.default_rng(5)), blocker / "out", ROI_AXES_M
+        )
     trace, events, summary = run_data()
     with pytest.raises(OSError):
         plots.plot_run(trace, events, summary, blocker)
@@ -231,3 +243,22 @@ def test_failure_mid_call_removes_every_partial(tmp_path, monkeypatch):
         plots.plot_run(trace, events, summary, tmp_path)
     assert len(calls) == 3
     assert list(tmp_path.iterdir()) == []  # no partial and no half set of final PNGs
+
+
+def test_dwell_histogram_of_a_real_run_shows_its_dwells(tmp_path):
+    # The summary of a real paper run, not a hand-made one: the histogram's bars count every
+    # complete dwell of summary.json, and the censored ones are drawn apart.
+    from leolink.app.run import run
+    from leolink.config import load_config
+
+    paper = Path(__file__).resolve().parents[1] / "configs" / "paper.toml"
+    run(load_config(paper), out_dir=tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    n_complete = summary["overall"]["dwell"]["n_complete"]
+    n_censored = summary["overall"]["dwell"]["n_censored"]
+    assert n_complete > 0 and n_censored > 0
+    ax = plots._dwell_hist(summary).axes[0]
+    filled = [p for p in ax.patches if p.get_fill()]
+    assert sum(p.get_height() for p in filled) == n_complete
+    assert any(f"censored ({n_censored}" in t.get_text() for t in ax.get_legend().get_texts())
+    assert (tmp_path / "dwell_hist.png").stat().st_size > 0

@@ -87,7 +87,7 @@ def cmd_codebook(args) -> int:
     cfg = _config(args)
     info = codebook_table(cfg)
     if args.plot:
-        from leolink.io.plots import plot_codebook
+        from leolink.io.coverage_plots import plot_codebook
 
         plot_codebook(cfg, info, Path(args.plot))
     if args.json:

@@ -127,6 +127,12 @@ class Registry(Generic[T]):
         self._check(name, config)
         self._add(Entry(name, None, config, build, doc), replace)
 
+    def remove(self, name: str) -> None:
+        """Unregister ``name`` (tests that register a kind of their own clean up with it)."""
+        global _current
+        del self._entries[name]
+        _current = next(_generation)
+
     def _check(self, name: str, config: type[Params]) -> None:
         if not name.isidentifier():
             raise ValueError(f"{self.key}: {name!r} is not a valid name (letters, digits, _)")

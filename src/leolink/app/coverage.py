@@ -77,7 +77,7 @@ def run_coverage(cfg, out_dir, n_grid=201, margin=1.1, plots=True):
         write_text_atomic(out_dir / "config.resolved.toml", dump_toml(cfg)),
     ]
     if plots:
-        from leolink.io.plots import plot_coverage
+        from leolink.io.coverage_plots import plot_coverage
 
         paths += plot_coverage(
             df, out_dir, cfg.roi_semi_axes_m(), title_suffix=f" ({cfg.terminal.kind} terminal)"
