@@ -124,7 +124,8 @@ def test_a3_unmeasurable_neighbour_never_enters_and_leaves_after_ttt():
 def test_a4_enters_above_threshold_plus_hysteresis_and_leaves_below_threshold_minus_it():
     # Thresh = -100 dBm, Hys = 1: enter Mn > -99 (-99.0 is the equality), leave Mn < -101
     neighbour = [-100.0, -99.0, -98.5, -101.0, -101.5]
-    log = run_trigger(A4(threshold_db=-100.0, hysteresis_db=1.0), meas_steps([-50.0] * 5, neighbour))
+    trig = A4(threshold_db=-100.0, hysteresis_db=1.0)
+    log = run_trigger(trig, meas_steps([-50.0] * 5, neighbour))
     assert times(log, "triggered") == [0.2]
     assert times(log, "left") == [0.4]
 
@@ -270,7 +271,7 @@ def test_elevation_trigger_serving_below_and_candidate_above_with_hysteresis():
         (t, {"elevation_rad": np.array([[deg(40.0 - k), deg(20.0 + k)]])})
         for k, t in enumerate(epochs(20))
     ]
-    trig = Elevation(serving_below_rad=deg(30.0), candidate_above_rad=deg(25.0), hysteresis_rad=deg(2))
+    trig = Elevation(deg(30.0), deg(25.0), hysteresis_rad=deg(2.0))
     log = run_trigger(trig, steps)
     # serving + 2 < 30 -> 40 - k < 28 -> k >= 13 (k = 12 is the equality); candidate k > 7
     assert times(log, "triggered") == [pytest.approx(1.3)]
