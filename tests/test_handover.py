@@ -118,6 +118,10 @@ def test_time_to_exit_decides_the_satellite_and_max_snr_the_beam():
         TriggerPolicy(TimeToExit()), meas, n_beam, serving0=[1], **sat_fields(n_t, end, n_beam)
     )
     assert hos == [(0.0, 0, 1, 4)]  # sat 1, its best beam (index 1 -> cell 4)
+    _, hos, _ = run_policy(  # serving on sat 0: sats 1 and 2 both outlast it; 1 is longest
+        TriggerPolicy(TimeToExit()), meas, n_beam, serving0=[0], **sat_fields(n_t, end, n_beam)
+    )
+    assert hos == [(0.0, 0, 0, 4)]
 
 
 def test_satellite_level_moves_the_beam_inside_the_serving_satellite():

@@ -67,10 +67,10 @@ def test_every_bounce_counts_and_an_outage_in_between_breaks_the_pair():
         (1.0, 0, B, 5, 0, 5, 1),
         (1.2, 0, B, 5, 1, 5, 0),  # pp
         (1.4, 0, B, 5, 0, 5, 1),  # pp
-        (5.0, 0, "outage_start", 5, 1, -1, -1),
-        (5.1, 0, "outage_end", -1, -1, 5, 1),
-        (5.3, 0, B, 5, 1, 5, 0),  # previous change is the outage, not a handover
-    )
+        (1.5, 0, "outage_start", 5, 1, -1, -1),
+        (1.6, 0, "outage_end", -1, -1, 5, 1),
+        (1.8, 0, B, 5, 1, 5, 0),  # back within 0.4 s of the last handover, but the
+    )  # previous serving change is the outage: not a ping-pong
     assert ping_pong_mask(ev, 1.0).tolist() == [False, True, True, False, False, False]
 
 

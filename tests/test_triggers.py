@@ -166,6 +166,16 @@ def test_a5_leaves_when_either_serving_recovers_or_neighbour_drops():
     assert times(log, "triggered") == [0.0] and times(log, "left") == [0.2]
 
 
+def test_a5_offsets_apply_to_the_neighbour_only():
+    # Ofn + Ocn = +3 dB lifts Mn over Thresh2; Mp is taken without offsets (an offset of
+    # -5 dB on the serving cell would otherwise push it below Thresh1)
+    offset = np.array([-5.0, 3.0])
+    step = [(0.0, {"meas": np.array([[-98.0, -97.0]]), "offset_db": offset})]
+    assert times(run_trigger(A5(-100.0, -95.0), step), "triggered") == []  # Mp = -98 > Th1
+    step = [(0.0, {"meas": np.array([[-101.0, -97.0]]), "offset_db": offset})]
+    assert times(run_trigger(A5(-100.0, -95.0), step), "triggered") == [0.0]  # -94 > -95
+
+
 # ----------------------------------------------------------------------------- D1 5.5.4.15
 
 V_M_S, L_M, H_M = 100.0, 10_000.0, 3_000.0  # UT speed; candidate reference at (L, H, 0)
@@ -198,10 +208,11 @@ def test_d1_enters_and_leaves_at_the_closed_form_distances():
 
 
 def test_d1_candidate_distance_binds_when_it_is_the_later_condition():
-    th1, th2, hys = 1_000.0, 5_000.0, 0.0
+    th1, th2, hys = 1_000.0, 5_000.0, 300.0
     log = run_trigger(D1(th1, th2, hys), d1_steps(100.0))
-    t_enter = (L_M - math.sqrt(th2**2 - H_M**2)) / V_M_S  # Ml2 < Th2, later than Ml1 > Th1
-    assert t_enter > th1 / V_M_S
+    # D1-2: Ml2 + Hys < Th2, later than D1-1: Ml1 - Hys > Th1
+    t_enter = (L_M - math.sqrt((th2 - hys) ** 2 - H_M**2)) / V_M_S
+    assert t_enter > (th1 + hys) / V_M_S
     assert times(log, "triggered") == [first_epoch_after(t_enter)]
 
 
