@@ -106,6 +106,18 @@ def test_a3_picks_the_best_triggered_cell_and_restarts_ttt_after_the_handover():
     assert hos == [(0.3, 0, 0, 1), (0.8, 0, 1, 2)]
 
 
+def test_a3_runs_in_progress_restart_after_a_handover():
+    # TS 38.331 5.5.6.1: cell 2 has qualified against cell 0 since 0.1 s, but once the UT
+    # is on cell 1 (from 0.4 s) its time-to-trigger counts again, against cell 1
+    meas = np.zeros((12, 1, 3))
+    meas[:, 0, 1] = 4.0
+    meas[:, 0, 2] = 8.0
+    meas[0, 0, 2] = -20.0
+    policy = TriggerPolicy(A3(offset_db=3.0, time_to_trigger_s=0.3))
+    _, hos, _ = run_policy(policy, meas, serving0=[0])
+    assert hos == [(0.3, 0, 0, 1), (0.7, 0, 1, 2)]
+
+
 def sat_fields(n_t, end_by_sat, n_beam):
     return {"service_end_s": [np.repeat(np.asarray(end_by_sat, float), n_beam)[None]] * n_t}
 
@@ -185,6 +197,22 @@ def test_cho_needs_every_execution_condition():
     fields = {"service_end_s": [np.array([[0.35, 99.0, 99.0]])] * 10}  # T1 enters after 0.35
     _, hos, _ = run_policy(cho, cho_meas(10), serving0=[0], **fields)
     assert hos == [(0.4, 0, 0, 1)]
+
+
+def test_cho_candidate_released_from_preparation_starts_its_conditions_afresh():
+    # cell 1 prepared (A4 above -95 dBm) except at 0.5-0.6 s; execution needs A3 (TTT 0.3 s)
+    # and T1 (from 0.8 s). A3 was fulfilled at 0.3 s, but the release clears it: it counts
+    # again from the re-preparation at 0.7 s and is fulfilled at 1.0 s.
+    meas = np.zeros((14, 1, 2))
+    meas[:, 0, 0] = -100.0
+    meas[:, 0, 1] = -90.0
+    meas[5:7, 0, 1] = -96.0  # still 4 dB over the serving cell: A3 itself keeps holding
+    cho = ConditionalHandover(
+        A4(-95.0), [A3(offset_db=3.0, time_to_trigger_s=0.3), T1(duration_s=10.0)]
+    )
+    fields = {"service_end_s": [np.array([[0.75, 99.0]])] * 14}
+    _, hos, _ = run_policy(cho, meas, serving0=[0], **fields)
+    assert hos == [(1.0, 0, 0, 1)]
 
 
 def test_cho_prepares_at_most_max_prepared_best_candidates():

@@ -128,10 +128,13 @@ class TriggerState:
     def reset(self, ut_mask):
         """Clear the rows of ``ut_mask`` (TS 38.331 5.5.6.1: upon handover the UE drops its
         measurement reporting entries, so every run and triggered cell starts afresh)."""
-        rows = np.asarray(ut_mask, bool)[:, None]
-        return TriggerState(
-            np.where(rows, np.nan, self.since_s), np.where(rows, np.nan, self.triggered_at_s)
-        )
+        rows = np.asarray(ut_mask, bool)
+        if not rows.any():
+            return self
+        since, at = self.since_s.copy(), self.triggered_at_s.copy()
+        since[rows] = np.nan
+        at[rows] = np.nan
+        return TriggerState(since, at)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -159,20 +162,23 @@ def advance(state, t_s, entering, leaving, time_to_trigger_s, applicable):
     """
     was = ~np.isnan(state.triggered_at_s)
     running = ~np.isnan(state.since_s)
-    cond = np.where(was, leaving, entering) & applicable
-    since = np.where(cond, np.where(running, state.since_s, t_s), np.nan)
-    done = cond & (t_s - since >= time_to_trigger_s - TIME_TOL_S)
-    now_in = ~was & done
-    now_out = was & done
-    keep = applicable & ~now_out
-    triggered_at = np.where(now_in, t_s, np.where(keep, state.triggered_at_s, np.nan))
+    cond = np.where(was, leaving, entering)
+    cond &= applicable
+    since = np.where(running, state.since_s, t_s)  # a run continues, or starts now
+    since[~cond] = np.nan  # ... unless its condition lapsed
+    done = t_s - since >= time_to_trigger_s - TIME_TOL_S  # NaN (no run) compares False
+    now_in = done & ~was
+    now_out = done & was
+    triggered_at = np.where(now_in, t_s, state.triggered_at_s)
+    triggered_at[now_out | ~applicable] = np.nan
+    since[done] = np.nan
     report = TriggerReport(
-        entered=~was & cond & ~running,
-        lapsed=~was & running & ~cond & applicable,
+        entered=cond & ~running & ~was,
+        lapsed=running & ~cond & ~was & applicable,
         triggered=now_in,
         left=now_out,
     )
-    return TriggerState(np.where(done, np.nan, since), triggered_at), report
+    return TriggerState(since, triggered_at), report
 
 
 class Trigger(Protocol):
