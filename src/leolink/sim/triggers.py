@@ -64,7 +64,8 @@ class Epoch:
         at the serving index), default 0.
     ut_pos_m : (n_ut, 3) [m] or None, UT positions (D1, D2), any Cartesian frame.
     ref_pos_m : (n_cand, 3) [m] or None, D1 fixed reference locations (cells' ground centres).
-    moving_ref_pos_m : (n_cand, 3) [m] or None, D2 moving reference locations at ``t_s``.
+    moving_ref_pos_m : (n_cand, 3) [m] or None, D2 moving reference locations at ``t_s``
+        (one row per satellite when D2 runs on the satellite axis, its default).
     elevation_rad : (n_ut, n_cand) [rad] or None, elevation of each candidate seen by the UT.
     service_end_s : (n_ut, n_cand) or (n_cand,) [s] or None, absolute time at which each
         candidate stops serving the UT (drops below the service threshold), from the
