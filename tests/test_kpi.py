@@ -1,0 +1,209 @@
+"""Handover KPIs recomputed by hand on small tables, and the streaming percentiles
+against numpy.percentile on the same samples."""
+
+import math
+
+import numpy as np
+import pytest
+
+from leolink.sim.kpi import (
+    PERCENTILES,
+    PercentileHistogram,
+    StateTime,
+    handover_rates,
+    ping_pong_fraction,
+    ping_pong_mask,
+    stays,
+    summarize,
+    time_of_stay,
+)
+
+
+def events(*rows):
+    """rows: (time_s, ut_id, kind, from_sat, from_beam, to_sat, to_beam)."""
+    cols = ("time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat", "to_beam")
+    return {c: np.array([r[i] for r in rows]) for i, c in enumerate(cols)}
+
+
+def dwells(*rows):
+    """rows: (ut_id, sat_id, beam_id, start_s, end_s, censored_start, censored_end)."""
+    cols = ("ut_id", "sat_id", "beam_id", "start_s", "end_s", "censored_start", "censored_end")
+    return {c: np.array([r[i] for r in rows]) for i, c in enumerate(cols)}
+
+
+B, S = "beam_handover", "sat_handover"
+
+
+def test_handover_rate_per_ut_minute_overall_and_by_kind():
+    ev = events(
+        (1.0, 0, B, 0, 0, 0, 1),
+        (2.0, 0, S, 0, 1, 1, 3),
+        (3.0, 1, B, 2, 0, 2, 1),
+        (4.0, 1, "outage_start", 2, 1, -1, -1),
+    )
+    r = handover_rates(ev, observed_s=np.array([120.0, 60.0]), n_ut=2)
+    assert r["overall"] == pytest.approx(3 / 3.0)  # 3 handovers in 3 UT-minutes
+    assert r["by_kind"] == {B: pytest.approx(2 / 3.0), S: pytest.approx(1 / 3.0)}
+    np.testing.assert_allclose(r["per_ut"], [2 / 2.0, 1 / 1.0])
+    np.testing.assert_allclose(r["per_ut_by_kind"][S], [0.5, 0.0])
+
+
+def test_ping_pong_is_a_return_to_the_previous_cell_within_ping_pong_s():
+    ev = events(
+        (10.0, 0, B, 0, 0, 0, 1),  # A -> B
+        (10.5, 0, B, 0, 1, 0, 0),  # B -> A after 0.5 s: ping-pong
+        (12.0, 0, B, 0, 0, 0, 1),  # A -> B after 1.5 s: not (stay in A long enough)
+        (13.0, 0, B, 0, 1, 0, 0),  # B -> A after exactly 1.0 s: not (strictly sooner)
+        (20.0, 1, B, 0, 0, 0, 1),  # another UT: A -> B
+        (20.2, 1, B, 0, 1, 0, 2),  # B -> C: not a return
+    )
+    assert ping_pong_mask(ev, 1.0).tolist() == [False, True, False, False, False, False]
+    frac, n_pp, n_ho = ping_pong_fraction(ev, 1.0)
+    assert (n_pp, n_ho) == (1, 6) and frac == pytest.approx(1 / 6)
+
+
+def test_every_bounce_counts_and_an_outage_in_between_breaks_the_pair():
+    ev = events(
+        (1.0, 0, B, 5, 0, 5, 1),
+        (1.2, 0, B, 5, 1, 5, 0),  # pp
+        (1.4, 0, B, 5, 0, 5, 1),  # pp
+        (1.5, 0, "outage_start", 5, 1, -1, -1),
+        (1.6, 0, "outage_end", -1, -1, 5, 1),
+        (1.8, 0, B, 5, 1, 5, 0),  # back within 0.4 s of the last handover, but the
+    )  # previous serving change is the outage: not a ping-pong
+    assert ping_pong_mask(ev, 1.0).tolist() == [False, True, True, False, False, False]
+
+
+def test_unsorted_tables_give_the_same_ping_pongs():
+    ev = events(
+        (10.5, 0, B, 0, 1, 0, 0),
+        (3.0, 1, B, 0, 0, 0, 1),
+        (10.0, 0, B, 0, 0, 0, 1),
+        (3.4, 1, B, 0, 1, 0, 0),
+    )
+    assert ping_pong_mask(ev, 1.0).tolist() == [True, False, False, True]
+
+
+def test_satellite_ping_pong_ignores_beam_changes_inside_the_other_satellite():
+    ev = events(
+        (1.0, 0, S, 1, 0, 2, 4),  # sat 1 -> 2
+        (1.3, 0, B, 2, 4, 2, 5),  # beam change inside sat 2
+        (1.6, 0, S, 2, 5, 1, 2),  # back to sat 1 within 1 s: satellite ping-pong
+    )
+    assert ping_pong_mask(ev, 1.0, "satellite").tolist() == [False, False, True]
+    assert ping_pong_mask(ev, 1.0, "cell").tolist() == [False, False, False]
+    assert ping_pong_fraction(ev, 1.0, "satellite")[0] == pytest.approx(1 / 2)
+
+
+def test_time_of_stay_excludes_censored_dwells():
+    dw = dwells(
+        (0, 0, 0, 0.0, 4.0, True, False),  # censored at the start
+        (0, 0, 1, 4.0, 6.0, False, False),
+        (0, 1, 0, 6.0, 9.0, False, False),
+        (0, 1, 1, 9.0, 20.0, False, True),  # censored at the end
+        (1, 3, 3, 2.0, 7.0, False, False),
+    )
+    beam = time_of_stay(dw, "beam")
+    assert beam["durations_s"].tolist() == [2.0, 3.0, 5.0]
+    assert beam["mean_s"] == pytest.approx(10 / 3) and beam["n_censored"] == 2
+    sat = time_of_stay(dw, "satellite")
+    # UT 0: sat 0 from 0 to 6 (censored start), sat 1 from 6 to 20 (censored end)
+    assert sat["durations_s"].tolist() == [5.0] and sat["n_censored"] == 2
+
+
+def test_satellite_stays_join_only_touching_dwells_of_one_satellite():
+    dw = dwells(
+        (0, 7, 0, 0.0, 2.0, False, False),
+        (0, 7, 1, 2.0, 3.0, False, False),
+        (0, 7, 2, 4.0, 5.0, False, False),  # a gap (outage) from 3 to 4: a new stay
+        (0, 8, 0, 5.0, 6.0, False, False),
+    )
+    st = stays(dw, "satellite")
+    assert list(zip(st["sat_id"], st["start_s"], st["end_s"], strict=True)) == [
+        (7, 0.0, 3.0),
+        (7, 4.0, 5.0),
+        (8, 5.0, 6.0),
+    ]
+
+
+def test_time_of_stay_without_complete_stays_is_nan():
+    got = time_of_stay(dwells((0, 0, 0, 0.0, 9.0, True, True)), "beam")
+    assert math.isnan(got["mean_s"]) and got["n_complete"] == 0
+
+
+RES_DB = 0.01
+
+
+def test_histogram_percentiles_match_numpy_within_half_a_bin():
+    rng = np.random.default_rng(11)
+    acc = PercentileHistogram(-60.0, 80.0, RES_DB)
+    chunks = [rng.normal(8, 9, 5000), rng.uniform(-50, 70, 3000), rng.normal(-5, 0.02, 7)]
+    for c in chunks:  # streamed in pieces of different sizes
+        acc.add(c)
+    x = np.concatenate(chunks)
+    expected = np.percentile(x, PERCENTILES)
+    np.testing.assert_allclose(acc.percentiles(), expected, rtol=0, atol=RES_DB / 2 + 1e-9)
+    assert acc.n == x.size
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 10, 101])
+def test_histogram_small_samples_and_extreme_percentiles(n):
+    x = np.random.default_rng(n).uniform(-3, 3, n)
+    acc = PercentileHistogram(-10, 10, RES_DB)
+    acc.add(x)
+    q = [0, 1, 37.5, 50, 99, 100]
+    np.testing.assert_allclose(acc.percentiles(q), np.percentile(x, q), atol=RES_DB / 2 + 1e-9)
+
+
+def test_unserved_epochs_are_counted_below_every_sinr():
+    rng = np.random.default_rng(5)
+    served = rng.normal(10, 4, 900)
+    acc = PercentileHistogram(-60, 80, RES_DB)
+    acc.add(np.concatenate([served, np.full(100, np.nan)]))  # 10 % unserved UT-epochs
+    p = dict(zip(PERCENTILES, acc.percentiles(), strict=True))
+    assert p[1] == -np.inf and p[5] == -np.inf
+    stand_in = np.concatenate([served, np.full(100, -1e3)])  # any value below all SINRs
+    for q in (50, 90, 99):
+        assert p[q] == pytest.approx(np.percentile(stand_in, q), abs=RES_DB / 2 + 1e-9)
+    assert p[50] < np.percentile(served, 50)  # counting them moves the median down
+
+
+def test_unserved_throughput_counts_as_zero():
+    acc = PercentileHistogram(0.0, 1e9, 1e4, unserved_value=0.0)
+    acc.add(np.array([np.nan, np.nan, 5e8, 7e8]))
+    np.testing.assert_allclose(
+        acc.percentiles([0, 50, 100]), np.percentile([0, 0, 5e8, 7e8], [0, 50, 100]), atol=5e3
+    )
+
+
+def test_histogram_merge_equals_one_stream():
+    rng = np.random.default_rng(2)
+    x = rng.normal(0, 5, 2000)
+    a, b, whole = (PercentileHistogram(-40, 40, 0.05) for _ in range(3))
+    a.add(x[:700])
+    b.add(x[700:])
+    whole.add(x)
+    a.merge(b)
+    np.testing.assert_array_equal(a.counts, whole.counts)
+
+
+def test_state_time_accumulates_per_ut_and_state():
+    st = StateTime(3, ("served", "handover", "outage"))
+    st.add(np.array([0, 1, 2]), 0.5)
+    st.add(np.array([0, 0, -1]), 0.5)
+    np.testing.assert_allclose(st.time_s, [[1.0, 0, 0], [0.5, 0.5, 0], [0, 0, 0.5]])
+    assert st.fractions() == pytest.approx({"served": 0.6, "handover": 0.2, "outage": 0.2})
+
+
+def test_summary_block_names_and_values():
+    ev = events(
+        (1.0, 0, B, 0, 0, 0, 1),
+        (1.5, 0, B, 0, 1, 0, 0),
+        (9.0, 1, "rlf", 2, 0, -1, -1),
+    )
+    dw = dwells((0, 0, 0, 1.5, 4.0, False, False), (1, 2, 0, 0.0, 9.0, True, False))
+    kpi = summarize(ev, dw, observed_s=60.0, n_ut=2)
+    assert kpi["handover_rate_per_ut_min"] == pytest.approx(1.0)
+    assert kpi["ping_pong_fraction"] == pytest.approx(0.5)
+    assert kpi["rlf_count"] == 1
+    assert kpi["mean_time_of_stay_s"] == {"beam": 2.5, "satellite": 2.5}
