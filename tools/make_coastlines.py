@@ -30,7 +30,9 @@ def decode_arcs(topology):
     scale = np.asarray(topology["transform"]["scale"], float)
     translate = np.asarray(topology["transform"]["translate"], float)
     # TopoJSON spec 2.1.3: quantized positions are delta-encoded; x = x_q * scale + translate.
-    return [np.cumsum(np.asarray(arc, float), axis=0) * scale + translate for arc in topology["arcs"]]
+    return [
+        np.cumsum(np.asarray(arc, float), axis=0) * scale + translate for arc in topology["arcs"]
+    ]
 
 
 def main(tgz):
