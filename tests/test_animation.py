@@ -6,11 +6,11 @@ import pandas as pd
 import pytest
 from matplotlib.path import Path as MplPath
 from PIL import Image
-from report_helpers import WALKER, make_run
 
 from leolink.io.animation import build_frames, frames_from_stats, write_footprint_gif
 from leolink.io.maps import N_BEAM_COLOURS, beam_colour
 from leolink.io.report import stats_from_dir
+from report_helpers import WALKER, make_run
 
 HALF_POWER_DB = 10.0 * np.log10(0.5)  # -3.0103 dB
 PEAK_DB = 10.0 * np.log10(12 * 24)  # a 12 x 24 subarray beam, normalized gain
@@ -77,8 +77,9 @@ def test_ut_colour_in_each_frame_is_its_serving_beam_in_the_trace(paper, tmp_pat
         rgb = frames[k][np.round(row).astype(int), np.round(col).astype(int)]
         drawn, dist = _pixel_colour_beam(rgb)
         assert np.all(dist[~hidden] < 6), f"t = {t_s}: a dot pixel is not a beam colour"
-        np.testing.assert_array_equal(drawn[~hidden] % N_BEAM_COLOURS,
-                                      beam[~hidden] % N_BEAM_COLOURS, err_msg=f"t = {t_s}")  # fmt: skip
+        np.testing.assert_array_equal(
+            drawn[~hidden] % N_BEAM_COLOURS, beam[~hidden] % N_BEAM_COLOURS, err_msg=f"t = {t_s}"
+        )
         checked += int((~hidden).sum())
     assert checked >= 4 * len(info["times_s"])
 
@@ -140,6 +141,16 @@ def test_ten_minute_walker_run_stays_under_ten_megabytes(tmp_path):
 
 def test_build_frames_without_serving_satellite_draws_no_cell():
     lat = np.full((1, 2), 40.0)
-    frames = build_frames([0.0], lat, lat, np.full((1, 2), -1), np.full((1, 2), -1), [0],
-                          np.full((1, 1, 3), 7e6), np.ones((1, 1, 3)), [[0.0, 0.0]], (12, 24))  # fmt: skip
+    frames = build_frames(
+        [0.0],
+        lat,
+        lat,
+        np.full((1, 2), -1),
+        np.full((1, 2), -1),
+        [0],
+        np.full((1, 1, 3), 7e6),
+        np.ones((1, 1, 3)),
+        [[0.0, 0.0]],
+        (12, 24),
+    )
     assert len(frames[0].footprints["beam_id"]) == 0

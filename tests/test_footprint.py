@@ -72,8 +72,10 @@ def test_ground_footprint_matches_brute_force_gain_on_a_grid(beam):
     assert np.isfinite(ring).all()
     lo, hi = ring.min(axis=0), ring.max(axis=0)
     pad = 0.3 * (hi - lo)
-    glon, glat = np.meshgrid(np.linspace(lo[0] - pad[0], hi[0] + pad[0], 160),
-                             np.linspace(lo[1] - pad[1], hi[1] + pad[1], 160))  # fmt: skip
+    glon, glat = np.meshgrid(
+        np.linspace(lo[0] - pad[0], hi[0] + pad[0], 160),
+        np.linspace(lo[1] - pad[1], hi[1] + pad[1], 160),
+    )
     ground = geodetic_to_ecef(np.radians(glat), np.radians(glon), 0.0, EARTH_RADIUS_M)
     u = direction_cosines(pos, vel, ground)
     b = PAPER_BEAMS[beam]
@@ -91,7 +93,8 @@ def test_ground_footprint_matches_brute_force_gain_on_a_grid(beam):
 def test_footprints_of_several_satellites_keep_their_order():
     p1, v1 = _satellite(42.0, -8.0)
     p2, v2 = _satellite(10.0, 100.0, heading_deg=-20.0)
-    lat, lon = beam_footprints_ground(np.stack([p1, p2]), np.stack([v1, v2]), PAPER_BEAMS,
-                                      *N_SUB, 36)  # fmt: skip
+    lat, lon = beam_footprints_ground(
+        np.stack([p1, p2]), np.stack([v1, v2]), PAPER_BEAMS, *N_SUB, 36
+    )
     assert lat.shape == (2, 3, 36)
     assert abs(np.nanmean(lat[0]) - 42.0) < 5 and abs(np.nanmean(lon[1]) - 100.0) < 5
