@@ -33,6 +33,7 @@ from leolink.io.maps import (
 __all__ = ["Frame", "build_frames", "frames_from_stats", "select_frames", "write_footprint_gif"]
 
 MAX_BYTES = 10_000_000
+FILL_ALPHA = 0.18  # cell fill opacity
 _MAX_SHRINKS = 4
 
 
@@ -180,7 +181,7 @@ def frames_extent(frames):
 def draw_frame(ax, frame, title_prefix=""):
     """Draw ``frame``'s cells and UTs on a map axes; returns the artists (to remove later)."""
     artists = []
-    coll = draw_footprints(ax, frame.footprints, label_beams=False)
+    coll = draw_footprints(ax, frame.footprints, fill_alpha=FILL_ALPHA, label_beams=False)
     if coll is not None:
         artists.append(coll)
     ok = np.isfinite(frame.ut_lat_deg) & np.isfinite(frame.ut_lon_deg)
@@ -191,15 +192,18 @@ def draw_frame(ax, frame, title_prefix=""):
     return artists
 
 
-def _palette(background_rgb):
-    """One GIF palette for all frames: the exact beam and outage colours, black, white,
-    and 200 colours of the static background (so a UT dot keeps its beam's exact RGB)."""
+def _palette(background_rgb, fill_alpha):
+    """One GIF palette for all frames: the exact beam and outage colours, the beam colours
+    blended at ``fill_alpha`` over white (cell fills), black, white and 190 colours of the
+    static background, so a UT dot keeps its beam's exact RGB."""
     from PIL import Image
 
-    exact = np.round(beam_colour(np.arange(-1, N_BEAM_COLOURS))[:, :3] * 255).astype(np.uint8)
-    base = Image.fromarray(np.ascontiguousarray(background_rgb)).quantize(200)
-    base_rgb = np.asarray(base.getpalette()[: 3 * 200], np.uint8).reshape(-1, 3)
-    colours = np.vstack([exact, [[0, 0, 0], [255, 255, 255]], base_rgb])
+    solid = beam_colour(np.arange(-1, N_BEAM_COLOURS))[:, :3]
+    fills = fill_alpha * solid[1:] + (1.0 - fill_alpha)
+    exact = np.round(np.vstack([solid, fills, [[0, 0, 0], [1, 1, 1]]]) * 255).astype(np.uint8)
+    base = Image.fromarray(np.ascontiguousarray(background_rgb)).quantize(190)
+    base_rgb = np.asarray(base.getpalette()[: 3 * 190], np.uint8).reshape(-1, 3)
+    colours = np.vstack([exact, base_rgb])[:256]
     flat = np.zeros(768, np.uint8)
     flat[: colours.size] = colours.ravel()
     pal = Image.new("P", (1, 1))
@@ -221,7 +225,7 @@ def _render(path, frames, extent, fps, dpi, width_in):
     title.set_visible(False)
     canvas.draw()
     background = canvas.copy_from_bbox(fig.bbox)
-    palette = _palette(np.asarray(canvas.buffer_rgba())[..., :3])
+    palette = _palette(np.asarray(canvas.buffer_rgba())[..., :3], FILL_ALPHA)
     title.set_visible(True)
     images = []
     for frame in frames:  # one frame at a time

@@ -182,6 +182,24 @@ def fig_dwell(edges_s, complete, censored):
     return fig
 
 
+def _label_spans(ax, spans, beams, sats, row):
+    """Write ``beam`` (or ``sat:beam`` when several satellites serve) on wide segments."""
+    total = sum(w for _, w in spans) or 1.0
+    multi = np.unique(sats[sats >= 0]).size > 1
+    for (t0, w), b, s in zip(spans, beams, sats, strict=True):
+        if b >= 0 and w > 0.06 * total:
+            ax.text(
+                t0 + 0.5 * w,
+                row,
+                f"{s}:{b}" if multi else str(b),
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="white",
+                fontweight="bold",
+            )
+
+
 def fig_handover_timeline(series, events, ut_ids=None, max_rows=30):
     """Serving beam per UT over time (one bar per UT, coloured by beam; outage grey),
     with beam handovers (|) and satellite handovers (x) marked."""
@@ -197,6 +215,7 @@ def fig_handover_timeline(series, events, ut_ids=None, max_rows=30):
         ends = np.r_[starts[1:], beam.size]
         spans = [(t[a], t[b - 1] + dt[b - 1] - t[a]) for a, b in zip(starts, ends, strict=True)]
         ax.broken_barh(spans, (row - 0.4, 0.8), facecolors=beam_colour(beam[starts]))
+        _label_spans(ax, spans, beam[starts], r["sat_id"].to_numpy(int)[starts], row)
         ev = events[events["ut_id"] == ut] if len(events) else events
         for kind, marker in (("beam_handover", "|"), ("sat_handover", "x")):
             te = ev.loc[ev["kind"] == kind, "time_s"].to_numpy(float) if len(ev) else []
@@ -213,7 +232,10 @@ def fig_handover_timeline(series, events, ut_ids=None, max_rows=30):
     ax.set_ylim(-0.7, max(len(uts), 1) - 0.3)
     ax.invert_yaxis()
     ax.set_xlabel("time [s]")
-    ax.set_title("Handover timeline: serving beam per UT (colour = beam id, grey = outage)")
+    ax.set_title(
+        "Handover timeline: serving beam per UT (label = beam id or sat:beam, grey = outage)",
+        fontsize=10,
+    )
     ax.grid(True, axis="x", alpha=0.3)
     if uts:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)

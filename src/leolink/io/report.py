@@ -141,9 +141,9 @@ def _map_figure(stats):
             stats.beam_u_xy,
             stats.n_sub_xy,
         )
-    title = "Ground tracks, UT tracks coloured by serving beam"
+    title = "Satellite ground tracks, UT tracks coloured by serving beam"
     if t_s is not None:
-        title += f", beam cells of the serving satellites at t = {t_s:.0f} s"
+        title += f"\nbeam cells (half power) of the serving satellites at t = {t_s:.0f} s"
     return plot_map(tracks, footprints, _ut_tracks(stats), title=title)
 
 
