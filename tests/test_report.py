@@ -10,12 +10,12 @@ import shutil
 
 import pandas as pd
 import pytest
-from browser_helpers import open_page, require_browser
 from PIL import Image
-from report_helpers import WALKER, make_run
 
+from browser_helpers import open_page, require_browser
 from leolink.io.figures import fig_cdfs
 from leolink.io.report import build_report_from_dir, build_table_report, stats_from_dir
+from report_helpers import WALKER, make_run
 
 N_FIGURES = 8  # SNR, timeline, Doppler, angular speed, dwell, CDFs, outage, map
 
@@ -85,8 +85,13 @@ def test_multi_satellite_report_with_a_linked_animation_opens_offline(walker, tm
     from leolink.io.report import build_run_report
 
     summary = json.loads((out / "summary.json").read_text())
-    page = build_run_report(page_dir / "report.html", summary, stats,
-                            animation_path=page_dir / "footprint.gif", embed_max_bytes=0)  # fmt: skip
+    page = build_run_report(
+        page_dir / "report.html",
+        summary,
+        stats,
+        animation_path=page_dir / "footprint.gif",
+        embed_max_bytes=0,
+    )
     assert 'src="footprint.gif"' in page.read_text()
     state = open_page(page)
     assert len(state["images"]) == N_FIGURES + 1
@@ -104,8 +109,9 @@ def test_a_missing_linked_file_is_caught_by_the_browser_check(walker, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     gif = tmp_path / "footprint.gif"
     shutil.copy(built["animation"], gif)
-    page = build_run_report(tmp_path / "report.html", summary, stats, animation_path=gif,
-                            embed_max_bytes=0)  # fmt: skip
+    page = build_run_report(
+        tmp_path / "report.html", summary, stats, animation_path=gif, embed_max_bytes=0
+    )
     gif.unlink()
     state = open_page(page)
     assert any(i["width"] == 0 for i in state["images"])
@@ -117,13 +123,23 @@ def test_table_report_of_two_runs_opens_cleanly(paper, walker, tmp_path):
     rows = []
     for name, (out, _) in (("paper", paper), ("walker", walker)):
         o = json.loads((out / "summary.json").read_text())["overall"]
-        rows.append({"run": name, "handovers_total": o["handovers"]["handovers_total"],
-                     "outage_fraction": o["outage_fraction"],
-                     "sinr_db_mean": o["sinr_db"]["mean"]})  # fmt: skip
+        rows.append(
+            {
+                "run": name,
+                "handovers_total": o["handovers"]["handovers_total"],
+                "outage_fraction": o["outage_fraction"],
+                "sinr_db_mean": o["sinr_db"]["mean"],
+            }
+        )
     stats = stats_from_dir(paper[0])
     cdfs = {k: stats.cdf(k) for k in ("snr_db", "sinr_db", "throughput_bps")}
-    page = build_table_report(tmp_path / "compare.html", "compare", pd.DataFrame(rows),
-                              [("CDFs", fig_cdfs(cdfs))], config_text="[run]\n")  # fmt: skip
+    page = build_table_report(
+        tmp_path / "compare.html",
+        "compare",
+        pd.DataFrame(rows),
+        [("CDFs", fig_cdfs(cdfs))],
+        config_text="[run]\n",
+    )
     text = page.read_text()
     assert "<td>paper</td>" in text and "<td>walker</td>" in text
     state = open_page(page)

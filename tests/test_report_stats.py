@@ -5,10 +5,10 @@ import shutil
 import numpy as np
 import pandas as pd
 import pytest
-from report_helpers import WALKER, cli, make_run
 
 from leolink.io.report import stats_from_dir
 from leolink.io.report_stats import ReportStats
+from report_helpers import WALKER, cli, make_run
 
 
 @pytest.fixture(scope="module", params=["paper", "walker"])
@@ -62,8 +62,9 @@ def test_dwell_histograms_hold_the_trace_dwells_complete_and_censored_apart(run)
     edges = stats.dwell_edges_s
     for counts, durations in ((stats.dwell_complete, complete), (stats.dwell_censored, censored)):
         assert counts.sum() == durations.size > 0
-        expected = np.bincount(np.searchsorted(edges, durations, side="right") - 1,
-                               minlength=counts.size)  # fmt: skip
+        expected = np.bincount(
+            np.searchsorted(edges, durations, side="right") - 1, minlength=counts.size
+        )
         np.testing.assert_array_equal(counts, expected)
 
 
@@ -89,7 +90,14 @@ def test_sampled_uts_at_kept_epochs_match_the_trace(run):
 def test_save_and_load_keep_everything(run, tmp_path):
     _, stats, _ = run
     back = ReportStats.load(stats.save(tmp_path / "report_stats.npz"))
-    for key in ("keep_times_s", "ut_beam", "ut_lon_deg", "sat_pos_m", "beam_u_xy", "dwell_censored"):
+    for key in (
+        "keep_times_s",
+        "ut_beam",
+        "ut_lon_deg",
+        "sat_pos_m",
+        "beam_u_xy",
+        "dwell_censored",
+    ):
         np.testing.assert_array_equal(getattr(back, key), getattr(stats, key))
     pd.testing.assert_frame_equal(back.series(), stats.series())
     pd.testing.assert_frame_equal(back.events(), stats.events())
