@@ -27,6 +27,7 @@ FLAGS = (
     "--disable-sync",
     "--no-first-run",
     "--disable-default-apps",
+    "--hide-scrollbars",
     "--disable-extensions",
     "--host-resolver-rules=MAP * ~NOTFOUND",
 )

@@ -119,3 +119,23 @@ def test_parquet_trace_gives_the_same_statistics_as_csv(tmp_path):
 
 def test_cli_is_on_the_path():
     assert "codebook" in cli("--help")
+
+
+def test_fast_histogram_bins_like_searchsorted_even_next_to_the_edges():
+    from leolink.io.report_stats import DB_EDGES, LOG_TPUT_EDGES, _hist
+
+    rng = np.random.default_rng(7)
+    for edges in (DB_EDGES, LOG_TPUT_EDGES):
+        v = np.r_[
+            rng.uniform(edges[0] - 5, edges[-1] + 5, 100_000),
+            edges,
+            np.nextafter(edges, -np.inf),
+            np.nextafter(edges, np.inf),
+            np.nan,
+            np.inf,
+        ]
+        finite = v[np.isfinite(v)]
+        expected = np.bincount(
+            np.searchsorted(edges, finite, side="right"), minlength=edges.size + 1
+        )
+        np.testing.assert_array_equal(_hist(v, edges), expected)

@@ -199,7 +199,7 @@ def draw_footprints(ax, footprints, *, fill_alpha=0.18, label_beams=True):
     return coll
 
 
-def draw_ut_points(ax, lon_deg, lat_deg, beam_id, *, size=30.0, zorder=5):
+def draw_ut_points(ax, lon_deg, lat_deg, beam_id, *, size=30.0, zorder=5, linewidths=0.6):
     """UTs as dots filled with their serving beam's colour (outage: grey), black edge."""
     return ax.scatter(
         np.asarray(lon_deg, float),
@@ -207,7 +207,7 @@ def draw_ut_points(ax, lon_deg, lat_deg, beam_id, *, size=30.0, zorder=5):
         s=size,
         c=beam_colour(beam_id),
         edgecolors="black",
-        linewidths=0.6,
+        linewidths=linewidths,
         zorder=zorder,
     )
 
@@ -275,7 +275,12 @@ def plot_map(
         )
         ax.plot(lon, lat, color="black", linewidth=0.6, alpha=0.6, zorder=4, label="UT tracks")
         draw_ut_points(
-            ax, ut_tracks["lon_deg"], ut_tracks["lat_deg"], ut_tracks["beam_id"], size=8.0
+            ax,
+            ut_tracks["lon_deg"],
+            ut_tracks["lat_deg"],
+            ut_tracks["beam_id"],
+            size=16.0,
+            linewidths=0.2,
         )
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="upper right", fontsize=7)

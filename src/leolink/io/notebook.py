@@ -21,26 +21,6 @@ from leolink.io.report_stats import ReportStats
 
 __all__ = ["ResultViews", "dense", "stats_from_frames"]
 
-_KPIS = (
-    ("UTs", ("overall", "n_ut"), ""),
-    ("beam handovers", ("overall", "handovers", "beam_handover"), ""),
-    ("satellite handovers", ("overall", "handovers", "sat_handover"), ""),
-    ("complete dwells", ("overall", "dwell", "n_complete"), ""),
-    ("mean dwell", ("overall", "dwell", "mean_s"), "s"),
-    ("outage fraction", ("overall", "outage_fraction"), ""),
-    ("mean SNR", ("overall", "snr_db", "mean"), "dB"),
-    ("mean SINR", ("overall", "sinr_db", "mean"), "dB"),
-    ("mean throughput", ("overall", "mean_throughput_bps"), "b/s"),
-    ("max |Doppler|", ("overall", "max_abs_doppler_hz"), "Hz"),
-    ("max angular speed", ("overall", "max_angular_speed_deg_s"), "deg/s"),
-)
-
-
-def _get(d, path):
-    for key in path:
-        d = d.get(key) if isinstance(d, dict) else None
-    return d
-
 
 def stats_from_frames(trace, events, summary, series_ut, satellites=None, codebook=None):
     """A :class:`ReportStats` from in-memory tables (``satellites``: DataFrame ``time_s,
@@ -147,12 +127,13 @@ class ResultViews:
         return _map_figure(self._stats())
 
     def _repr_html_(self):
-        rows = []
-        for name, path, unit in _KPIS:
-            value = _get(self.summary, path)
-            text = "-" if value is None else (f"{value:.4g}" if isinstance(value, float) else value)
-            rows.append(f"<tr><td>{html.escape(name)}</td><td>{text} {unit}</td></tr>")
-        return "<table><tr><th colspan='2'>leolink run</th></tr>" + "".join(rows) + "</table>"
+        from leolink.io.report import kpi_rows
+
+        rows = "".join(
+            f"<tr><td>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>"
+            for k, v in kpi_rows(self.summary)
+        )
+        return f"<table><tr><th colspan='2'>leolink run</th></tr>{rows}</table>"
 
     def to_xarray(self, columns=("snr_db", "sinr_db", "throughput_bps", "doppler_hz", "beam_id")):
         """The trace as an ``xarray.Dataset`` with dimensions ``(time_s, ut_id)``.

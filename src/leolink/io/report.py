@@ -27,13 +27,15 @@ import pandas as pd
 from leolink.io import figures as F
 from leolink.io.atomic import write_text_atomic
 from leolink.io.maps import plot_map, subsatellite_points
-from leolink.io.report_stats import ReportStats
+from leolink.io.report_stats import SERIES_COLUMNS, ReportStats
 
 __all__ = [
+    "KPIS",
     "build_report_from_dir",
     "build_run_report",
     "build_table_report",
     "figure_data_uri",
+    "kpi_rows",
     "run_figures",
     "stats_from_dir",
 ]
@@ -47,6 +49,7 @@ td,th{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f2
 td:first-child,th:first-child{text-align:left}pre{background:#f7f7f7;padding:.8em;
 overflow:auto;font-size:.8em;max-height:30em}img{max-width:100%;height:auto;display:block;
 margin:.5em 0}figure{margin:1em 0}figcaption{font-size:.85em;color:#555}
+.row{display:flex;gap:2em;flex-wrap:wrap;align-items:flex-start}.wide{overflow-x:auto}
 """
 
 
@@ -87,6 +90,40 @@ def _flatten(d, prefix=""):
     return rows
 
 
+KPIS = (
+    ("UTs", ("overall", "n_ut"), ""),
+    ("beam handovers", ("overall", "handovers", "beam_handover"), ""),
+    ("satellite handovers", ("overall", "handovers", "sat_handover"), ""),
+    ("complete / censored dwells", ("overall", "dwell", "n_complete"), ""),
+    ("mean dwell (complete)", ("overall", "dwell", "mean_s"), "s"),
+    ("outage fraction", ("overall", "outage_fraction"), ""),
+    ("mean SNR", ("overall", "snr_db", "mean"), "dB"),
+    ("mean SINR", ("overall", "sinr_db", "mean"), "dB"),
+    ("mean throughput", ("overall", "mean_throughput_bps"), "b/s"),
+    ("max |Doppler|", ("overall", "max_abs_doppler_hz"), "Hz"),
+    ("max angular speed", ("overall", "max_angular_speed_deg_s"), "deg/s"),
+)
+
+
+def _get(d, path):
+    for key in path:
+        d = d.get(key) if isinstance(d, dict) else None
+    return d
+
+
+def kpi_rows(summary):
+    """``(name, "value unit")`` rows of the key figures of a summary, then ``overall.kpi``."""
+    rows = []
+    for name, path, unit in KPIS:
+        value = _get(summary, path)
+        if path[-1] == "n_complete":
+            value = f"{_fmt(value)} / {_fmt(_get(summary, ('overall', 'dwell', 'n_censored')))}"
+        rows.append((name, f"{value if isinstance(value, str) else _fmt(value)} {unit}".strip()))
+    kpi = _get(summary, ("overall", "kpi")) or {}
+    rows += [(k, _fmt(v)) for k, v in _flatten(kpi)]
+    return rows
+
+
 def _per_ut_table(summary, first_uts):
     per_ut = summary.get("per_ut", [])
     order = [u for u in first_uts if 0 <= u < len(per_ut)]
@@ -110,7 +147,7 @@ def _per_ut_table(summary, first_uts):
         f"<p>{len(order)} of {len(per_ut):,} UTs shown (the chosen UTs first); all are in "
         "summary.json.</p>"
     )
-    return _table(["ut_id", *cols], rows) + note
+    return '<div class="wide">' + _table(["ut_id", *cols], rows) + "</div>" + note
 
 
 def _map_figure(stats):
@@ -169,6 +206,7 @@ def run_figures(stats, summary=None):
     n_ut_epochs = sum(stats.service_counts.values())
     cdfs = {k: stats.cdf(k) for k in ("snr_db", "sinr_db", "throughput_bps")}
     return [
+        ("Map", _map_figure(stats)),
         ("SNR and SINR of the chosen UTs", F.fig_snr_time(series, events)),
         ("Handover timeline of the chosen UTs", F.fig_handover_timeline(series, events)),
         ("Doppler and Doppler rate", F.fig_doppler(series)),
@@ -182,7 +220,6 @@ def run_figures(stats, summary=None):
             "Outage by reason, all UT-epochs",
             F.fig_outage_reasons(stats.outage_reason_counts, n_ut_epochs),
         ),
-        ("Map", _map_figure(stats)),
     ]
 
 
@@ -241,14 +278,21 @@ def build_run_report(
     """
     path = Path(path)
     overall = summary.get("overall", {})
-    sections = [("Run", _table(["key", "value"], _flatten(summary.get("run", {}))))]
-    sections.append(("Summary, all UTs", _table(["quantity", "value"], _flatten(overall))))
-    sections.append(("Per UT", _per_ut_table(summary, stats.series_ut.tolist())))
-    sections += [(cap, _img(figure_data_uri(fig), cap)) for cap, fig in run_figures(stats)]
+    key_tables = (
+        '<div class="row">'
+        + _table(["key figure", "value"], kpi_rows(summary))
+        + _table(["run", "value"], _flatten(summary.get("run", {})))
+        + "</div>"
+    )
+    figures = [(cap, _img(figure_data_uri(fig), cap)) for cap, fig in run_figures(stats)]
+    sections = [("Key figures", key_tables), figures[0]]
     if animation_path is not None and Path(animation_path).exists():
         sections.append(
             ("Animation", _animation_html(animation_path, path.parent, embed_max_bytes))
         )
+    sections += figures[1:]
+    sections.append(("Per UT", _per_ut_table(summary, stats.series_ut.tolist())))
+    sections.append(("Summary, all UTs", _table(["quantity", "value"], _flatten(overall))))
     sections.append(("Resolved config", f"<pre>{html.escape(config_text)}</pre>"))
     return write_text_atomic(path, _page(title, sections))
 
@@ -271,18 +315,23 @@ def build_table_report(path, title, table, figures=(), config_text="", notes="")
 
 
 def _trace_chunks(out_dir, chunk_rows):
-    """Trace rows as dicts of numpy arrays, ``chunk_rows`` at a time (Parquet or CSV)."""
+    """Trace rows as dicts of numpy arrays, ``chunk_rows`` at a time (Parquet or CSV).
+
+    Only the columns the statistics use are decoded (a third of the trace's bytes)."""
+    wanted = set(SERIES_COLUMNS) | {"outage_reason", "alt_m"}
     parquet, csv = out_dir / "trace.parquet", out_dir / "trace.csv"
     if parquet.exists():
         import pyarrow.parquet as pq
 
-        for batch in pq.ParquetFile(parquet).iter_batches(batch_size=chunk_rows):
+        source = pq.ParquetFile(parquet)
+        cols = [c for c in source.schema_arrow.names if c in wanted]
+        for batch in source.iter_batches(batch_size=chunk_rows, columns=cols):
             yield {
                 name: batch.column(name).to_numpy(zero_copy_only=False)
                 for name in batch.schema.names
             }
     else:
-        for df in pd.read_csv(csv, chunksize=chunk_rows):
+        for df in pd.read_csv(csv, chunksize=chunk_rows, usecols=lambda c: c in wanted):
             yield {c: df[c].to_numpy() for c in df.columns}
 
 
