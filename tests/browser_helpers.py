@@ -73,19 +73,21 @@ return {
 
 
 def open_page(html_path, screenshot=None, width=1200, height=1600):
-    """Load ``html_path``; return the images' load state, fetched resources and the
-    console log (list of ``{"level", "message"}``); optionally save a screenshot PNG."""
+    """Load ``html_path``; return the images' load state (and whether each decodes), the
+    fetched resources and the console log (list of ``{"level", "message"}``); optionally
+    save a screenshot PNG."""
     with tempfile.TemporaryDirectory() as profile:
         driver = _driver(width, height, profile)
         try:
             driver.get(Path(html_path).resolve().as_uri())
-            driver.execute_async_script(
+            decoded = driver.execute_async_script(
                 "const done = arguments[arguments.length - 1];"
-                "Promise.all([...document.images].map(i => i.decode().catch(() => null)))"
-                ".then(() => done(true));"
+                "Promise.all([...document.images].map(i => i.decode().then(() => true,"
+                " () => false))).then(done);"
             )
             state = driver.execute_script(_PAGE_STATE)
             state["console"] = driver.get_log("browser")
+            state["decoded"] = decoded  # img.decode() resolved: the whole image decodes
             if screenshot is not None:
                 driver.save_screenshot(str(screenshot))
             return state

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from matplotlib.collections import PathCollection, PolyCollection
+from matplotlib.collections import LineCollection, PathCollection, PolyCollection
 
 from leolink.io.maps import (
     OUTAGE_COLOUR,
@@ -104,11 +104,16 @@ def test_run_map_draws_15_cells_and_colours_uts_by_their_trace_beam(paper_stats)
     ax = fig.axes[0]
     cells = [c for c in ax.collections if isinstance(c, PolyCollection)]
     assert len(cells) == 1 and len(cells[0].get_paths()) == 15  # one satellite, 15 beams
-    dots = [c for c in ax.collections if isinstance(c, PathCollection)]
-    assert len(dots) == 1
-    # The dots are the sampled UTs at the kept epochs, in (UT, time) order.
-    expected = trace.sort_values(["ut_id", "time_s"])["beam_id"].to_numpy()
-    np.testing.assert_allclose(dots[0].get_facecolors(), beam_colour(expected))
+    # Dots: every UT at the middle kept epoch (t = 60 s), coloured by its trace beam then.
+    (dots,) = [c for c in ax.collections if isinstance(c, PathCollection)]
+    now = trace[trace["time_s"] == 60.0].sort_values("ut_id")
+    np.testing.assert_allclose(dots.get_facecolors(), beam_colour(now["beam_id"].to_numpy()))
+    np.testing.assert_allclose(dots.get_offsets(), now[["lon_deg", "lat_deg"]].to_numpy())
+    # Track segments: coloured by the beam serving at the segment's start.
+    (tracks,) = [c for c in ax.collections if isinstance(c, LineCollection)]
+    rows = trace.sort_values(["ut_id", "time_s"])
+    start = rows.groupby("ut_id").head(len(stats.keep_times_s) - 1)  # all but the last epoch
+    np.testing.assert_allclose(tracks.get_colors(), beam_colour(start["beam_id"].to_numpy()))
     x0, x1 = ax.get_xlim()
     y0, y1 = ax.get_ylim()
     assert x0 < trace["lon_deg"].min() and trace["lon_deg"].max() < x1

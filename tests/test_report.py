@@ -47,6 +47,7 @@ def test_page_has_no_external_resource(paper):
         kind, data = re.match(r"data:image/(png|gif);base64,(.*)", src).groups()
         with Image.open(io.BytesIO(base64.b64decode(data))) as im:
             assert im.format.lower() == kind and im.size[0] > 100 and im.size[1] > 100
+            im.load()  # the whole image decodes, not just its header
 
 
 def test_page_tables_show_the_summary(paper):
@@ -69,6 +70,7 @@ def test_report_opens_in_headless_chromium_with_every_image_and_no_console_error
     assert len(state["images"]) == N_FIGURES + 1
     for img in state["images"]:
         assert img["complete"] and img["width"] > 0 and img["height"] > 0, img
+    assert all(state["decoded"])
     assert state["scripts"] == 0 and state["links"] == []
     assert all(r.startswith(("file:", "data:")) for r in state["resources"]), state["resources"]
     errors = [e for e in state["console"] if e["level"] in ("SEVERE", "WARNING")]
@@ -96,6 +98,7 @@ def test_multi_satellite_report_with_a_linked_animation_opens_offline(walker, tm
     state = open_page(page)
     assert len(state["images"]) == N_FIGURES + 1
     assert all(i["complete"] and i["width"] > 0 for i in state["images"])
+    assert all(state["decoded"])
     assert [e for e in state["console"] if e["level"] == "SEVERE"] == []
 
 
@@ -114,7 +117,7 @@ def test_a_missing_linked_file_is_caught_by_the_browser_check(walker, tmp_path):
     )
     gif.unlink()
     state = open_page(page)
-    assert any(i["width"] == 0 for i in state["images"])
+    assert any(i["width"] == 0 for i in state["images"]) and not all(state["decoded"])
     assert any(e["level"] == "SEVERE" for e in state["console"])
 
 

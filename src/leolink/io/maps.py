@@ -29,6 +29,7 @@ __all__ = [
     "draw_base",
     "draw_footprints",
     "draw_ut_points",
+    "draw_ut_tracks",
     "map_extent",
     "new_figure",
     "plot_map",
@@ -221,6 +222,7 @@ def plot_map(
     sat_tracks=None,
     footprints=None,
     ut_tracks=None,
+    ut_points=None,
     *,
     extent_deg=None,
     title=None,
@@ -240,7 +242,10 @@ def plot_map(
         :func:`leolink.antenna.footprint.beam_footprints_ground`.
     ut_tracks : dict, optional
         ``ut_id (m,)``, ``time_s (m,)``, ``lat_deg (m,)``, ``lon_deg (m,)``, ``beam_id
-        (m,)``: UT positions in time order per UT; points are coloured by serving beam.
+        (m,)``: UT positions; each track segment is coloured by the serving beam.
+    ut_points : dict, optional
+        ``lat_deg, lon_deg, beam_id (j,)``: UTs drawn as dots coloured by serving beam
+        (e.g. at the instant of the ``footprints``).
     extent_deg : (lon_min, lon_max, lat_min, lat_max), optional
         Default: around the UTs and beam cells (or the ground tracks if neither is given).
     title : str, optional
@@ -270,22 +275,42 @@ def plot_map(
     if footprints is not None and len(footprints["beam_id"]):
         draw_footprints(ax, footprints)
     if ut_tracks is not None and len(ut_tracks["ut_id"]):
-        lon, lat = break_at_antimeridian(
-            ut_tracks["lon_deg"], ut_tracks["lat_deg"], group=ut_tracks["ut_id"]
-        )
-        ax.plot(lon, lat, color="black", linewidth=0.6, alpha=0.6, zorder=4, label="UT tracks")
-        draw_ut_points(
-            ax,
-            ut_tracks["lon_deg"],
-            ut_tracks["lat_deg"],
-            ut_tracks["beam_id"],
-            size=16.0,
-            linewidths=0.2,
-        )
+        draw_ut_tracks(ax, ut_tracks)
+    if ut_points is not None and len(ut_points["beam_id"]):
+        draw_ut_points(ax, ut_points["lon_deg"], ut_points["lat_deg"], ut_points["beam_id"])
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="upper right", fontsize=7)
     ax.set_title(title or "Ground tracks, beam cells and UTs (coloured by serving beam)")
     return fig
+
+
+def draw_ut_tracks(ax, ut_tracks, linewidth=2.0):
+    """UT tracks as line segments, each coloured by the serving beam at its start."""
+    from matplotlib.collections import LineCollection
+
+    ut = np.asarray(ut_tracks["ut_id"])
+    order = np.lexsort((np.asarray(ut_tracks["time_s"], float), ut))
+    lon, lat = (np.asarray(ut_tracks[k], float)[order] for k in ("lon_deg", "lat_deg"))
+    beam, ut = np.asarray(ut_tracks["beam_id"], int)[order], ut[order]
+    ok = (ut[1:] == ut[:-1]) & (np.abs(np.diff(lon)) < 180.0)  # same UT, no antimeridian jump
+    ok &= np.isfinite(lon[1:] + lon[:-1] + lat[1:] + lat[:-1])
+    start = np.flatnonzero(ok)
+    segments = np.stack(
+        [
+            np.column_stack([lon[start], lat[start]]),
+            np.column_stack([lon[start + 1], lat[start + 1]]),
+        ],
+        axis=1,
+    )
+    coll = LineCollection(
+        segments,
+        colors=beam_colour(beam[start]),
+        linewidths=linewidth,
+        zorder=4,
+        label="UT tracks (colour: serving beam)",
+    )
+    ax.add_collection(coll)
+    return coll
 
 
 def _default_extent(sat_tracks, footprints, ut_tracks):

@@ -163,11 +163,11 @@ def _map_figure(stats):
         "lat_deg": lat.T.ravel(),
         "lon_deg": lon.T.ravel(),
     }
-    footprints, t_s = None, None
+    footprints, t_s, now_uts = None, None, None
+    k = stats.keep_times_s.size // 2
     if stats.beam_u_xy is not None:
         from leolink.io.animation import _cells
 
-        k = stats.keep_times_s.size // 2
         t_s = stats.keep_times_s[k]
         now = np.unique(stats.ut_sat[k][stats.ut_sat[k] >= 0])
         footprints = _cells(
@@ -178,10 +178,15 @@ def _map_figure(stats):
             stats.beam_u_xy,
             stats.n_sub_xy,
         )
+        now_uts = {
+            "lat_deg": stats.ut_lat_deg[k],
+            "lon_deg": stats.ut_lon_deg[k],
+            "beam_id": stats.ut_beam[k],
+        }
     title = "Satellite ground tracks, UT tracks coloured by serving beam"
     if t_s is not None:
-        title += f"\nbeam cells (half power) of the serving satellites at t = {t_s:.0f} s"
-    return plot_map(tracks, footprints, _ut_tracks(stats), title=title)
+        title += f"\nbeam cells (half power) and UTs (dots) at t = {t_s:.0f} s"
+    return plot_map(tracks, footprints, _ut_tracks(stats), now_uts, title=title)
 
 
 def _ut_tracks(stats, max_uts=200):
