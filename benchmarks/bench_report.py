@@ -27,10 +27,10 @@ import tomli_w
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from report_helpers import write_geometry  # noqa: E402
-
 from leolink.io.animation import frames_from_stats, write_footprint_gif  # noqa: E402
-from leolink.io.report import build_report_from_dir, build_run_report, stats_from_dir  # noqa: E402
+from leolink.io.report import build_run_report  # noqa: E402
+from leolink.io.report_dir import build_report_from_dir, stats_from_dir  # noqa: E402
+from report_helpers import write_geometry  # noqa: E402
 
 
 def _config(path, n_ut, n_epoch):
@@ -76,7 +76,10 @@ def main(argv=None):
     t_rebuild = time.perf_counter() - t0
     print(f"report at scale: {args.uts:,} UTs x {args.epochs} epochs = {n_rows:,} trace rows")
     print(f"  simulate (CLI, Parquet trace)        {t_run:7.1f} s")
-    print(f"  stream trace into ReportStats        {t_stream:7.1f} s ({n_rows / t_stream / 1e6:.2f} M rows/s)")
+    print(
+        f"  stream trace into ReportStats        {t_stream:7.1f} s "
+        f"({n_rows / t_stream / 1e6:.2f} M rows/s)"
+    )
     print(f"  statistics in memory                 {_nbytes(stats) / 2**20:7.1f} MiB")
     print(f"  report.html from the statistics      {t_page:7.1f} s "
           f"({(run_dir / 'report.html').stat().st_size / 2**20:.1f} MiB)")  # fmt: skip

@@ -22,7 +22,7 @@ from leolink.io.exports import (
     write_geojson,
 )
 from leolink.io.maps import subsatellite_points
-from leolink.io.report import stats_from_dir
+from leolink.io.report_dir import stats_from_dir
 from report_helpers import WALKER, ephemeris, make_run
 
 N_SUB = (12, 24)

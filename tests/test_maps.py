@@ -16,7 +16,8 @@ from leolink.io.maps import (
     map_extent,
     plot_map,
 )
-from leolink.io.report import _map_figure, stats_from_dir
+from leolink.io.report import run_map_figure
+from leolink.io.report_dir import stats_from_dir
 from report_helpers import make_run
 
 LANDMARKS = Path(__file__).parent / "data" / "coastal_landmarks.csv"
@@ -100,7 +101,7 @@ def paper_stats(tmp_path_factory):
 
 def test_run_map_draws_15_cells_and_colours_uts_by_their_trace_beam(paper_stats):
     stats, trace = paper_stats
-    fig = _map_figure(stats)
+    fig = run_map_figure(stats)
     ax = fig.axes[0]
     cells = [c for c in ax.collections if isinstance(c, PolyCollection)]
     assert len(cells) == 1 and len(cells[0].get_paths()) == 15  # one satellite, 15 beams

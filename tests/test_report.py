@@ -14,7 +14,8 @@ from PIL import Image
 
 from browser_helpers import open_page, require_browser
 from leolink.io.figures import fig_cdfs
-from leolink.io.report import build_report_from_dir, build_table_report, stats_from_dir
+from leolink.io.report import build_run_report, build_table_report
+from leolink.io.report_dir import build_report_from_dir, stats_from_dir
 from report_helpers import WALKER, make_run
 
 N_FIGURES = 8  # SNR, timeline, Doppler, angular speed, dwell, CDFs, outage, map
@@ -84,7 +85,6 @@ def test_multi_satellite_report_with_a_linked_animation_opens_offline(walker, tm
     page_dir.mkdir()
     stats = stats_from_dir(out, series_ut=[0, 1])
     shutil.copy(built["animation"], page_dir / "footprint.gif")
-    from leolink.io.report import build_run_report
 
     summary = json.loads((out / "summary.json").read_text())
     page = build_run_report(
@@ -107,7 +107,6 @@ def test_a_missing_linked_file_is_caught_by_the_browser_check(walker, tmp_path):
     require_browser()
     out, built = walker
     stats = stats_from_dir(out, series_ut=[0])
-    from leolink.io.report import build_run_report
 
     summary = json.loads((out / "summary.json").read_text())
     gif = tmp_path / "footprint.gif"

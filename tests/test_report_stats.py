@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from leolink.io.report import stats_from_dir
+from leolink.io.report_dir import stats_from_dir
 from leolink.io.report_stats import ReportStats
 from report_helpers import WALKER, cli, make_run
 

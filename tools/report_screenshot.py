@@ -16,9 +16,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
 from browser_helpers import open_page  # noqa: E402
+from leolink.io.report_dir import build_report_from_dir  # noqa: E402
 from report_helpers import make_run  # noqa: E402
-
-from leolink.io.report import build_report_from_dir  # noqa: E402
 
 
 def main(argv=None):

@@ -30,7 +30,14 @@ from leolink.io.maps import (
     new_figure,
 )
 
-__all__ = ["Frame", "build_frames", "frames_from_stats", "select_frames", "write_footprint_gif"]
+__all__ = [
+    "Frame",
+    "build_frames",
+    "footprint_cells",
+    "frames_from_stats",
+    "select_frames",
+    "write_footprint_gif",
+]
 
 MAX_BYTES = 10_000_000
 FILL_ALPHA = 0.18  # cell fill opacity
@@ -68,8 +75,27 @@ def select_frames(n_available, max_frames):
     return np.unique(np.round(np.linspace(0, n_available - 1, max(int(max_frames), 1))).astype(int))
 
 
-def _cells(sat_ids, sat_pos_m, sat_vel_m_s, serving, beam_u_xy, n_sub_xy):
-    """Footprint dict of every beam of the satellites in ``serving`` (ids)."""
+def footprint_cells(sat_ids, sat_pos_m, sat_vel_m_s, serving, beam_u_xy, n_sub_xy):
+    """Half-power cells of every beam of the satellites whose id is in ``serving``.
+
+    Parameters
+    ----------
+    sat_ids : ndarray, shape (n_sat,)
+    sat_pos_m, sat_vel_m_s : ndarray, shape (n_sat, 3)
+        States at one instant [m, m/s]; rows with NaN positions are skipped.
+    serving : array_like
+        Satellite ids to draw.
+    beam_u_xy : ndarray, shape (n_beam, 2)
+        Codebook [-] (row = beam id).
+    n_sub_xy : (int, int)
+        Subarray elements per beam.
+
+    Returns
+    -------
+    dict
+        ``sat_id, beam_id (k,)``, ``lat_deg, lon_deg (k, n_points)`` [deg],
+        ``k = n_serving n_beam``.
+    """
     rows = np.flatnonzero(np.isin(sat_ids, serving) & np.isfinite(sat_pos_m[:, 0]))
     n_beam = beam_u_xy.shape[0]
     if rows.size == 0:
@@ -130,7 +156,7 @@ def build_frames(
     frames = []
     for k in select_frames(len(times_s), max_frames):  # one frame at a time: bounded memory
         serving = np.unique(ut_sat[k][ut_sat[k] >= 0])
-        cells = _cells(
+        cells = footprint_cells(
             np.asarray(sat_ids),
             np.asarray(sat_pos_m[k], float),
             np.asarray(sat_vel_m_s[k], float),

@@ -122,9 +122,9 @@ class ResultViews:
 
     def plot_map(self):
         """Ground tracks, serving beam cells and UT tracks (Figure)."""
-        from leolink.io.report import _map_figure
+        from leolink.io.report import run_map_figure
 
-        return _map_figure(self._stats())
+        return run_map_figure(self._stats())
 
     def _repr_html_(self):
         from leolink.io.report import kpi_rows
