@@ -201,3 +201,19 @@ def test_events_parquet_has_the_rows_of_the_csv(walker, tmp_path):
     assert len(back) == len(events) > 0
     pd.testing.assert_frame_equal(back, again, check_dtype=False)
     pd.testing.assert_frame_equal(again, events)
+
+
+def test_write_exports_of_a_run_gives_valid_files_of_the_serving_satellites(walker, tmp_path):
+    from leolink.io.report_dir import write_exports
+
+    stats = walker["stats"]
+    geo, czml = write_exports(stats, tmp_path, epoch_utc="2026-01-01T00:00:00Z")
+    doc = json.loads(geo.read_text())
+    _check_feature_collection(doc)
+    serving = set(np.unique(stats.ut_sat[stats.ut_sat >= 0]).tolist())
+    kinds = [f["properties"] for f in doc["features"]]
+    sats = {p["sat_id"] for p in kinds if p["kind"] == "satellite_track"}
+    assert sats == serving and len(serving) > 1
+    packets = json.loads(czml.read_text())
+    assert packets[0]["clock"]["currentTime"].startswith("2026-01-01T00:00:00")
+    assert {int(p["id"].split("/")[1]) for p in packets if p["id"].startswith("satellite/")} == sats

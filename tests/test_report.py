@@ -155,5 +155,6 @@ def test_rebuild_uses_saved_statistics_without_the_trace(paper, tmp_path):
     shutil.copytree(out, copy)
     stats_from_dir(copy, series_ut=[0, 5]).save(copy / "report_stats.npz")
     (copy / "trace.csv").unlink()  # the rebuild must not need it
-    built = build_report_from_dir(copy)
+    built = build_report_from_dir(copy, exports=True)
     assert len(_img_sources(built["report"].read_text())) == N_FIGURES + 1
+    assert [p.name for p in built["exports"]] == ["run.geojson", "run.czml"]

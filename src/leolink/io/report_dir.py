@@ -12,12 +12,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
+from leolink.constants import EARTH_RADIUS_M
 from leolink.io.report import build_run_report
 from leolink.io.report_stats import SERIES_COLUMNS, ReportStats
 
-__all__ = ["build_report_from_dir", "stats_from_dir"]
+__all__ = ["build_report_from_dir", "stats_from_dir", "tracks_from_stats", "write_exports"]
 
 
 def _trace_chunks(out_dir, chunk_rows):
@@ -83,11 +85,12 @@ def stats_from_dir(out_dir, series_ut=None, n_sample_ut=500, max_frames=120, chu
     return stats
 
 
-def build_report_from_dir(out_dir, series_ut=None, animate=True):
+def build_report_from_dir(out_dir, series_ut=None, animate=True, exports=False):
     """``leolink report DIR``: rebuild ``report.html`` (and ``footprint.gif``) from a folder.
 
-    Uses ``report_stats.npz`` when the run saved one, else :func:`stats_from_dir`.
-    Returns ``{"report": path, "animation": path or None}``.
+    Uses ``report_stats.npz`` when the run saved one, else :func:`stats_from_dir`. With
+    ``exports``, also writes ``run.geojson`` and ``run.czml`` (:func:`write_exports`).
+    Returns ``{"report": path, "animation": path or None, "exports": paths or ()}``.
     """
     out_dir = Path(out_dir)
     summary = json.loads((out_dir / "summary.json").read_text())
@@ -101,4 +104,70 @@ def build_report_from_dir(out_dir, series_ut=None, animate=True):
     config = out_dir / "config.resolved.toml"
     text = config.read_text() if config.exists() else ""
     page = build_run_report(out_dir / "report.html", summary, stats, text, animation_path=gif)
-    return {"report": page, "animation": gif}
+    written = write_exports(stats, out_dir) if exports else ()
+    return {"report": page, "animation": gif, "exports": written}
+
+
+def tracks_from_stats(stats, max_frames=120):
+    """Satellite tracks, UT tracks and footprint frames from :class:`ReportStats`.
+
+    Returns
+    -------
+    sat_tracks : dict or None
+        ``sat_id, time_s, lat_deg, lon_deg, alt_m`` of the satellites that serve a sampled
+        UT (``alt_m`` above ``leolink.constants.EARTH_RADIUS_M``).
+    ut_tracks : dict
+        ``ut_id, time_s, lat_deg, lon_deg, beam_id`` of the sampled UTs.
+    footprint_frames : list of (time_s, footprints)
+        As the exporters take them.
+    """
+    from leolink.io.animation import frames_from_stats
+    from leolink.io.maps import subsatellite_points
+
+    n_k, n_s = stats.ut_lat_deg.shape
+    ut_tracks = {
+        "ut_id": np.repeat(stats.sample_ut, n_k),
+        "time_s": np.tile(stats.keep_times_s, n_s),
+        "lat_deg": stats.ut_lat_deg.T.ravel(),
+        "lon_deg": stats.ut_lon_deg.T.ravel(),
+        "beam_id": stats.ut_beam.T.ravel(),
+    }
+    if stats.sat_pos_m is None:
+        return None, ut_tracks, []
+    cols = np.flatnonzero(np.isin(stats.sat_ids, stats.ut_sat[stats.ut_sat >= 0]))
+    pos = stats.sat_pos_m[:, cols]  # (n_k, n_serving, 3)
+    lat, lon = subsatellite_points(pos)
+    sat_tracks = {
+        "sat_id": np.repeat(stats.sat_ids[cols], n_k),
+        "time_s": np.tile(stats.keep_times_s, cols.size),
+        "lat_deg": lat.T.ravel(),
+        "lon_deg": lon.T.ravel(),
+        "alt_m": np.linalg.norm(pos, axis=-1).T.ravel() - EARTH_RADIUS_M,
+    }
+    frames = []
+    if stats.beam_u_xy is not None:
+        frames = [(f.time_s, f.footprints) for f in frames_from_stats(stats, max_frames)]
+    return sat_tracks, ut_tracks, frames
+
+
+def write_exports(stats, out_dir, epoch_utc=None):
+    """Write ``run.geojson`` and ``run.czml`` of a run's statistics into ``out_dir``.
+
+    ``epoch_utc``: ISO 8601 time of ``t = 0`` for CZML (default J2000, see
+    :mod:`leolink.io.exports`). Returns the two paths.
+    """
+    from leolink.io.exports import DEFAULT_EPOCH_UTC, write_czml, write_geojson
+
+    sats, uts, frames = tracks_from_stats(stats)
+    out_dir = Path(out_dir)
+    geo = write_geojson(out_dir / "run.geojson", sats, uts, frames)
+    czml = write_czml(
+        out_dir / "run.czml",
+        stats.start_s,
+        stats.end_s,
+        sats,
+        uts,
+        frames,
+        epoch_utc=epoch_utc or DEFAULT_EPOCH_UTC,
+    )
+    return geo, czml
