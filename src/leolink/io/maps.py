@@ -1,0 +1,327 @@
+"""Maps on plain longitude/latitude axes: coastlines, ground tracks, beam cells, UT tracks.
+
+No cartographic library: the axes are equirectangular (x = longitude, y = latitude, in
+degrees) with the aspect ``1 / cos(latitude at the centre)``, so shapes near the centre
+of the map keep their proportions. Coastlines are Natural Earth 1:50m land (public
+domain), shipped in ``leolink/data/coastlines_50m.npz`` (see the provenance file there);
+nothing is downloaded.
+
+Inputs are plain arrays (see :func:`plot_map`), as a streaming sink keeps them.
+Beam colours come from :func:`beam_colour`, shared with the animation, so a UT coloured
+by its serving beam has the colour of that beam's cell.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+
+from leolink.geometry import ecef_to_geodetic
+
+__all__ = [
+    "N_BEAM_COLOURS",
+    "OUTAGE_COLOUR",
+    "beam_colour",
+    "break_at_antimeridian",
+    "coastlines",
+    "draw_base",
+    "draw_footprints",
+    "draw_ut_points",
+    "draw_ut_tracks",
+    "map_extent",
+    "new_figure",
+    "plot_map",
+    "subsatellite_points",
+]
+
+OUTAGE_COLOUR = (0.35, 0.35, 0.35, 1.0)  # a UT with no serving beam
+N_BEAM_COLOURS = 18
+_COAST_STYLE = {"color": "0.45", "linewidth": 0.6, "zorder": 1}
+_MARGIN_DEG = 2.0
+
+
+def beam_colour(beam_id):
+    """RGBA colour of beam ``beam_id`` (18 tab20 colours, cycling; -1 -> :data:`OUTAGE_COLOUR`).
+
+    The two greys of tab20 are left out so that no beam looks like an outage.
+
+    Parameters
+    ----------
+    beam_id : int or array_like of int, shape (...)
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+    """
+    from matplotlib import colormaps
+
+    tab20 = np.delete(np.asarray(colormaps["tab20"].colors, float), [14, 15], axis=0)
+    # Dark colours first, then their light partners: the first 9 beams get distinct hues.
+    palette = np.concatenate([tab20[0::2], tab20[1::2]])
+    beam = np.asarray(beam_id, int)
+    rgba = np.empty(beam.shape + (4,))
+    rgba[..., :3] = palette[np.mod(beam, palette.shape[0])]
+    rgba[..., 3] = 1.0
+    rgba[beam < 0] = OUTAGE_COLOUR
+    return rgba
+
+
+@lru_cache(maxsize=1)
+def coastlines():
+    """World coastlines, Natural Earth 4.1.0 1:50m land (public domain).
+
+    Returns
+    -------
+    lon_deg, lat_deg : ndarray of float32, shape (n_point,)
+        Polylines separated by NaN [deg].
+    """
+    ref = resources.files("leolink") / "data" / "coastlines_50m.npz"
+    with resources.as_file(ref) as path, np.load(path) as data:
+        return data["lon_deg"].copy(), data["lat_deg"].copy()
+
+
+def subsatellite_points(sat_pos_m):
+    """Sub-satellite latitude and longitude [deg] of positions ``(..., 3)`` [m] (sphere)."""
+    lat, lon, _ = ecef_to_geodetic(sat_pos_m)
+    return np.degrees(lat), np.degrees(lon)
+
+
+def break_at_antimeridian(lon_deg, lat_deg, *, group=None):
+    """Insert NaN where a polyline jumps across +-180 deg (or to another ``group``).
+
+    Parameters
+    ----------
+    lon_deg, lat_deg : array_like, shape (n,)
+        Polyline in drawing order [deg].
+    group : array_like, shape (n,), optional
+        Track id of each point; a new id starts a new line.
+
+    Returns
+    -------
+    lon_deg, lat_deg : ndarray, shape (n + n_breaks,)
+    """
+    lon, lat = np.asarray(lon_deg, float), np.asarray(lat_deg, float)
+    jump = np.abs(np.diff(lon)) > 180.0
+    if group is not None:
+        g = np.asarray(group)
+        jump |= g[1:] != g[:-1]
+    at = np.flatnonzero(jump) + 1
+    return np.insert(lon, at, np.nan), np.insert(lat, at, np.nan)
+
+
+def map_extent(lon_deg, lat_deg, margin_deg=_MARGIN_DEG):
+    """``(lon_min, lon_max, lat_min, lat_max)`` [deg] around finite points, padded.
+
+    The box is widened to at least 4 deg in each direction and clipped to the globe.
+    """
+    lon, lat = np.asarray(lon_deg, float), np.asarray(lat_deg, float)
+    ok = np.isfinite(lon) & np.isfinite(lat)
+    if not ok.any():
+        return (-180.0, 180.0, -90.0, 90.0)
+    lo = np.array([lon[ok].min(), lat[ok].min()]) - margin_deg
+    hi = np.array([lon[ok].max(), lat[ok].max()]) + margin_deg
+    mid, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 2.0)
+    lo, hi = mid - half, mid + half
+    return (max(lo[0], -180.0), min(hi[0], 180.0), max(lo[1], -90.0), min(hi[1], 90.0))
+
+
+def new_figure(extent_deg, width_in=8.0, dpi=100):
+    """An Agg figure with one map axes sized for ``extent_deg`` (no pyplot state)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    lon0, lon1, lat0, lat1 = extent_deg
+    aspect = 1.0 / max(np.cos(np.radians(0.5 * (lat0 + lat1))), 0.2)
+    ratio = aspect * (lat1 - lat0) / max(lon1 - lon0, 1e-9)
+    fig = Figure(figsize=(width_in, float(np.clip(width_in * ratio, 2.5, 9.0)) + 0.6), dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.09, 0.08, 0.88, 0.84))
+    draw_base(ax, extent_deg)
+    return fig, ax
+
+
+def draw_base(ax, extent_deg):
+    """Coastlines, limits, equirectangular aspect and labels on ``ax``."""
+    lon0, lon1, lat0, lat1 = extent_deg
+    lon, lat = coastlines()
+    # Only the points near the view (NaN elsewhere breaks the lines): a regional map
+    # draws a few thousand of the 62,000 points.
+    near = (lon > lon0 - 1.0) & (lon < lon1 + 1.0) & (lat > lat0 - 1.0) & (lat < lat1 + 1.0)
+    ax.plot(np.where(near, lon, np.nan), np.where(near, lat, np.nan), **_COAST_STYLE)
+    ax.set_xlim(lon0, lon1)
+    ax.set_ylim(lat0, lat1)
+    ax.set_aspect(1.0 / max(np.cos(np.radians(0.5 * (lat0 + lat1))), 0.2), adjustable="box")
+    ax.set_xlabel("longitude [deg]")
+    ax.set_ylabel("latitude [deg]")
+    ax.grid(True, alpha=0.25, linewidth=0.5)
+
+
+def draw_footprints(ax, footprints, *, fill_alpha=0.18, label_beams=True):
+    """Beam cells as outlined, lightly filled polygons in the beam's colour.
+
+    ``footprints``: ``beam_id (k,)`` and ``lat_deg, lon_deg (k, n_points)``; rings with a
+    NaN point are drawn through the finite points only.
+    """
+    from matplotlib.collections import PolyCollection
+
+    beam = np.asarray(footprints["beam_id"], int)
+    lat, lon = np.asarray(footprints["lat_deg"], float), np.asarray(footprints["lon_deg"], float)
+    rings, colours, centres = [], [], []
+    for k in range(beam.size):  # one polygon per beam cell (tens, not per UT)
+        ok = np.isfinite(lat[k]) & np.isfinite(lon[k])
+        if ok.sum() < 3:
+            continue
+        ring_lon = _unwrap_deg(lon[k, ok])
+        rings.append(np.column_stack([ring_lon, lat[k, ok]]))
+        colours.append(beam_colour(beam[k]))
+        centres.append((beam[k], ring_lon.mean(), lat[k, ok].mean()))
+    if not rings:
+        return None
+    colours = np.asarray(colours)
+    face = colours.copy()
+    face[:, 3] = fill_alpha
+    coll = PolyCollection(rings, facecolors=face, edgecolors=colours, linewidths=1.0, zorder=2)
+    ax.add_collection(coll)
+    if label_beams:
+        for b, x, y in centres:
+            ax.text(
+                x,
+                y,
+                str(b),
+                ha="center",
+                va="center",
+                fontsize=6,
+                zorder=3,
+                color="0.15",
+                clip_on=True,
+            )
+    return coll
+
+
+def draw_ut_points(ax, lon_deg, lat_deg, beam_id, *, size=30.0, zorder=5, linewidths=0.6):
+    """UTs as dots filled with their serving beam's colour (outage: grey), black edge."""
+    return ax.scatter(
+        np.asarray(lon_deg, float),
+        np.asarray(lat_deg, float),
+        s=size,
+        c=beam_colour(beam_id),
+        edgecolors="black",
+        linewidths=linewidths,
+        zorder=zorder,
+    )
+
+
+def _unwrap_deg(lon_deg):
+    """Longitudes made continuous (no +-360 jump) so a ring across 180 deg stays whole."""
+    return np.degrees(np.unwrap(np.radians(lon_deg)))
+
+
+def plot_map(
+    sat_tracks=None,
+    footprints=None,
+    ut_tracks=None,
+    ut_points=None,
+    *,
+    extent_deg=None,
+    title=None,
+    width_in=8.0,
+    dpi=100,
+):
+    """Map of a run: coastlines, satellite ground tracks, beam cells and UT tracks.
+
+    Parameters
+    ----------
+    sat_tracks : dict, optional
+        ``sat_id (n,)``, ``time_s (n,)``, ``lat_deg (n,)``, ``lon_deg (n,)``: sub-satellite
+        points, rows of one satellite in time order.
+    footprints : dict, optional
+        ``sat_id (k,)``, ``beam_id (k,)``, ``lat_deg (k, n_points)``, ``lon_deg (k,
+        n_points)``: beam cells (e.g. of the serving satellites at one instant), from
+        :func:`leolink.antenna.footprint.beam_footprints_ground`.
+    ut_tracks : dict, optional
+        ``ut_id (m,)``, ``time_s (m,)``, ``lat_deg (m,)``, ``lon_deg (m,)``, ``beam_id
+        (m,)``: UT positions; each track segment is coloured by the serving beam.
+    ut_points : dict, optional
+        ``lat_deg, lon_deg, beam_id (j,)``: UTs drawn as dots coloured by serving beam
+        (e.g. at the instant of the ``footprints``).
+    extent_deg : (lon_min, lon_max, lat_min, lat_max), optional
+        Default: around the UTs and beam cells (or the ground tracks if neither is given).
+    title : str, optional
+    width_in, dpi : float
+        Figure width [in] and resolution [dot/in].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if extent_deg is None:
+        extent_deg = _default_extent(sat_tracks, footprints, ut_tracks)
+    fig, ax = new_figure(extent_deg, width_in, dpi)
+    if sat_tracks is not None and len(sat_tracks["sat_id"]):
+        lon, lat = break_at_antimeridian(
+            sat_tracks["lon_deg"], sat_tracks["lat_deg"], group=sat_tracks["sat_id"]
+        )
+        ax.plot(
+            lon,
+            lat,
+            color="tab:red",
+            linewidth=1.0,
+            alpha=0.7,
+            zorder=2,
+            label="satellite ground tracks",
+        )
+    if footprints is not None and len(footprints["beam_id"]):
+        draw_footprints(ax, footprints)
+    if ut_tracks is not None and len(ut_tracks["ut_id"]):
+        draw_ut_tracks(ax, ut_tracks)
+    if ut_points is not None and len(ut_points["beam_id"]):
+        draw_ut_points(ax, ut_points["lon_deg"], ut_points["lat_deg"], ut_points["beam_id"])
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize=7)
+    ax.set_title(title or "Ground tracks, beam cells and UTs (coloured by serving beam)")
+    return fig
+
+
+def draw_ut_tracks(ax, ut_tracks, linewidth=2.0):
+    """UT tracks as line segments, each coloured by the serving beam at its start."""
+    from matplotlib.collections import LineCollection
+
+    ut = np.asarray(ut_tracks["ut_id"])
+    order = np.lexsort((np.asarray(ut_tracks["time_s"], float), ut))
+    lon, lat = (np.asarray(ut_tracks[k], float)[order] for k in ("lon_deg", "lat_deg"))
+    beam, ut = np.asarray(ut_tracks["beam_id"], int)[order], ut[order]
+    ok = (ut[1:] == ut[:-1]) & (np.abs(np.diff(lon)) < 180.0)  # same UT, no antimeridian jump
+    ok &= np.isfinite(lon[1:] + lon[:-1] + lat[1:] + lat[:-1])
+    start = np.flatnonzero(ok)
+    segments = np.stack(
+        [
+            np.column_stack([lon[start], lat[start]]),
+            np.column_stack([lon[start + 1], lat[start + 1]]),
+        ],
+        axis=1,
+    )
+    coll = LineCollection(
+        segments,
+        colors=beam_colour(beam[start]),
+        linewidths=linewidth,
+        zorder=4,
+        label="UT tracks (colour: serving beam)",
+    )
+    ax.add_collection(coll)
+    return coll
+
+
+def _default_extent(sat_tracks, footprints, ut_tracks):
+    lons, lats = [], []
+    for part in (footprints, ut_tracks):
+        if part is not None and len(part["lat_deg"]):
+            lons.append(np.ravel(part["lon_deg"]))
+            lats.append(np.ravel(part["lat_deg"]))
+    if not lons and sat_tracks is not None:
+        lons.append(np.ravel(sat_tracks["lon_deg"]))
+        lats.append(np.ravel(sat_tracks["lat_deg"]))
+    if not lons:
+        return (-180.0, 180.0, -90.0, 90.0)
+    return map_extent(np.concatenate(lons), np.concatenate(lats))
