@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leolink.io.atomic import atomic_path, write_text_atomic
+from leolink.io.atomic import atomic_file, write_text_atomic
 from leolink.io.maps import beam_colour
 
 __all__ = [
@@ -367,8 +367,8 @@ def write_events(events, out_dir):
         schema=schema,
         preserve_index=False,
     )
-    with atomic_path(out_dir / "events.parquet") as tmp:
-        pq.write_table(table, tmp)
-    with atomic_path(out_dir / "events.csv") as tmp:
-        df.to_csv(tmp, index=False)
+    with atomic_file(out_dir / "events.parquet") as f:
+        pq.write_table(table, f)
+    with atomic_file(out_dir / "events.csv") as f:
+        df.to_csv(f, index=False)
     return out_dir / "events.csv", out_dir / "events.parquet"

@@ -258,7 +258,7 @@ class ReportStats:
     # ------------------------------------------------------------------ persistence
     def save(self, path):
         """Write everything to an ``.npz`` (no pickle); see :meth:`load`."""
-        from leolink.io.atomic import atomic_path
+        from leolink.io.atomic import atomic_file
 
         arrays = {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
         arrays.update({f"hist__{k}": v for k, v in self.hist.items()})
@@ -277,7 +277,7 @@ class ReportStats:
             *(self.n_sub_xy or (0, 0)),
         ]
         arrays["scalars"] = np.asarray(scalars, float)
-        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        with atomic_file(path) as fh:
             np.savez_compressed(
                 fh,
                 **{
