@@ -52,6 +52,7 @@ class PopulationContext:
     rng: np.random.Generator  # the run's generator: random placement and headings
     t0_s: float  # first epoch of the run
     radius_m: float
+    time_zero_utc: object = None  # aware datetime of simulation time 0 (run.start_utc), or None
 
 
 class PopulationParams(Params):
