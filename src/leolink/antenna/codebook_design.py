@@ -2,16 +2,19 @@
 
 A pruned DFT codebook (:mod:`leolink.antenna.codebook`, Sec. 3.2 of [1]) tiles the ROI
 only if neighbouring beams overlap. With ``O < 1`` the lattice spacing ``2 / (O N)``
-exceeds the main-lobe half width ``2 / N`` and the main lobes no longer touch; with any O,
-a ROI that reaches far beyond its outermost beams leaves its edge uncovered. Both are
-measured by one number, the **worst-case loss inside the ROI**: over points of the ROI,
-the largest gap between the beam peak ``n_sub_x n_sub_y`` and the best beam's gain there.
+exceeds the distance ``2 / N`` from a beam's peak to its first null: each neighbour peaks
+outside the other's main lobe, and the crossing between them sinks from the 3.9 dB of
+orthogonal beams (O = 1, per axis) towards the nulls (O = 0.5). With any O, a ROI that
+reaches far beyond its outermost beams leaves its edge uncovered. Both are measured by
+one number, the **worst-case loss inside the ROI**: over points of the ROI, the largest
+gap between the beam peak ``n_sub_x n_sub_y`` and the best beam's gain there.
 
-A design has **holes** if ``O < 1`` or that loss exceeds :data:`HOLE_LOSS_DB`, the first
-sidelobe level of a uniform array (13.26 dB): a point where even the best beam is weaker
-than a beam's own first sidelobe lies outside every useful main lobe. The paper's design
-(O = 1.2, 534.1 x 170.5 km) has 11.2 dB at the edge of its ROI; O = 1 over the same ROI
-has 16.5 dB and counts as holes (its outer beams' nulls reach the ROI boundary).
+A design has **holes** if ``O < 1`` (with more than one beam) or that loss exceeds
+:data:`HOLE_LOSS_DB`, the first sidelobe level of a uniform array (13.26 dB): a point
+where even the best beam is weaker than a beam's own first sidelobe lies outside every
+useful main lobe. The paper's design (O = 1.2, 534.1 x 170.5 km) has 11.2 dB at the edge
+of its ROI; O = 1 over the same ROI has 16.5 dB and counts as holes (its outer beams'
+nulls reach the ROI boundary).
 
 ``oversampling = "auto"`` (:func:`auto_design`) picks, among the O whose pruned codebook
 has at most ``n_rf`` beams (one per RF chain, paper Sec. 2.1), the largest beam count
@@ -61,7 +64,7 @@ HOLE_LOSS_DB = 13.26
 #: Sampling of the ROI: a grid of this many points per axis (inside the ellipse) plus
 #: this many points on its boundary (the worst point is usually there or where four
 #: beams meet; tests check the sampled worst against a 4x finer grid to 0.1 dB).
-N_GRID, N_EDGE = 201, 1440
+N_GRID, N_EDGE = 201, 5760
 #: Fractions of an O interval tried by ``auto`` (the ends are avoided: there a beam
 #: boresight lies exactly on the ROI boundary and rounding would change the count).
 _TRIES = np.linspace(0.1, 0.9, 9)
@@ -107,8 +110,8 @@ class CodebookDesign:
 
     @property
     def overlapping(self) -> bool:
-        """Neighbouring main lobes touch: ``O >= 1``."""
-        return self.oversampling >= 1.0
+        """Neighbouring main lobes touch: ``O >= 1`` (a single beam has no neighbour)."""
+        return self.oversampling >= 1.0 or self.n_beam == 1
 
     @property
     def holes(self) -> bool:

@@ -42,10 +42,11 @@ def _hole_text(design):
     )
     if not design.overlapping:
         return (
-            f"at O = {design.oversampling:.3g} (< 1: neighbouring main lobes do not touch) {where}"
+            f"at O = {design.oversampling:.4g} (< 1: each beam's neighbour peaks beyond its "
+            f"first null) {where}"
         )
     return (
-        f"at O = {design.oversampling:.3g} {where}, more than a beam's first sidelobe "
+        f"at O = {design.oversampling:.4g} {where}, more than a beam's first sidelobe "
         f"({HOLE_LOSS_DB} dB)"
     )
 
@@ -58,7 +59,7 @@ def _fix_text(sub, geometry):
         return "use smaller subarrays (more RF chains) or a smaller ROI"
     return (
         f"{hint}a codebook without holes needs {best.n_beam} beams (O = "
-        f"{best.oversampling:.3g}, worst {best.loss.loss_db:.1f} dB): use at least "
+        f"{best.oversampling:.4g}, worst {best.loss.loss_db:.1f} dB): use at least "
         f"{best.n_beam} RF chains (satellite_array.n_rf_x x n_rf_y), smaller subarrays or a "
         "smaller ROI (roi.semi_axis_x_m, roi.semi_axis_y_m)"
     )
