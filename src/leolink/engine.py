@@ -26,14 +26,8 @@ from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
 
-__all__ = [
-    "SERVE_COLUMNS",
-    "SERVE_GEOMETRY_COLUMNS",
-    "LinkEngine",
-    "LinkParams",
-    "Snapshot",
-    "reuse_colors",
-]
+__all__ = ["SERVE_COLUMNS", "SERVE_GEOMETRY_COLUMNS", "LinkEngine", "LinkParams", "Snapshot"]
+__all__ += ["reuse_colors"]
 
 #: Columns of :meth:`LinkEngine.serve`, one value per UT.
 SERVE_COLUMNS = (

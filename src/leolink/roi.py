@@ -130,10 +130,12 @@ def in_ellipse(x_m, y_m, rx_m, ry_m):
     return (np.asarray(x_m) / rx_m) ** 2 + (np.asarray(y_m) / ry_m) ** 2 <= 1.0
 
 
-#: Instants sampled in the pass window before the golden-section refinement.
-_PASS_SAMPLES = 97
-#: Golden-section steps refining the overhead instant (the bracket shrinks 0.618x each).
-_PASS_REFINE = 48
+#: Instants sampled in the pass window before the golden-section refinement, and how
+#: many of them one ephemeris call evaluates (every satellite's state: bounded memory).
+_PASS_SAMPLES, _PASS_BLOCK = 97, 8
+#: Golden-section steps refining the overhead instant: the bracket (two samples, ~2.5 min
+#: for a LEO pass) shrinks 0.618x each, to < 1 ms.
+_PASS_REFINE = 36
 
 
 def _sin_elevation(sat_pos_m, site_pos_m, site_up):
@@ -179,7 +181,13 @@ def closest_overhead_pass(ephemeris, t0_s, site_pos_m, site_up, gm_m3_s2=3.98600
     k = int(np.argmax(_sin_elevation(pos0, site, up)))
     period_s = 2.0 * np.pi * np.sqrt(np.sum(pos0[k] ** 2) ** 1.5 / gm_m3_s2)
     grid = t0_s + np.linspace(-period_s / 8.0, period_s / 8.0, _PASS_SAMPLES)
-    s = _sin_elevation(ephemeris(grid)[0][:, k], site, up)
+    # In blocks of a few instants: an ephemeris call holds every satellite's state.
+    s = np.concatenate(
+        [
+            _sin_elevation(ephemeris(grid[i : i + _PASS_BLOCK])[0][:, k], site, up)
+            for i in range(0, len(grid), _PASS_BLOCK)
+        ]
+    )
     i = int(np.argmax(s))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
 
@@ -187,12 +195,17 @@ def closest_overhead_pass(ephemeris, t0_s, site_pos_m, site_up, gm_m3_s2=3.98600
         return _sin_elevation(ephemeris(np.array([t]))[0][0, k], site, up)
 
     golden = (np.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - golden * (b - a), a + golden * (b - a)
+    fc, fd = sin_el(c), sin_el(d)
     for _ in range(_PASS_REFINE):  # the elevation is unimodal near its maximum
-        c, d = b - golden * (b - a), a + golden * (b - a)
-        if sin_el(c) >= sin_el(d):
-            b = d
+        if fc >= fd:  # one new evaluation per step: the other point is reused
+            b, d, fd = d, c, fc
+            c = b - golden * (b - a)
+            fc = sin_el(c)
         else:
-            a = c
+            a, c, fc = c, d, fd
+            d = a + golden * (b - a)
+            fd = sin_el(d)
     t = 0.5 * (a + b)
     pos, vel, _ = ephemeris(np.array([t]))
     return k, float(t), pos[0, k], vel[0, k]

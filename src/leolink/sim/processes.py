@@ -75,8 +75,8 @@ class SimState:
     snapshot: Snapshot | None = None  # engine Snapshot of the candidate satellites
     cand_sats: np.ndarray | None = None  # global ids of the snapshot's satellites
     decision: StepResult | None = None  # controller decision (ids global)
-    best_cand: np.ndarray | None = None  # (n_ut,) best candidate, index into the snapshot
-    best_snr_db: np.ndarray | None = None  # (n_ut,) its SNR [dB], NaN if none
+    best_snr_db: np.ndarray | None = None  # (n_ut,) the best candidate's SNR [dB], NaN if none
+    best_unserved: tuple | None = None  # (UTs without a serving link, their best candidate)
     n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
 
     @property
@@ -189,14 +189,24 @@ class _Decider:
         )
         n_ut = len(state.ut_pos_m)
         snr = snap.snr_db.reshape(n_ut, -1)
-        state.best_cand, state.best_snr_db = best_candidate(snr)
+        # The best candidate's SNR of every UT (also in outage); which candidate it is is
+        # needed only where no candidate serves (the geometry of outage rows).
+        with np.errstate(invalid="ignore"):
+            state.best_snr_db = (
+                np.fmax.reduce(snr, axis=1) if snr.shape[1] else np.full(n_ut, np.nan)
+            )
         state.n_visible = snap.visible.sum(axis=1)
         future = None
         if self.policy.lookahead_s > 0.0:
             ut_f, sat_pos_f, sat_vel_f = self.future_state(state.t_s + self.policy.lookahead_s)
-            future = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats]).snr_db.reshape(n_ut, -1)
+            # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
+            # for an aircraft over 10 s.
+            snap_f = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats], ut_enu=enu)
+            future = snap_f.snr_db.reshape(n_ut, -1)
         whole = len(sats) == len(state.sat_pos_m)  # every satellite: ids need no translation
         res = self._step(state, snr, future, None if whole else sats)
+        unserved = np.flatnonzero(res.local_sat < 0)
+        state.best_unserved = (unserved, best_candidate(snr[unserved])[0])
         state.snapshot, state.cand_sats, state.decision = snap, sats, res
         state.controller = res.state
 
@@ -274,9 +284,11 @@ class _Monitor:
         if self.ut_id is None:
             self.ut_id = np.arange(n_ut, dtype=np.int64)
         sats = state.cand_sats
-        best = state.best_cand
-        geo_sat = np.where(res.local_sat >= 0, res.local_sat, np.where(best >= 0, best // nb, -1))
-        geo_beam = np.where(res.local_sat >= 0, res.beam_id, np.where(best >= 0, best % nb, -1))
+        geo_sat, geo_beam = res.local_sat.copy(), res.beam_id.copy()
+        unserved, best = state.best_unserved
+        if unserved.size:  # outage rows: the best candidate's geometry, where there is one
+            geo_sat[unserved] = np.where(best >= 0, best // nb, -1)
+            geo_beam[unserved] = np.where(best >= 0, best % nb, -1)
         cols = self.engine.serve(
             snap,
             geo_sat,
