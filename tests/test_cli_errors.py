@@ -132,8 +132,20 @@ def test_validate_paper_table_roi_leaves_gaps(capsys):
     assert f"condition {value:.2f} > 1" in out
 
 
-def test_validate_derived_roi_covers(capsys):
-    assert main(["validate", PAPER, "--set", "roi.semi_axis_y_m=272400"]) == 0
+def test_validate_derived_roi_covers_but_the_papers_codebook_cannot(capsys):
+    """The ROI of Sec. 3.1 closes the coverage condition, but 15 beams of the paper's
+    12 x 24 subarrays cannot cover it: validate builds the codebook and says so (it used
+    to pass a config that ``run`` refused)."""
+    derived = ["--set", "roi.semi_axis_y_m=272400"]
+    assert main(["validate", PAPER, *derived]) == 2
+    err = capsys.readouterr().err
+    assert "gives 21 beams over the 534.1 x 272.4 km ROI, but 15 RF chains" in err
+    auto = ["--set", 'satellite_array.oversampling="auto"']
+    assert main(["validate", PAPER, *derived, *auto]) == 2
+    assert "a codebook without holes needs 21 beams" in capsys.readouterr().err
+    holes = ["--set", "satellite_array.allow_holes=true"]
+    assert main(["validate", PAPER, *derived, *auto, *holes]) == 0
     out = capsys.readouterr().out
     assert _coverage_value(534.1, 272.4) <= 1.0
     assert "534.1 x 272.4 km covers the Earth" in out
+    assert "13 beams for 15 RF chains (2 idle)" in out

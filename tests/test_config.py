@@ -409,7 +409,14 @@ def test_walker_and_hysteresis_examples():
     c = w.constellation
     assert (c.kind, c.n_planes, c.sats_per_plane, c.inclination_deg) == ("walker", 12, 10, 53.0)
     assert (c.altitude_m, c.min_elevation_deg, w.run.duration_s) == (1300e3, 25.0, 600.0)
-    assert w.roi.semi_axis_x_m is None and w.roi.semi_axis_y_m is None
+    # The ROI is the cap seen above the 25 deg mask: by the law of sines at the UT, the
+    # off-nadir angle is asin(R cos(el) / (R + h)), the central angle 90 - el - that, and
+    # the ROI-plane radius R tan(central) (gnomonic); the config rounds to 0.1 km.
+    el, r, h = math.radians(25.0), w.earth.radius_m, c.altitude_m
+    central = math.pi / 2 - el - math.asin(r * math.cos(el) / (r + h))
+    assert (
+        w.roi.semi_axis_x_m == w.roi.semi_axis_y_m == pytest.approx(r * math.tan(central), abs=100)
+    )
     h = _example("hysteresis").controller
     assert (
         h.policy,
@@ -435,7 +442,8 @@ def test_tle_example_puts_the_iss_over_the_roi_centre_at_60_s():
     lines = Path(cfg.constellation.tle_file).read_text(encoding="utf-8").splitlines()
     ts = skyfield_api.load.timescale(builtin=True)
     sat = skyfield_api.EarthSatellite(lines[1], lines[2], lines[0], ts)
-    t0 = datetime.fromisoformat(cfg.constellation.tle_epoch_utc)
+    t0 = datetime.fromisoformat(cfg.run.start_utc)
+    assert cfg.utc_of_time_zero() == t0
     # simulation time 0 is 60 s before the TLE epoch (to the TLE's 1e-8 day = 1 ms)
     assert (sat.epoch.utc_datetime() - t0).total_seconds() == pytest.approx(60.0, abs=1e-3)
     x, y, z = sat.at(ts.from_datetime(t0 + timedelta(seconds=60))).frame_xyz(itrs).m

@@ -130,7 +130,8 @@ def test_immediate_switch_when_serving_becomes_unusable():
     _, events, _ = run(Hysteresis(3.0, time_to_trigger_s=100.0), snr, n_beam=2)
     assert events["time_s"].tolist() == [2.0]
     assert events["to_beam"].tolist() == [1]
-    assert np.isnan(events["snr_before_db"][0]) and events["snr_after_db"][0] == 8.0
+    # the serving link vanished (NaN at t = 2): snr_before_db is its last value, 10 dB at t = 1
+    assert events["snr_before_db"][0] == 10.0 and events["snr_after_db"][0] == 8.0
     # below min_snr_db (not NaN) is unusable too
     snr[:, 0, 0] = [10, 10, -1.0, -1.0, 10, 10]
     _, events, _ = run(Hysteresis(3.0, time_to_trigger_s=100.0), snr, n_beam=2)

@@ -12,6 +12,7 @@ from leolink.io.summary import SummaryAccumulator, grouped_percentiles
 from leolink.io.tables import TRACE_COLUMNS, EventLog, TraceWriter
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES, ControllerState, close_dwells, step
 from leolink.sim.policies import MaxSnr
+from leolink.sim.processes import OUTAGE_REASONS
 
 # float32 sample storage: relative rounding 6e-8, i.e. < 1e-5 dB for |SNR| < 100 dB.
 FLOAT32_DB = 1e-5
@@ -32,6 +33,11 @@ def random_epoch(rng, t_s, n_ut):
     cols["throughput_bps"] = np.abs(cols["throughput_bps"]) * 1e4
     cols["angular_speed_deg_s"] = np.abs(cols["angular_speed_deg_s"]) * 1e-3
     cols["service"] = service
+    # diagnostics: a reason per service (outage: either of its two reasons), counts, names
+    cols["n_visible"] = np.where(service == 2, rng.integers(0, 2, n_ut), rng.integers(1, 9, n_ut))
+    cols["outage_reason"] = np.where(service == 2, 3 - (cols["n_visible"] == 0), service)
+    cols["population"] = np.asarray(["static", "car", "train"], dtype=object)[np.arange(n_ut) % 3]
+    cols["interruption_s"] = np.where(service == 1, rng.uniform(0.0, 1.0, n_ut), 0.0)
     return cols
 
 
@@ -43,6 +49,7 @@ def random_trace(seed=0, n_epoch=30, n_ut=7):
 def as_frame(epochs):
     df = pd.DataFrame({k: np.concatenate([e[k] for e in epochs]) for k in TRACE_COLUMNS})
     df["service"] = np.asarray(SERVICE_NAMES)[df["service"]]
+    df["outage_reason"] = np.asarray(OUTAGE_REASONS)[df["outage_reason"]]
     return df
 
 
@@ -152,7 +159,7 @@ def test_summary_matches_pandas(tmp_path):
     epochs = random_trace(seed=7, n_epoch=40, n_ut=5)
     rng = np.random.default_rng(8)
     results, tail = run_controller(rng.normal(5.0, 4.0, (40, 5, 4)))
-    acc = SummaryAccumulator(5)
+    acc = SummaryAccumulator(5, epoch_s=0.1)  # random_trace steps 0.1 s
     for e, r in zip(epochs, results, strict=True):
         acc.add_trace(e)
         acc.add_events(r.events)
@@ -172,6 +179,11 @@ def test_summary_matches_pandas(tmp_path):
         rows = g.get_group(i)
         assert ut["n_epochs"] == len(rows)
         assert ut["outage_fraction"] == pytest.approx((rows["service"] == "outage").mean())
+        by_reason = ut["outage_fraction_by_reason"]
+        for reason in ("no_satellite", "below_threshold"):
+            assert by_reason[reason] == pytest.approx((rows["outage_reason"] == reason).mean())
+        gap = rows["interruption_s"].sum() / (len(rows) * 0.1)
+        assert ut["handover_interruption_fraction"] == by_reason["handover"] == pytest.approx(gap)
         assert ut["mean_throughput_bps"] == pytest.approx(rows["throughput_bps"].fillna(0).mean())
         assert ut["max_abs_doppler_hz"] == pytest.approx(rows["doppler_hz"].abs().max())
         assert ut["max_angular_speed_deg_s"] == pytest.approx(rows["angular_speed_deg_s"].max())

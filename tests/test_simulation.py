@@ -198,14 +198,31 @@ def test_time_to_trigger_delays_handovers_by_the_configured_time():
     np.testing.assert_allclose(ttt.time_s.to_numpy() - plain.time_s.to_numpy(), 3.0)
 
 
-def test_handover_time_interrupts_service():
-    cfg = _with_controller(_centre_only(_one_ut()), handover_time_s=2.0)
+@pytest.mark.parametrize("handover_s", [2.0, 2.5, 0.3])
+def test_handover_time_interrupts_service_until_it_ends(handover_s):
+    """Service stops at the handover and resumes at t + handover_time_s exactly: whole
+    epochs inside carry no throughput, the epoch where it resumes carries its served part,
+    and a ``service_resumed`` event is stamped with the resume time."""
+    cfg = _with_controller(_centre_only(_one_ut()), handover_time_s=handover_s)
+    plain = run(_with_controller(cfg, handover_time_s=0.0)).trace.set_index("time_s")
     res = run(cfg)
-    tr = res.trace
-    for t in res.events.time_s:
-        rows = tr[(tr.time_s >= t) & (tr.time_s < t + 2.0)]
-        assert (rows.service == "handover").all()
-        assert (rows.throughput_bps == 0).all()
+    tr, ev = res.trace.set_index("time_s"), res.events
+    handovers = ev[ev.kind.str.endswith("handover")]
+    resumed = ev[ev.kind == "service_resumed"]
+    assert len(handovers) == len(resumed) > 0
+    np.testing.assert_allclose(resumed.time_s.to_numpy(), handovers.time_s.to_numpy() + handover_s)
+    for t in handovers.time_s:
+        for k in range(int(np.ceil(handover_s)) + 1):
+            row, ref = tr.loc[t + k], plain.loc[t + k]
+            gap = min(max(handover_s - k, 0.0), 1.0)  # the epoch is [t + k, t + k + 1)
+            assert row.interruption_s == pytest.approx(gap, abs=1e-12)
+            assert row.service == ("handover" if gap > 0 else "served")
+            assert row.throughput_bps == pytest.approx(ref.throughput_bps * (1 - gap), rel=1e-12)
+    s = res.summary["overall"]
+    n_ut_s = len(tr) * cfg.run.epoch_s
+    assert s["handover_interruption_fraction"] == pytest.approx(
+        len(handovers) * handover_s / n_ut_s, abs=1e-12
+    )
 
 
 def test_walker_constellation_gives_satellite_handovers():

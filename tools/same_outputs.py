@@ -1,6 +1,6 @@
 """Check that a change keeps every example's outputs byte-identical.
 
-    python tools/same_outputs.py --base REV [--keep DIR]
+    python tools/same_outputs.py --base REV [--keep DIR] [--common]
 
 Runs ``leolink run CONFIG --parquet`` for ``configs/paper.toml`` and every
 ``configs/examples/*.toml`` twice: with the code and configs of ``REV`` (a temporary git
@@ -8,6 +8,10 @@ worktree) and with those of the working tree; then compares ``trace.csv``,
 ``trace.parquet`` (as tables), ``events.csv`` and ``summary.json`` (without the wall
 time). Prints one line per config and exits 1 if anything differs. Speed aside, a
 refactoring must pass this.
+
+``--common``: when the output contract grew (new trace columns, summary keys), compare
+only what ``REV`` wrote: its trace columns, cell by cell as text (CSV) or exactly
+(Parquet), its event rows, and its summary keys (recursively; new keys are ignored).
 """
 
 from __future__ import annotations
@@ -55,6 +59,39 @@ def _summary(path):
     return data
 
 
+def _subset(base, head):
+    """Whether every key of ``base`` is in ``head`` with an equal value (recursively)."""
+    if isinstance(base, dict):
+        return isinstance(head, dict) and all(
+            k in head and _subset(v, head[k]) for k, v in base.items()
+        )
+    if isinstance(base, list):
+        return (
+            isinstance(head, list)
+            and len(base) == len(head)
+            and all(_subset(x, y) for x, y in zip(base, head, strict=True))
+        )
+    return base == head
+
+
+def same_common(a, b, name):
+    """Equal on what the base file ``a`` holds (see the module docstring)."""
+    if not a.exists() or not b.exists():
+        return a.exists() == b.exists()
+    if name == "summary.json":
+        return _subset(_summary(a), _summary(b))
+    import pandas as pd
+
+    if name == "trace.parquet":
+        import pyarrow.parquet as pq
+
+        base = pq.read_table(a).to_pandas()
+        return base.equals(pq.read_table(b, columns=list(base.columns)).to_pandas())
+    base = pd.read_csv(a, dtype=str, keep_default_na=False)
+    head = pd.read_csv(b, dtype=str, keep_default_na=False)
+    return set(base.columns) <= set(head.columns) and base.equals(head[list(base.columns)])
+
+
 def same(a, b, name):
     if not a.exists() or not b.exists():
         return a.exists() == b.exists()
@@ -71,7 +108,11 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--base", required=True, help="git revision to compare against")
     parser.add_argument("--keep", help="keep the outputs in this folder")
+    parser.add_argument(
+        "--common", action="store_true", help="compare only the columns and keys REV wrote"
+    )
     args = parser.parse_args(argv)
+    compare = same_common if args.common else same
     work = Path(args.keep or tempfile.mkdtemp(prefix="same_outputs_"))
     base_tree = work / "base_tree"
     if not base_tree.exists():
@@ -93,7 +134,7 @@ def main(argv=None):
         diffs = [
             n
             for n in COMPARED
-            if not same(work / "base" / cfg.stem / n, work / "head" / cfg.stem / n, n)
+            if not compare(work / "base" / cfg.stem / n, work / "head" / cfg.stem / n, n)
         ]
         bad += bool(diffs)
         print(f"{cfg.stem:>12}: {'identical' if not diffs else 'DIFFERS: ' + ', '.join(diffs)}")

@@ -34,6 +34,8 @@ def _config(args):
 def cmd_validate(args) -> int:
     import math
 
+    from leolink.app.run import run_notes
+    from leolink.app.scenario import build_scenario
     from leolink.roi import check_coverage
 
     cfg = _config(args)
@@ -43,6 +45,9 @@ def cmd_validate(args) -> int:
         rx, ry, c.n_planes, c.sats_per_plane, math.radians(c.inclination_deg), cfg.earth.radius_m
     )
     _check_files(cfg)
+    # Build what a run builds (codebook, ephemeris, populations, tracks): a config that
+    # validates also runs.
+    notes, _, _ = run_notes(cfg, build_scenario(cfg))
     n_ut = sum(max(p.n_ut, 0) for p in cfg.population)
     n_pop = len(cfg.population)
     print(
@@ -50,6 +55,8 @@ def cmd_validate(args) -> int:
         "besides recorded tracks)"
     )
     print(verdict.message)
+    for note in notes:
+        print(note)
     return 0
 
 
@@ -94,6 +101,7 @@ def cmd_codebook(args) -> int:
         print(json.dumps(info, indent=2))
     else:
         print(f"oversampling O = {info['oversampling']:.4g}, {len(info['beams'])} beams")
+        print(info["design"])
         cols = ["beam_id", "u_x", "u_y", "x_m", "y_m", "lat_deg", "lon_deg"]
         print("  ".join(f"{c:>10}" for c in cols))
         for b in info["beams"]:
@@ -126,6 +134,9 @@ def cmd_run(args) -> int:
     _check_files(cfg)
     with progress_bar("leolink run", enabled=not args.quiet) as progress:
         result = run(cfg, out_dir=Path(args.out), progress=progress)
+    for note in result.summary["run"]["notes"]:
+        if not args.quiet or note.startswith("UT "):  # held tracks are shown even if quiet
+            print(f"note: {note}", file=sys.stderr)
     if not args.quiet:
         o, r = result.summary["overall"], result.summary["run"]
         print(

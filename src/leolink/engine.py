@@ -22,11 +22,12 @@ import numpy as np
 from leolink.antenna.array import dirichlet_kernels
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.geometry import body_frame
+from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
 
-__all__ = ["SERVE_COLUMNS", "LinkEngine", "LinkParams", "Snapshot", "reuse_colors"]
+__all__ = ["SERVE_COLUMNS", "SERVE_GEOMETRY_COLUMNS", "LinkEngine", "LinkParams", "Snapshot"]
+__all__ += ["reuse_colors"]
 
 #: Columns of :meth:`LinkEngine.serve`, one value per UT.
 SERVE_COLUMNS = (
@@ -46,6 +47,9 @@ SERVE_COLUMNS = (
     "doppler_rate_hz_s",
     "angular_speed_deg_s",
 )
+#: Further per-UT columns of :meth:`LinkEngine.serve`: the satellite's azimuth from the
+#: UT, from north clockwise [deg], in the UT's local frame.
+SERVE_GEOMETRY_COLUMNS = ("azimuth_deg",)
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,10 @@ class Snapshot:
         With other-satellite interference: the path without the UT gain, (n_ut, n_sat),
         zero below the horizon; each satellite's direction in the UT panel's cosines,
         (n_ut, n_sat, 2).
+    ut_pos_m : ndarray, shape (n_ut, 3), or None
+    ut_enu : ndarray, shape (n_ut, 3, 3), or None
+        The UTs' local east, north, up rows when given to :meth:`LinkEngine.evaluate`
+        (WGS 84); None: the sphere's, from the positions.
     """
 
     engine: LinkEngine = field(repr=False)
@@ -99,6 +107,8 @@ class Snapshot:
     rx_db: np.ndarray | float
     path_no_rx_lin: np.ndarray | None = None
     u_panel: np.ndarray | None = None
+    ut_pos_m: np.ndarray | None = None
+    ut_enu: np.ndarray | None = None
 
     @cached_property
     def gain_tx_bm(self):
@@ -200,7 +210,7 @@ class LinkEngine:
     def n_beam(self) -> int:
         return len(self.beam_ix)
 
-    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s):
+    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None):
         """Geometry, gains and SNR for every (UT, satellite, beam).
 
         Parameters
@@ -208,6 +218,9 @@ class LinkEngine:
         ut_pos_m : ndarray, shape (n_ut, 3)
         sat_pos_m, sat_vel_m_s : ndarray, shape (n_sat, 3)
             Same Earth-centred frame as ``ut_pos_m``.
+        ut_enu : ndarray, shape (n_ut, 3, 3), optional
+            Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
+            elevations, azimuths and panel frames use them. None: the sphere's radial up.
 
         Returns
         -------
@@ -217,8 +230,11 @@ class LinkEngine:
         rel = ut_pos_m[:, None, :] - sat_pos_m[None, :, :]  # satellite -> UT, (n_ut, n_sat, 3)
         rho2 = np.einsum("usk,usk->us", rel, rel)
         rho = np.sqrt(rho2)
-        r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))
-        sin_el = -np.einsum("usk,uk->us", rel, ut_pos_m) / (rho * r_ut[:, None])
+        if ut_enu is None:
+            r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))
+            sin_el = -np.einsum("usk,uk->us", rel, ut_pos_m) / (rho * r_ut[:, None])
+        else:
+            sin_el = -np.einsum("usk,uk->us", rel, ut_enu[:, 2, :]) / rho
         elevation = np.arcsin(np.clip(sin_el, -1.0, 1.0))
         visible = elevation >= p.min_elevation_rad
 
@@ -242,11 +258,13 @@ class LinkEngine:
         snap = Snapshot(
             self, rel, rho, elevation, visible, np.where(visible, path, np.nan), kx, ky, rx_db
         )
+        snap.ut_pos_m, snap.ut_enu = ut_pos_m, ut_enu
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
             # the UT gain, and its direction in the UT panel frame.
             snap.path_no_rx_lin = np.where(elevation > 0.0, path / 10.0 ** (rx_db / 10.0), 0.0)
-            snap.u_panel = panel_direction_cosines(panel_basis(ut_pos_m), -rel / rho[..., None])
+            basis = panel_basis(ut_pos_m) if ut_enu is None else ut_enu
+            snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
         return snap
 
     def serve(
@@ -280,7 +298,7 @@ class LinkEngine:
         """
         _, n_sat, n_ut = snap.kx.shape
         if n_sat == 0:  # no satellite to serve anyone this epoch
-            return {name: np.full(n_ut, np.nan) for name in SERVE_COLUMNS}
+            return {name: np.full(n_ut, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
         served = sat_idx >= 0
         u = np.arange(n_ut)
         s = np.where(served, sat_idx, 0)
@@ -339,7 +357,20 @@ class LinkEngine:
                 "doppler_ut_hz": kin["doppler_ut_hz"] * nan,
                 "doppler_rate_hz_s": kin["doppler_rate_hz_s"] * nan,
                 "angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,
+                "azimuth_deg": self._azimuth_deg(snap, us) * nan,
             }
+
+    @staticmethod
+    def _azimuth_deg(snap, us):
+        """Azimuth of each UT's link (flat index ``us`` into (n_ut, n_sat)) [deg], [0, 360)."""
+        los = -snap.rel_m.reshape(-1, 3)[us]  # UT -> satellite
+        enu = snap.ut_enu
+        if enu is None:
+            lat, lon, _ = ecef_to_geodetic(snap.ut_pos_m)
+            enu = enu_basis(lat, lon)
+        east = np.einsum("uk,uk->u", los, enu[:, 0, :])
+        north = np.einsum("uk,uk->u", los, enu[:, 1, :])
+        return np.mod(np.degrees(np.arctan2(east, north)), 360.0)
 
     def _other_satellites_interference(self, snap, s, b, u):
         """Interference over noise from the beams of the other satellites, per UT.

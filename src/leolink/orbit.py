@@ -318,12 +318,21 @@ class Ephemeris:
         return cls(propagate, e.n_sat, earth_rotation, gmst0_rad)
 
     @classmethod
-    def from_tles(cls, tles, epoch_jd, epoch_fr=0.0, earth_rotation=True, gm_m3_s2=GM_EARTH_M3_S2):
+    def from_tles(
+        cls,
+        tles,
+        epoch_jd,
+        epoch_fr=0.0,
+        earth_rotation=True,
+        gm_m3_s2=GM_EARTH_M3_S2,
+        ut1_minus_utc_s=0.0,
+    ):
         """TLEs (``(name, line1, line2)`` tuples or ``Satrec`` objects) via sgp4.
 
-        ``t_s`` counts from the Julian date ``epoch_jd + epoch_fr`` [day]. With Earth
-        rotation, the rotation angle at that epoch is sgp4's GMST (TEME -> pseudo-ECEF,
-        polar motion neglected).
+        ``t_s`` counts from the UTC Julian date ``epoch_jd + epoch_fr`` [day] (TLE epochs
+        are UTC). With Earth rotation, the rotation angle at that epoch is GMST82 of
+        ``UT1 = UTC + ut1_minus_utc_s`` (sgp4's ``gstime``; TEME -> Earth-fixed, polar
+        motion neglected, as skyfield without a polar-motion table).
         """
         from sgp4.api import Satrec, SatrecArray
         from sgp4.propagation import gstime
@@ -343,7 +352,7 @@ class Ephemeris:
             frac = epoch_fr + t / SECONDS_PER_DAY
             return tle_state(arr, np.full_like(t, float(epoch_jd)), frac, gm_m3_s2)
 
-        gmst0 = gstime(float(epoch_jd) + float(epoch_fr))
+        gmst0 = gstime(float(epoch_jd) + (float(epoch_fr) + ut1_minus_utc_s / SECONDS_PER_DAY))
         return cls(propagate, len(sats), earth_rotation, gmst0, names)
 
     def state(self, t_s):

@@ -206,6 +206,25 @@ def _critical_oversampling(n_sub_x, n_sub_y, rx_m, ry_m, altitude_m, radius_m, k
     return ij, np.hypot(vx, vy) / _roi_radius_to_u(rho_edge_m, altitude_m, radius_m)
 
 
+def beam_count_steps(n_sub_x, n_sub_y, rx_m, ry_m, altitude_m, radius_m=EARTH_RADIUS_M, k_max=64):
+    """The beam count of the pruned codebook as a step function of O, computed exactly.
+
+    Returns
+    -------
+    edges : ndarray, shape (m,)
+        Ascending O at which lattice points enter the ROI.
+    count : ndarray of int, shape (m,)
+        Beams for O in ``[edges[k], edges[k + 1])`` (1 beam, the boresight, below
+        ``edges[0]``).
+    """
+    _check_roi(rx_m, ry_m, altitude_m, radius_m)
+    ij, o_c = _critical_oversampling(n_sub_x, n_sub_y, rx_m, ry_m, altitude_m, radius_m, k_max)
+    mult = np.where(ij[:, 0] > 0, 2, 1) * np.where(ij[:, 1] > 0, 2, 1)  # +-i, +-j copies
+    edges, inv = np.unique(o_c, return_inverse=True)
+    count = 1 + np.cumsum(np.bincount(inv.ravel(), weights=mult)).astype(np.int64)
+    return edges, count
+
+
 def oversampling_interval(
     n_sub_x, n_sub_y, n_rf, rx_m, ry_m, altitude_m, radius_m=EARTH_RADIUS_M, k_max=64
 ):
@@ -220,13 +239,7 @@ def oversampling_interval(
         If no O gives exactly ``n_rf`` beams (the count jumps over it: symmetric lattice
         points enter in pairs or fours).
     """
-    _check_roi(rx_m, ry_m, altitude_m, radius_m)
-    ij, o_c = _critical_oversampling(n_sub_x, n_sub_y, rx_m, ry_m, altitude_m, radius_m, k_max)
-    mult = np.where(ij[:, 0] > 0, 2, 1) * np.where(ij[:, 1] > 0, 2, 1)  # +-i, +-j copies
-    edges, inv = np.unique(o_c, return_inverse=True)
-    count = 1 + np.cumsum(
-        np.bincount(inv.ravel(), weights=mult)
-    )  # beams for O in [edge_k, edge_k+1)
+    edges, count = beam_count_steps(n_sub_x, n_sub_y, rx_m, ry_m, altitude_m, radius_m, k_max)
     hit = np.flatnonzero(count == n_rf)
     if n_rf == 1:
         return 0.0, float(edges[0])
@@ -263,6 +276,7 @@ def find_oversampling(n_sub_x, n_sub_y, n_rf, rx_m, ry_m, altitude_m, radius_m=E
 __all__ = [
     "CANONICAL_ALONG_TRACK",
     "Codebook",
+    "beam_count_steps",
     "canonical_satellite",
     "build_codebook",
     "dft_lattice",

@@ -40,6 +40,7 @@ __all__ = [
     "LeakyWave",
     "Metasurface",
     "TerminalAntenna",
+    "TerminalGroups",
     "UPATerminal",
     "leaky_wave_gain_lin",
     "leaky_wave_peak_gain_lin",
@@ -236,3 +237,55 @@ class Metasurface:
         el = np.asarray(elevation_rad, dtype=float) + 0.0 * np.asarray(off_boresight_rad)
         with np.errstate(divide="ignore", invalid="ignore"):
             return self.peak_gain_db + self.rolloff * 10.0 * np.log10(np.sin(el))
+
+
+class TerminalGroups:
+    """Different UT antennas for different UTs (one per population), behind one interface.
+
+    The engine calls ``gain_db(elevation_rad)`` and ``pattern_lin(du_x, du_y)`` with the UT
+    axis first, ``(n_ut, ...)``; each group's antenna answers for its UTs. Not
+    ``elevation_independent`` (the gains differ per UT, so the engine cannot take one
+    constant); an elevation-independent member is evaluated once for all its UTs.
+
+    Parameters
+    ----------
+    terminals : sequence of TerminalAntenna
+        The distinct antennas.
+    group : array_like of int, shape (n_ut,)
+        Index into ``terminals`` of each UT's antenna.
+    """
+
+    elevation_independent = False
+
+    def __init__(self, terminals, group):
+        self.terminals = tuple(terminals)
+        self.group = np.asarray(group, np.int64)
+        self._rows = [np.flatnonzero(self.group == g) for g in range(len(self.terminals))]
+        if any(r.size == 0 for r in self._rows) or self.group.min(initial=0) < 0:
+            raise ValueError("TerminalGroups: every terminal needs UTs, every UT a terminal")
+        if all(t.pattern_lin is not None for t in self.terminals):
+            self.pattern_lin = self._pattern_lin
+        else:
+            self.pattern_lin = None
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Receive gain [dB], shape of ``elevation_rad`` (n_ut, ...): each UT's antenna."""
+        el = np.asarray(elevation_rad, float)
+        out = np.empty(el.shape)
+        for term, rows in zip(self.terminals, self._rows, strict=True):
+            if term.elevation_independent:
+                out[rows] = float(term.gain_db(np.pi / 2))
+            else:
+                out[rows] = term.gain_db(el[rows], off_boresight_rad, error_azimuth_rad)
+        return out
+
+    def _pattern_lin(self, du_x, du_y):
+        """Linear gain towards offsets ``(du_x, du_y)`` (n_ut, ...) of each UT's antenna."""
+        du_x, du_y = np.broadcast_arrays(np.asarray(du_x, float), np.asarray(du_y, float))
+        out = np.empty(du_x.shape)
+        for term, rows in zip(self.terminals, self._rows, strict=True):
+            out[rows] = term.pattern_lin(du_x[rows], du_y[rows])
+        return out
+
+    def __repr__(self):
+        return f"TerminalGroups({list(self.terminals)!r}, n_ut={self.group.size})"

@@ -11,7 +11,8 @@ from leolink.antenna.codebook import (
     canonical_satellite,
     footprint_centres,
 )
-from leolink.app.scenario import build_engine, codebook_from_config, track_heading_rad
+from leolink.app.codebook import codebook_design_from_config
+from leolink.app.scenario import build_engine, track_heading_rad
 from leolink.errors import ConfigError
 from leolink.geometry import (
     ecef_to_geodetic,
@@ -78,8 +79,10 @@ def link_budget_at_elevation(cfg, elevation_deg):
 
 
 def codebook_table(cfg):
-    """The codebook as a JSON-ready dict: ``oversampling`` and a list of ``beams``."""
-    cb = codebook_from_config(cfg)
+    """The codebook as a JSON-ready dict: ``oversampling``, the design figures (RF chains,
+    idle chains, worst-case loss inside the ROI and where) and a list of ``beams``."""
+    design = codebook_design_from_config(cfg)
+    cb = design.codebook
     x, y = footprint_centres(cb, cfg.constellation.altitude_m, radius_m=cfg.earth.radius_m)
     # Footprints on the ground at the pass instant, in the ROI frame of the centre.
     lat_c, lon_c = math.radians(cfg.roi.center_lat_deg), math.radians(cfg.roi.center_lon_deg)
@@ -104,6 +107,12 @@ def codebook_table(cfg):
     rx, ry = cfg.roi_semi_axes_m()
     return {
         "oversampling": float(cb.oversampling),
+        "n_rf": design.n_rf,
+        "idle_rf_chains": design.idle_rf,
+        "worst_roi_loss_db": design.loss.loss_db,
+        "worst_roi_point_m": [design.loss.x_m, design.loss.y_m],
+        "holes": design.holes,
+        "design": design.describe(),
         "n_sub_x": int(cb.n_sub_x),
         "n_sub_y": int(cb.n_sub_y),
         "roi_semi_axes_m": [rx, ry],

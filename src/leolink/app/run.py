@@ -14,6 +14,9 @@ from types import SimpleNamespace
 
 import pandas as pd
 
+from leolink.app.codebook import codebook_design_from_config
+from leolink.app.notes import track_coverage, track_notes
+from leolink.app.orbits import earth_orientation, roi_frame
 from leolink.app.scenario import build_scenario
 from leolink.config import dump_toml
 from leolink.io.atomic import write_json_atomic, write_text_atomic
@@ -21,7 +24,7 @@ from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary import SummaryAccumulator
 from leolink.sim.runner import run_simulation
 
-__all__ = ["Result", "run"]
+__all__ = ["Result", "run", "run_notes"]
 
 
 @dataclasses.dataclass
@@ -58,8 +61,23 @@ def _sinks(cfg, out_dir, summary):
     return [summary, *(SINKS.build(name, p, context) for name, p in cfg.output.enabled())]
 
 
+def run_notes(cfg, scen):
+    """The notes of a run (:mod:`leolink.app.notes`) and its track coverage."""
+    design = codebook_design_from_config(cfg)
+    notes = [f"codebook: {design.describe()}"]
+    notes.append(roi_frame(cfg, scen.ephemeris).describe(scen.ephemeris.names))
+    orientation = earth_orientation(cfg)
+    if orientation is not None:
+        notes.append(orientation.note)
+    times = scen.times_s
+    coverage = track_coverage(scen.populations, times, scen.n_warmup, scen.epoch_s)
+    notes += track_notes(coverage, float(times[scen.n_warmup]), float(times[-1]))
+    return notes, coverage, design
+
+
 def _run_section(cfg, scen, stats):
     info = stats.info
+    notes, coverage, design = run_notes(cfg, scen)
     return {
         "n_ut": info.n_ut,
         "n_epochs": info.n_epochs,
@@ -69,6 +87,12 @@ def _run_section(cfg, scen, stats):
         "n_beam": info.n_beam,
         "n_sat": info.n_sat,
         "oversampling": float(scen.engine.codebook.oversampling),
+        "idle_rf_chains": design.idle_rf,
+        "worst_roi_loss_db": design.loss.loss_db,
+        "start_utc": cfg.run.start_utc or None,
+        "earth_model": cfg.earth.model,
+        "track_coverage": coverage,
+        "notes": notes,
         "wall_time_s": stats.wall_time_s,
     }
 

@@ -73,7 +73,21 @@ class ConfigBase(Section):
             )
         if c.kind == "tle" and not c.tle_file:
             raise ValueError("constellation.tle_file is required when constellation.kind = 'tle'")
+        if c.tle_epoch_utc and self.run.start_utc:
+            raise ValueError(
+                f"constellation.tle_epoch_utc = {c.tle_epoch_utc!r} is not allowed together with "
+                f"run.start_utc = {self.run.start_utc!r}: give the start once, as run.start_utc"
+            )
         return self
+
+    def utc_of_time_zero(self):
+        """Aware UTC ``datetime`` of simulation time 0, or None (``run.start_utc``, or the
+        older ``constellation.tle_epoch_utc``)."""
+        from leolink.config.schema import parse_utc
+
+        if self.constellation.tle_epoch_utc:
+            return parse_utc("constellation.tle_epoch_utc", self.constellation.tle_epoch_utc)
+        return self.run.utc_of_time_zero()
 
     def roi_semi_axes_m(self) -> tuple[float, float]:
         """ROI semi-axes: the configured ones, else the paper's design (Sec. 3.1)."""
@@ -114,8 +128,7 @@ def _model(gen):
         "atmosphere": sel("AtmosphereSection", REGISTRIES["atmosphere.model"], "model", "fixed",
                           doc="atmospheric loss model"),
         "satellite_array": SatelliteArraySection,
-        "terminal": sel("TerminalSection", REGISTRIES["terminal.kind"], "kind", "upa",
-                        doc="UT antenna"),
+        "terminal": kinds.terminal_section(),
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),
         "output": kinds.output_section(REGISTRIES["output"]),

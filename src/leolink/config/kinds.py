@@ -25,7 +25,14 @@ from pydantic import Discriminator, Field, Tag, create_model
 from leolink.config.schema import Section
 from leolink.registry import REGISTRIES, Params, Registry, generation
 
-__all__ = ["OWNERS", "SelectorSection", "OutputSection", "load_owners", "population_union"]
+__all__ = [
+    "OWNERS",
+    "OutputSection",
+    "SelectorSection",
+    "load_owners",
+    "population_union",
+    "terminal_section",
+]
 
 #: Modules that own a registry or register entries (imported before a schema is built).
 OWNERS = (
@@ -115,9 +122,22 @@ def _kind_of(value):
 
 
 @functools.cache
+def _terminal_section(gen):
+    del gen  # cache key only
+    registry = REGISTRIES["terminal.kind"]
+    return selector_section("TerminalSection", registry, "kind", "upa", doc="UT antenna")
+
+
+def terminal_section():
+    """The ``[terminal]`` model; a ``[[population]]`` may carry a table of the same shape."""
+    return _terminal_section(generation())
+
+
+@functools.cache
 def _population_models(gen):
     del gen  # cache key only
     registry = REGISTRIES["population.kind"]
+    terminal = terminal_section()
     models = []
     for name in registry.names():
         base = registry[name].config
@@ -125,6 +145,14 @@ def _population_models(gen):
             f"{name.title().replace('_', '')}Population",
             __base__=base,
             kind=(Literal[name], Field(name, description="motion model")),  # type: ignore[valid-type]
+            terminal=(
+                terminal | None,
+                Field(
+                    None,
+                    description="this population's UT antenna, a table shaped as [terminal] "
+                    "(none: the [terminal] section)",
+                ),
+            ),
         )
         models.append(Annotated[model, Tag(name)])
     return tuple(models)

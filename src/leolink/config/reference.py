@@ -91,7 +91,15 @@ def _section(name, model):
 
 def _populations():
     reg = REGISTRIES["population.kind"]
-    lines = ["## `[[population]]`", "", "`kind` chooses the motion model (default `'static'`).", ""]
+    lines = [
+        "## `[[population]]`",
+        "",
+        "`kind` chooses the motion model (default `'static'`).",
+        "Every kind may also carry `terminal`, its UTs' antenna: a table shaped as",
+        "`[terminal]` (`[population.terminal] kind = ...` and",
+        "`[population.terminal.<kind>]`); without it, the `[terminal]` section.",
+        "",
+    ]
     for entry in reg.names():
         lines += [f"### `kind = '{entry}'`: {reg[entry].doc}", "", *_rows(reg[entry].config)]
     return lines

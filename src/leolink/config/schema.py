@@ -12,6 +12,22 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2
 
+_ISO_EXAMPLE = "e.g. 2019-12-09T16:37:29.363Z"
+
+
+def parse_utc(key, text):
+    """An ISO 8601 date and time as an aware UTC ``datetime`` (naive text is UTC)."""
+    from datetime import UTC, datetime
+
+    try:
+        when = datetime.fromisoformat(text)
+    except ValueError:
+        raise ValueError(
+            f"{key} = {text!r} is not allowed: use an ISO 8601 date and time, {_ISO_EXAMPLE}"
+        ) from None
+    return when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
+
+
 __all__ = [
     "MAX_EPOCHS",
     "ConstellationSection",
@@ -45,9 +61,24 @@ class RunSection(Section):
     start_s: float = _f(0.0, doc="simulation time of the first epoch [s]")
     duration_s: float = _f(120.0, gt=0, doc="simulated time after the warm-up [s]")
     warmup_s: float = _f(0.0, ge=0, doc="simulated time before recording starts [s]")
+    start_utc: str = _f(
+        "",
+        doc="UTC instant of the first epoch, ISO 8601 (none: TLE runs start at the first "
+        "TLE's epoch; needed by tracks with UTC timestamps)",
+    )
+
+    def utc_of_time_zero(self):
+        """Aware ``datetime`` of simulation time 0 (``start_utc - start_s``), or None."""
+        from datetime import timedelta
+
+        if not self.start_utc:
+            return None
+        return parse_utc("run.start_utc", self.start_utc) - timedelta(seconds=self.start_s)
 
     @model_validator(mode="after")
     def _check(self):
+        if self.start_utc:
+            parse_utc("run.start_utc", self.start_utc)
         n_epoch = (self.warmup_s + self.duration_s) / self.epoch_s
         if self.duration_s < self.epoch_s:
             raise ValueError(
@@ -63,7 +94,17 @@ class RunSection(Section):
 
 
 class EarthSection(Section):
-    radius_m: float = _f(EARTH_RADIUS_M, gt=6.0e6, lt=6.5e6, doc="spherical Earth radius [m]")
+    model: Literal["sphere", "wgs84"] = _f(
+        "sphere",
+        doc="shape under the UTs: the paper's sphere, or the WGS 84 ellipsoid (geodetic "
+        "positions, ellipsoidal local frames and elevations)",
+    )
+    radius_m: float = _f(
+        EARTH_RADIUS_M,
+        gt=6.0e6,
+        lt=6.5e6,
+        doc="spherical Earth radius [m] (orbits, ROI plane and codebook use it with either model)",
+    )
     gm_m3_s2: float = _f(GM_EARTH_M3_S2, gt=0, doc="Earth's gravitational parameter [m^3/s^2]")
     rotation: bool = _f(False, doc="rotate the Earth under the orbits (ECEF frame)")
 
@@ -80,21 +121,15 @@ class ConstellationSection(Section):
     )
     ascending: bool = _f(True, doc="kind = 'pass': pass on the ascending half of the orbit")
     tle_file: str = _f("", doc="kind = 'tle': path of a file of two-line element sets")
-    tle_epoch_utc: str = _f("", doc="kind = 'tle': UTC instant of simulation time 0 (ISO 8601)")
+    tle_epoch_utc: str = _f(
+        "", doc="kind = 'tle': UTC instant of simulation time 0 (ISO 8601); prefer run.start_utc"
+    )
     min_elevation_deg: float = _f(10.0, ge=0.0, le=90.0, doc="lowest usable elevation [deg]")
 
     @model_validator(mode="after")
     def _check(self):
         if self.tle_epoch_utc:
-            from datetime import datetime
-
-            try:
-                datetime.fromisoformat(self.tle_epoch_utc)
-            except ValueError:
-                raise ValueError(
-                    f"constellation.tle_epoch_utc = {self.tle_epoch_utc!r} is not allowed: use an "
-                    "ISO 8601 date and time, e.g. 2019-12-09T20:42:09Z"
-                ) from None
+            parse_utc("constellation.tle_epoch_utc", self.tle_epoch_utc)
         return self
 
 
@@ -131,7 +166,14 @@ class SatelliteArraySection(Section):
     n_y: int = _f(72, ge=1, doc="elements cross-track")
     n_rf_x: int = _f(5, ge=1, doc="RF chains (subarrays) along-track")
     n_rf_y: int = _f(3, ge=1, doc="RF chains (subarrays) cross-track")
-    oversampling: float | Literal["auto"] = _f(1.2, doc="DFT oversampling factor O, or 'auto'")
+    oversampling: float | Literal["auto"] = _f(
+        1.2, doc="DFT oversampling factor O, or 'auto' (the most beams the RF chains can drive)"
+    )
+    allow_holes: bool = _f(
+        False,
+        doc="accept a codebook with holes: O < 1, or a point of the ROI more than 13.26 dB "
+        "(a first sidelobe) below every beam's peak",
+    )
 
     @model_validator(mode="after")
     def _check(self):

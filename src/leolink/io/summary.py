@@ -10,6 +10,7 @@ import numpy as np
 
 from leolink.io.atomic import to_jsonable
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
+from leolink.sim.processes import OUTAGE_REASONS
 
 __all__ = ["SummaryAccumulator", "grouped_percentiles"]
 
@@ -70,14 +71,23 @@ def grouped_percentiles(group, values, n_group, q_percent):
     return out
 
 
-def _service_codes(service):
-    service = np.asarray(service)
-    if service.dtype.kind in "iu":
-        return service.astype(np.int64)
-    codes = np.full(service.shape, -1, np.int64)
-    for code, name in enumerate(SERVICE_NAMES):
-        codes[service == name] = code
+def _codes(values, names):
+    """Integer codes of a coded column given as codes or as names (-1: unknown)."""
+    values = np.asarray(values)
+    if values.dtype.kind in "iu":
+        return values.astype(np.int64)
+    codes = np.full(values.shape, -1, np.int64)
+    for code, name in enumerate(names):
+        codes[values == name] = code
     return codes
+
+
+def _service_codes(service):
+    return _codes(service, SERVICE_NAMES)
+
+
+_NO_SATELLITE = OUTAGE_REASONS.index("no_satellite")
+_BELOW_THRESHOLD = OUTAGE_REASONS.index("below_threshold")
 
 
 _PERCENTILES = (5.0, 50.0, 95.0)
@@ -95,14 +105,22 @@ class SummaryAccumulator:
     mean throughput over all epochs, a NaN throughput counting as 0 b/s; max |Doppler| of
     ``doppler_hz``. Dwell mean/median over complete dwells only (not censored by the run
     start or end); censored dwells are listed separately.
+
+    Fractions of UT-time: ``handover_interruption_fraction`` = the ``interruption_s`` of
+    every row (the handover execution time inside each epoch) / (epochs x ``epoch_s``);
+    ``outage_fraction_by_reason``: ``no_satellite`` and ``below_threshold`` = epochs in
+    outage for that reason / epochs (an outage lasts whole epochs; the two add up to
+    ``outage_fraction``), ``handover`` = ``handover_interruption_fraction``.
     """
 
-    def __init__(self, n_ut=0):
+    def __init__(self, n_ut=0, epoch_s=1.0):
+        self.epoch_s = float(epoch_s)
         self._reset(n_ut)
 
     # -- the Sink protocol -------------------------------------------------------------
     def start(self, info):
         """Start a run of ``info.n_ut`` UTs (statistics reset)."""
+        self.epoch_s = float(info.epoch_s)
         self._reset(info.n_ut)
 
     def epoch(self, frame):
@@ -125,6 +143,8 @@ class SummaryAccumulator:
         self.n_ut = int(n_ut)
         zeros = lambda dtype=np.int64: np.zeros(self.n_ut, dtype)  # noqa: E731
         self.n_epochs, self.n_outage, self.n_interrupted = zeros(), zeros(), zeros()
+        self.interrupted_s = zeros(np.float64)
+        self.n_no_satellite, self.n_below_threshold = zeros(), zeros()
         self.throughput_sum = zeros(np.float64)
         self.max_abs_doppler_hz = np.full(self.n_ut, np.nan)
         self.max_angular_speed_deg_s = np.full(self.n_ut, np.nan)
@@ -143,9 +163,19 @@ class SummaryAccumulator:
         self.n_epochs += np.bincount(ut, minlength=n)
         codes = _service_codes(columns["service"])
         self.n_outage += np.bincount(ut, codes == SERVICE_OUTAGE, minlength=n).astype(np.int64)
-        self.n_interrupted += np.bincount(ut, codes == SERVICE_HANDOVER, minlength=n).astype(
-            np.int64
-        )
+        handover = codes == SERVICE_HANDOVER
+        self.n_interrupted += np.bincount(ut, handover, minlength=n).astype(np.int64)
+        # Rows without the interruption_s column (older traces): a whole epoch each.
+        gap = columns.get("interruption_s")
+        gap = np.where(handover, self.epoch_s, 0.0) if gap is None else np.asarray(gap, float)
+        self.interrupted_s += np.bincount(ut, gap, minlength=n)
+        if "outage_reason" in columns:
+            reason = _codes(columns["outage_reason"], OUTAGE_REASONS)
+            for store, code in (
+                (self.n_no_satellite, _NO_SATELLITE),
+                (self.n_below_threshold, _BELOW_THRESHOLD),
+            ):
+                store += np.bincount(ut, reason == code, minlength=n).astype(np.int64)
         tput = np.nan_to_num(np.asarray(columns["throughput_bps"], float), nan=0.0)
         self.throughput_sum += np.bincount(ut, tput, minlength=n)
         np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(columns["doppler_hz"], float)))
@@ -235,7 +265,9 @@ class SummaryAccumulator:
         dwell_ut, dwell_all = self._dwell_summary()
         with np.errstate(invalid="ignore", divide="ignore"):
             outage_fraction = self.n_outage / self.n_epochs
-            interrupted_fraction = self.n_interrupted / self.n_epochs
+            interrupted_fraction = self.interrupted_s / (self.n_epochs * self.epoch_s)
+            no_sat = self.n_no_satellite / self.n_epochs
+            below = self.n_below_threshold / self.n_epochs
             tput_mean = self.throughput_sum / self.n_epochs
         snr_ut, snr_all = self._stats("snr_db")
         sinr_ut, sinr_all = self._stats("sinr_db")
@@ -249,6 +281,9 @@ class SummaryAccumulator:
                     "handovers": _handover_counts({k: c[i] for k, c in counts.items()}),
                     "dwell": dwell_ut[i],
                     "outage_fraction": outage_fraction[i],
+                    "outage_fraction_by_reason": _by_reason(
+                        no_sat[i], below[i], interrupted_fraction[i]
+                    ),
                     "handover_interruption_fraction": interrupted_fraction[i],
                     "snr_db": snr_ut[i],
                     "sinr_db": sinr_ut[i],
@@ -258,13 +293,20 @@ class SummaryAccumulator:
                 }
             )
         n_all = self.n_epochs.sum()
+        t_all = n_all * self.epoch_s
+        interrupted_all = self.interrupted_s.sum() / t_all if n_all else None
         overall = {
             "n_ut": self.n_ut,
             "n_ut_epochs": n_all,
             "handovers": _handover_counts({k: c.sum() for k, c in counts.items()}),
             "dwell": dwell_all,
             "outage_fraction": self.n_outage.sum() / n_all if n_all else None,
-            "handover_interruption_fraction": self.n_interrupted.sum() / n_all if n_all else None,
+            "outage_fraction_by_reason": _by_reason(
+                self.n_no_satellite.sum() / n_all if n_all else None,
+                self.n_below_threshold.sum() / n_all if n_all else None,
+                interrupted_all,
+            ),
+            "handover_interruption_fraction": interrupted_all,
             "snr_db": snr_all,
             "sinr_db": sinr_all,
             "mean_throughput_bps": self.throughput_sum.sum() / n_all if n_all else None,
@@ -272,6 +314,14 @@ class SummaryAccumulator:
             "max_angular_speed_deg_s": _nanmax(self.max_angular_speed_deg_s),
         }
         return to_jsonable({"overall": overall, "per_ut": per_ut})
+
+
+def _by_reason(no_satellite, below_threshold, handover):
+    return {
+        "no_satellite": no_satellite,
+        "below_threshold": below_threshold,
+        "handover": handover,
+    }
 
 
 def _nanmax(x):

@@ -9,7 +9,9 @@ a failed or interrupted run never leaves a file that looks complete. The bytes o
 CSV: a plain header line, then pyarrow's ``CSVWriter`` (shortest round-trip float text,
 ``nan`` for NaN, strings unquoted). Parquet: one row group per chunk.
 The trace ``service`` column holds the names ``served``, ``handover``, ``outage``
-(``controller.SERVICE_NAMES``; integer codes given to ``append`` are mapped to them).
+(``controller.SERVICE_NAMES``) and ``outage_reason`` the names ``none``, ``handover``,
+``no_satellite``, ``below_threshold`` (``processes.OUTAGE_REASONS``); integer codes given
+to ``append`` are mapped to them.
 """
 
 from __future__ import annotations
@@ -22,10 +24,11 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
-from leolink.engine import SERVE_COLUMNS
+from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.errors import ConfigError, require_at_least
 from leolink.io.atomic import PendingFiles
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES
+from leolink.sim.processes import OUTAGE_REASONS
 
 __all__ = [
     "EVENT_SCHEMA",
@@ -48,14 +51,26 @@ TRACE_COLUMNS = (
     "lon_deg",
     *SERVE_COLUMNS,  # the serving link, as LinkEngine.serve computes it
     "service",
+    # Diagnostics (DESIGN output contract): why a UT is not served, what it could see.
+    "outage_reason",
+    "n_visible",  # satellites above the minimum elevation
+    "best_snr_db",  # the best candidate's SNR, also in outage [dB]
+    *SERVE_GEOMETRY_COLUMNS,  # azimuth_deg
+    "alt_m",  # UT height above the Earth model [m]
+    "population",
+    "interruption_s",  # part of the epoch without service: handover execution [s]
 )
-_ID_COLUMNS = {"ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam"}
-_STRING_COLUMNS = {"service", "kind"}
+_INT_COLUMNS = {
+    "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible"
+}  # fmt: skip
+_STRING_COLUMNS = {"service", "kind", "outage_reason", "population"}
+#: Columns given as integer codes and written as names.
+_CODED_COLUMNS = {"service": SERVICE_NAMES, "outage_reason": OUTAGE_REASONS}
 FORMATS = ("csv", "parquet")
 
 
 def _arrow_type(name):
-    if name in _ID_COLUMNS:
+    if name in _INT_COLUMNS:
         return pa.int32()
     if name in _STRING_COLUMNS:
         return pa.string()
@@ -76,12 +91,12 @@ def _column_array(name, values, field):
     values = np.asarray(values)
     if values.ndim != 1:
         raise ValueError(f"column {name!r} must be 1-D, got shape {values.shape}")
-    if name == "service" and values.dtype.kind in "iu":
+    if name in _CODED_COLUMNS and values.dtype.kind in "iu":
         # Decode the codes in Arrow (vectorized C++), not through a numpy string array.
-        names = pa.DictionaryArray.from_arrays(pa.array(values.astype(np.int8)), SERVICE_NAMES)
-        return names.cast(pa.string())
+        codes = pa.array(values.astype(np.int8))
+        return pa.DictionaryArray.from_arrays(codes, _CODED_COLUMNS[name]).cast(pa.string())
     if pa.types.is_string(field.type):
-        return pa.array(values.astype(str), pa.string())
+        return pa.array(values if values.dtype == object else values.astype(str), pa.string())
     if pa.types.is_integer(field.type):
         if values.dtype.kind not in "iub":
             raise ValueError(f"column {name!r} must be integer, got dtype {values.dtype}")
@@ -160,7 +175,7 @@ class TableWriter:
             to_table(columns, self.schema)  # raises with the missing/unexpected columns
         arrays = {n: np.asarray(columns[n]) for n in names}
         lengths = {a.shape for a in arrays.values()}
-        ids_ok = all(arrays[n].dtype.kind in "iub" for n in names if n in _ID_COLUMNS)
+        ids_ok = all(arrays[n].dtype.kind in "iub" for n in names if n in _INT_COLUMNS)
         if len(lengths) > 1 or len(next(iter(lengths))) != 1 or not ids_ok:
             to_table(columns, self.schema)  # raises naming the bad column
         self._buffer.append(arrays)

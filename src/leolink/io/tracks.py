@@ -1,11 +1,18 @@
-"""Recorded UT tracks: CSV files of time-stamped positions, read into motion models.
+"""Recorded UT tracks: CSV or GPX files of time-stamped positions, read into motion models.
 
 Registers the ``track`` population kind (:data:`leolink.sim.populations.MOBILITY`): the
 file is read here, in the io layer, and the motion model gets arrays.
+
+Times: a CSV gives ``time_s`` (simulation time) or ``time_utc`` (ISO 8601, UTC when no
+offset is given); GPX track points carry UTC times. UTC timestamps become simulation
+time through ``run.start_utc`` (``t = utc - start_utc + run.start_s``). Before a track's
+first fix and after its last the UT holds that fix; the run reports it
+(:func:`leolink.app.tracks.track_coverage`).
 """
 
 import csv
 import math
+from datetime import UTC, datetime
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -14,7 +21,7 @@ from leolink.errors import LeolinkError
 from leolink.sim.mobility import Track, Waypoints
 from leolink.sim.populations import MOBILITY, PopulationParams
 
-__all__ = ["TrackFileError", "TrackParams", "read_track_csv"]
+__all__ = ["TrackFileError", "TrackParams", "read_track", "read_track_csv", "read_track_gpx"]
 
 
 class TrackFileError(LeolinkError, ValueError):
@@ -22,6 +29,7 @@ class TrackFileError(LeolinkError, ValueError):
 
 
 _TRACK_COLUMNS = ("time_s", "lat_deg", "lon_deg", "alt_m")
+_POSITION_COLUMNS = _TRACK_COLUMNS[1:]
 _TRACK_LIMITS = {  # column: (low, high, meaning)
     "lat_deg": (-90.0, 90.0, "latitude"),
     "lon_deg": (-180.0, 360.0, "longitude"),
@@ -43,7 +51,28 @@ def _data_lines(path):
     ]
 
 
-def _parse_row(path, line_no, header, fields):
+def _utc_seconds(path, where, text, time_zero_utc):
+    """Seconds from ``time_zero_utc`` to the ISO 8601 UTC instant ``text``."""
+    try:
+        when = datetime.fromisoformat(text)
+    except ValueError:
+        raise TrackFileError(
+            f"{path}: {where}: {text!r} is not an ISO 8601 date and time "
+            "(e.g. 2019-12-09T16:38:29Z)"
+        ) from None
+    when = when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
+    return (when - time_zero_utc).total_seconds()
+
+
+def _need_time_zero(path, time_zero_utc):
+    if time_zero_utc is None:
+        raise TrackFileError(
+            f"{path}: the track has UTC timestamps; set run.start_utc (ISO 8601) so that "
+            "they can be placed on the simulation's time axis"
+        )
+
+
+def _parse_row(path, line_no, header, fields, time_zero_utc=None):
     """Dict column -> float (and ``ut`` str) of one CSV row, validated."""
     if len(fields) != len(header):
         raise TrackFileError(
@@ -52,7 +81,12 @@ def _parse_row(path, line_no, header, fields):
         )
     row = dict(zip(header, fields, strict=True))
     out = {"ut": row.get("ut", "")}
-    for col in _TRACK_COLUMNS:
+    columns = _TRACK_COLUMNS
+    if "time_s" not in row:
+        where = f"line {line_no}, column 'time_utc'"
+        out["time_s"] = _utc_seconds(path, where, row["time_utc"], time_zero_utc)
+        columns = _POSITION_COLUMNS
+    for col in columns:
         try:
             value = float(row[col])
         except ValueError:
@@ -71,18 +105,21 @@ def _parse_row(path, line_no, header, fields):
     return out
 
 
-def read_track_csv(path):
+def read_track_csv(path, time_zero_utc=None):
     """Read time-stamped UT tracks from a CSV file.
 
-    Format: optional ``#`` comment lines, a header with ``time_s, lat_deg, lon_deg, alt_m``
-    and optionally ``ut`` (a label; rows of several UTs may be interleaved), other columns
-    ignored. Within each UT, times must increase strictly. Without a ``ut`` column the file
-    holds one track labelled by the file name (without extension).
+    Format: optional ``#`` comment lines, a header with ``time_s`` or ``time_utc`` (ISO
+    8601), ``lat_deg, lon_deg, alt_m`` and optionally ``ut`` (a label; rows of several UTs
+    may be interleaved), other columns ignored. Within each UT, times must increase
+    strictly. Without a ``ut`` column the file holds one track labelled by the file name
+    (without extension).
 
     Parameters
     ----------
     path : str or path-like
         CSV file.
+    time_zero_utc : datetime, optional
+        Aware UTC instant of simulation time 0; required by ``time_utc``.
 
     Returns
     -------
@@ -100,16 +137,19 @@ def read_track_csv(path):
             f"{path}: empty track file; expected a header line {', '.join(_TRACK_COLUMNS)}[, ut]"
         )
     header_line, header = rows[0]
-    missing = [c for c in _TRACK_COLUMNS if c not in header]
+    wanted = _TRACK_COLUMNS if "time_s" in header or "time_utc" not in header else _POSITION_COLUMNS
+    missing = [c for c in wanted if c not in header]
     if missing:
         raise TrackFileError(
             f"{path}: line {header_line}: missing column(s) "
             f"{', '.join(map(repr, missing))}; found {', '.join(header)}"
         )
-    default_ut = str(path).replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
+    if "time_s" not in header:
+        _need_time_zero(path, time_zero_utc)
+    default_ut = _file_label(path)
     tracks, last = {}, {}
     for line_no, fields in rows[1:]:
-        row = _parse_row(path, line_no, header, fields)
+        row = _parse_row(path, line_no, header, fields, time_zero_utc)
         ut = row["ut"] if "ut" in header else default_ut
         if ut in last and not row["time_s"] > last[ut][0]:
             raise TrackFileError(
@@ -127,9 +167,71 @@ def read_track_csv(path):
     return out
 
 
+def _file_label(path):
+    return str(path).replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
+
+
+def read_track_gpx(path, time_zero_utc):
+    """Read the tracks of a GPX 1.0/1.1 file (gpxpy): one UT per ``<trk>``.
+
+    A track's segments are joined in file order; every point needs a ``<time>`` (UTC);
+    ``<ele>`` is taken as the height above the Earth model (GPX gives it above mean sea
+    level: the geoid undulation, within +-110 m, is neglected), 0 where absent. Routes
+    and waypoints are ignored. Labels: the track's ``<name>``, else ``<file>-<index>``.
+
+    Raises
+    ------
+    TrackFileError
+        Naming the file, the track and point, and the problem.
+    """
+    import gpxpy
+    import gpxpy.gpx
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            gpx = gpxpy.parse(f)
+    except (OSError, UnicodeDecodeError, gpxpy.gpx.GPXException) as exc:
+        raise TrackFileError(f"{path}: cannot read GPX file ({exc})") from None
+    _need_time_zero(path, time_zero_utc)
+    out = []
+    for i, trk in enumerate(gpx.tracks):
+        label = trk.name or f"{_file_label(path)}-{i}"
+        points = [pt for seg in trk.segments for pt in seg.points]
+        if not points:
+            continue
+        for k, pt in enumerate(points):
+            if pt.time is None:
+                raise TrackFileError(f"{path}: track {label!r}, point {k}: no <time>")
+        when = [pt.time.astimezone(UTC) if pt.time.tzinfo else pt.time.replace(tzinfo=UTC)
+                for pt in points]  # fmt: skip
+        t = np.array([(w - time_zero_utc).total_seconds() for w in when])
+        bad = np.flatnonzero(np.diff(t) <= 0.0)
+        if bad.size:
+            raise TrackFileError(
+                f"{path}: track {label!r}, point {bad[0] + 1}: time {when[bad[0] + 1]} is not "
+                f"after {when[bad[0]]}; times must increase"
+            )
+        lat = np.array([pt.latitude for pt in points])
+        lon = np.array([pt.longitude for pt in points])
+        alt = np.array([pt.elevation or 0.0 for pt in points])
+        out.append(Track(t, np.radians(lat), np.radians(lon), alt, ut_id=label))
+    if not out:
+        raise TrackFileError(f"{path}: no track points (<trk><trkseg><trkpt>) in the GPX file")
+    return out
+
+
+def read_track(path, time_zero_utc=None):
+    """Tracks of a ``.gpx`` file (:func:`read_track_gpx`) or of a CSV file."""
+    if str(path).lower().endswith(".gpx"):
+        return read_track_gpx(path, time_zero_utc)
+    return read_track_csv(path, time_zero_utc)
+
+
 class TrackParams(PopulationParams):
     track_file: str = Field(
-        "", description="CSV with time_s, lat_deg, lon_deg, alt_m[, ut] (relative to the config)"
+        "",
+        description="GPX file, or CSV with time_s or time_utc, lat_deg, lon_deg, alt_m[, ut] "
+        "(relative to the config)",
     )
 
     @model_validator(mode="after")
@@ -141,7 +243,9 @@ class TrackParams(PopulationParams):
 
 MOBILITY.add(
     "track",
-    lambda p, ctx: Waypoints(read_track_csv(p.track_file), radius_m=ctx.radius_m),
+    lambda p, ctx: Waypoints(
+        read_track(p.track_file, getattr(ctx, "time_zero_utc", None)), radius_m=ctx.radius_m
+    ),
     config=TrackParams,
-    doc="UTs replaying recorded tracks from a CSV file",
+    doc="UTs replaying recorded tracks from a CSV or GPX file",
 )

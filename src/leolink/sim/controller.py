@@ -6,6 +6,13 @@ over candidate (satellite, beam) pairs, flattened as ``cand = sat * n_beam + bea
 :func:`step` picks the serving candidate of every UT in one vectorized call with a policy
 of :mod:`leolink.sim.policies` and returns the handover/outage events and the closed beam
 dwells.
+
+Handover execution is an event of its own: a handover at ``t`` interrupts service until
+``t + handover_time_s`` exactly (not until the next epoch). The end time is known at the
+decision, so it is computed, not simulated: :func:`resumed_events` stamps a
+``service_resumed`` event with it (written with the epoch that contains it) and
+:func:`interruption_s` gives the interrupted part of each epoch, ``[t, t + epoch)``, which
+the simulator removes from the epoch's throughput. An interruption may span epochs.
 """
 
 from __future__ import annotations
@@ -22,7 +29,10 @@ TIME_TOL_S = 1e-9
 SERVICE_SERVED, SERVICE_HANDOVER, SERVICE_OUTAGE = 0, 1, 2
 #: Trace ``service`` code -> name (index = code).
 SERVICE_NAMES = ("served", "handover", "outage")
-EVENT_KINDS = ("beam_handover", "sat_handover", "outage_start", "outage_end")
+#: Event kinds (new kinds are appended, never renamed). ``service_resumed``: the end of a
+#: handover's execution time (``to_*`` the serving link, ``from_*`` -1).
+EVENT_KINDS = ("beam_handover", "sat_handover", "outage_start", "outage_end", "service_resumed")
+SERVICE_RESUMED = EVENT_KINDS.index("service_resumed")
 EVENT_COLUMNS = (
     "time_s",
     "ut_id",
@@ -59,6 +69,8 @@ class ControllerState:
     in_outage : bool, no usable candidate since the last ``outage_start``.
     dwell_censored_start : bool, the current dwell began with the run.
     n_beam : int or None, beams per satellite, recorded by :func:`step`.
+    serving_snr_db : float64 [dB], the serving link's last finite SNR (NaN without one):
+        the ``snr_before_db`` of the next handover even if that link is gone by then.
     """
 
     serving: np.ndarray
@@ -69,6 +81,7 @@ class ControllerState:
     in_outage: np.ndarray
     dwell_censored_start: np.ndarray
     n_beam: int | None = None
+    serving_snr_db: np.ndarray | None = None
 
     @classmethod
     def initial(cls, n_ut, t0_s=0.0):
@@ -82,6 +95,7 @@ class ControllerState:
             serving_since_s=np.full(n_ut, np.nan),
             in_outage=np.zeros(n_ut, bool),
             dwell_censored_start=np.zeros(n_ut, bool),
+            serving_snr_db=np.full(n_ut, np.nan),
         )
 
     @property
@@ -128,8 +142,9 @@ def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
     return fire, np.where(fire, -1, pending), np.where(fire | (pending < 0), np.nan, since)
 
 
-def _events(t_s, kind_code, old, new, snr_db, n_beam):
-    """Events of UTs with ``kind_code >= 0`` (at most one per UT per epoch)."""
+def _events(t_s, kind_code, old, new, snr_db, n_beam, before_db):
+    """Events of UTs with ``kind_code >= 0`` (at most one per UT per epoch);
+    ``before_db`` (n_ut,): the serving link's last SNR."""
     ut = np.flatnonzero(kind_code >= 0)
     from_sat, from_beam = _split(old[ut], n_beam)
     to_sat, to_beam = _split(new[ut], n_beam)
@@ -141,7 +156,7 @@ def _events(t_s, kind_code, old, new, snr_db, n_beam):
         "from_beam": from_beam,
         "to_sat": to_sat,
         "to_beam": to_beam,
-        "snr_before_db": value_at(snr_db[ut], old[ut]),
+        "snr_before_db": np.where(old[ut] >= 0, before_db[ut], np.nan),
         "snr_after_db": value_at(snr_db[ut], new[ut]),
     }
 
@@ -197,6 +212,8 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
     The first assignment is not a handover: no event; its dwell has ``censored_start``.
     A UT with no usable candidate at the run start gets an ``outage_start`` event.
     Dwells run from the epoch a candidate became serving to the epoch it stopped.
+    ``snr_before_db`` of an event is the serving link's last finite SNR (this epoch's, or
+    the last epoch's if its satellite has set), NaN only without a serving link.
     """
     snr_db = np.asarray(snr_db, float)
     with np.errstate(invalid="ignore"):
@@ -226,7 +243,8 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
     kind[handover] = np.where(same_sat[handover], 0, 1)
     kind[outage_start] = 2
     kind[outage_end] = 3
-    events = _events(t_s, kind, old, new, snr_db, n_beam)
+    last_db = _last_serving_db(state, value_at(snr_db, old))
+    events = _events(t_s, kind, old, new, snr_db, n_beam, last_db)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
     dwells = _dwells(
         closing,
@@ -252,10 +270,65 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
             first, True, np.where(adopt, False, state.dwell_censored_start)
         ),
         n_beam=int(n_beam),
+        serving_snr_db=_serving_db(old, new, value_at(snr_db, new), last_db),
     )
     return StepResult(
         new_state, events, dwells, service_codes(t_s, new_state), *_split(new, n_beam)
     )
+
+
+def _last_serving_db(state, current_db):
+    """The serving link's SNR now if finite, else its last recorded value."""
+    last = state.serving_snr_db
+    if last is None:
+        last = np.full(state.n_ut, np.nan)
+    return np.where(np.isfinite(current_db), current_db, last)
+
+
+def _serving_db(old, new, new_db, last_db):
+    """``serving_snr_db`` of the new state."""
+    kept = np.where(new == old, last_db, np.nan)
+    return np.where(new < 0, np.nan, np.where(np.isfinite(new_db), new_db, kept))
+
+
+def interruption_s(t_s, epoch_s, state):
+    """Time of the epoch ``[t_s, t_s + epoch_s)`` without service because of handover
+    execution, per UT [s] (``state`` after :func:`step` at ``t_s``); 0 in outage."""
+    until = state.interrupted_until_s
+    active = (state.serving >= 0) & ~state.in_outage & (until > t_s + TIME_TOL_S)
+    return np.where(active, np.minimum(until, t_s + epoch_s) - t_s, 0.0)
+
+
+def resumed_events(t_s, epoch_s, state, snr_db):
+    """``service_resumed`` events of the UTs whose handover execution ends within
+    ``(t_s, t_s + epoch_s]``, stamped with that exact time; sorted by time, then UT.
+
+    ``state`` is the state after :func:`step` at ``t_s``; ``snr_db`` that epoch's SNR
+    matrix (``snr_after_db`` is the serving link's SNR at ``t_s``).
+    """
+    until = state.interrupted_until_s
+    due = (state.serving >= 0) & ~state.in_outage & (until > t_s + TIME_TOL_S)
+    due &= until <= t_s + epoch_s + TIME_TOL_S
+    ut = np.flatnonzero(due)
+    ut = ut[np.lexsort((ut, until[ut]))]
+    to_sat, to_beam = _split(state.serving[ut], state.n_beam or 1)
+    none = np.full(ut.size, -1, np.int64)
+    return {
+        "time_s": until[ut].astype(float),
+        "ut_id": ut.astype(np.int64),
+        "kind": np.full(ut.size, EVENT_KINDS[SERVICE_RESUMED]),
+        "from_sat": none,
+        "from_beam": none.copy(),
+        "to_sat": to_sat,
+        "to_beam": to_beam,
+        "snr_before_db": np.full(ut.size, np.nan),
+        "snr_after_db": value_at(np.asarray(snr_db, float)[ut], state.serving[ut]),
+    }
+
+
+def concat_events(*tables):
+    """Join event tables (dicts of ``EVENT_COLUMNS`` arrays) in the order given."""
+    return {k: np.concatenate([np.asarray(t[k]) for t in tables]) for k in EVENT_COLUMNS}
 
 
 def service_codes(t_s, state):

@@ -19,6 +19,7 @@ from leolink.geometry import ecef_to_geodetic, enu_basis, geodetic_to_ecef, grea
 __all__ = [
     "SPEED_PRESETS_M_S",
     "ConstantVelocity",
+    "OnWgs84",
     "Static",
     "Track",
     "UTState",
@@ -329,3 +330,50 @@ class Waypoints:
         """First and last waypoint time of every UT, shape (n_ut, 2) [s]."""
         last = self._time_s[np.arange(self.n_ut), self._n_pt - 1]
         return np.stack([self._time_s[:, 0], last], axis=-1)
+
+
+class OnWgs84:
+    """A motion model's UTs carried onto the WGS 84 ellipsoid.
+
+    The wrapped model moves its UTs on the sphere; its latitudes, longitudes and heights
+    are taken as geodetic ones: positions are :func:`leolink.geodesy.wgs84_to_ecef`, and
+    velocities the exact time derivative of those positions (the sphere's angular rates,
+    through :func:`~leolink.geodesy.wgs84_velocity`), so Doppler and range rate agree.
+    The ground speed on the ellipsoid is then the configured one scaled by ``(M + h) /
+    (R + h)`` northwards and ``(N + h) / (R + h)`` eastwards (within -0.5 % / +0.7 %
+    of it for R = 6371 km). The acceleration keeps the model's local east/north/up
+    components, which the two Earths share; its curvature term uses R instead of M or N
+    (a relative error under 0.7 % of ``v^2 / R``: 1e-6 m/s^2 for a car).
+
+    Parameters
+    ----------
+    model : motion model on the sphere of radius ``radius_m``.
+    radius_m : float, that sphere's radius [m].
+    """
+
+    def __init__(self, model, radius_m=EARTH_RADIUS_M):
+        self.model, self.radius_m = model, float(radius_m)
+        self.n_ut = model.n_ut
+
+    def __getattr__(self, name):  # time_span_s, tracks, ... of the wrapped model
+        if name == "model":
+            raise AttributeError(name)
+        return getattr(self.model, name)
+
+    def state(self, t_s):
+        """State at ``t_s`` [s]: geodetic positions on WGS 84, all UTs at once."""
+        from leolink.geodesy import wgs84_to_ecef, wgs84_velocity
+
+        s = self.model.state(t_s)
+        east, north, up = np.moveaxis(enu_basis(s.lat_rad, s.lon_rad), -2, 0)
+        r = self.radius_m + s.alt_m
+        lat_rate = np.einsum("uk,uk->u", s.vel_m_s, north) / r
+        cos_lat = np.cos(s.lat_rad)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lon_rate = np.where(
+                cos_lat > 1e-12, np.einsum("uk,uk->u", s.vel_m_s, east) / (r * cos_lat), 0.0
+            )
+        alt_rate = np.einsum("uk,uk->u", s.vel_m_s, up)
+        pos = wgs84_to_ecef(s.lat_rad, s.lon_rad, s.alt_m)
+        vel = wgs84_velocity(s.lat_rad, s.lon_rad, s.alt_m, lat_rate, lon_rate, alt_rate)
+        return UTState(pos, vel, s.acc_m_s2, s.lat_rad, s.lon_rad, s.alt_m)

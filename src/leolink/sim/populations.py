@@ -52,6 +52,7 @@ class PopulationContext:
     rng: np.random.Generator  # the run's generator: random placement and headings
     t0_s: float  # first epoch of the run
     radius_m: float
+    time_zero_utc: object = None  # aware datetime of simulation time 0 (run.start_utc), or None
 
 
 class PopulationParams(Params):
@@ -74,7 +75,12 @@ class PlacedParams(PopulationParams):
     )
     x_m: list[float] = Field(default_factory=list, description="placement points: ROI-plane x [m]")
     y_m: list[float] = Field(default_factory=list, description="placement points: ROI-plane y [m]")
-    alt_m: float = Field(0.0, ge=-500.0, le=20_000.0, description="altitude above the sphere [m]")
+    alt_m: float = Field(
+        0.0,
+        ge=-500.0,
+        le=20_000.0,
+        description="height above the Earth model (sphere or WGS 84) [m]",
+    )
 
     @model_validator(mode="after")
     def _points(self):

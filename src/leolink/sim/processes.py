@@ -19,12 +19,30 @@ import dataclasses
 import numpy as np
 
 from leolink.engine import Snapshot
+from leolink.geometry import enu_basis
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
-from leolink.sim.controller import SERVICE_HANDOVER, ControllerState, StepResult, close_dwells, step
+from leolink.sim.controller import (
+    SERVICE_HANDOVER,
+    SERVICE_OUTAGE,
+    ControllerState,
+    StepResult,
+    close_dwells,
+    concat_events,
+    interruption_s,
+    resumed_events,
+    step,
+)
+from leolink.sim.policies import best_candidate
 from leolink.sim.streams import EpochFrame
 
+#: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
+#: no satellite above the minimum elevation; satellites above it but no beam above the
+#: service threshold.
+OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold")
+
 __all__ = [
+    "OUTAGE_REASONS",
     "SimState",
     "beam_controller",
     "candidate_satellites",
@@ -48,6 +66,7 @@ class SimState:
     ut_acc_m_s2: np.ndarray
     ut_lat_rad: np.ndarray  # (n_ut,)
     ut_lon_rad: np.ndarray
+    ut_alt_m: np.ndarray
     controller: ControllerState
     k: int = 0  # current epoch index
     sat_pos_m: np.ndarray | None = None  # (n_sat, 3)
@@ -56,6 +75,9 @@ class SimState:
     snapshot: Snapshot | None = None  # engine Snapshot of the candidate satellites
     cand_sats: np.ndarray | None = None  # global ids of the snapshot's satellites
     decision: StepResult | None = None  # controller decision (ids global)
+    best_snr_db: np.ndarray | None = None  # (n_ut,) the best candidate's SNR [dB], NaN if none
+    best_unserved: tuple | None = None  # (UTs without a serving link, their best candidate)
+    n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
 
     @property
     def t_s(self) -> float:
@@ -85,6 +107,7 @@ def ut_motion(env, state, population, ut_slice, epoch_s):
         state.ut_acc_m_s2[ut_slice] = s.acc_m_s2
         state.ut_lat_rad[ut_slice] = s.lat_rad
         state.ut_lon_rad[ut_slice] = s.lon_rad
+        state.ut_alt_m[ut_slice] = s.alt_m
         yield env.timeout(epoch_s)
 
 
@@ -127,10 +150,23 @@ def _global(cand, n_beam, sats):
 
 
 class _Decider:
-    """Runs ``controller.step`` on the candidate satellites, translating ids."""
+    """Runs ``controller.step`` on the candidate satellites, translating ids.
+
+    ``ellipsoidal``: the UTs' latitudes are geodetic (WGS 84) and their local frame is the
+    ellipsoid's, handed to the engine; otherwise the engine takes the sphere's radial up.
+    """
 
     def __init__(
-        self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad, radius_m, future_state
+        self,
+        engine,
+        policy,
+        min_snr_db,
+        handover_time_s,
+        min_elevation_rad,
+        radius_m,
+        future_state,
+        epoch_s=1.0,
+        ellipsoidal=False,
     ):
         self.engine, self.policy = engine, policy
         self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
@@ -138,6 +174,7 @@ class _Decider:
         self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
         self.radius_m = radius_m
         self.future_state = future_state  # t -> (ut_pos, sat_pos, sat_vel), for prediction
+        self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
 
     def __call__(self, state):
         eng, nb = self.engine, self.engine.n_beam
@@ -146,34 +183,50 @@ class _Decider:
         sats = candidate_satellites(
             state.sat_pos_m, state.ut_pos_m, self.min_el, serving_sats, self.radius_m
         )
-        snap = eng.evaluate(state.ut_pos_m, state.sat_pos_m[sats], state.sat_vel_m_s[sats])
+        enu = enu_basis(state.ut_lat_rad, state.ut_lon_rad) if self.ellipsoidal else None
+        snap = eng.evaluate(
+            state.ut_pos_m, state.sat_pos_m[sats], state.sat_vel_m_s[sats], ut_enu=enu
+        )
         n_ut = len(state.ut_pos_m)
         snr = snap.snr_db.reshape(n_ut, -1)
+        # The best candidate's SNR of every UT (also in outage); which candidate it is is
+        # needed only where no candidate serves (the geometry of outage rows).
+        with np.errstate(invalid="ignore"):
+            state.best_snr_db = (
+                np.fmax.reduce(snr, axis=1) if snr.shape[1] else np.full(n_ut, np.nan)
+            )
+        state.n_visible = snap.visible.sum(axis=1)
         future = None
         if self.policy.lookahead_s > 0.0:
             ut_f, sat_pos_f, sat_vel_f = self.future_state(state.t_s + self.policy.lookahead_s)
-            future = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats]).snr_db.reshape(n_ut, -1)
-        if len(sats) == len(state.sat_pos_m):  # every satellite: ids need no translation
-            res = step(
-                state.t_s, snr, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future
-            )
-            res.local_sat = res.sat_id  # index into the snapshot's satellites
-        else:
-            res = self._step_on_subset(state, snr, future, sats)
+            # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
+            # for an aircraft over 10 s.
+            snap_f = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats], ut_enu=enu)
+            future = snap_f.snr_db.reshape(n_ut, -1)
+        whole = len(sats) == len(state.sat_pos_m)  # every satellite: ids need no translation
+        res = self._step(state, snr, future, None if whole else sats)
+        unserved = np.flatnonzero(res.local_sat < 0)
+        state.best_unserved = (unserved, best_candidate(snr[unserved])[0])
         state.snapshot, state.cand_sats, state.decision = snap, sats, res
         state.controller = res.state
 
-    def _step_on_subset(self, state, snr, future, sats):
-        """``controller.step`` on a subset of the satellites, ids translated both ways."""
+    def _step(self, state, snr, future, sats):
+        """``controller.step`` (on a subset of the satellites when ``sats`` is given, ids
+        translated both ways), with the ``service_resumed`` events of this epoch."""
         c, nb = state.controller, self.engine.n_beam
-        local_of = np.full(len(state.sat_pos_m), -1)
-        local_of[sats] = np.arange(len(sats))
-        local = dataclasses.replace(
-            c, serving=_local(c.serving, nb, local_of), pending=_local(c.pending, nb, local_of)
-        )
-        res = step(
-            state.t_s, snr, local, self.policy, self.min_snr_db, self.handover_time_s, nb, future
-        )
+        if sats is not None:
+            local_of = np.full(len(state.sat_pos_m), -1)
+            local_of[sats] = np.arange(len(sats))
+            c = dataclasses.replace(
+                c, serving=_local(c.serving, nb, local_of), pending=_local(c.pending, nb, local_of)
+            )
+        t = state.t_s
+        res = step(t, snr, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
+        resumed = resumed_events(t, self.epoch_s, res.state, snr)
+        res.events = concat_events(res.events, resumed)
+        res.local_sat = res.sat_id.copy()  # index into the snapshot's satellites
+        if sats is None:
+            return res
         res.state = dataclasses.replace(
             res.state,
             serving=_global(res.state.serving, nb, sats),
@@ -183,7 +236,6 @@ class _Decider:
         for table, keys in ((res.events, ("from_sat", "to_sat")), (res.dwells, ("sat_id",))):
             for key in keys:
                 table[key] = np.where(table[key] >= 0, padded[table[key]], -1)
-        res.local_sat = res.sat_id.copy()
         res.sat_id = np.where(res.sat_id >= 0, padded[res.sat_id], -1)
         return res
 
@@ -197,41 +249,70 @@ def beam_controller(env, state, decide, epoch_s):
 
 
 class _Monitor:
-    """Serving links of every UT -> epoch frames for the sinks."""
+    """Serving links of every UT -> epoch frames for the sinks.
 
-    def __init__(self, engine, sink, fading_k=None, ut_keys=None):
+    In outage rows where a satellite is above the minimum elevation, the geometry and
+    budget columns are those of the best candidate (``best_snr_db``); the link columns
+    (SNR, SINR, SE, throughput) are NaN. In a handover epoch SE and throughput are the
+    epoch's means: the link's, times the part of the epoch with service.
+    """
+
+    _LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps")
+
+    def __init__(self, engine, sink, fading_k=None, ut_keys=None, epoch_s=1.0, population=()):
         self.engine, self.sink = engine, sink
         self.fading_k, self.ut_keys = fading_k, ut_keys
+        self.epoch_s = float(epoch_s)
+        self.population = np.asarray(population, dtype=object)
         self.ut_id = None
 
-    def __call__(self, state):
-        res, snap = state.decision, state.snapshot
+    def _fading(self, state, snap):
+        res, sats = state.decision, state.cand_sats
+        if self.fading_k is None or not len(sats):
+            return None
+        s = np.maximum(res.local_sat, 0)
+        n_lin = 10.0 ** (snap.gain_rx_db[self.ut_id, s] / 10.0)
+        # Instantaneous over mean gain (mean 1); the mean receive gain stands in for the
+        # LoS gain N, which is off by 1/K = 0.1 in N = 576 for the paper's UPA.
+        g = complex_normal(self.ut_keys, state.k)
+        k = self.fading_k
+        return rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)
+
+    def _columns(self, state):
+        res, snap, nb = state.decision, state.snapshot, self.engine.n_beam
         n_ut = len(state.ut_pos_m)
         if self.ut_id is None:
             self.ut_id = np.arange(n_ut, dtype=np.int64)
         sats = state.cand_sats
-        fading = None
-        if self.fading_k is not None and len(sats):
-            s = np.maximum(res.local_sat, 0)
-            n_lin = 10.0 ** (snap.gain_rx_db[self.ut_id, s] / 10.0)
-            # Instantaneous over mean gain (mean 1); the mean receive gain stands in for the
-            # LoS gain N, which is off by 1/K = 0.1 in N = 576 for the paper's UPA.
-            g = complex_normal(self.ut_keys, state.k)
-            k = self.fading_k
-            fading = rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)
+        geo_sat, geo_beam = res.local_sat.copy(), res.beam_id.copy()
+        unserved, best = state.best_unserved
+        if unserved.size:  # outage rows: the best candidate's geometry, where there is one
+            geo_sat[unserved] = np.where(best >= 0, best // nb, -1)
+            geo_beam[unserved] = np.where(best >= 0, best % nb, -1)
         cols = self.engine.serve(
             snap,
-            res.local_sat,
-            res.beam_id,
+            geo_sat,
+            geo_beam,
             state.ut_vel_m_s,
             state.ut_acc_m_s2,
             state.sat_vel_m_s[sats],
             state.sat_acc_m_s2[sats],
-            rx_fading_lin=fading,
+            rx_fading_lin=self._fading(state, snap),
         )
-        handover = res.service == SERVICE_HANDOVER  # handover execution: no throughput
-        cols["se_bps_hz"] = np.where(handover, 0.0, cols["se_bps_hz"])
-        cols["throughput_bps"] = np.where(handover, 0.0, cols["throughput_bps"])
+        outage = res.service == SERVICE_OUTAGE
+        if outage.any():
+            for name in self._LINK:
+                cols[name] = np.where(outage, np.nan, cols[name])
+        gap_s = interruption_s(state.t_s, self.epoch_s, res.state)
+        handover = res.service == SERVICE_HANDOVER
+        if handover.any():  # the served part of the epoch only
+            served = 1.0 - gap_s / self.epoch_s
+            cols["se_bps_hz"] = np.where(handover, cols["se_bps_hz"] * served, cols["se_bps_hz"])
+            cols["throughput_bps"] = np.where(
+                handover, cols["throughput_bps"] * served, cols["throughput_bps"]
+            )
+        reason = res.service.astype(np.int8)  # served -> none, handover -> handover
+        reason[outage] = np.where(state.n_visible[outage] > 0, 3, 2)
         cols.update(
             time_s=np.full(n_ut, state.t_s),
             ut_id=self.ut_id,
@@ -240,17 +321,28 @@ class _Monitor:
             lat_deg=np.degrees(state.ut_lat_rad),
             lon_deg=np.degrees(state.ut_lon_rad),
             service=res.service,
+            outage_reason=reason,
+            n_visible=state.n_visible.astype(np.int64),
+            best_snr_db=state.best_snr_db,
+            alt_m=state.ut_alt_m.copy(),
+            population=self.population,
+            interruption_s=gap_s,
         )
-        if state.recording:
-            start_s = state.times_s[state.n_warmup]
-            frame = EpochFrame(
-                state.k - state.n_warmup,
-                state.t_s,
-                cols,
-                res.events,
-                warmup_censored(res.dwells, start_s),
-            )
-            self.sink.epoch(frame)
+        return cols
+
+    def __call__(self, state):
+        if not state.recording:
+            return
+        res = state.decision
+        start_s = state.times_s[state.n_warmup]
+        frame = EpochFrame(
+            state.k - state.n_warmup,
+            state.t_s,
+            self._columns(state),
+            res.events,
+            warmup_censored(res.dwells, start_s),
+        )
+        self.sink.epoch(frame)
 
 
 def link_monitor(env, state, monitor, epoch_s):

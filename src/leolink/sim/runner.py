@@ -58,6 +58,8 @@ class Scenario:
     epoch_s : float [s]
     seed : int, of the per-UT random draws.
     fading_k : float or None, Rician factor of random fading draws; None: mean gain.
+    ellipsoidal : bool, UT latitudes are geodetic (WGS 84): the engine gets their
+        ellipsoidal local frames (else the sphere's radial up).
     """
 
     engine: LinkEngine
@@ -73,6 +75,7 @@ class Scenario:
     epoch_s: float
     seed: int = 0
     fading_k: float | None = None
+    ellipsoidal: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,6 +120,7 @@ def _initial_state(scen, pops):
         first.acc_m_s2.copy(),
         first.lat_rad.copy(),
         first.lon_rad.copy(),
+        first.alt_m.copy(),
         ControllerState.initial(first.n_ut, float(times[0])),
     )
 
@@ -169,13 +173,15 @@ def run_simulation(
         scen.min_elevation_rad,
         scen.radius_m,
         future_state,
+        epoch_s=scen.epoch_s,
+        ellipsoidal=scen.ellipsoidal,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
-    monitor = _Monitor(scen.engine, sink, scen.fading_k, keys)
+    names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
+    monitor = _Monitor(scen.engine, sink, scen.fading_k, keys, scen.epoch_s, names)
     times = scen.times_s
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, decide, monitor)
-    names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
     info = RunInfo(
         n_ut, scen.ephemeris.n_sat, scen.engine.n_beam, scen.epoch_s,
         float(times[scen.n_warmup]), len(times) - scen.n_warmup, names,
