@@ -13,7 +13,6 @@ from leolink.io.report_dir import stats_from_dir
 from report_helpers import WALKER, make_run
 
 HALF_POWER_DB = 10.0 * np.log10(0.5)  # -3.0103 dB
-PEAK_DB = 10.0 * np.log10(12 * 24)  # a 12 x 24 subarray beam, normalized gain
 ALT_M = 1300e3
 RADIUS_M = 6371e3
 OVERLAP_PX = 9.0  # a UT dot is ~7 px across at 80 dpi: closer dots may hide each other
@@ -106,7 +105,8 @@ def test_ut_is_inside_its_serving_cell_exactly_when_the_trace_gain_is_above_half
     for f in frames:  # per frame: every ground UT served there
         rows = trace[(trace["time_s"] == f.time_s) & (trace["beam_id"] >= 0)]
         rows = rows[np.abs(_ut_altitude_m(rows)) < 100.0]  # the cells are drawn on the ground
-        margin_db = rows["gain_tx_db"].to_numpy() - PEAK_DB - HALF_POWER_DB
+        peak_db = 10.0 * np.log10(np.prod(stats.n_sub_xy))  # normalized gain: one per element
+        margin_db = rows["gain_tx_db"].to_numpy() - peak_db - HALF_POWER_DB
         fp = f.footprints
         for (sat, beam, lon, lat), m in zip(
             rows[["sat_id", "beam_id", "lon_deg", "lat_deg"]].to_numpy(), margin_db, strict=True
@@ -119,7 +119,10 @@ def test_ut_is_inside_its_serving_cell_exactly_when_the_trace_gain_is_above_half
             inside = MplPath(ring).contains_point((lon, lat))
             assert inside == (m > 0), f"t = {f.time_s} sat {sat} beam {beam}: margin {m:.3f} dB"
             n_in, n_out = n_in + inside, n_out + (not inside)
-    assert n_in > 20 and n_out > 5  # both sides of the contour were tested
+    assert n_in > 20
+    # The paper's O = 1.2 leaves UTs outside half power, so both sides get tested there; the
+    # walker example's O = 2.66 codebook keeps every served UT inside its cell.
+    assert n_out > 5 if which == "paper" else n_out == 0
 
 
 def test_size_budget_drops_frames_until_the_gif_fits(paper, tmp_path):

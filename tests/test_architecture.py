@@ -26,7 +26,7 @@ PENDING = {"geometry.py", "engine.py:serve"}
 # import its own layer or lower ones only. The package root is the public API (leolink.run).
 LAYERS = {
     "constants": 0, "errors": 0, "registry": 0, "rng": 0,
-    "geometry": 1,
+    "geometry": 1, "geodesy": 1,
     "orbit": 2, "roi": 2, "placement": 2,
     "antenna": 3, "link": 3, "kinematics": 3, "coverage": 3,
     "engine": 4,

@@ -25,7 +25,6 @@ from leolink.io.maps import subsatellite_points
 from leolink.io.report_dir import stats_from_dir
 from report_helpers import WALKER, ephemeris, make_run
 
-N_SUB = (12, 24)
 GEOMETRIES = {"Point", "LineString", "MultiLineString", "Polygon", "MultiPolygon"}
 
 
@@ -122,7 +121,8 @@ def test_geojson_footprint_vertices_are_at_half_power_of_their_beam(walker):
         ground = geodetic_to_ecef(np.radians(ring[:, 1]), np.radians(ring[:, 0]))
         u = direction_cosines(pos[0, p["sat_id"]], vel[0, p["sat_id"]], ground)
         b = beams[p["beam_id"]]
-        g = upa_gain(u[:, 0] - b[0], u[:, 1] - b[1], *N_SUB) / (N_SUB[0] * N_SUB[1])
+        n_sub = walker["stats"].n_sub_xy  # the walker example's subarray, from its codebook
+        g = upa_gain(u[:, 0] - b[0], u[:, 1] - b[1], *n_sub) / (n_sub[0] * n_sub[1])
         np.testing.assert_allclose(g, 0.5, atol=2e-4)  # 6 decimals of a degree ~ 0.1 m
         checked += 1
     assert checked >= 15
