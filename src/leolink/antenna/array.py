@@ -153,7 +153,10 @@ def dirichlet_kernels(u, beam_u, n):
     coef = np.zeros((2 * k, 4))
     coef[:k, 0], coef[:k, 1] = np.cos(b), -np.sin(b)  # sin(x - b)
     coef[k:, 2], coef[k:, 3] = np.cos(n * b), -np.sin(n * b)  # sin(n x - n b)
-    rows = coef @ trig
+    # BLAS computes a 1-column product on another path (matrix-vector), which rounds
+    # differently: a second column keeps every direction's kernel the same bit for bit
+    # whatever the number of directions in the call.
+    rows = (coef @ np.repeat(trig, 2, axis=1))[:, :1] if u.size == 1 else coef @ trig
     den, g = rows[:k], rows[k:]
     near = np.abs(den) < _SIN_RECOMPUTE
     with np.errstate(divide="ignore", invalid="ignore"):  # the near entries are redone below

@@ -18,7 +18,6 @@ import dataclasses
 
 import numpy as np
 
-from leolink.engine import Snapshot
 from leolink.geometry import enu_basis
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
@@ -33,7 +32,8 @@ from leolink.sim.controller import (
     resumed_events,
     step,
 )
-from leolink.sim.policies import best_candidate
+from leolink.sim.policies import neighbour_window_db
+from leolink.sim.search import CandidateSearch
 from leolink.sim.streams import EpochFrame
 
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
@@ -72,11 +72,11 @@ class SimState:
     sat_pos_m: np.ndarray | None = None  # (n_sat, 3)
     sat_vel_m_s: np.ndarray | None = None
     sat_acc_m_s2: np.ndarray | None = None
-    snapshot: Snapshot | None = None  # engine Snapshot of the candidate satellites
-    cand_sats: np.ndarray | None = None  # global ids of the snapshot's satellites
+    cand_sats: np.ndarray | None = None  # global ids of the cone-selected satellites
+    enu: np.ndarray | None = None  # (n_ut, 3, 3) the UTs' WGS 84 frames, None on the sphere
     decision: StepResult | None = None  # controller decision (ids global)
     best_snr_db: np.ndarray | None = None  # (n_ut,) the best candidate's SNR [dB], NaN if none
-    best_unserved: tuple | None = None  # (UTs without a serving link, their best candidate)
+    best_unserved: tuple | None = None  # (UTs without a serving link, their best cell)
     n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
 
     @property
@@ -136,24 +136,13 @@ def candidate_satellites(sat_pos_m, ut_pos_m, min_elevation_rad, serving_sats, r
     return np.flatnonzero(near)
 
 
-def _local(cand, n_beam, local_of_sat):
-    """Global candidate (sat * n_beam + beam) -> local, -1 if its satellite is absent."""
-    sat, beam = cand // n_beam, cand % n_beam
-    loc = np.where(cand >= 0, local_of_sat[np.maximum(sat, 0)], -1)
-    return np.where(loc >= 0, loc * n_beam + beam, -1)
-
-
-def _global(cand, n_beam, sats):
-    """Local candidate -> global; -1 stays -1 (``sats`` may be empty)."""
-    sats = np.append(sats, -1)  # index -1 // n_beam lands here when there is no candidate
-    return np.where(cand >= 0, sats[np.maximum(cand, 0) // n_beam] * n_beam + cand % n_beam, -1)
-
-
 class _Decider:
-    """Runs ``controller.step`` on the candidate satellites, translating ids.
+    """Finds every UT's candidate cells and runs ``controller.step`` on them.
 
     ``ellipsoidal``: the UTs' latitudes are geodetic (WGS 84) and their local frame is the
     ellipsoid's, handed to the engine; otherwise the engine takes the sphere's radial up.
+    ``prune``: screen the (UT, satellite) pairs before evaluating them (the same table,
+    :mod:`leolink.sim.search`); False evaluates every pair (the reference).
     """
 
     def __init__(
@@ -167,6 +156,7 @@ class _Decider:
         future_state,
         epoch_s=1.0,
         ellipsoidal=False,
+        prune=True,
     ):
         self.engine, self.policy = engine, policy
         self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
@@ -175,69 +165,57 @@ class _Decider:
         self.radius_m = radius_m
         self.future_state = future_state  # t -> (ut_pos, sat_pos, sat_vel), for prediction
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
+        self.search = CandidateSearch(engine, neighbour_window_db(policy), prune)
+
+    def up(self, state):
+        """The UTs' local frames (WGS 84) and up rows, or (None, None) on the sphere."""
+        if not self.ellipsoidal:
+            return None, None
+        enu = enu_basis(state.ut_lat_rad, state.ut_lon_rad)
+        return enu, enu[:, 2, :]
 
     def __call__(self, state):
-        eng, nb = self.engine, self.engine.n_beam
+        nb = self.engine.n_beam
         c = state.controller
         serving_sats = np.unique(c.serving[c.serving >= 0] // nb)
         sats = candidate_satellites(
             state.sat_pos_m, state.ut_pos_m, self.min_el, serving_sats, self.radius_m
         )
-        enu = enu_basis(state.ut_lat_rad, state.ut_lon_rad) if self.ellipsoidal else None
-        snap = eng.evaluate(
-            state.ut_pos_m, state.sat_pos_m[sats], state.sat_vel_m_s[sats], ut_enu=enu
+        enu, up = self.up(state)
+        found = self.search(
+            state.ut_pos_m, state.sat_pos_m[sats], state.sat_vel_m_s[sats], sats, c.serving, up
         )
-        n_ut = len(state.ut_pos_m)
-        snr = snap.snr_db.reshape(n_ut, -1)
-        # The best candidate's SNR of every UT (also in outage); which candidate it is is
-        # needed only where no candidate serves (the geometry of outage rows).
-        with np.errstate(invalid="ignore"):
-            state.best_snr_db = (
-                np.fmax.reduce(snr, axis=1) if snr.shape[1] else np.full(n_ut, np.nan)
-            )
-        state.n_visible = snap.visible.sum(axis=1)
+        state.best_snr_db, state.n_visible = found.best_snr_db, found.n_visible
         future = None
         if self.policy.lookahead_s > 0.0:
-            ut_f, sat_pos_f, sat_vel_f = self.future_state(state.t_s + self.policy.lookahead_s)
             # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
             # for an aircraft over 10 s.
-            snap_f = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats], ut_enu=enu)
-            future = snap_f.snr_db.reshape(n_ut, -1)
-        whole = len(sats) == len(state.sat_pos_m)  # every satellite: ids need no translation
-        res = self._step(state, snr, future, None if whole else sats)
-        unserved = np.flatnonzero(res.local_sat < 0)
-        state.best_unserved = (unserved, best_candidate(snr[unserved])[0])
-        state.snapshot, state.cand_sats, state.decision = snap, sats, res
+            future = self._future(found.table, state.t_s + self.policy.lookahead_s, up)
+        t = state.t_s
+        res = step(
+            t, found.table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future
+        )
+        resumed = resumed_events(t, self.epoch_s, res.state, found.table)
+        res.events = concat_events(res.events, resumed)
+        unserved = np.flatnonzero(res.sat_id < 0)
+        state.best_unserved = (unserved, found.best_cell[unserved])
+        state.cand_sats, state.decision, state.enu = sats, res, enu
         state.controller = res.state
 
-    def _step(self, state, snr, future, sats):
-        """``controller.step`` (on a subset of the satellites when ``sats`` is given, ids
-        translated both ways), with the ``service_resumed`` events of this epoch."""
-        c, nb = state.controller, self.engine.n_beam
-        if sats is not None:
-            local_of = np.full(len(state.sat_pos_m), -1)
-            local_of[sats] = np.arange(len(sats))
-            c = dataclasses.replace(
-                c, serving=_local(c.serving, nb, local_of), pending=_local(c.pending, nb, local_of)
-            )
-        t = state.t_s
-        res = step(t, snr, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
-        resumed = resumed_events(t, self.epoch_s, res.state, snr)
-        res.events = concat_events(res.events, resumed)
-        res.local_sat = res.sat_id.copy()  # index into the snapshot's satellites
-        if sats is None:
-            return res
-        res.state = dataclasses.replace(
-            res.state,
-            serving=_global(res.state.serving, nb, sats),
-            pending=_global(res.state.pending, nb, sats),
-        )
-        padded = np.append(sats, -1)  # safe lookup when no satellite is a candidate
-        for table, keys in ((res.events, ("from_sat", "to_sat")), (res.dwells, ("sat_id",))):
-            for key in keys:
-                table[key] = np.where(table[key] >= 0, padded[table[key]], -1)
-        res.sat_id = np.where(res.sat_id >= 0, padded[res.sat_id], -1)
-        return res
+    def _future(self, table, t_s, up):
+        """The table's cells at ``t_s`` (the same cells; NaN where not visible then)."""
+        eng, nb = self.engine, self.engine.n_beam
+        ut_f, sat_pos_f, sat_vel_f = self.future_state(t_s)
+        rows = np.broadcast_to(np.arange(table.n_ut)[:, None], table.shape)
+        valid = table.cell >= 0
+        key = rows[valid] * len(sat_pos_f) + table.cell[valid] // nb
+        pairs, inverse = np.unique(key, return_inverse=True)
+        ut, sat = np.divmod(pairs, len(sat_pos_f))
+        links = eng.evaluate_pairs(ut_f, sat_pos_f, sat_vel_f, ut, sat, ut_up=up)
+        snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, n_pair)
+        out = np.full(table.shape, np.nan)
+        out[valid] = snr[table.cell[valid] % nb, inverse.reshape(-1)]
+        return table.like(out)
 
 
 def beam_controller(env, state, decide, epoch_s):
@@ -266,39 +244,65 @@ class _Monitor:
         self.population = np.asarray(population, dtype=object)
         self.ut_id = None
 
-    def _fading(self, state, snap):
-        res, sats = state.decision, state.cand_sats
-        if self.fading_k is None or not len(sats):
+    def _fading(self, state, links, served):
+        if self.fading_k is None or not served.any():
             return None
-        s = np.maximum(res.local_sat, 0)
-        n_lin = 10.0 ** (snap.gain_rx_db[self.ut_id, s] / 10.0)
+        n_lin = 10.0 ** (np.broadcast_to(links.rx_db, served.shape) / 10.0)
         # Instantaneous over mean gain (mean 1); the mean receive gain stands in for the
         # LoS gain N, which is off by 1/K = 0.1 in N = 576 for the paper's UPA.
         g = complex_normal(self.ut_keys, state.k)
         k = self.fading_k
         return rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)
 
+    def _serve(self, state, geo_sat, geo_beam):
+        """The engine's link of every UT on ``(geo_sat, geo_beam)`` (global ids; -1: none)."""
+        eng = self.engine
+        n_ut = len(geo_sat)
+        served = geo_sat >= 0
+        if not served.any():
+            return eng.serve_pairs(None, np.full(n_ut, -1), geo_beam, state.ut_vel_m_s)
+        u = np.arange(n_ut)
+        s = np.where(served, geo_sat, geo_sat[served][0])
+        sats, local = np.unique(s, return_inverse=True)
+        up = None if state.enu is None else state.enu[:, 2, :]
+        links = eng.evaluate_pairs(
+            state.ut_pos_m, state.sat_pos_m[sats], state.sat_vel_m_s[sats], u, local, ut_up=up
+        )
+        i_other = None
+        cone = state.cand_sats
+        if eng.other_satellites and len(cone) > 1:
+            snap = eng.evaluate(
+                state.ut_pos_m, state.sat_pos_m[cone], state.sat_vel_m_s[cone], ut_enu=state.enu
+            )
+            s_cone = np.where(served, np.searchsorted(cone, s), 0)
+            i_other = eng.other_satellites_interference(snap, s_cone, np.maximum(geo_beam, 0), u)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fading = self._fading(state, links, served)
+        return eng.serve_pairs(
+            links,
+            np.where(served, u, -1),
+            geo_beam,
+            state.ut_vel_m_s,
+            state.ut_acc_m_s2,
+            state.sat_vel_m_s[s],
+            state.sat_acc_m_s2[s],
+            rx_fading_lin=fading,
+            i_other=i_other,
+            ut_pos_m=state.ut_pos_m,
+            ut_enu=state.enu,
+        )
+
     def _columns(self, state):
-        res, snap, nb = state.decision, state.snapshot, self.engine.n_beam
+        res, nb = state.decision, self.engine.n_beam
         n_ut = len(state.ut_pos_m)
         if self.ut_id is None:
             self.ut_id = np.arange(n_ut, dtype=np.int64)
-        sats = state.cand_sats
-        geo_sat, geo_beam = res.local_sat.copy(), res.beam_id.copy()
+        geo_sat, geo_beam = res.sat_id.copy(), res.beam_id.copy()
         unserved, best = state.best_unserved
         if unserved.size:  # outage rows: the best candidate's geometry, where there is one
             geo_sat[unserved] = np.where(best >= 0, best // nb, -1)
             geo_beam[unserved] = np.where(best >= 0, best % nb, -1)
-        cols = self.engine.serve(
-            snap,
-            geo_sat,
-            geo_beam,
-            state.ut_vel_m_s,
-            state.ut_acc_m_s2,
-            state.sat_vel_m_s[sats],
-            state.sat_acc_m_s2[sats],
-            rx_fading_lin=self._fading(state, snap),
-        )
+        cols = self._serve(state, geo_sat, geo_beam)
         outage = res.service == SERVICE_OUTAGE
         if outage.any():
             for name in self._LINK:

@@ -60,6 +60,9 @@ class Scenario:
     fading_k : float or None, Rician factor of random fading draws; None: mean gain.
     ellipsoidal : bool, UT latitudes are geodetic (WGS 84): the engine gets their
         ellipsoidal local frames (else the sphere's radial up).
+    prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
+        cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
+        evaluates every pair of the cone-selected satellites (the reference).
     """
 
     engine: LinkEngine
@@ -76,6 +79,7 @@ class Scenario:
     seed: int = 0
     fading_k: float | None = None
     ellipsoidal: bool = False
+    prune: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,6 +179,7 @@ def run_simulation(
         future_state,
         epoch_s=scen.epoch_s,
         ellipsoidal=scen.ellipsoidal,
+        prune=scen.prune,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))

@@ -1,33 +1,37 @@
-"""The link engine: one vectorized call per epoch for all UTs, satellites and beams.
+"""The link engine: vectorized link evaluation for all UTs, satellites and beams.
 
-``LinkEngine.evaluate`` turns positions and velocities into the per (UT, satellite, beam)
-SNR that the beam controller needs; ``LinkEngine.serve`` then gives, per UT, everything
-about its serving link: gains, losses, SNR, SINR with the serving satellite's other
-beams as interference, spectral efficiency, throughput, Doppler and angular speed.
+:meth:`LinkEngine.evaluate_pairs` turns positions and velocities of ``m`` (UT, satellite)
+pairs into their geometry, path SNR and beam kernels (:class:`~leolink.engine.links.Links`);
+:meth:`LinkEngine.evaluate` does it for the full ``n_ut x n_sat`` grid (a
+:class:`~leolink.engine.links.Snapshot`, arrays ``(n_ut, n_sat, n_beam)``).
+:meth:`LinkEngine.serve_pairs` (and ``serve`` on a snapshot) then gives, per UT, everything
+about its serving link: gains, losses, SNR, SINR with the serving satellite's other beams
+as interference, spectral efficiency, throughput, Doppler and angular speed.
 
-Public arrays are ``(n_ut, n_sat, n_beam)``. Inside, beam gains are kept beam-major,
-``(n_beam, n_sat, n_ut)``, so every numpy loop runs over the long UT axis; a DFT beam's
-gain is a product of an along-track and a cross-track Dirichlet kernel (paper Sec. 3.2),
-so only ``n_x + n_y`` kernels are evaluated per direction, not ``2 n_beam``.
+Beam gains are kept beam-major, ``(n_beam, m)``, so every numpy loop runs over the long
+pair axis; a DFT beam's gain is a product of an along-track and a cross-track Dirichlet
+kernel (paper Sec. 3.2), so only ``n_x + n_y`` kernels are evaluated per direction, not
+``2 n_beam``. Every quantity of a pair is an element-wise function of that pair's inputs:
+a pair gives bit-for-bit the same numbers whichever other pairs share the call.
 No Python loop over UTs, satellites or beams.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cached_property
+from dataclasses import dataclass
 
 import numpy as np
 
 from leolink.antenna.array import dirichlet_kernels
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
+from leolink.engine.links import Links, Snapshot, azimuth_deg, rows_gain_db
+from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
 
-__all__ = ["SERVE_COLUMNS", "SERVE_GEOMETRY_COLUMNS", "LinkEngine", "LinkParams", "Snapshot"]
-__all__ += ["reuse_colors"]
+__all__ = ["SERVE_COLUMNS", "SERVE_GEOMETRY_COLUMNS", "LinkEngine", "LinkParams", "Links"]
+__all__ += ["Snapshot", "reuse_colors"]
 
 #: Columns of :meth:`LinkEngine.serve`, one value per UT.
 SERVE_COLUMNS = (
@@ -65,84 +69,6 @@ class LinkParams:
     cable_loss_db: float
     noise_temp_dbk: float
     min_elevation_rad: float
-
-
-@dataclass
-class Snapshot:
-    """What :meth:`LinkEngine.evaluate` computed for one epoch.
-
-    Attributes
-    ----------
-    engine : LinkEngine
-        The engine that computed it (beam lattice indices).
-    rel_m : ndarray, shape (n_ut, n_sat, 3)
-        Satellite -> UT vector [m].
-    slant_range_m, elevation_rad : ndarray, shape (n_ut, n_sat)
-    visible : ndarray of bool, shape (n_ut, n_sat)
-        Above the minimum elevation.
-    path_snr_lin : ndarray, shape (n_ut, n_sat)
-        SNR per unit transmit gain (NaN where not visible).
-    kx, ky : ndarray, shapes (n_kx, n_sat, n_ut) and (n_ky, n_sat, n_ut)
-        Along- and cross-track Dirichlet kernels of the distinct beam cosines.
-    rx_db : ndarray, shape (n_ut, n_sat), or float
-        UT receive gain towards each satellite [dB].
-    path_no_rx_lin, u_panel : ndarray or None
-        With other-satellite interference: the path without the UT gain, (n_ut, n_sat),
-        zero below the horizon; each satellite's direction in the UT panel's cosines,
-        (n_ut, n_sat, 2).
-    ut_pos_m : ndarray, shape (n_ut, 3), or None
-    ut_enu : ndarray, shape (n_ut, 3, 3), or None
-        The UTs' local east, north, up rows when given to :meth:`LinkEngine.evaluate`
-        (WGS 84); None: the sphere's, from the positions.
-    """
-
-    engine: LinkEngine = field(repr=False)
-    rel_m: np.ndarray
-    slant_range_m: np.ndarray
-    elevation_rad: np.ndarray
-    visible: np.ndarray
-    path_snr_lin: np.ndarray
-    kx: np.ndarray
-    ky: np.ndarray
-    rx_db: np.ndarray | float
-    path_no_rx_lin: np.ndarray | None = None
-    u_panel: np.ndarray | None = None
-    ut_pos_m: np.ndarray | None = None
-    ut_enu: np.ndarray | None = None
-
-    @cached_property
-    def gain_tx_bm(self):
-        """Beam-major linear TX gains, shape (n_beam, n_sat, n_ut)."""
-        e = self.engine
-        return self.kx[e.beam_ix] * self.ky[e.beam_iy]
-
-    @property
-    def snr_lin_bm(self):
-        """Beam-major linear SNR, shape (n_beam, n_sat, n_ut); NaN where not visible."""
-        return self.gain_tx_bm * self.path_snr_lin.T
-
-    @property
-    def gain_tx_lin(self):
-        """Linear TX gain of every beam, shape (n_ut, n_sat, n_beam)."""
-        return self.gain_tx_bm.transpose(2, 1, 0)
-
-    @cached_property
-    def snr_db(self):
-        """SNR of every beam [dB], shape (n_ut, n_sat, n_beam); NaN where not visible.
-
-        ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
-        ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products.
-        """
-        e = self.engine
-        with np.errstate(divide="ignore"):
-            lx, ly = 10.0 * np.log10(self.kx), 10.0 * np.log10(self.ky)
-            path_db = 10.0 * np.log10(self.path_snr_lin.T)
-        out = lx[e.beam_ix] + ly[e.beam_iy] + path_db
-        return out.transpose(2, 1, 0)
-
-    @property
-    def gain_rx_db(self):
-        return np.broadcast_to(self.rx_db, self.slant_range_m.shape)
 
 
 def reuse_colors(lattice_ij, n_colors):
@@ -226,46 +152,70 @@ class LinkEngine:
         -------
         Snapshot
         """
+        n_ut, n_sat = len(ut_pos_m), len(sat_pos_m)
+        ut = np.tile(np.arange(n_ut), n_sat)  # satellite-major grid: p = s n_ut + u
+        sat = np.repeat(np.arange(n_sat), n_ut)
+        up = None if ut_enu is None else ut_enu[:, 2, :]
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up)
+        snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
+        if self.other_satellites:
+            # Any satellite above the horizon interferes, usable or not: its path without
+            # the UT gain, and its direction in the UT panel frame.
+            el, rel, rho = snap.elevation_rad, snap.rel_m, snap.slant_range_m
+            snap.path_no_rx_lin = np.where(
+                el > 0.0, snap.path_lin / 10.0 ** (snap.rx_db / 10.0), 0.0
+            )
+            basis = panel_basis(ut_pos_m) if ut_enu is None else ut_enu
+            snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
+        return snap
+
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None):
+        """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
+
+        Parameters
+        ----------
+        ut_pos_m : ndarray, shape (n_u, 3)
+        sat_pos_m, sat_vel_m_s : ndarray, shape (n_s, 3)
+            Same Earth-centred frame as ``ut_pos_m``.
+        ut, sat : ndarray of int, shape (m,)
+            Rows of the UT and satellite arrays of each pair.
+        ut_up : ndarray, shape (n_u, 3), optional
+            Each UT row's local up (the WGS 84 normal); None: the sphere's radial up.
+        ut_id : ndarray of int, shape (n_u,), optional
+            The UT of each UT row, for per-population terminals; None: row = UT.
+
+        Returns
+        -------
+        Links
+        """
         p = self.params
-        rel = ut_pos_m[:, None, :] - sat_pos_m[None, :, :]  # satellite -> UT, (n_ut, n_sat, 3)
-        rho2 = np.einsum("usk,usk->us", rel, rel)
+        u_pos = ut_pos_m[ut]
+        rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
+        rho2 = np.einsum("pk,pk->p", rel, rel)
         rho = np.sqrt(rho2)
-        if ut_enu is None:
+        if ut_up is None:
             r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))
-            sin_el = -np.einsum("usk,uk->us", rel, ut_pos_m) / (rho * r_ut[:, None])
+            sin_el = -np.einsum("pk,pk->p", rel, u_pos) / (rho * r_ut[ut])
         else:
-            sin_el = -np.einsum("usk,uk->us", rel, ut_enu[:, 2, :]) / rho
+            sin_el = -np.einsum("pk,pk->p", rel, ut_up[ut]) / rho
         elevation = np.arcsin(np.clip(sin_el, -1.0, 1.0))
         visible = elevation >= p.min_elevation_rad
 
-        axes = body_frame(sat_pos_m, sat_vel_m_s)  # (n_sat, 3, 3) rows u_x, u_y, u_z
-        inv_rho = 1.0 / rho.T  # (n_sat, n_ut)
-        ux = np.einsum("usk,sk->su", rel, axes[:, 0, :]) * inv_rho
-        uy = np.einsum("usk,sk->su", rel, axes[:, 1, :]) * inv_rho
-        n_sat, n_ut = ux.shape
-        kx = dirichlet_kernels(ux.ravel(), self.beam_ux, self.codebook.n_sub_x)
-        ky = dirichlet_kernels(uy.ravel(), self.beam_uy, self.codebook.n_sub_y)
-        kx = kx.reshape(len(self.beam_ux), n_sat, n_ut)
-        ky = ky.reshape(len(self.beam_uy), n_sat, n_ut)
+        axes = body_frame(sat_pos_m, sat_vel_m_s)[sat]  # (m, 3, 3) rows u_x, u_y, u_z
+        inv_rho = 1.0 / rho
+        ux = np.einsum("pk,pk->p", rel, axes[:, 0, :]) * inv_rho
+        uy = np.einsum("pk,pk->p", rel, axes[:, 1, :]) * inv_rho
+        kx = dirichlet_kernels(ux, self.beam_ux, self.codebook.n_sub_x)
+        ky = dirichlet_kernels(uy, self.beam_uy, self.codebook.n_sub_y)
 
         rx_db = self._rx_const
         if rx_db is None:
-            rx_db = self.terminal.gain_db(elevation)
+            rx_db = rows_gain_db(self.terminal, elevation, ut if ut_id is None else ut_id[ut])
         atm_db = self._atm_const
         if atm_db is None:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))
         path = self._k_lin / rho2 * 10.0 ** ((rx_db - atm_db) / 10.0)
-        snap = Snapshot(
-            self, rel, rho, elevation, visible, np.where(visible, path, np.nan), kx, ky, rx_db
-        )
-        snap.ut_pos_m, snap.ut_enu = ut_pos_m, ut_enu
-        if self.other_satellites:
-            # Any satellite above the horizon interferes, usable or not: its path without
-            # the UT gain, and its direction in the UT panel frame.
-            snap.path_no_rx_lin = np.where(elevation > 0.0, path / 10.0 ** (rx_db / 10.0), 0.0)
-            basis = panel_basis(ut_pos_m) if ut_enu is None else ut_enu
-            snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
-        return snap
+        return Links(ut, sat, rel, rho, elevation, visible, path, kx, ky, rx_db)
 
     def serve(
         self,
@@ -278,7 +228,7 @@ class LinkEngine:
         sat_acc_m_s2,
         rx_fading_lin=None,
     ):
-        """Per-UT link on its serving (satellite, beam); NaN where ``sat_idx < 0``.
+        """Per-UT link on its serving (satellite, beam) of a :class:`Snapshot`.
 
         Parameters
         ----------
@@ -294,50 +244,98 @@ class LinkEngine:
         Returns
         -------
         dict of ndarray, shape (n_ut,)
-            Trace columns (SI, dB; angular speed in deg/s).
+            :meth:`serve_pairs`; NaN where ``sat_idx < 0``.
         """
-        _, n_sat, n_ut = snap.kx.shape
-        if n_sat == 0:  # no satellite to serve anyone this epoch
-            return {name: np.full(n_ut, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
+        n_ut, n_sat = snap.n_ut, snap.n_sat
+        if n_sat == 0:
+            return self.serve_pairs(None, np.full(n_ut, -1), beam_idx, ut_vel_m_s)
         served = sat_idx >= 0
         u = np.arange(n_ut)
         s = np.where(served, sat_idx, 0)
         b = np.where(served, beam_idx, 0)
-        us = u * n_sat + s  # flat index into (n_ut, n_sat) arrays
-        su = s * n_ut + u  # flat index into (n_sat, n_ut) arrays
-        # Flat gathers: several times faster than fancy indexing with 3 index arrays.
-        plane = n_sat * n_ut
-        g_sig = (
-            snap.kx.reshape(-1)[self.beam_ix[b] * plane + su]
-            * snap.ky.reshape(-1)[self.beam_iy[b] * plane + su]
+        i_other = None
+        if self.other_satellites and n_sat > 1:
+            i_other = self.other_satellites_interference(snap, s, b, u)
+        return self.serve_pairs(
+            snap.links,
+            np.where(served, s * n_ut + u, -1),
+            beam_idx,
+            ut_vel_m_s,
+            ut_acc_m_s2,
+            sat_vel_m_s[s],
+            sat_acc_m_s2[s],
+            rx_fading_lin=rx_fading_lin,
+            i_other=i_other,
+            ut_pos_m=snap.ut_pos_m,
+            ut_enu=snap.ut_enu,
         )
-        g_int = self._same_colour_total(snap, s, b, u, su) - g_sig
-        path = snap.path_snr_lin.reshape(-1)[us]
+
+    def serve_pairs(
+        self,
+        links,
+        pair,
+        beam_idx,
+        ut_vel_m_s,
+        ut_acc_m_s2=None,
+        sat_vel_m_s=None,
+        sat_acc_m_s2=None,
+        rx_fading_lin=None,
+        i_other=None,
+        ut_pos_m=None,
+        ut_enu=None,
+    ):
+        """Link figures of ``n`` rows, row ``i`` served by pair ``pair[i]``, beam ``beam_idx[i]``.
+
+        Parameters
+        ----------
+        links : Links or None
+        pair : ndarray of int, shape (n,)
+            Pair of each row; -1 = no link (every column NaN).
+        beam_idx : ndarray of int, shape (n,)
+        ut_vel_m_s, ut_acc_m_s2 : ndarray, shape (n, 3)
+            Each row's UT velocity and acceleration.
+        sat_vel_m_s, sat_acc_m_s2 : ndarray, shape (n, 3)
+            Each row's satellite velocity and acceleration.
+        rx_fading_lin : ndarray, shape (n,), optional
+            Multiplies the receive power (signal and interference alike).
+        i_other : ndarray, shape (n,), optional
+            Interference from other satellites, over the noise (linear).
+        ut_pos_m, ut_enu : ndarray, shapes (n, 3) and (n, 3, 3)
+            Each row's UT position, and its local east, north, up rows (None: the
+            sphere's, from the position): the azimuth.
+
+        Returns
+        -------
+        dict of ndarray, shape (n,)
+            ``SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS`` (SI, dB; angular speed in deg/s).
+        """
+        n = pair.shape[0]
+        served = pair >= 0
+        if links is None or links.n_pair == 0:
+            return {name: np.full(n, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
+        pr = np.where(served, pair, 0)
+        b = np.where(served, beam_idx, 0)
+        # Flat gathers: several times faster than fancy indexing with 3 index arrays.
+        kx, ky = links.kx[:, pr], links.ky[:, pr]
+        g_sig = kx[self.beam_ix[b], np.arange(n)] * ky[self.beam_iy[b], np.arange(n)]
+        g_int = self._same_colour_total(kx, ky, b) - g_sig
+        path = links.path_snr_lin[pr]
         if rx_fading_lin is not None:
             path = path * rx_fading_lin
         snr = g_sig * path
-        i_other = 0.0
-        if self.other_satellites and n_sat > 1:
-            i_other = self._other_satellites_interference(snap, s, b, u)
-        sinr = snr / (g_int * path + i_other + 1.0)  # S / (I + N), over the noise (Sec. 4.1)
+        # S / (I + N), over the noise (Sec. 4.1)
+        sinr = snr / (g_int * path + (0.0 if i_other is None else i_other) + 1.0)
         se = np.log1p(sinr) / np.log(2.0)  # log2(1 + SINR), accurate at low SINR
 
-        rho = snap.slant_range_m.reshape(-1)[us]
-        elevation = snap.elevation_rad.reshape(-1)[us]
+        rho, elevation = links.slant_range_m[pr], links.elevation_rad[pr]
+        los = -links.rel_m[pr]  # UT -> satellite
         kin = link_kinematics(
-            -snap.rel_m.reshape(-1, 3)[us],
-            sat_vel_m_s[s],
-            ut_vel_m_s,
-            sat_acc_m_s2[s] - ut_acc_m_s2,
-            self.params.freq_hz,
+            los, sat_vel_m_s, ut_vel_m_s, sat_acc_m_s2 - ut_acc_m_s2, self.params.freq_hz
         )
         nan = 1.0 if served.all() else np.where(served, 1.0, np.nan)
-        if self._rx_const is not None:
-            rx_db = np.full(n_ut, self._rx_const)
-        else:
-            rx_db = snap.gain_rx_db.reshape(-1)[us]
+        rx_db = np.full(n, self._rx_const) if self._rx_const is not None else links.rx_db[pr]
         if self._atm_const is not None:
-            atm_db = np.full(n_ut, self._atm_const)
+            atm_db = np.full(n, self._atm_const)
         else:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -357,26 +355,15 @@ class LinkEngine:
                 "doppler_ut_hz": kin["doppler_ut_hz"] * nan,
                 "doppler_rate_hz_s": kin["doppler_rate_hz_s"] * nan,
                 "angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,
-                "azimuth_deg": self._azimuth_deg(snap, us) * nan,
+                "azimuth_deg": azimuth_deg(los, ut_pos_m, ut_enu) * nan,
             }
 
-    @staticmethod
-    def _azimuth_deg(snap, us):
-        """Azimuth of each UT's link (flat index ``us`` into (n_ut, n_sat)) [deg], [0, 360)."""
-        los = -snap.rel_m.reshape(-1, 3)[us]  # UT -> satellite
-        enu = snap.ut_enu
-        if enu is None:
-            lat, lon, _ = ecef_to_geodetic(snap.ut_pos_m)
-            enu = enu_basis(lat, lon)
-        east = np.einsum("uk,uk->u", los, enu[:, 0, :])
-        north = np.einsum("uk,uk->u", los, enu[:, 1, :])
-        return np.mod(np.degrees(np.arctan2(east, north)), 360.0)
-
-    def _other_satellites_interference(self, snap, s, b, u):
+    def other_satellites_interference(self, snap, s, b, u):
         """Interference over noise from the beams of the other satellites, per UT.
 
         Their beams of the serving beam's colour, at full power, seen through the UT
-        antenna pointed at the serving satellite (``terminal.pattern_lin``).
+        antenna pointed at the serving satellite (``terminal.pattern_lin``); ``s``, ``b``:
+        each UT's serving satellite (index into the snapshot's) and beam.
         """
         bm = snap.gain_tx_bm  # (n_beam, n_sat, n_ut)
         same = (self.colors[None, :] == self.colors[b][:, None]).astype(float)  # (n_ut, n_beam)
@@ -387,11 +374,13 @@ class LinkEngine:
         contrib[u, s] = 0.0  # the serving satellite is counted by _same_colour_total
         return contrib.sum(axis=1)
 
-    def _same_colour_total(self, snap, s, b, u, su):
-        """Sum of the TX gains of the beams that share the serving beam's colour."""
+    def _same_colour_total(self, kx, ky, b):
+        """Sum of the TX gains of the beams that share the serving beam's colour, per row
+        (``kx``, ``ky``: the rows' kernels, (n_k, n))."""
         if self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy):
             # Full lattice, full reuse: sum_ij kx_i ky_j = (sum_i kx_i)(sum_j ky_j).
-            return snap.kx.sum(axis=0).reshape(-1)[su] * snap.ky.sum(axis=0).reshape(-1)[su]
-        g = snap.gain_tx_bm[:, s, u].T  # (n_ut, n_beam)
+            return kx.sum(axis=0) * ky.sum(axis=0)
+        # (n, n_beam), C-ordered: the sum over beams then adds in one order for any caller.
+        g = np.ascontiguousarray((kx[self.beam_ix] * ky[self.beam_iy]).T)
         same = self.colors[None, :] == self.colors[b][:, None]
         return np.einsum("ub,ub->u", g, same)
