@@ -25,7 +25,7 @@ import numpy as np
 from leolink.antenna.array import dirichlet_kernels
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.engine.links import Links, Snapshot, azimuth_deg, rows_gain_db
+from leolink.engine.links import Links, Snapshot, azimuth_deg, group_constants_db, rows_gain_db
 from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
@@ -127,9 +127,11 @@ class LinkEngine:
         self._k_lin = (
             10.0 ** (k_db / 10.0) / (4.0 * np.pi * params.freq_hz / SPEED_OF_LIGHT_M_S) ** 2
         )
-        self._rx_const = None
+        self._rx_const = self._rx_groups = None
         if terminal.elevation_independent:
             self._rx_const = float(terminal.gain_db(np.pi / 2))
+        elif getattr(terminal, "group", None) is not None:  # per-population antennas
+            self._rx_groups = group_constants_db(terminal)
         self._atm_const = atmosphere.constant_db
 
     @property
@@ -210,7 +212,8 @@ class LinkEngine:
 
         rx_db = self._rx_const
         if rx_db is None:
-            rx_db = rows_gain_db(self.terminal, elevation, ut if ut_id is None else ut_id[ut])
+            rows = ut if ut_id is None else ut_id[ut]
+            rx_db = rows_gain_db(self.terminal, elevation, rows, self._rx_groups)
         atm_db = self._atm_const
         if atm_db is None:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))

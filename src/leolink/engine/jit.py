@@ -4,9 +4,10 @@ numba is imported on first use only, and only for work large enough to repay its
 (``JIT_MIN_PAIRS``); ``LEOLINK_JIT=0`` in the environment turns every kernel off (the
 numpy code then runs everywhere). Kernels compile once per machine (``cache=True``).
 
-:func:`screen_kernel` is the fused form of :func:`leolink.engine.screening.screen`: it
-decides which pairs the engine evaluates, never a value that reaches an output, so it
-may (and does) round differently from the numpy screening; both bounds are rigorous.
+The kernels (:mod:`leolink.engine.kernels`) repeat the numpy code's operations one for
+one: a pair gets the same bits from either (``tests/test_jit.py``). The screening kernel
+is the exception: it decides which pairs the engine evaluates, never a value that reaches
+an output, so it may (and does) round differently; both of its bounds are rigorous.
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ from __future__ import annotations
 import functools
 import os
 
-__all__ = ["JIT_MIN_PAIRS", "enabled", "screen_kernel"]
+import numpy as np
+
+__all__ = ["JIT_MIN_PAIRS", "enabled", "links_arrays", "screen_kernel", "serve_columns", "use"]
 
 #: Smallest number of (UT, satellite) pairs per call worth a compiled kernel.
 JIT_MIN_PAIRS = 20_000
@@ -32,53 +35,65 @@ def enabled():
     return True
 
 
+def kernels():
+    """The compiled kernels (:mod:`leolink.engine.kernels`; compiled or loaded on first use)."""
+    from leolink.engine import kernels as k
+
+    return k
+
+
+def use(n):
+    """Whether a call over ``n`` pairs or rows runs a compiled kernel."""
+    return n >= JIT_MIN_PAIRS and enabled()
+
+
+def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
+    """The geometry and kernels of ``LinkEngine.evaluate_pairs`` by :func:`links_kernel`:
+    rel, rho2, rho, elevation, visible, kx, ky."""
+    m = ut.shape[0]
+    out = (np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m), np.empty(m, bool),
+           np.empty((len(engine.beam_ux), m)), np.empty((len(engine.beam_uy), m)))  # fmt: skip
+    sphere = ut_up is None
+    r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m)) if sphere else np.zeros(0)
+    cx, cy = engine.kernel_coefficients
+    kernels().links_kernel(
+        np.ascontiguousarray(ut_pos_m, float), np.zeros((0, 3)) if sphere else ut_up, sphere,
+        r_ut, np.ascontiguousarray(sat_pos_m, float), np.ascontiguousarray(axes[:, 0, :]),
+        np.ascontiguousarray(axes[:, 1, :]), ut, sat, engine.params.min_elevation_rad,
+        engine.beam_ux, cx, engine.codebook.n_sub_x, engine.beam_uy, cy,
+        engine.codebook.n_sub_y, *out,
+    )  # fmt: skip
+    return out
+
+
+def snr_db_bm(links, beam_ix, beam_iy):
+    """``Links.snr_db_bm`` by :func:`snr_kernel`."""
+    out = np.empty((len(beam_ix), links.n_pair))
+    kernels().snr_kernel(links.kx, links.ky, links.path_snr_lin, beam_ix, beam_iy, out)
+    return out
+
+
+def serve_columns(engine, links, pair, served, b, rows, rx, atm):
+    """``LinkEngine.serve_pairs`` by :func:`serve_kernel` -> (16, n) columns.
+
+    ``rows``: dict of the rows' arrays (fading, i_other, ut_vel, ut_acc, sat_vel,
+    sat_acc, ut_pos, enu or None).
+    """
+    n = pair.shape[0]
+    out = np.empty((16, n))
+    enu = rows["enu"]
+    kernels().serve_kernel(
+        links.kx, links.ky, links.path_snr_lin, links.rel_m, links.slant_range_m,
+        links.elevation_rad, pair, b, served, engine.beam_ix, engine.beam_iy,
+        rows["fading"], rows["i_other"], rows["ut_vel"], rows["ut_acc"], rows["sat_vel"],
+        rows["sat_acc"], rows["ut_pos"], np.zeros((0, 3, 3)) if enu is None else enu,
+        enu is not None, engine.params.freq_hz / 299_792_458.0, engine.params.freq_hz,
+        engine.bandwidth_hz, rx, atm, out,
+    )  # fmt: skip
+    return out
+
+
 @functools.cache
 def screen_kernel():
-    """The compiled screening loop (see :func:`_screen_loop`)."""
-    import numba
-
-    return numba.njit(cache=True, nogil=True)(_screen_loop)
-
-
-def _screen_loop(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_lin, s_min, band,
-                 slack, ut_factor, code, bound, sin_out):  # fmt: skip
-    """Fill ``code``, ``bound`` and ``sin_out`` (n_u, n_s) as ``screening.screen`` does.
-
-    ``ut_factor (n_u,)``: each UT's ``G_rx / L_atm`` bound where it does not depend on
-    the elevation (1 elsewhere: the caller multiplies it in afterwards). The envelope's
-    sine is bounded below by its Taylor polynomial to x^7 (an alternating series: the
-    partial sum after a negative term is below ``sin x`` on ``[0, pi]``), so the bound
-    only grows.
-    """
-    n_u, n_s = code.shape
-    half_pi = 1.5707963267948966
-    for i in range(n_u):
-        px, py, pz = ut_pos[i, 0], ut_pos[i, 1], ut_pos[i, 2]
-        if sphere:
-            r = (px * px + py * py + pz * pz) ** 0.5
-            ex, ey, ez = px / r, py / r, pz / r
-        else:
-            ex, ey, ez = ut_up[i, 0], ut_up[i, 1], ut_up[i, 2]
-        for j in range(n_s):
-            dx, dy, dz = px - sat_pos[j, 0], py - sat_pos[j, 1], pz - sat_pos[j, 2]
-            rho2 = dx * dx + dy * dy + dz * dz
-            rho = rho2**0.5
-            s_el = -(dx * ex + dy * ey + dz * ez) / rho
-            sin_out[i, j] = s_el
-            if s_el < s_min - band:
-                code[i, j] = 0
-                bound[i, j] = -1.0
-                continue
-            code[i, j] = 2 if s_el >= s_min + band else 1
-            ux = (dx * ax_x[j, 0] + dy * ax_x[j, 1] + dz * ax_x[j, 2]) / rho
-            uy = (dx * ax_y[j, 0] + dy * ax_y[j, 1] + dz * ax_y[j, 2]) / rho
-            g = k_lin * (1.0 + slack) / rho2 * ut_factor[i]
-            for u, beams, n in ((ux, bx, nx), (uy, by, ny)):
-                d = 2.0 - max(u - beams[0], beams[-1] - u)
-                for b in beams:
-                    d = min(d, abs(u - b))
-                x = half_pi * min(max(d, 0.0), 1.0)
-                x2 = x * x
-                s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0)))
-                g *= min(float(n), 1.0 / (n * s * s)) if s > 0.0 else float(n)
-            bound[i, j] = g
+    """The compiled screening loop (:func:`leolink.engine.kernels.screen_kernel`)."""
+    return kernels().screen_kernel

@@ -17,7 +17,7 @@ import numpy as np
 
 from leolink.geometry import ecef_to_geodetic, enu_basis
 
-__all__ = ["Links", "Snapshot", "azimuth_deg", "rows_gain_db"]
+__all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "rows_gain_db"]
 
 
 @dataclass
@@ -56,6 +56,35 @@ class Links:
     def n_pair(self) -> int:
         return self.ut.shape[0]
 
+    def take(self, idx):
+        """The pairs ``idx`` (any order), as a new :class:`Links`."""
+        rx = self.rx_db if np.ndim(self.rx_db) == 0 else self.rx_db[idx]
+        return Links(
+            self.ut[idx], self.sat[idx], self.rel_m[idx], self.slant_range_m[idx],
+            self.elevation_rad[idx], self.visible[idx], self.path_lin[idx],
+            self.kx[:, idx], self.ky[:, idx], rx,
+        )  # fmt: skip
+
+    @classmethod
+    def concat(cls, parts):
+        """The pairs of ``parts`` one after the other (their ``ut``, ``sat`` rows must
+        index the same arrays)."""
+        parts = list(parts)
+        if len(parts) == 1:
+            return parts[0]
+        rx = [p.rx_db for p in parts]
+        if all(np.ndim(r) == 0 for r in rx) and len({float(r) for r in rx}) == 1:
+            rx_db = rx[0]
+        else:
+            rx_db = np.concatenate(
+                [np.broadcast_to(r, p.ut.shape) for r, p in zip(rx, parts, strict=True)]
+            )
+        return cls(
+            *(np.concatenate([getattr(p, f) for p in parts]) for f in _PAIR_FIELDS),
+            *(np.concatenate([getattr(p, f) for p in parts], axis=1) for f in ("kx", "ky")),
+            rx_db,
+        )
+
     @cached_property
     def path_snr_lin(self):
         """SNR per unit transmit gain, NaN where not visible, shape (m,)."""
@@ -75,6 +104,9 @@ class Links:
             lx, ly = 10.0 * np.log10(self.kx), 10.0 * np.log10(self.ky)
             path_db = 10.0 * np.log10(self.path_snr_lin)
         return lx[beam_ix] + ly[beam_iy] + path_db
+
+
+_PAIR_FIELDS = ("ut", "sat", "rel_m", "slant_range_m", "elevation_rad", "visible", "path_lin")
 
 
 def _grid(a, n_sat, n_ut):
@@ -183,21 +215,33 @@ class Snapshot:
         return np.broadcast_to(self.rx_db, (self.n_ut, self.n_sat))
 
 
-def rows_gain_db(terminal, elevation_rad, ut_id):
+def rows_gain_db(terminal, elevation_rad, ut_id, constants=None):
     """``terminal.gain_db`` of pairs whose UTs are ``ut_id`` (a per-population
-    :class:`~leolink.antenna.terminal.TerminalGroups` answers per UT row)."""
+    :class:`~leolink.antenna.terminal.TerminalGroups` answers per UT row).
+
+    ``constants``: :func:`group_constants_db` of the terminal, if already known.
+    """
     groups = getattr(terminal, "group", None)
     if groups is None:
         return terminal.gain_db(elevation_rad)
+    constants = group_constants_db(terminal) if constants is None else constants
     group = groups[ut_id]
     out = np.empty(elevation_rad.shape)
     for g, term in enumerate(terminal.terminals):
         rows = group == g
-        if term.elevation_independent:
-            out[rows] = float(term.gain_db(np.pi / 2))
-        else:
+        if constants[g] is not None:
+            out[rows] = constants[g]
+        elif rows.any():
             out[rows] = term.gain_db(elevation_rad[rows])
     return out
+
+
+def group_constants_db(terminal):
+    """The gain [dB] of each elevation-independent member of a ``TerminalGroups``
+    (``gain_db(pi / 2)``, as it evaluates them), None for the others."""
+    return [
+        float(t.gain_db(np.pi / 2)) if t.elevation_independent else None for t in terminal.terminals
+    ]
 
 
 def azimuth_deg(los, ut_pos_m, ut_enu):

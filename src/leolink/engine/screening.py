@@ -169,11 +169,10 @@ def _ut_factor(engine, ut_id):
         return np.full(ut_id.shape, np.nan)
     if engine._rx_const is not None:
         return np.full(ut_id.shape, 10.0 ** ((engine._rx_const - atm_db + _SLACK_DB) / 10.0))
-    term, out = engine.terminal, np.full(ut_id.shape, np.nan)
-    for g, member in enumerate(getattr(term, "terminals", ())):
-        if member.elevation_independent:
-            rx_db = float(member.gain_db(np.pi / 2))
-            out[term.group[ut_id] == g] = 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)
+    out = np.full(ut_id.shape, np.nan)
+    for g, rx_db in enumerate(engine._rx_groups or ()):
+        if rx_db is not None:
+            out[engine.terminal.group[ut_id] == g] = 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)
     return out
 
 
@@ -182,7 +181,7 @@ def _pair_factor(engine, sin_el, ut_id):
     el = np.arcsin(np.clip(sin_el, -1.0, 1.0))
     rx_db, atm_db = engine._rx_const, engine._atm_const
     if rx_db is None:
-        rx_db = rows_gain_db(engine.terminal, el, ut_id)
+        rx_db = rows_gain_db(engine.terminal, el, ut_id, engine._rx_groups)
     if atm_db is None:
         atm_db = engine.atmosphere(np.maximum(el, 0.0))
     return 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)

@@ -1,23 +1,25 @@
-"""The candidate table of an epoch: every cell a policy can need, evaluated exactly.
+"""The candidate tables of a block of epochs: every cell a policy can need, evaluated exactly.
 
-:class:`CandidateSearch` turns an epoch's geometry into the
-:class:`~leolink.sim.candidates.Candidates` table the controller decides on, plus the
-trace's per-UT diagnostics (satellites above the mask, the best cell and its SNR).
+:class:`CandidateSearch` turns the geometry of a block of epochs
+(:class:`~leolink.sim.motion.MotionBlock`) into one
+:class:`~leolink.sim.candidates.Candidates` row per UT and epoch, plus the trace's per-UT
+diagnostics (satellites above the mask, the best cell and its SNR). Rows are
+``r = (k - k0) n_ut + u``; every engine call covers many epochs at once.
 
-Pruned search (the default), per block of UTs (bounded memory):
+Pairs evaluated, per epoch, among the satellites of the epoch's cone
+(:func:`~leolink.sim.processes.candidate_satellites`):
 
-1. :func:`leolink.engine.screening.screen` classifies every (UT, satellite) pair of the
-   cone-selected satellites (visible, uncertain, below the mask) and bounds the SNR of
-   every beam of the pair from above;
-2. each UT's pair with the largest bound, and every uncertain pair, are evaluated
-   exactly: their best beam gives ``L``, an SNR the UT certainly reaches;
-3. every other pair above the mask whose bound is at least ``L`` minus the policy's
-   ``neighbour_window_db`` (and the serving cell's pair) is evaluated exactly.
+- few satellites (at most ``DENSE_CONE``), or ``prune=False`` (the reference): every pair;
+- otherwise (pruned): :func:`leolink.engine.screening.screen` classifies every pair
+  (visible, uncertain, below the mask) and bounds the SNR of every beam of the pair from
+  above. Each UT's pair with the largest bound, and every uncertain pair, are evaluated
+  first: their best beam gives ``L``, an SNR the UT certainly reaches. Then every pair
+  above the mask whose bound is at least ``L`` minus the policy's ``neighbour_window_db``.
 
-A pair left out has a bound below ``L - window``, so none of its cells can be within the
-window of the best cell: the table holds exactly the cells within the window of the best
-one, and the serving cell when above the mask, whether the search is pruned or not
-(``prune=False`` evaluates every pair, the reference that the tests compare against).
+A pair left out has a bound below ``L - window``: none of its cells can be within the
+window of the best cell. So a row holds exactly the cells within the window of the UT's
+best cell, pruned or not; the serving cell is added at decision time
+(:meth:`BlockCandidates.with_serving`), from the evaluated pairs or evaluated then.
 """
 
 from __future__ import annotations
@@ -26,40 +28,77 @@ import dataclasses
 
 import numpy as np
 
+from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
 from leolink.geometry import body_frame
 from leolink.sim.candidates import Candidates
 
-__all__ = ["CandidateSearch", "EpochCandidates"]
+__all__ = ["DENSE_CONE", "BlockCandidates", "CandidateSearch"]
 
 #: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each).
-SCREEN_PAIRS = 1 << 17
+SCREEN_PAIRS = 1 << 18
+#: Cones of at most this many satellites are evaluated whole (screening would not pay).
+DENSE_CONE = 2
 
 
 @dataclasses.dataclass
-class EpochCandidates:
-    """What :class:`CandidateSearch` found for one epoch.
+class BlockCandidates:
+    """Candidates of the epochs ``k0 ..`` of a block (rows ``r = (k - k0) n_ut + u``).
 
     Attributes
     ----------
+    k0, n_ut, n_beam : int
     table : Candidates
-        Global cell ids (``sat_id * n_beam + beam_id``) and SNR [dB].
-    n_visible : ndarray of int, shape (n_ut,)
-        Satellites above the minimum elevation.
-    best_cell : ndarray of int, shape (n_ut,)
-        The best cell (any SNR), -1 without a satellite above the mask.
-    best_snr_db : ndarray, shape (n_ut,)
-        Its SNR [dB], NaN without one.
+        Cells within the window of each row's best cell (global ids), (n_rows, n_slot).
+    n_visible, best_cell, best_snr_db : ndarray, shape (n_rows,)
+        Satellites above the mask; the best cell (-1 for none) and its SNR (NaN).
+    links : Links
+        Every evaluated pair, sorted by (row, satellite); ``links.ut`` is the row,
+        ``links.sat`` the global satellite id.
     """
 
+    k0: int
+    n_ut: int
+    n_beam: int
     table: Candidates
     n_visible: np.ndarray
     best_cell: np.ndarray
     best_snr_db: np.ndarray
+    links: Links
+
+    beam_ix: np.ndarray
+    beam_iy: np.ndarray
+
+    def __post_init__(self):
+        self._n_key = int(self.links.sat.max(initial=0)) + 1
+        self._pair_key = self.links.ut * self._n_key + self.links.sat  # sorted
+
+    def rows(self, k):
+        """Rows of epoch ``k``."""
+        lo = (k - self.k0) * self.n_ut
+        return slice(lo, lo + self.n_ut)
+
+    def find_pairs(self, rows, sats):
+        """Index into ``links`` of the pairs ``(rows[i], sats[i])``, -1 if not evaluated."""
+        n = self.links.n_pair
+        if n == 0:
+            return np.full(np.shape(rows), -1, np.int64)
+        ok = (sats >= 0) & (sats < self._n_key)
+        key = rows * self._n_key + np.where(ok, sats, 0)
+        i = np.minimum(np.searchsorted(self._pair_key, key), n - 1)
+        ok &= self._pair_key[i] == key
+        return np.where(ok, i, -1)
+
+    def snr_db_of(self, pair, beam):
+        """SNR [dB] of beam ``beam[i]`` of evaluated pair ``pair[i]``, and whether the
+        pair is above the mask."""
+        links = self.links.take(pair)
+        snr = links.snr_db_bm(self.beam_ix, self.beam_iy)
+        return snr[beam, np.arange(pair.size)], links.visible
 
 
 class CandidateSearch:
-    """Candidate tables of the epochs of a run (module docstring).
+    """Candidate tables of the blocks of a run (module docstring).
 
     Parameters
     ----------
@@ -68,127 +107,143 @@ class CandidateSearch:
         The policy's ``neighbour_window_db`` [dB] (``inf``: every cell above the mask).
     prune : bool
         Screen the pairs (default); False evaluates every pair (the reference).
-    ut_id : ndarray of int, shape (n_ut,), optional
-        The UT of each row (per-population terminals); default: row = UT.
     """
 
-    def __init__(self, engine, window_db, prune=True, ut_id=None):
+    def __init__(self, engine, window_db, prune=True):
         self.engine, self.window_db, self.prune = engine, float(window_db), bool(prune)
-        self.ut_id = ut_id
 
-    def __call__(self, ut_pos_m, sat_pos_m, sat_vel_m_s, sat_ids, serving, ut_up=None):
-        """The candidates of one epoch.
+    def block(self, k0, n_ut, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones):
+        """The candidates of the epochs ``k0 .. k0 + n_k - 1``.
 
         Parameters
         ----------
-        ut_pos_m : ndarray, shape (n_ut, 3)
-        sat_pos_m, sat_vel_m_s : ndarray, shape (n_s, 3)
-            The satellites that may be above the mask for some UT (and the serving ones).
-        sat_ids : ndarray of int, shape (n_s,)
-            Their global ids, ascending.
-        serving : ndarray of int, shape (n_ut,)
-            Serving cell of each UT (global), -1 for none.
-        ut_up : ndarray, shape (n_ut, 3), optional
+        k0 : int
+        n_ut : int
+        ut_pos_m : ndarray, shape (n_k, n_ut, 3)
+        ut_up : ndarray, shape (n_k, n_ut, 3), or None
             Local up of each UT (WGS 84); None: the sphere's.
+        sat_pos_m, sat_vel_m_s : ndarray, shape (n_k, n_sat, 3)
+            Every satellite of the run.
+        cones : list of ndarray of int
+            Per epoch, the global ids (ascending) of the satellites that may be above the
+            mask for some UT.
 
         Returns
         -------
-        EpochCandidates
+        BlockCandidates
         """
-        n_ut, nb = len(ut_pos_m), self.engine.n_beam
-        ut_id = np.arange(n_ut) if self.ut_id is None else self.ut_id
-        if not self.prune or len(sat_ids) == 0:
-            return self._dense(ut_pos_m, sat_pos_m, sat_vel_m_s, sat_ids, ut_up)
-        local_of = np.full(int(sat_ids.max()) + 1, -1)
-        local_of[sat_ids] = np.arange(len(sat_ids))
-        serv_sat = np.where(serving >= 0, serving // nb, 0)
-        serv_local = np.where(serving >= 0, local_of[np.minimum(serv_sat, len(local_of) - 1)], -1)
-        axes = body_frame(sat_pos_m, sat_vel_m_s)
-        step = max(1, SCREEN_PAIRS // len(sat_ids))
+        n_k = len(cones)
+        pos = ut_pos_m.reshape(-1, 3)
+        up = None if ut_up is None else ut_up.reshape(-1, 3)
+        widest = max((len(c) for c in cones), default=0)
+        step = int(np.clip(SCREEN_PAIRS // max(n_ut * widest, 1), 1, n_k))
+        parts = []
+        for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
+            ks = range(lo, min(lo + step, n_k))
+            parts.append(self._chunk(ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones))
+        links = Links.concat([p[0] for p in parts])
+        sure = np.concatenate([p[1] for p in parts])
+        order = np.lexsort((links.sat, links.ut))
+        return self._tables(k0, n_ut, n_k, links.take(order), sure)
+
+    def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones):
+        """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
+        global id) and the rows' visible satellites that were not evaluated."""
+        dense = not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks)
+        rows1, sats1, rows2, sats2, sure = [], [], [], [], np.zeros(len(ks) * n_ut, np.int64)
+        screened = []
+        for i, k in enumerate(ks):
+            rows = k * n_ut + np.arange(n_ut)
+            cone = cones[k]
+            if dense:
+                rows1.append(np.repeat(rows, len(cone)))
+                sats1.append(np.tile(cone, n_ut))
+                continue
+            code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone)
+            first = np.argmax(bound, axis=1)
+            chosen = code == UNCERTAIN
+            has = np.flatnonzero(bound[np.arange(n_ut), first] >= 0.0)
+            chosen[has, first[has]] = True
+            r, s = np.nonzero(chosen)
+            rows1.append(rows[r])
+            sats1.append(cone[s])
+            screened.append((i, rows, cone, code, bound, chosen))
+        links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1)
+        if dense:
+            return links1, sure
+        reach = np.zeros(pos.shape[0])
+        gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
+        lin = np.where(links1.visible, gain, 0.0)
+        np.maximum.at(reach, links1.ut, lin * links1.path_lin)
+        factor = 10.0 ** (-self.window_db / 10.0)
+        for i, rows, cone, code, bound, chosen in screened:
+            with np.errstate(invalid="ignore"):
+                more = (code > 0) & (bound >= (reach[rows] * factor)[:, None]) & ~chosen
+            r, s = np.nonzero(more)
+            rows2.append(rows[r])
+            sats2.append(cone[s])
+            sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
+        links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2)
+        return Links.concat([links1, links2]), sure
+
+    def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone):
+        """:func:`screen` of the UT rows ``rows`` against the cone, in blocks of UTs."""
+        eng = self.engine
+        axes = body_frame(sat_pos_m[cone], sat_vel_m_s[cone])
+        n_ut = len(rows)
+        ut_id = np.arange(n_ut)
+        n_part = -(-n_ut * len(cone) // SCREEN_PAIRS)
+        step = -(-n_ut // max(n_part, 1))
         parts = [
-            self._block(ut_pos_m, ut_up, ut_id, sat_pos_m, sat_vel_m_s, axes, serv_local, rows)
-            for rows in (np.arange(lo, min(lo + step, n_ut)) for lo in range(0, n_ut, step))
+            screen(
+                eng,
+                pos[rows[lo : lo + step]],
+                sat_pos_m[cone],
+                axes,
+                None if up is None else up[rows[lo : lo + step]],
+                ut_id[lo : lo + step],
+            )  # fmt: skip
+            for lo in range(0, n_ut, step)
         ]
-        ut, sat, snr, n_visible = (np.concatenate(x) for x in zip(*parts, strict=True))
-        return self._table(n_ut, ut, sat_ids[sat], snr, serving, n_visible)
+        return (np.concatenate([p[j] for p in parts]) for j in (0, 1))
 
-    def _block(self, ut_pos_m, ut_up, ut_id, sat_pos_m, sat_vel_m_s, axes, serv_local, rows):
-        """Exactly evaluated visible pairs of the UTs ``rows``: (ut, sat, snr_db (m, n_beam),
-        n_visible (rows,))."""
-        eng = self.engine
-        up = None if ut_up is None else ut_up[rows]
-        code, bound = screen(eng, ut_pos_m[rows], sat_pos_m, axes, up, ut_id[rows])
-        maybe = code > 0
-        n = len(rows)
-        first = np.argmax(bound, axis=1)
-        chosen = code == UNCERTAIN
-        has = bound[np.arange(n), first] >= 0.0
-        chosen[np.flatnonzero(has), first[has]] = True
-        r1, s1 = np.nonzero(chosen)
-        snr1, vis1 = self._exact(ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, rows[r1], s1)
-        lin1 = np.where(vis1[:, None], 10.0 ** (snr1 / 10.0), 0.0).max(axis=1, initial=0.0)
-        reach = np.zeros(n)
-        np.maximum.at(reach, r1, lin1)
-        # Pairs whose bound is within the window of what the UT reaches, and the serving one.
-        with np.errstate(invalid="ignore"):
-            more = maybe & (bound >= (reach * 10.0 ** (-self.window_db / 10.0))[:, None])
-        sv = serv_local[rows]
-        more[np.flatnonzero(sv >= 0), sv[sv >= 0]] = maybe[np.flatnonzero(sv >= 0), sv[sv >= 0]]
-        more &= ~chosen
-        r2, s2 = np.nonzero(more)
-        snr2, vis2 = self._exact(ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, rows[r2], s2)
-        ut, sat = np.concatenate([rows[r1], rows[r2]]), np.concatenate([s1, s2])
-        vis = np.concatenate([vis1, vis2])
-        snr = np.concatenate([snr1, snr2])
-        evaluated = chosen | more
-        n_visible = ((code == VISIBLE) & ~evaluated).sum(axis=1)
-        n_visible += np.bincount(ut[vis] - rows[0], minlength=n)
-        return ut[vis], sat[vis], snr[vis], n_visible
-
-    def _exact(self, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, ut, sat):
-        """The engine's SNR of every beam of the pairs [dB], (m, n_beam), and visibility."""
-        eng = self.engine
-        links = eng.evaluate_pairs(
-            ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=ut_up, ut_id=self.ut_id
+    def evaluate(self, pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats):
+        """The engine's links of the pairs ``(rows, global satellite ids)`` of a block, in
+        one call (``pos``, ``up``: (n_k n_ut, 3) rows; ``sat_*``: (n_k, n_sat, 3)); lists
+        of index arrays are joined."""
+        if isinstance(rows, list):
+            rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+            sats = np.concatenate(sats) if sats else np.zeros(0, np.int64)
+        n_sat = sat_pos_m.shape[1]
+        key, inverse = np.unique((rows // n_ut) * n_sat + sats, return_inverse=True)
+        flat_pos = sat_pos_m.reshape(-1, 3)[key]
+        flat_vel = sat_vel_m_s.reshape(-1, 3)[key]
+        ut_id = np.arange(pos.shape[0]) % n_ut
+        links = self.engine.evaluate_pairs(
+            pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id
         )
-        return links.snr_db_bm(eng.beam_ix, eng.beam_iy).T, links.visible
+        links.sat = sats  # global ids from here on
+        return links
 
-    def _dense(self, ut_pos_m, sat_pos_m, sat_vel_m_s, sat_ids, ut_up):
-        """Every pair evaluated: the dense table over all the satellites' cells."""
-        eng, nb, n_ut = self.engine, self.engine.n_beam, len(ut_pos_m)
-        ut_rows = np.arange(n_ut)
-        ut = np.tile(ut_rows, len(sat_ids))
-        sat = np.repeat(np.arange(len(sat_ids)), n_ut)
-        links = eng.evaluate_pairs(
-            ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=ut_up, ut_id=self.ut_id
-        )
-        snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, n_s n_ut)
-        snr = snr.reshape(nb, len(sat_ids), n_ut).transpose(2, 1, 0).reshape(n_ut, -1)
-        cells = (sat_ids[:, None] * nb + np.arange(nb)[None, :]).reshape(-1)
-        table = Candidates.dense(snr, cells)
-        best_cell, best_db = table.best()
-        n_visible = links.visible.reshape(len(sat_ids), n_ut).sum(axis=0)
-        # An all-NaN row has no best cell, but a -inf SNR (a kernel null) still has a value.
-        return EpochCandidates(table, n_visible, best_cell, _fmax_rows(snr))
-
-    def _table(self, n_ut, ut, sat_id, snr, serving, n_visible):
-        """Entries within the window of each UT's best cell, and the serving cells."""
-        nb = self.engine.n_beam
-        cell = sat_id[:, None] * nb + np.arange(nb)[None, :]  # (m, n_beam)
-        best_db = np.full(n_ut, -np.inf)
+    def _tables(self, k0, n_ut, n_k, links, sure):
+        """Window tables and diagnostics of the sorted evaluated pairs."""
+        eng, nb, n_rows = self.engine, self.engine.n_beam, n_k * n_ut
+        vis = links.visible
+        rows, sat = links.ut[vis], links.sat[vis]
+        snr = links.take(np.flatnonzero(vis)).snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (m, nb)
+        n_visible = sure + np.bincount(rows, minlength=n_rows)
+        best_db = np.full(n_rows, np.nan)
+        if rows.size:
+            start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+            with np.errstate(invalid="ignore"):
+                pair_best = np.fmax.reduce(snr, axis=1)
+                best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
+        cell = sat[:, None] * nb + np.arange(nb)[None, :]
         with np.errstate(invalid="ignore"):
-            np.fmax.at(best_db, ut, np.fmax.reduce(snr, axis=1, initial=-np.inf))
-            keep = (snr >= (best_db - self.window_db)[ut][:, None]) | (cell == serving[ut][:, None])
-        rows = np.broadcast_to(ut[:, None], cell.shape)
-        table = Candidates.from_entries(n_ut, rows[keep], cell[keep], snr[keep])
+            keep = snr >= (best_db - self.window_db)[rows][:, None]
+        r = np.broadcast_to(rows[:, None], cell.shape)
+        table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
         best_cell, _ = table.best()
-        has = np.bincount(ut, minlength=n_ut) > 0
-        return EpochCandidates(table, n_visible, best_cell, np.where(has, best_db, np.nan))
-
-
-def _fmax_rows(snr):
-    """``fmax`` over each row (NaN for an all-NaN row)."""
-    if snr.shape[1] == 0:
-        return np.full(snr.shape[0], np.nan)
-    with np.errstate(invalid="ignore"):
-        return np.fmax.reduce(snr, axis=1)
+        return BlockCandidates(
+            k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
+        )
