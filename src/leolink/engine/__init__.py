@@ -18,14 +18,24 @@ No Python loop over UTs, satellites or beams.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from leolink.antenna.array import dirichlet_kernels
+from leolink.antenna.array import dirichlet_coefficients
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.engine.links import Links, Snapshot, azimuth_deg, group_constants_db, rows_gain_db
+from leolink.engine import jit
+from leolink.engine.links import (
+    Links,
+    Snapshot,
+    azimuth_deg,
+    group_constants_db,
+    pair_geometry,
+    reuse_colors,
+    rows_gain_db,
+)
 from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
@@ -69,24 +79,6 @@ class LinkParams:
     cable_loss_db: float
     noise_temp_dbk: float
     min_elevation_rad: float
-
-
-def reuse_colors(lattice_ij, n_colors):
-    """Frequency-reuse colour of each beam from its lattice indices (i, j).
-
-    1 colour: full reuse (the paper). 4 colours: a 2 x 2 pattern, so that no two
-    neighbours along an axis share a carrier. 3 colours: (i + 2 j) mod 3, the classic
-    3-colour tiling of a lattice where no two edge neighbours share a colour.
-    Each colour gets ``1 / n_colors`` of the bandwidth.
-    """
-    i, j = np.asarray(lattice_ij).T
-    if n_colors == 1:
-        return np.zeros(i.shape, dtype=np.int64)
-    if n_colors == 4:
-        return (i % 2) * 2 + (j % 2)
-    if n_colors == 3:
-        return (i + 2 * j) % 3
-    raise ValueError(f"reuse_colors = {n_colors!r} is not allowed; use 1, 3 or 4")
 
 
 class LinkEngine:
@@ -137,6 +129,13 @@ class LinkEngine:
     @property
     def n_beam(self) -> int:
         return len(self.beam_ix)
+
+    @functools.cached_property
+    def kernel_coefficients(self):
+        """:func:`~leolink.antenna.array.dirichlet_coefficients` of the x and y beam cosines."""
+        cb = self.codebook
+        cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
+        return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)
 
     def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None):
         """Geometry, gains and SNR for every (UT, satellite, beam).
@@ -190,26 +189,14 @@ class LinkEngine:
         -------
         Links
         """
-        p = self.params
-        u_pos = ut_pos_m[ut]
-        rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
-        rho2 = np.einsum("pk,pk->p", rel, rel)
-        rho = np.sqrt(rho2)
-        if ut_up is None:
-            r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))
-            sin_el = -np.einsum("pk,pk->p", rel, u_pos) / (rho * r_ut[ut])
+        if jit.use(ut.shape[0]):  # the same operations, fused (bit for bit the same)
+            axes = body_frame(sat_pos_m, sat_vel_m_s)
+            arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
+            rel, rho2, rho, elevation, visible, kx, ky = arrays
         else:
-            sin_el = -np.einsum("pk,pk->p", rel, ut_up[ut]) / rho
-        elevation = np.arcsin(np.clip(sin_el, -1.0, 1.0))
-        visible = elevation >= p.min_elevation_rad
-
-        axes = body_frame(sat_pos_m, sat_vel_m_s)[sat]  # (m, 3, 3) rows u_x, u_y, u_z
-        inv_rho = 1.0 / rho
-        ux = np.einsum("pk,pk->p", rel, axes[:, 0, :]) * inv_rho
-        uy = np.einsum("pk,pk->p", rel, axes[:, 1, :]) * inv_rho
-        kx = dirichlet_kernels(ux, self.beam_ux, self.codebook.n_sub_x)
-        ky = dirichlet_kernels(uy, self.beam_uy, self.codebook.n_sub_y)
-
+            rel, rho2, rho, elevation, visible, kx, ky = pair_geometry(
+                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up
+            )
         rx_db = self._rx_const
         if rx_db is None:
             rows = ut if ut_id is None else ut_id[ut]
@@ -318,6 +305,11 @@ class LinkEngine:
             return {name: np.full(n, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
         pr = np.where(served, pair, 0)
         b = np.where(served, beam_idx, 0)
+        if jit.use(n) and self._full_reuse_lattice:  # the same operations, fused
+            rows = dict(fading=rx_fading_lin, i_other=i_other, ut_vel=ut_vel_m_s,
+                        ut_acc=ut_acc_m_s2, sat_vel=sat_vel_m_s, sat_acc=sat_acc_m_s2,
+                        ut_pos=ut_pos_m, enu=ut_enu)  # fmt: skip
+            return jit.serve_pairs(self, links, pr, served, b, rows)
         # Flat gathers: several times faster than fancy indexing with 3 index arrays.
         kx, ky = links.kx[:, pr], links.ky[:, pr]
         g_sig = kx[self.beam_ix[b], np.arange(n)] * ky[self.beam_iy[b], np.arange(n)]
@@ -360,6 +352,11 @@ class LinkEngine:
                 "angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,
                 "azimuth_deg": azimuth_deg(los, ut_pos_m, ut_enu) * nan,
             }
+
+    @property
+    def _full_reuse_lattice(self):
+        """Every beam of the lattice, one colour (the fused serving kernel's case)."""
+        return self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy)
 
     def other_satellites_interference(self, snap, s, b, u):
         """Interference over noise from the beams of the other satellites, per UT.

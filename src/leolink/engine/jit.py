@@ -17,10 +17,11 @@ import os
 
 import numpy as np
 
-__all__ = ["JIT_MIN_PAIRS", "enabled", "links_arrays", "screen_kernel", "serve_columns", "use"]
+__all__ = ["JIT_MIN_PAIRS", "enabled", "links_arrays", "screen_kernel", "serve_columns"]
+__all__ += ["serve_pairs", "use"]
 
 #: Smallest number of (UT, satellite) pairs per call worth a compiled kernel.
-JIT_MIN_PAIRS = 20_000
+JIT_MIN_PAIRS = 1_000
 
 
 @functools.cache
@@ -91,6 +92,30 @@ def serve_columns(engine, links, pair, served, b, rows, rx, atm):
         engine.bandwidth_hz, rx, atm, out,
     )  # fmt: skip
     return out
+
+
+def serve_pairs(engine, links, pr, served, b, rows):
+    """``LinkEngine.serve_pairs`` of a full lattice with one colour by :func:`serve_columns`
+    (``rows``: its per-row arguments by name, None where not given)."""
+    n = pr.shape[0]
+    rows = {key: (None if v is None else np.ascontiguousarray(v, float)) for key, v in rows.items()}
+    rows["fading"] = np.ones(n) if rows["fading"] is None else rows["fading"]
+    i_other = rows["i_other"]
+    rows["i_other"] = np.zeros(n) if i_other is None else np.broadcast_to(i_other, (n,))
+    if rows["ut_pos"] is None:
+        rows["ut_pos"] = np.zeros((n, 3))
+    if engine._rx_const is not None:
+        rx = np.full(n, engine._rx_const)
+    else:
+        rx = np.ascontiguousarray(np.broadcast_to(links.rx_db, links.ut.shape)[pr])
+    if engine._atm_const is not None:
+        atm = np.full(n, engine._atm_const)
+    else:
+        atm = engine.atmosphere(np.maximum(links.elevation_rad[pr], 0.0))
+    out = serve_columns(engine, links, pr, served, b, rows, rx, atm)
+    from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
+
+    return dict(zip(SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS, out, strict=True))
 
 
 @functools.cache

@@ -11,8 +11,6 @@ equality bit for bit.
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 from llvmlite import ir
@@ -22,6 +20,7 @@ from numba.extending import intrinsic
 from leolink.antenna.array import _SIN_RECOMPUTE, _SIN_TINY
 
 _HALF_PI = 0.5 * np.pi
+_CHUNK = 2048  # pairs per parallel task where a kernel needs scratch arrays
 _SCREEN_HALF_PI = 1.5707963267948966
 
 
@@ -31,7 +30,8 @@ def _fma(typingctx, a, b, c):
     sig = types.float64(types.float64, types.float64, types.float64)
 
     def codegen(context, builder, signature, args):
-        fn = builder.module.declare_intrinsic("llvm.fma", [ir.DoubleType()])
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
         return builder.call(fn, args)
 
     return sig, codegen
@@ -112,9 +112,16 @@ def links_kernel(ut_pos, ut_up, sphere, r_ut, sat_pos, ax_x, ax_y, ut, sat, min_
 def snr_kernel(kx, ky, path_snr, ix, iy, out):
     """``Links.snr_db_bm``: ``(10 log10 k_x + 10 log10 k_y) + 10 log10 p``, (n_beam, m)."""
     m = path_snr.shape[0]
+    for c in range((m + _CHUNK - 1) // _CHUNK):  # chunks: scratch per thread
+        _snr_chunk(kx, ky, path_snr, ix, iy, out, c * _CHUNK, min(m, (c + 1) * _CHUNK))
+
+
+@numba.njit(cache=True, inline="always")
+def _snr_chunk(kx, ky, path_snr, ix, iy, out, lo, hi):
+    """:func:`snr_kernel` of the pairs ``lo .. hi - 1``."""
     lx = np.empty(kx.shape[0])
     ly = np.empty(ky.shape[0])
-    for p in range(m):
+    for p in range(lo, hi):
         for a in range(kx.shape[0]):
             lx[a] = 10.0 * np.log10(kx[a, p])
         for a in range(ky.shape[0]):
@@ -131,7 +138,7 @@ _C4PI = 4.0 * np.pi
 @numba.njit(cache=True, inline="always")
 def _mod360(x):
     """``numpy.mod(x, 360.0)`` (fmod, then the divisor's sign)."""
-    m = math.fmod(x, 360.0)
+    m = np.fmod(x, 360.0)
     if m != 0.0:
         if m < 0.0:
             m += 360.0

@@ -15,9 +15,12 @@ from functools import cached_property
 
 import numpy as np
 
-from leolink.geometry import ecef_to_geodetic, enu_basis
+from leolink.antenna.array import dirichlet_kernels
+from leolink.engine import jit
+from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
 
-__all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "rows_gain_db"]
+__all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
+__all__ += ["reuse_colors", "rows_gain_db"]
 
 
 @dataclass
@@ -100,6 +103,8 @@ class Links:
         ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
         ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products.
         """
+        if jit.use(self.n_pair):  # the same operations, fused
+            return jit.snr_db_bm(self, beam_ix, beam_iy)
         with np.errstate(divide="ignore"):
             lx, ly = 10.0 * np.log10(self.kx), 10.0 * np.log10(self.ky)
             path_db = 10.0 * np.log10(self.path_snr_lin)
@@ -242,6 +247,48 @@ def group_constants_db(terminal):
     return [
         float(t.gain_db(np.pi / 2)) if t.elevation_independent else None for t in terminal.terminals
     ]
+
+
+def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
+    """The numpy reference of ``LinkEngine.evaluate_pairs``'s geometry and beam kernels:
+    rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it)."""
+    u_pos = ut_pos_m[ut]
+    rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
+    rho2 = np.einsum("pk,pk->p", rel, rel)
+    rho = np.sqrt(rho2)
+    if ut_up is None:
+        r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))
+        sin_el = -np.einsum("pk,pk->p", rel, u_pos) / (rho * r_ut[ut])
+    else:
+        sin_el = -np.einsum("pk,pk->p", rel, ut_up[ut]) / rho
+    elevation = np.arcsin(np.clip(sin_el, -1.0, 1.0))
+    visible = elevation >= engine.params.min_elevation_rad
+
+    axes = body_frame(sat_pos_m, sat_vel_m_s)[sat]  # (m, 3, 3) rows u_x, u_y, u_z
+    inv_rho = 1.0 / rho
+    ux = np.einsum("pk,pk->p", rel, axes[:, 0, :]) * inv_rho
+    uy = np.einsum("pk,pk->p", rel, axes[:, 1, :]) * inv_rho
+    kx = dirichlet_kernels(ux, engine.beam_ux, engine.codebook.n_sub_x)
+    ky = dirichlet_kernels(uy, engine.beam_uy, engine.codebook.n_sub_y)
+    return rel, rho2, rho, elevation, visible, kx, ky
+
+
+def reuse_colors(lattice_ij, n_colors):
+    """Frequency-reuse colour of each beam from its lattice indices (i, j).
+
+    1 colour: full reuse (the paper). 4 colours: a 2 x 2 pattern, so that no two
+    neighbours along an axis share a carrier. 3 colours: (i + 2 j) mod 3, the classic
+    3-colour tiling of a lattice where no two edge neighbours share a colour.
+    Each colour gets ``1 / n_colors`` of the bandwidth.
+    """
+    i, j = np.asarray(lattice_ij).T
+    if n_colors == 1:
+        return np.zeros(i.shape, dtype=np.int64)
+    if n_colors == 4:
+        return (i % 2) * 2 + (j % 2)
+    if n_colors == 3:
+        return (i + 2 * j) % 3
+    raise ValueError(f"reuse_colors = {n_colors!r} is not allowed; use 1, 3 or 4")
 
 
 def azimuth_deg(los, ut_pos_m, ut_enu):
