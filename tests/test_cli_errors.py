@@ -95,8 +95,6 @@ OTHER = [
 def test_other_subcommands_reject_bad_config(
     command, extra, config, overrides, needle, tmp_path, capsys
 ):
-    if command == "sweep":
-        pytest.importorskip("leolink.sweep")  # being written elsewhere
     extra = [str(tmp_path / "out") if a == "OUT" else a for a in extra]
     code = main([command, config, *overrides, *extra])
     _, err = capsys.readouterr()
