@@ -1,7 +1,8 @@
 """Rician receive gain of the UT, Eqs. (15)-(17) of [1] (Sec. 4.1).
 
-With the channel of Eq. (11) (Eq. (10) before the gain is factored out), ``H = gamma (a_u(v) + a_R / sqrt(K)) a_sat^H``, and
-the UT combiner ``w_u`` matched to the known LoS direction, the receive gain is
+With the channel of Eq. (11) (Eq. (10) before the gain is factored out),
+``H = gamma (a_u(v) + a_R / sqrt(K)) a_sat^H``, and the UT combiner ``w_u`` matched to
+the known LoS direction, the receive gain is
 
     G_RX = |<a_u(v) + a_R / sqrt(K), w_u>|^2 / ||w_u||^2
          = |sqrt(N) e^{i phi} + g / sqrt(K)|^2,   g ~ CN(0, 1),
