@@ -61,7 +61,12 @@ def test_elevation_of_grid_points_is_consistent():
     # Nadir: 90 deg and h; ROI tip: the geometry of leolink.geometry, independently.
     assert np.degrees(el[0]) == pytest.approx(90.0, abs=1e-9)
     assert rng[0] == pytest.approx(1.3e6, abs=1e-3)
-    assert 60.0 < np.degrees(el[1]) < 70.0
+    # ROI tip x = 534.1 km: central angle a = atan(x / R); seen from the ground point the
+    # satellite is (R + h) cos a - R up and (R + h) sin a across (was: "60 < el < 70").
+    a = np.arctan(534.1e3 / cfg.earth.radius_m)
+    r_sat = cfg.earth.radius_m + cfg.constellation.altitude_m
+    el_tip = np.arctan2(r_sat * np.cos(a) - cfg.earth.radius_m, r_sat * np.sin(a))
+    assert el[1] == pytest.approx(el_tip, abs=1e-12)
 
 
 def test_coverage_cli_writes_csv(tmp_path):
