@@ -13,12 +13,13 @@ from scipy import stats
 
 from leolink.app.run import run
 from leolink.config import load_config
+from scopes import shared_run_scope
 
 PAPER = "configs/paper.toml"
 N_SIGMA = 5.0
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope=shared_run_scope)
 def runs():
     common = ["output.plots.enabled=false", "run.duration_s=300", "run.start_s=-90"]
     mean = run(load_config(PAPER, common)).trace

@@ -10,9 +10,10 @@ import pytest
 
 from leolink.app.run import run
 from leolink.config import load_config
+from scopes import shared_run_scope
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope=shared_run_scope)
 def result():
     cfg = load_config(
         "configs/paper.toml",

@@ -29,6 +29,7 @@ from leolink.app.scenario import build_engine
 from leolink.config import load_config, parse_config
 from leolink.io.tle import read_tle_file
 from leolink.sim.mobility import SPEED_PRESETS_M_S
+from scopes import shared_run_scope
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -241,7 +242,7 @@ class Recomputed:
         return self.sat_vel()[self.rows, self.sat_id]
 
 
-@pytest.fixture(scope="module", params=list(SCENARIOS))
+@pytest.fixture(scope=shared_run_scope, params=list(SCENARIOS))
 def case(request):
     cfg = SCENARIOS[request.param]()
     result = run(cfg)

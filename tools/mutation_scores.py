@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -101,8 +102,10 @@ def _prepare(dest: Path, module: str, root: Path = ROOT) -> None:
 def score(module: str, workdir: Path, children: int, root: Path = ROOT) -> dict:
     dest = workdir / module.replace("/", "_")
     _prepare(dest, module, root)
+    # One run per test, not per module: mutmut credits each check (tests/scopes.py).
+    env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function")
     subprocess.run([*MUTMUT, "run", "--max-children", str(children)], cwd=dest, check=False,
-                   stdout=subprocess.DEVNULL)  # fmt: skip
+                   stdout=subprocess.DEVNULL, env=env)  # fmt: skip
     subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
                    stdout=subprocess.DEVNULL)  # fmt: skip
     return json.loads((dest / "mutants" / "mutmut-cicd-stats.json").read_text())
