@@ -81,3 +81,37 @@ def test_handover_counts_snr_stats_and_extremes(result):
         )
         tput = rows.throughput_bps.fillna(0.0).mean()
         assert ut["mean_throughput_bps"] == pytest.approx(tput, rel=1e-12)
+
+
+@pytest.fixture(scope=shared_run_scope)
+def paper():
+    res = run(load_config("configs/paper.toml", ["output.plots.enabled=false"]))
+    return res.summary, res.trace, res.events
+
+
+def test_dwells_are_the_gaps_between_handover_events(paper):
+    """Every UT of the paper's pass is served throughout (no outage), so its complete
+    dwells are exactly the time between consecutive handovers, its first and last dwells
+    are censored by the run, and the pooled statistics are those of all UTs' dwells."""
+    summary, trace, events = paper
+    assert (trace.service == "served").all()
+    pooled = []
+    for ut in summary["per_ut"]:
+        t = np.sort(
+            events[(events.ut_id == ut["ut_id"]) & events.kind.str.endswith("handover")].time_s
+        )
+        d = ut["dwell"]
+        np.testing.assert_allclose(sorted(d["complete_s"]), sorted(np.diff(t)), atol=1e-9)
+        assert d["n_complete"] == max(len(t) - 1, 0)
+        assert len(d["censored"]) == (2 if len(t) else 1)
+        if len(t) > 1:
+            assert d["mean_s"] == pytest.approx(np.diff(t).mean(), abs=1e-9)
+            assert d["median_s"] == pytest.approx(np.median(np.diff(t)), abs=1e-9)
+        pooled += list(np.diff(t))
+    o = summary["overall"]["dwell"]
+    assert o["n_complete"] == len(pooled) > 10
+    np.testing.assert_allclose(sorted(o["complete_s"]), sorted(pooled), atol=1e-9)
+    assert o["mean_s"] == pytest.approx(np.mean(pooled), abs=1e-9)
+    assert o["median_s"] == pytest.approx(np.median(pooled), abs=1e-9)
+    assert o["n_censored"] == sum(len(u["dwell"]["censored"]) for u in summary["per_ut"])
+    assert summary["overall"]["n_ut"] == trace.ut_id.nunique() == len(summary["per_ut"])
