@@ -60,7 +60,11 @@ MODULES = {
         "tests/test_fading_in_run.py",
     ],
     "sim/populations": ["tests/test_populations.py", "tests/test_trace_independent.py"],
-    "io/tables": ["tests/test_recorder.py", "tests/test_simulation.py"],
+    "io/tables": [
+        "tests/test_recorder.py",
+        "tests/test_tables_contracts.py",
+        "tests/test_simulation.py",
+    ],
     "io/summary": ["tests/test_recorder.py", "tests/test_summary_of_a_run.py"],
 }
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
