@@ -115,3 +115,52 @@ def test_dwells_are_the_gaps_between_handover_events(paper):
     assert o["median_s"] == pytest.approx(np.median(pooled), abs=1e-9)
     assert o["n_censored"] == sum(len(u["dwell"]["censored"]) for u in summary["per_ut"])
     assert summary["overall"]["n_ut"] == trace.ut_id.nunique() == len(summary["per_ut"])
+
+
+def test_overall_statistics_against_the_trace(result):
+    summary, trace, events = result
+    o = summary["overall"]
+    assert o["n_ut"] == trace.ut_id.nunique() and o["n_ut_epochs"] == len(trace)
+    for key in ("snr_db", "sinr_db"):
+        v = trace[key].dropna().to_numpy()
+        assert o[key]["mean"] == pytest.approx(v.mean(), rel=1e-12)
+        for q in (5, 50, 95):  # pooled percentiles of float32 samples
+            assert o[key][f"p{q}"] == pytest.approx(np.percentile(v, q), abs=1e-5)
+    assert o["mean_throughput_bps"] == pytest.approx(
+        trace.throughput_bps.fillna(0).mean(), rel=1e-12
+    )
+    assert o["max_abs_doppler_hz"] == pytest.approx(trace.doppler_hz.abs().max(), rel=1e-15)
+    assert o["max_angular_speed_deg_s"] == pytest.approx(trace.angular_speed_deg_s.max(), rel=1e-15)
+    for kind in ("beam_handover", "sat_handover", "outage_start", "outage_end"):
+        assert o["handovers"][kind] == (events.kind == kind).sum()
+    assert o["handovers"]["handovers_total"] == events.kind.str.endswith("handover").sum()
+
+
+def test_the_trace_read_back_gives_the_same_summary(result):
+    """Fed the trace as written (service as names, not codes), the accumulator gives the
+    run's summary: the string path of the service column counts the same."""
+    from leolink.io.summary import SummaryAccumulator
+
+    summary, trace, events = result
+    acc = SummaryAccumulator(trace.ut_id.nunique())
+    acc.add_trace({c: trace[c].to_numpy() for c in trace.columns})
+    again = acc.summary()["overall"]
+    for key in ("outage_fraction", "handover_interruption_fraction", "mean_throughput_bps"):
+        assert again[key] == pytest.approx(summary["overall"][key], rel=1e-12), key
+
+
+def test_grouped_percentiles_of_tiny_and_empty_groups():
+    from leolink.io.summary import grouped_percentiles
+
+    group = np.array([0, 2, 2, 3, 3, 3])
+    values = np.array([4.0, 1.0, 3.0, 5.0, 2.0, 9.0])
+    q = [0.0, 25.0, 50.0, 90.0, 100.0]
+    out = grouped_percentiles(group, values, 5, q)
+    for g in range(5):
+        v = values[group == g]
+        want = np.percentile(v, q) if v.size else np.full(len(q), np.nan)
+        np.testing.assert_allclose(out[g], want, rtol=0, atol=1e-12)
+    # More groups than 2**15 (the int64 sort path): same answer as one at a time.
+    big = np.repeat(np.arange(40_000), 2)
+    vals = np.tile([1.0, 3.0], 40_000)
+    np.testing.assert_allclose(grouped_percentiles(big, vals, 40_000, [50.0])[:, 0], 2.0)
