@@ -15,7 +15,8 @@ from leolink.config import load_config
 from leolink.registry import Params
 from leolink.sim.policies import POLICIES, best_candidate, value_at
 
-SRC = Path(leolink.__file__).resolve().parent  # the installed package (site-packages in CI)
+SRC = Path(leolink.__file__).resolve().parent
+# The config is in the repository, not next to the package (CI installs it non-editable).
 PAPER = Path(__file__).resolve().parents[1] / "configs" / "paper.toml"
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 60  # code lines, docstring excluded

@@ -212,6 +212,7 @@ def test_parallel_rows_follow_the_grid_not_completion_order(tmp_path):
     assert list(table["n_ut_epochs"]) == [n_ut * 40, n_ut * 4]
 
 
+@pytest.mark.optional_extra("dist")
 def test_dask_cluster_gives_the_same_table(tmp_path):
     """``workers="dask://ADDRESS"`` (the ``dist`` extra): same table as one process."""
     distributed = pytest.importorskip("dask.distributed")

@@ -44,12 +44,14 @@ class Result:
         for path in self.files:  # Parquet first: faster to read
             if path.name == "trace.parquet":
                 return pd.read_parquet(path)
+        assert self.out_dir is not None  # a run without a folder keeps its tables in memory
         return pd.read_csv(self.out_dir / "trace.csv")
 
     @property
     def events(self) -> pd.DataFrame:
         if self._memory is not None:
             return self._memory.events()
+        assert self.out_dir is not None
         return pd.read_csv(self.out_dir / "events.csv")
 
 

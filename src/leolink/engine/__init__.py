@@ -318,7 +318,7 @@ class LinkEngine:
         if rx_fading_lin is not None:
             path = path * rx_fading_lin
         snr = g_sig * path
-        # S / (I + N), over the noise (Sec. 4.1)
+        # S / (I + N), Eqs. (18)-(19), over N
         sinr = snr / (g_int * path + (0.0 if i_other is None else i_other) + 1.0)
         se = np.log1p(sinr) / np.log(2.0)  # log2(1 + SINR), accurate at low SINR
 

@@ -237,8 +237,9 @@ def plot_run(trace, events, summary, out_dir, ut_ids=(0,), duration_s=None):
     events : pandas.DataFrame or None
         ``time_s, ut_id, kind, ...``; may be empty.
     summary : dict
-        ``summary["per_ut"]`` (``ut_id``, ``dwell_times_s``, ``handovers``) and
-        ``summary["overall"]`` (``handovers``, ``dwell_times_s`` [s]).
+        The ``summary.json`` layout (:class:`leolink.io.summary.SummaryAccumulator`):
+        ``summary["per_ut"]`` (``ut_id``, ``handovers``, ``dwell.censored``) and
+        ``summary["overall"]`` (``handovers``, ``dwell.complete_s`` [s]).
     out_dir : path-like
         Directory (created if missing).
     ut_ids : sequence of int

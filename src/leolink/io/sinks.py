@@ -149,7 +149,9 @@ class PlotSink:
 class TraceParams(SinkParams):
     enabled: bool = Field(True, description="write trace.csv / trace.parquet")
     formats: list[Literal["csv", "parquet"]] = Field(
-        default_factory=lambda: ["csv"], min_length=1, description="trace files to write"
+        default_factory=lambda: ["csv"],  # type: ignore[arg-type]  # mypy infers list[str]
+        min_length=1,
+        description="trace files to write",
     )
     chunk_rows: int = Field(200_000, ge=1, le=100_000_000, description="rows per written chunk")
 

@@ -23,6 +23,7 @@ from leolink.sim.mobility import concat_states
 from leolink.sim.monitor import Monitor
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.policies import Policy
+from leolink.sim.populations import MotionModel
 from leolink.sim.processes import (
     SimState,
     beam_controller,
@@ -68,7 +69,7 @@ class Scenario:
 
     engine: LinkEngine
     ephemeris: Ephemeris
-    populations: list[tuple[str, object]]
+    populations: list[tuple[str, MotionModel]]
     policy: Policy
     min_snr_db: float
     handover_time_s: float
