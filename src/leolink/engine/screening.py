@@ -104,7 +104,7 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None):
     ut_id = np.arange(len(ut_pos_m)) if ut_id is None else ut_id
     factor = _ut_factor(engine, ut_id)
     known = np.where(np.isnan(factor), 1.0, factor)
-    if jit.enabled() and ut_pos_m.shape[0] * sat_pos_m.shape[0] >= jit.JIT_MIN_PAIRS:
+    if jit.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]):  # numba imported for large calls only
         code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
     else:
         code, bound, sin_el = _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
