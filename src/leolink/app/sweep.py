@@ -163,24 +163,24 @@ def _run_point(cfg_path, overrides, run_dir, resume):
     """Run (or, with ``resume``, reuse) one point; return its flat metrics row.
 
     Top-level so that :class:`~concurrent.futures.ProcessPoolExecutor` can pickle it.
-    A run folder is reused only if its ``summary.json`` exists and its
-    ``config.resolved.toml`` is the config of this point (both are written at the end
-    of a run, the summary first).
+    A folder is reused only if it holds a finished run (its ``run.json``, written last)
+    of this point's config (the manifest's config hash); otherwise it is run again,
+    replacing what an earlier or interrupted run left there.
     """
     import json
 
     from leolink.app.run import run
     from leolink.config import dump_toml, load_config
+    from leolink.io.run_dir import config_sha256, read_manifest
 
     cfg = load_config(cfg_path, overrides)
     run_dir = Path(run_dir)
-    summary_path = run_dir / "summary.json"
-    resolved_path = run_dir / "config.resolved.toml"
-    if resume and summary_path.exists() and resolved_path.exists():
-        if resolved_path.read_text(encoding="utf-8") == dump_toml(cfg):
-            return flatten_summary(json.loads(summary_path.read_text("utf-8"))["overall"])
-    summary_path.unlink(missing_ok=True)  # an interrupted rerun must not look complete
-    result = run(cfg, out_dir=run_dir)
+    if resume and run_dir.is_dir():
+        manifest = read_manifest(run_dir)
+        if manifest and manifest.get("config_sha256") == config_sha256(dump_toml(cfg)):
+            summary = json.loads((run_dir / "summary.json").read_text("utf-8"))
+            return flatten_summary(summary["overall"])
+    result = run(cfg, out_dir=run_dir, overwrite=True)  # the sweep owns its runs/ folder
     return flatten_summary(result.summary["overall"])
 
 
