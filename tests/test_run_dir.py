@@ -105,7 +105,8 @@ def _interrupted_run(out, monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(app_run, "write_manifest", stop)
-    assert _leolink("run", PAPER, "--out", out, "--quiet", *SHORT) == 130
+    args = ["--parquet", "--set", "run.duration_s=10"]  # every output, plots and report too
+    assert _leolink("run", PAPER, "--out", out, "--quiet", *args) == 130
     monkeypatch.undo()
     (out / "trace.csv.1a2b3c4d.partial").write_text("left by a killed writer")
 
@@ -121,8 +122,10 @@ def test_an_interrupted_run_is_not_finished_and_is_cleared_by_overwrite(
     assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", *SHORT) == EXIT_USAGE
     err = capsys.readouterr().err
     assert "files of an unfinished leolink run (no run.json: " in err
-    assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", "--overwrite", *SHORT) == 0
-    assert not list(tmp_path.glob("*.partial"))
+    lean = [*SHORT, "--set", "output.report.enabled=false"]  # writes fewer files
+    assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", "--overwrite", *lean) == 0
+    assert not list(tmp_path.glob("*.partial")) and not list(tmp_path.glob("*.png"))
+    assert not {"trace.parquet", "report.html", "footprint.gif"} & _files(tmp_path)
     listed = {f["path"] for f in json.loads((tmp_path / "run.json").read_text())["files"]}
     assert listed == _files(tmp_path) - {"run.json"}
 
