@@ -225,3 +225,23 @@ def test_a_tle_run_in_memory_draws_its_map_and_notebook_views():
     assert ds["snr_db"].dims == ("time_s", "ut_id")
     assert float(ds["snr_db"].sel(time_s=60.0, ut_id=1)) == row["snr_db"].item()
     assert math.isfinite(row["snr_db"].item())
+
+
+def test_tle_exports_count_from_the_configured_utc_epoch(tle, tmp_path):
+    import shutil
+
+    out = tmp_path / "tle"
+    shutil.copytree(tle[0], out)
+    assert cli("report", out, "--exports", "--no-animation", "--quiet") == ""
+    czml = json.loads((out / "run.czml").read_text())
+    sat = next(p for p in czml if str(p.get("id", "")).startswith("satellite"))
+    assert sat["position"]["epoch"] == "2019-12-09T16:37:29.363Z"  # tle.toml's tle_epoch_utc
+
+
+def test_report_uts_outside_the_run_are_refused(tmp_path, capsys):
+    from leolink.cli import main
+
+    args = ["run", str(PAPER), "--out", str(tmp_path), "--quiet"]
+    assert main([*args, "--set", "output.report.uts=[2, 7]"]) == 2
+    err = capsys.readouterr().err
+    assert "output.report.uts = [2, 7] is not allowed; UT ids of this run are 0 to 6" in err

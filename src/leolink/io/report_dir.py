@@ -223,13 +223,16 @@ def tracks_from_stats(stats, max_frames=120):
 def write_exports(stats, out_dir, epoch_utc=None):
     """Write ``run.geojson`` and ``run.czml`` of a run's statistics into ``out_dir``.
 
-    ``epoch_utc``: ISO 8601 time of ``t = 0`` for CZML (default J2000, see
-    :mod:`leolink.io.exports`). Returns the two paths.
+    ``epoch_utc``: ISO 8601 time of ``t = 0`` for CZML (default: the one the run saved in
+    the statistics, a TLE run's epoch, else J2000, see :mod:`leolink.io.exports`). Returns
+    the two paths.
     """
     from leolink.io.exports import DEFAULT_EPOCH_UTC, write_czml, write_geojson
 
     sats, uts, frames = tracks_from_stats(stats)
     out_dir = Path(out_dir)
+    saved = getattr(stats, "epoch_utc", None)
+    epoch_utc = epoch_utc or (str(saved) if saved is not None else None)
     geo = write_geojson(out_dir / "run.geojson", sats, uts, frames)
     czml = write_czml(
         out_dir / "run.czml",

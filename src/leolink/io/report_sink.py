@@ -16,6 +16,7 @@ written and :attr:`stats` feeds the notebook views of ``leolink.run()``'s result
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -41,19 +42,24 @@ def default_series_uts(population):
 
 
 def epoch_utc_of(cfg):
-    """ISO 8601 UTC time of simulation time 0 for CZML: a TLE run's epoch, else None."""
+    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML: a TLE run's
+    ``tle_epoch_utc`` (naive means UTC, as the scenario reads it) or its first TLE's epoch;
+    None for other constellations (the exports then count from J2000)."""
     c = cfg.constellation
     if getattr(c, "kind", None) != "tle":
         return None
     if c.tle_epoch_utc:
-        return c.tle_epoch_utc
-    from sgp4.api import Satrec
-    from sgp4.conveniences import sat_epoch_datetime
+        when = datetime.fromisoformat(c.tle_epoch_utc.replace("Z", "+00:00"))
+    else:
+        from sgp4.api import Satrec
+        from sgp4.conveniences import sat_epoch_datetime
 
-    from leolink.io.tle import read_tle_file
+        from leolink.io.tle import read_tle_file
 
-    _, line1, line2 = read_tle_file(c.tle_file)[0]
-    return sat_epoch_datetime(Satrec.twoline2rv(line1, line2)).isoformat()
+        _, line1, line2 = read_tle_file(c.tle_file)[0]
+        when = sat_epoch_datetime(Satrec.twoline2rv(line1, line2))
+    when = when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
+    return when.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def _decode(columns):
@@ -103,6 +109,8 @@ class ReportSink:
             info.n_ut, info.start_s, end_s, info.epoch_s, uts,
             self.params.sample_uts, self.params.max_frames,
         )  # fmt: skip
+        if self.epoch_utc:  # saved with the statistics: leolink report DIR --exports reads it
+            self.stats.epoch_utc = np.asarray(self.epoch_utc)
         cb = self.codebook
         if cb is not None:
             if not np.array_equal(cb.beam_id, np.arange(len(cb.beam_id))):
