@@ -83,7 +83,10 @@ def write_geometry(out_dir, config):
 
 
 def make_run(out_dir, config=PAPER, *extra):
-    """``leolink run CONFIG --out DIR`` plus the geometry files; returns the folder."""
-    cli("run", config, "--out", out_dir, "--quiet", *extra)
+    """``leolink run CONFIG --out DIR`` plus the geometry files; returns the folder.
+
+    The run's own report is off here (these tests build it from the folder's files;
+    tests/test_report_sink.py checks the one a run writes)."""
+    cli("run", config, "--out", out_dir, "--quiet", "--set", "output.report.enabled=false", *extra)
     write_geometry(out_dir, config)
     return Path(out_dir)
