@@ -100,6 +100,9 @@ def quiet_warnings():
     """Each library warning as one line, once; the :data:`SILENCED` ones not at all."""
     with warnings.catch_warnings():
         warnings.simplefilter("once")
+        # A library's deprecations are for its developers, not for a leolink user.
+        warnings.simplefilter("ignore", DeprecationWarning)
+        warnings.simplefilter("ignore", PendingDeprecationWarning)
         for message, category, module, _why in SILENCED:
             warnings.filterwarnings("ignore", message, category, module)
         warnings.showwarning = _show

@@ -24,11 +24,13 @@ __all__ = [
     "ephemeris_health",
 ]
 
-#: Instants at which the ephemeris is propagated to look for sgp4 errors (the epochs
-#: themselves when fewer): sgp4 errors (decay, eccentricity out of range) persist once
-#: they appear, so a regular sample finds every failing satellite, its onset to within
-#: ``span / HEALTH_SAMPLES``.
-HEALTH_SAMPLES = 2001
+#: Most instants at which the ephemeris is propagated to look for sgp4 errors: every
+#: epoch of a run up to this many, else a regular sample of them. sgp4's errors come and
+#: go (a near-parabolic orbit fails near perigee only: error 4 for tens of seconds per
+#: revolution), so a run longer than this may hide a short failure between samples; the
+#: run itself then serves no UT from that satellite at those epochs (NaN positions).
+HEALTH_SAMPLES = 20_001
+_BLOCK_STATES = 1_000_000  # satellite states per propagation call (bounded memory)
 #: A TLE this many days from the run is noted (sgp4 errors grow by ~1-3 km per day).
 TLE_AGE_NOTE_DAYS = 30.0
 _MAX_LISTED = 5
@@ -54,7 +56,8 @@ def _sample(times_s):
 def _failures(ephemeris, times_s):
     """``[(satellite, first failing time [s], sgp4 code)]`` over ``times_s``."""
     t = _sample(times_s)
-    err = np.concatenate([ephemeris.state(t[i : i + 256])[3] for i in range(0, len(t), 256)])
+    step = max(1, _BLOCK_STATES // max(ephemeris.n_sat, 1))
+    err = np.concatenate([ephemeris.state(t[i : i + step])[3] for i in range(0, len(t), step)])
     out = []
     for sat in np.flatnonzero(err.any(axis=0)):
         k = int(np.argmax(err[:, sat] != 0))
@@ -66,7 +69,7 @@ def _describe(ephemeris, failures):
     from sgp4.api import SGP4_ERRORS
 
     parts = [
-        f"{ephemeris.names[sat]!r} from t = {t_s:.1f} s (sgp4 error {code}: "
+        f"{ephemeris.names[sat]!r} first at t = {t_s:.1f} s (sgp4 error {code}: "
         f"{SGP4_ERRORS.get(code, 'unknown')})"
         for sat, t_s, code in failures[:_MAX_LISTED]
     ]
@@ -123,8 +126,8 @@ def ephemeris_health(cfg, ephemeris, times_s):
     notes = _age_note(cfg, read_tle_file(cfg.constellation.tle_file))
     if failures:
         notes.append(
-            f"satellite {len(failures)} of {ephemeris.n_sat} fail in sgp4 and serve no UT "
-            f"from then on: {_describe(ephemeris, failures)}"
+            f"satellite {len(failures)} of {ephemeris.n_sat} fail in sgp4 at some epochs and "
+            f"serve no UT then: {_describe(ephemeris, failures)}"
         )
     return notes
 
