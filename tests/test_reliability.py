@@ -168,7 +168,8 @@ BROKEN = [
         "epoch_does_not_divide_duration",
         PAPER,
         ["run.epoch_s=3", "run.duration_s=10"],
-        r"run\.duration_s = 10\.0 is not allowed: it must be a whole number of epochs \(run\.epoch_s"
+        r"run\.duration_s = 10\.0 is not allowed: it must be a whole number of epochs "
+        r"\(run\.epoch_s"
         r" = 3\.0; 3 epochs give 9 s\)",
     ),
     (
