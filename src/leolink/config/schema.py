@@ -225,10 +225,10 @@ class LinkSection(Section):
 
 
 class SatelliteArraySection(Section):
-    n_x: int = _f(60, ge=1, le=10_000, doc="elements along-track")
-    n_y: int = _f(72, ge=1, le=10_000, doc="elements cross-track")
-    n_rf_x: int = _f(5, ge=1, le=10_000, doc="RF chains (subarrays) along-track")
-    n_rf_y: int = _f(3, ge=1, le=10_000, doc="RF chains (subarrays) cross-track")
+    n_x: int = _f(60, ge=1, le=2000, doc="elements along-track")
+    n_y: int = _f(72, ge=1, le=2000, doc="elements cross-track")
+    n_rf_x: int = _f(5, ge=1, le=2000, doc="RF chains (subarrays) along-track")
+    n_rf_y: int = _f(3, ge=1, le=2000, doc="RF chains (subarrays) cross-track")
     oversampling: Annotated[float, Field(gt=0.0, le=100.0)] | Literal["auto"] = _f(
         1.2,
         doc="DFT oversampling factor O in (0, 100], or 'auto' (the most beams the RF chains "
