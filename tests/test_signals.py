@@ -62,6 +62,13 @@ def _children(pid):
     return out
 
 
+def _kill_left(pids):
+    """SIGKILL whichever of ``pids`` still runs (a failing test leaves no orphans)."""
+    for pid in pids:
+        if _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+
+
 def _alive(pid):
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
@@ -102,7 +109,10 @@ def test_sigterm_stops_a_parallel_sweep_and_its_workers(tmp_path):
     workers = _children(proc.pid)
     assert len(workers) >= 2
     proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=WAIT_S)
+    try:
+        _, err = proc.communicate(timeout=WAIT_S)
+    finally:
+        _kill_left(workers)
     assert proc.returncode == 143, err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("leolink: stopped by SIGTERM: the sweep "), err
@@ -118,9 +128,12 @@ def test_workers_die_after_sigkill_of_their_parent(tmp_path):
     workers = _children(proc.pid)
     assert len(workers) >= 2
     proc.kill()  # SIGKILL: no handler runs in the parent
-    proc.communicate(timeout=WAIT_S)
-    # prctl(PR_SET_PDEATHSIG) sends each worker SIGTERM: it aborts its point and exits
-    _wait_for(lambda: not any(_alive(w) for w in workers), "the orphaned workers to exit")
+    try:
+        # prctl(PR_SET_PDEATHSIG) sends each worker SIGTERM: it aborts its point and exits
+        _wait_for(lambda: not any(_alive(w) for w in workers), "the orphaned workers to exit")
+    finally:
+        _kill_left(workers)
+    proc.communicate(timeout=WAIT_S)  # the pipes close once the workers are gone
     assert _partials(out) == []
 
 
