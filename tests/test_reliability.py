@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 import shutil
 
+import numpy as np
 import pytest
 
 from leolink.cli import EXIT_USAGE
@@ -343,3 +344,33 @@ def test_sweep_sends_absolute_paths_to_its_workers(tmp_path, monkeypatch, capsys
     ((_, (cfg_path, _, run_dir, _)),) = seen
     assert cfg_path == str(conf / "car.toml") and run_dir.startswith(str(tmp_path / "sw"))
     assert "run.json" in files_in(tmp_path / "sw")
+
+
+def test_a_long_tle_run_is_checked_on_a_sample_of_its_epochs(tmp_path, capsys):
+    """30,000 epochs (more than HEALTH_SAMPLES): a regular sample, first and last epoch
+    included; the decaying satellite (fine at its epoch, error 6 from ~12 h after it,
+    error 1 from 2 days) is found and named."""
+    from leolink.app.validate import HEALTH_SAMPLES, _sample
+    from reliability_helpers import ISS_TLE
+
+    times = np.arange(30_000) * 10.0
+    sample = _sample(times, 2)
+    assert len(sample) == HEALTH_SAMPLES and sample[0] == 0.0 and sample[-1] == times[-1]
+    assert set(sample) <= set(times)
+    text = ISS_TLE.read_text(encoding="utf-8") + decayed_tle().replace("SAT", "DEAD")
+    sets = _sets([*FAST, "run.epoch_s=10", "run.duration_s=300000", *_tle_file(tmp_path, text)])
+    code, out, err = cli(capsys, "validate", TLE_CONFIG, *sets)
+    assert code == 0, err
+    found = re.search(r"satellite 1 of 2 fail in sgp4 .*'DEAD' first at t = (\S+) s", out)
+    # The onset by sgp4 itself, every second of the run (t = 0 is 60 s before the epoch)
+    from sgp4.api import Satrec
+
+    _, l1, l2 = decayed_tle().splitlines()
+    sat = Satrec.twoline2rv(l1, l2)
+    t = np.arange(0.0, 300_000.0, 1.0)
+    err, _, _ = sat.sgp4_array(
+        np.full(t.size, sat.jdsatepoch), sat.jdsatepochF + (t - 60.0) / 86400
+    )
+    onset = t[np.argmax(err != 0)]
+    step = 300_000.0 / (HEALTH_SAMPLES - 1)
+    assert found and onset <= float(found.group(1)) <= onset + step + 10.0  # one sample late

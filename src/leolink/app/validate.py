@@ -30,6 +30,9 @@ __all__ = [
 #: revolution), so a run longer than this may hide a short failure between samples; the
 #: run itself then serves no UT from that satellite at those epochs (NaN positions).
 HEALTH_SAMPLES = 20_001
+#: ... and at most this many satellite states in all (a large constellation is sampled
+#: more coarsely: ~1 s of sgp4), but never fewer than 201 instants.
+HEALTH_STATES = 5_000_000
 _BLOCK_STATES = 1_000_000  # satellite states per propagation call (bounded memory)
 #: A TLE this many days from the run is noted (sgp4 errors grow by ~1-3 km per day).
 TLE_AGE_NOTE_DAYS = 30.0
@@ -47,15 +50,17 @@ def check_files(cfg):
             raise ConfigError(f"population.{i}.track_file = {path!r} does not exist")
 
 
-def _sample(times_s):
-    if len(times_s) <= HEALTH_SAMPLES:
-        return np.asarray(times_s, float)
-    return np.asarray(times_s, float)[np.linspace(0, len(times_s) - 1, HEALTH_SAMPLES).round()]
+def _sample(times_s, n_sat):
+    n = max(201, min(HEALTH_SAMPLES, HEALTH_STATES // max(n_sat, 1)))
+    times_s = np.asarray(times_s, float)
+    if len(times_s) <= n:
+        return times_s
+    return times_s[np.linspace(0, len(times_s) - 1, n).round().astype(int)]
 
 
 def _failures(ephemeris, times_s):
     """``[(satellite, first failing time [s], sgp4 code)]`` over ``times_s``."""
-    t = _sample(times_s)
+    t = _sample(times_s, ephemeris.n_sat)
     step = max(1, _BLOCK_STATES // max(ephemeris.n_sat, 1))
     err = np.concatenate([ephemeris.state(t[i : i + step])[3] for i in range(0, len(t), step)])
     out = []
