@@ -150,8 +150,8 @@ def test_unreachable_dask_scheduler(tmp_path, capsys):
 
 
 def test_library_warnings_are_one_line_or_silenced(monkeypatch, capsys):
-    """A library's multi-line warning is one line, once; itur's RuntimeWarning is silenced
-    (leolink.app.guard.SILENCED gives the reason)."""
+    """A library's multi-line warning is one line, once; itur's DeprecationWarning is
+    silenced (leolink.app.guard.SILENCED gives the reason)."""
     import leolink.app.reports as reports
 
     real = reports.link_budget_at_elevation
@@ -161,7 +161,9 @@ def test_library_warnings_are_one_line_or_silenced(monkeypatch, capsys):
             warnings.warn_explicit(
                 "a library says\nsomething long", UserWarning, "lib.py", 1, module="somelib"
             )
-            warnings.warn_explicit("out of range", RuntimeWarning, "itur.py", 2, module="itur.x")
+            warnings.warn_explicit(
+                "np.x is deprecated", DeprecationWarning, "itur.py", 2, module="itur"
+            )
         return real(cfg, elevation_deg)
 
     monkeypatch.setattr(reports, "link_budget_at_elevation", noisy)

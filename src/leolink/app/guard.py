@@ -52,11 +52,12 @@ SILENCED = (
     ),
     (
         r".*",
-        RuntimeWarning,
-        r"itur.*",
-        "itur evaluates its tables outside their range for elevations below the mask; "
-        "leolink never uses those values (the elevation mask removes them)",
+        DeprecationWarning,
+        r"",
+        "a library's deprecations (itur's use of numpy and scipy, ...) are for its "
+        "developers; a leolink user can do nothing about them",
     ),
+    (r".*", PendingDeprecationWarning, r"", "as DeprecationWarning"),
 )
 
 
@@ -100,9 +101,6 @@ def quiet_warnings():
     """Each library warning as one line, once; the :data:`SILENCED` ones not at all."""
     with warnings.catch_warnings():
         warnings.simplefilter("once")
-        # A library's deprecations are for its developers, not for a leolink user.
-        warnings.simplefilter("ignore", DeprecationWarning)
-        warnings.simplefilter("ignore", PendingDeprecationWarning)
         for message, category, module, _why in SILENCED:
             warnings.filterwarnings("ignore", message, category, module)
         warnings.showwarning = _show
