@@ -42,13 +42,17 @@ def default_series_uts(population):
 
 
 def epoch_utc_of(cfg):
-    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML: a TLE run's
-    ``tle_epoch_utc`` (naive means UTC, as the scenario reads it) or its first TLE's epoch;
-    None for other constellations (the exports then count from J2000)."""
+    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML: a TLE run's time 0 as
+    the scenario reads it (``run.start_utc - run.start_s``, or ``tle_epoch_utc``; naive
+    means UTC), else its first TLE's epoch; None for other constellations (the exports
+    then count from J2000)."""
     c = cfg.constellation
     if getattr(c, "kind", None) != "tle":
         return None
-    if c.tle_epoch_utc:
+    zero = cfg.utc_of_time_zero() if hasattr(cfg, "utc_of_time_zero") else None
+    if zero is not None:
+        when = zero
+    elif c.tle_epoch_utc:
         when = datetime.fromisoformat(c.tle_epoch_utc.replace("Z", "+00:00"))
     else:
         from sgp4.api import Satrec
