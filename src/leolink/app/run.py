@@ -12,6 +12,7 @@ manifest ``run.json`` last: a folder without it is not a finished run.
 from __future__ import annotations
 
 import dataclasses
+from datetime import UTC
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -20,13 +21,12 @@ import pandas as pd
 import leolink
 from leolink.app.codebook import codebook_design_from_config
 from leolink.app.notes import track_coverage, track_notes
-from leolink.app.orbits import earth_orientation, roi_frame
+from leolink.app.orbits import earth_orientation, roi_frame, tle_time_zero_utc
 from leolink.app.validate import checked_scenario, ephemeris_health
 from leolink.config import dump_toml
 from leolink.errors import LeolinkError
 from leolink.io.atomic import write_json_atomic, write_text_atomic
 from leolink.io.notebook import ResultViews
-from leolink.io.report_sink import epoch_utc_of
 from leolink.io.run_dir import claim_out_dir, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary import SummaryAccumulator
@@ -97,6 +97,17 @@ class _Position:
         )
 
 
+def _epoch_utc(cfg):
+    """ISO 8601 UTC (``...Z``) of simulation time 0 for the report's CZML, by the
+    scenario's own rule (:func:`~leolink.app.orbits.tle_time_zero_utc` for TLE runs);
+    None when the run has no calendar time (the exports then count from J2000)."""
+    c = cfg.constellation
+    when = tle_time_zero_utc(cfg) if c.kind == "tle" else cfg.utc_of_time_zero()
+    if when is None:
+        return None
+    return when.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
 def _sinks(cfg, out_dir, summary, scen):
     """The sinks of a run: summary first (the plots read it), then ``[output.*]``; without
     a folder, the trace and events in memory (and the report's statistics)."""
@@ -105,7 +116,7 @@ def _sinks(cfg, out_dir, summary, scen):
         summary=summary,
         ephemeris=scen.ephemeris,
         codebook=scen.engine.codebook,
-        epoch_utc=epoch_utc_of(cfg),
+        epoch_utc=_epoch_utc(cfg),
     )
     if out_dir is None:
         sinks = [summary, MemorySink()]

@@ -16,7 +16,6 @@ written and :attr:`stats` feeds the notebook views of ``leolink.run()``'s result
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +24,7 @@ from leolink.errors import ConfigError
 from leolink.io.report_stats import SERIES_COLUMNS, ReportStats
 from leolink.sim.controller import SERVICE_NAMES
 
-__all__ = ["ReportSink", "default_series_uts", "epoch_utc_of"]
+__all__ = ["ReportSink", "default_series_uts"]
 
 CHUNK_ROWS = 100_000  # rows handed to ReportStats at once: one call per ~100 k rows
 MAX_DEFAULT_UTS = 6  # default time-plot UTs: the first of each population, at most this
@@ -39,33 +38,6 @@ def default_series_uts(population):
     """The first UT of each population (names per UT, in order), at most 6."""
     firsts = [i for i, name in enumerate(population) if i == 0 or population[i - 1] != name]
     return firsts[:MAX_DEFAULT_UTS]
-
-
-def epoch_utc_of(cfg):
-    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML: ``run.start_utc`` (minus
-    ``run.start_s``), else a TLE run's ``tle_epoch_utc`` (naive means UTC, as the scenario
-    reads it) or its first TLE's epoch; None otherwise (the exports count from J2000)."""
-    c = cfg.constellation
-    when = cfg.run.utc_of_time_zero()
-    if when is None and getattr(c, "kind", None) == "tle":
-        when = _tle_time_zero(c)
-    if when is None:
-        return None
-    when = when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
-    return when.isoformat(timespec="milliseconds").replace("+00:00", "Z")
-
-
-def _tle_time_zero(c):
-    """``tle_epoch_utc`` (naive means UTC), else the epoch of the first TLE of the file."""
-    if c.tle_epoch_utc:
-        return datetime.fromisoformat(c.tle_epoch_utc.replace("Z", "+00:00"))
-    from sgp4.api import Satrec
-    from sgp4.conveniences import sat_epoch_datetime
-
-    from leolink.io.tle import read_tle_file
-
-    _, line1, line2 = read_tle_file(c.tle_file)[0]
-    return sat_epoch_datetime(Satrec.twoline2rv(line1, line2))
 
 
 def _decode(columns):
