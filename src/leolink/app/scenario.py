@@ -21,6 +21,7 @@ from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES
 from leolink.sim.mobility import OnWgs84
+from leolink.sim.environment import environment_models
 from leolink.sim.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
 
@@ -166,4 +167,5 @@ def build_scenario(cfg):
         seed=r.seed,
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
+        environments=environment_models(cfg.population, cfg.link.freq_hz),
     )

@@ -358,12 +358,14 @@ class LinkEngine:
         """Every beam of the lattice, one colour (the fused serving kernel's case)."""
         return self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy)
 
-    def other_satellites_interference(self, snap, s, b, u):
+    def other_satellites_interference(self, snap, s, b, u, path_factor_lin=None):
         """Interference over noise from the beams of the other satellites, per UT.
 
         Their beams of the serving beam's colour, at full power, seen through the UT
         antenna pointed at the serving satellite (``terminal.pattern_lin``); ``s``, ``b``:
-        each UT's serving satellite (index into the snapshot's) and beam.
+        each UT's serving satellite (index into the snapshot's) and beam;
+        ``path_factor_lin (n_ut, n_sat)``: each path's power factor (the UT environment's
+        loss, :mod:`leolink.sim.environment`), None for 1.
         """
         bm = snap.gain_tx_bm  # (n_beam, n_sat, n_ut)
         same = (self.colors[None, :] == self.colors[b][:, None]).astype(float)  # (n_ut, n_beam)
@@ -371,6 +373,8 @@ class LinkEngine:
         du = snap.u_panel - snap.u_panel[u, s][:, None, :]
         rx = self.terminal.pattern_lin(du[..., 0], du[..., 1])  # (n_ut, n_sat)
         contrib = tx * rx * snap.path_no_rx_lin
+        if path_factor_lin is not None:
+            contrib = contrib * path_factor_lin
         contrib[u, s] = 0.0  # the serving satellite is counted by _same_colour_total
         return contrib.sum(axis=1)
 

@@ -19,6 +19,7 @@ from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
 from leolink.sim.controller import ControllerState
 from leolink.sim.decide import Decider
+from leolink.sim.environment import ChannelTracker
 from leolink.sim.mobility import concat_states
 from leolink.sim.monitor import Monitor
 from leolink.sim.motion import MotionBlocks
@@ -65,6 +66,9 @@ class Scenario:
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
         cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
+    environments : list of EnvironmentModel or None, one per population
+        (:func:`leolink.sim.environment.environment_models`); None: every UT in open
+        country, the paper's link.
     """
 
     engine: LinkEngine
@@ -82,6 +86,7 @@ class Scenario:
     fading_k: float | None = None
     ellipsoidal: bool = False
     prune: bool = True
+    environments: list | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -186,14 +191,19 @@ def run_simulation(
         ellipsoidal=scen.ellipsoidal,
         prune=scen.prune,
     )
-    keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
+    keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None or scen.environments else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
+    environment = ()
+    if scen.environments:
+        counts = [pop.n_ut for _, pop in scen.populations]
+        decide.with_channel(ChannelTracker(scen.environments, counts, keys, decide.min_el))
+        environment = decide.channel.environment
     monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names)
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
         n_ut, scen.ephemeris.n_sat, scen.engine.n_beam, scen.epoch_s,
-        float(times[scen.n_warmup]), len(times) - scen.n_warmup, names,
+        float(times[scen.n_warmup]), len(times) - scen.n_warmup, names, environment,
     )  # fmt: skip
     t_wall = time.perf_counter()
     sink.start(info)
