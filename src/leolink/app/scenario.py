@@ -167,5 +167,16 @@ def build_scenario(cfg):
         seed=r.seed,
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
-        environments=environment_models(cfg.population, cfg.link.freq_hz),
+        environments=_environments(cfg),
     )
+
+
+def _environments(cfg):
+    """The populations' TR 38.811 environments (None: all open country)."""
+    models = environment_models(cfg.population, cfg.link.freq_hz)
+    if models and cfg.atmosphere.model == "itu_p618" and any(m.scintillation for m in models):
+        raise ConfigError(
+            "population.channel.scintillation = true is not allowed with atmosphere.model = "
+            "'itu_p618' (it contains scintillation already); use one of the two"
+        )
+    return models

@@ -23,6 +23,7 @@ states in any run that holds it, and any motion-block length gives the same stat
 from __future__ import annotations
 
 import dataclasses
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -43,7 +44,7 @@ SHADOW_Z_MAX = 6.0
 class ChannelParams(Params):
     """``[population.channel]``: the TR 38.811 channel of a non-open environment."""
 
-    band: str | None = Field(
+    band: Literal["s", "ka"] | None = Field(
         None,
         description="table band 's' or 'ka' (none: from the carrier, Ka from 6.32 GHz up, "
         "so 11.45 GHz uses Ka; leolink.link.environment.band_for_frequency)",
