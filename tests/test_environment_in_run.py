@@ -7,7 +7,6 @@ shadowing and clutter, Ka band), Table 6.6.6.2.1-1 (tropospheric scintillation).
 Tolerances: binomial / sampling errors, 4 standard errors unless said.
 """
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,6 @@ from scipy import stats
 from leolink.app.run import run
 from leolink.config import load_config
 from leolink.errors import ConfigError
-from leolink.link import channel_state as cs
 from leolink.link.environment import ENVIRONMENTS
 from leolink.sim import motion
 from leolink.sim.populations import PopulationParams
@@ -98,8 +96,8 @@ def test_shadowing_std_and_clutter_equal_table_6_6_2_2(crowd):
         assert abs(s - sigma) < N_SE * sigma / np.sqrt(2 * (n - 1)), (s, sigma, n)
         assert abs(sf[mask].mean()) < N_SE * sigma / np.sqrt(n)
     el = first.elevation_deg.to_numpy()
-    np.testing.assert_allclose(first.clutter_db[~los], np.interp(el[~los], GRID_DEG, URBAN_KA_CL_DB),
-                               rtol=0, atol=1e-9)  # fmt: skip
+    expected_cl_db = np.interp(el[~los], GRID_DEG, URBAN_KA_CL_DB)
+    np.testing.assert_allclose(first.clutter_db[~los], expected_cl_db, rtol=0, atol=1e-9)
     assert (first.clutter_db[los] == 0.0).all()
     assert (first.scintillation_db == 0.0).all()  # off by default
 
@@ -155,7 +153,9 @@ def _lag_pairs(trace):
     t = trace.sort_values(["ut_id", "time_s"])
     a, b = t.iloc[:-1].reset_index(drop=True), t.iloc[1:].reset_index(drop=True)
     same = (a.ut_id == b.ut_id) & (a.n_visible == 1) & (b.n_visible == 1)
-    return a[same & np.isfinite(a.los) & np.isfinite(b.los)], b[same & np.isfinite(a.los) & np.isfinite(b.los)]
+    return a[same & np.isfinite(a.los) & np.isfinite(b.los)], b[
+        same & np.isfinite(a.los) & np.isfinite(b.los)
+    ]
 
 
 def test_states_decorrelate_along_the_track_as_the_model(tmp_path):
@@ -218,7 +218,7 @@ def test_open_country_without_scintillation_writes_no_environment_column(tmp_pat
     [
         ('environment = "city"', "environment"),
         ('[population.channel]\nband = "x"', "band"),
-        ('[population.channel]\nlos_corr_distance_m = -1.0', "los_corr_distance_m"),
+        ("[population.channel]\nlos_corr_distance_m = -1.0", "los_corr_distance_m"),
     ],
 )
 def test_bad_environment_settings_name_the_key(tmp_path, extra, message):
@@ -233,7 +233,6 @@ def test_scintillation_below_6_ghz_needs_the_geomagnetic_latitude(tmp_path):
     cfg = _config(tmp_path, pops, ["link.freq_hz=2.0e9"])
     with pytest.raises(ConfigError, match=r"population\.0\.channel.*geomagnetic_latitude_deg"):
         run(cfg)
-
 
 
 def test_scintillation_twice_is_refused(tmp_path):
@@ -271,3 +270,61 @@ def test_each_interfering_satellite_path_takes_its_own_factor():
     mixed = eng.other_satellites_interference(snap, s, b, u, f)
     np.testing.assert_allclose(mixed, sum(f[:, k] * parts[k] for k in range(4)), rtol=1e-12)
     assert not np.allclose(mixed, f[u, s] * total)  # not the serving path's factor
+
+
+def test_candidate_search_widens_by_what_the_environment_can_reorder():
+    """A cell the search leaves out must stay out after the environment: the window grows
+    by the largest clutter loss plus 6 shadowing deviations each way (Table 6.6.2-2, Ka:
+    CL 44.3 dB at 10 deg, sigma_SF NLoS 6 dB), and the decider searches with it."""
+    from leolink.app.scenario import build_scenario
+    from leolink.sim.decide import Decider
+    from leolink.sim.environment import ChannelTracker, candidate_margin_db
+
+    models = build_scenario(load_config(TOWN)).environments
+    assert candidate_margin_db([models[0]]) == pytest.approx(44.3 + 2 * 6 * 6.0)  # urban
+    assert candidate_margin_db([models[1]]) == 0.0  # open country reorders nothing
+    # Rural, Table 6.6.2-3 Ka: CL 29.5 dB at 10 deg, sigma_SF NLoS 11.8 dB at 50 deg.
+    assert candidate_margin_db(models) == pytest.approx(29.5 + 2 * 6 * 11.8)
+    sc = build_scenario(load_config(TOWN))
+    dec = Decider(sc.engine, sc.policy, -10.0, 0.0, 0.17, 6.371e6, None, None)
+    window = dec.search.window_db
+    dec.with_channel(ChannelTracker(models, [1, 1, 1], np.zeros(3, np.uint64), 0.17))
+    assert dec.search.window_db == pytest.approx(window + 29.5 + 12 * 11.8)
+
+
+def test_interfering_satellites_paths_keep_their_own_states(tmp_path, monkeypatch):
+    """With every satellite interfering (the Walker example: several above the horizon),
+    an urban UT's SINR is not the one its open twin's SINR gives when every path
+    (interferers included) took the serving path's loss."""
+    head = (ROOT / "configs/examples/walker.toml").read_text().split("[[population]]")[0]
+    twins = "".join(
+        f'[[population]]\nname = "{e}"\nkind = "static"\nplacement = "center"\n'
+        f'environment = "{e}"\n'
+        for e in ("urban", "open")
+    )
+    (tmp_path / "w.toml").write_text(head + twins)
+    over = ["output.plots.enabled=false", 'link.interference="all_satellites"',
+            "run.duration_s=60"]  # fmt: skip
+    from leolink.engine import LinkEngine
+
+    factors, real = [], LinkEngine.other_satellites_interference
+
+    def spy(self, snap, s, b, u, path_factor_lin=None):
+        factors.append(path_factor_lin)
+        return real(self, snap, s, b, u, path_factor_lin)
+
+    monkeypatch.setattr(LinkEngine, "other_satellites_interference", spy)
+    t = run(load_config(tmp_path / "w.toml", over)).trace
+    f = np.concatenate([x for x in factors if x is not None and x.shape[1] > 1], axis=1)
+    assert len(factors) >= 60 and f.shape[1] > 120  # several satellites per epoch
+    assert (f[1] == 1.0).all()  # the open twin's paths lose nothing
+    urban_db = -10 * np.log10(f[0])
+    assert np.std(urban_db) > 3.0  # each path its own shadowing and LoS state
+    car, twin = t[t.ut_id == 0].reset_index(), t[t.ut_id == 1].reset_index()
+    both = (np.isfinite(car.snr_db) & (car.beam_id == twin.beam_id)).to_numpy()
+    loss = (car.shadow_db + car.clutter_db + car.scintillation_db)[both]
+    s, a = 10 ** (twin.snr_db[both] / 10), 10 ** (-loss / 10)
+    j = s / 10 ** (twin.sinr_db[both] / 10) - 1.0
+    shared = 10 * np.log10(s * a / (j * a + 1))
+    np.testing.assert_allclose(car.snr_db[both], twin.snr_db[both] - loss, atol=1e-9)
+    assert np.mean(np.abs(car.sinr_db[both] - shared) > 1e-3) > 0.5

@@ -20,8 +20,8 @@ from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_fr
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES
-from leolink.sim.mobility import OnWgs84
 from leolink.sim.environment import environment_models
+from leolink.sim.mobility import OnWgs84
 from leolink.sim.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
 

@@ -20,8 +20,14 @@ import pandas as pd
 import pyarrow as pa
 from pydantic import Field
 
-from leolink.io.tables import EVENT_SCHEMA, TRACE_SCHEMA, EventLog, TraceWriter, to_table
-from leolink.io.tables import trace_schema
+from leolink.io.tables import (
+    EVENT_SCHEMA,
+    TRACE_SCHEMA,
+    EventLog,
+    TraceWriter,
+    to_table,
+    trace_schema,
+)
 from leolink.registry import Params, Registry
 from leolink.sim.streams import Sink
 

@@ -96,6 +96,8 @@ def trace_schema(info):
     """The trace schema of a run (:class:`~leolink.sim.streams.RunInfo`): with the
     ``ENVIRONMENT_COLUMNS`` when it models environments."""
     return TRACE_ENVIRONMENT_SCHEMA if getattr(info, "environment", ()) else TRACE_SCHEMA
+
+
 EVENT_SCHEMA = schema_for(EVENT_COLUMNS)
 
 

@@ -30,7 +30,12 @@ from pydantic import Field
 
 from leolink.errors import ConfigError
 from leolink.link import channel_state as cs
-from leolink.link.environment import ENVIRONMENTS, clutter_loss_db, shadow_sigma_db
+from leolink.link.environment import (
+    ENVIRONMENTS,
+    clutter_loss_db,
+    scintillation_db,
+    shadow_sigma_db,
+)
 from leolink.registry import Params
 
 __all__ = ["ENVIRONMENTS", "ChannelParams", "ChannelTracker", "EpochChannel"]
@@ -119,8 +124,8 @@ def candidate_margin_db(models):
             clutter = float(clutter_loss_db(el_deg, m.environment, m.band).max())
         scint = 0.0
         if m.scintillation:
-            scint = float(np.max(cs.env.scintillation_db(el_deg, m.freq_hz,
-                                                         m.geomagnetic_latitude_deg)))  # fmt: skip
+            lat_deg = m.geomagnetic_latitude_deg
+            scint = float(np.max(scintillation_db(el_deg, m.freq_hz, lat_deg)))
         margin = max(margin, clutter + scint + 2.0 * SHADOW_Z_MAX * sigma)
     return margin
 
@@ -198,9 +203,11 @@ class ChannelTracker:
         self.states = [cs.empty_state(s.stop - s.start) for s in self.slices]
         self.prev_pos_m = None
         self.k = -1
-        self.environment = tuple(m.environment for m, s in zip(self.models, self.slices,
-                                                               strict=True)
-                                 for _ in range(s.stop - s.start))  # fmt: skip
+        sizes = [s.stop - s.start for s in self.slices]
+        #: The environment of every UT (``RunInfo.environment``).
+        self.environment = tuple(
+            m.environment for m, n in zip(self.models, sizes, strict=True) for _ in range(n)
+        )
 
     def step(self, k, ut_pos_m, ut_enu, sat_pos_m, cone):
         """Advance every pair to epoch ``k`` (called once per epoch, in order).
@@ -241,4 +248,3 @@ class ChannelTracker:
             parts.append(cs.link_terms(self.states[i], model))
         terms = cs.LinkTerms(*(np.concatenate(f, axis=0) for f in zip(*parts, strict=True)))
         return EpochChannel(cone, sat_id, terms)
-

@@ -191,7 +191,9 @@ class Monitor:
             b = np.where(geo_sat[sl] >= 0, geo_beam[sl], 0)
             factor = None
             if rec.channel is not None:  # each interfering path with its own state
-                factor = 10.0 ** (-rec.channel.loss_db(np.broadcast_to(cone, (n_ut, len(cone)))) / 10.0)
+                factor = 10.0 ** (
+                    -rec.channel.loss_db(np.broadcast_to(cone, (n_ut, len(cone)))) / 10.0
+                )
             out.append(eng.other_satellites_interference(snap, s, b, u, factor))
         return np.concatenate(out)
 
