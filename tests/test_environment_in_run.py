@@ -328,3 +328,18 @@ def test_interfering_satellites_paths_keep_their_own_states(tmp_path, monkeypatc
     shared = 10 * np.log10(s * a / (j * a + 1))
     np.testing.assert_allclose(car.snr_db[both], twin.snr_db[both] - loss, atol=1e-9)
     assert np.mean(np.abs(car.sinr_db[both] - shared) > 1e-3) > 0.5
+
+
+def test_compiled_kernels_give_the_same_bits_with_environments(tmp_path, monkeypatch):
+    """The environment's factor rides on the serving kernel's receive-power factor: the
+    numba path (every call compiled) and ``LEOLINK_JIT=0`` write the same trace."""
+    from leolink.engine import jit
+
+    cfg = _config(tmp_path, _crowd(20, speed_m_s=14.0), ["run.duration_s=6"])
+    monkeypatch.setattr(jit, "JIT_MIN_PAIRS", 1)
+    fused = run(cfg).trace
+    monkeypatch.setenv("LEOLINK_JIT", "0")
+    plain = run(cfg).trace
+    assert np.isfinite(fused.shadow_db).all()
+    for c in ("snr_db", "sinr_db", "se_bps_hz", "los", "shadow_db", "clutter_db"):
+        np.testing.assert_array_equal(fused[c].to_numpy(), plain[c].to_numpy(), err_msg=c)
