@@ -71,10 +71,8 @@ SERVE_GEOMETRY_COLUMNS = ("azimuth_deg",)
 class LinkParams:
     """Scalars of the link budget (paper's Table).
 
-    ``ptx_dbw`` is the power of one beam (one RF chain), as in the paper;
-    ``other_loss_db``: constant losses besides FSPL and atmosphere (scintillation, shadowing
-    margin, polarization, additional: TR 38.821 Table 6.1.3.3-1).
-    """
+    ``ptx_dbw``: power of one beam (one RF chain), as in the paper; ``other_loss_db``: the
+    losses besides FSPL and atmosphere (TR 38.821 Table 6.1.3.3-1)."""
 
     freq_hz: float
     bandwidth_hz: float
@@ -153,9 +151,8 @@ class LinkEngine:
             Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
             elevations, azimuths and panel frames use them. None: the sphere's radial up.
         ut_panel : ndarray, shape (n_ut, 3, 3), optional
-            Turned or tilted panels (rows x, y, normal; ``antenna.panel``): terminal gains
-            take the angle above the panel plane, other satellites' cosines these rows.
-            None: panels lying flat, x east (``ut_enu``, or the sphere's frame).
+            Turned or tilted panels (rows x, y, normal): terminal gains take the angle above
+            the panel plane, other satellites' cosines these rows. None: flat, x east.
 
         Returns
         -------
@@ -166,9 +163,7 @@ class LinkEngine:
         sat = np.repeat(np.arange(n_sat), n_ut)
         up = None if ut_enu is None else ut_enu[:, 2, :]
         normal = None if ut_panel is None else ut_panel[:, 2, :]
-        links = self.evaluate_pairs(
-            ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up, ut_normal=normal
-        )
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, None, normal)
         snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
@@ -182,9 +177,8 @@ class LinkEngine:
             snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
         return snap
 
-    def evaluate_pairs(
-        self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None, ut_normal=None
-    ):
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
+                       ut_normal=None):  # fmt: skip
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -199,9 +193,8 @@ class LinkEngine:
         ut_id : ndarray of int, shape (n_u,), optional
             The UT of each UT row, for per-population terminals; None: row = UT.
         ut_normal : ndarray, shape (n_u, 3), optional
-            Each UT row's panel normal (tilted panels): the terminal gain takes the angle
-            above the panel plane instead of the elevation (visibility, atmosphere and the
-            trace keep the elevation). None: panels lying flat.
+            Each UT row's panel normal: the terminal gain takes the angle above the panel
+            plane (visibility and atmosphere the elevation). None: panels lying flat.
 
         Returns
         -------
@@ -218,11 +211,9 @@ class LinkEngine:
         rx_db = self._rx_const
         if rx_db is None:
             rows = ut if ut_id is None else ut_id[ut]
-            el_rx = (
-                elevation
-                if ut_normal is None
-                else panel_elevation_of_pairs(rel, rho, ut_normal, ut)
-            )
+            el_rx = elevation
+            if ut_normal is not None:  # tilted panels: the angle above the panel plane
+                el_rx = panel_elevation_of_pairs(rel, rho, ut_normal, ut)
             rx_db = rows_gain_db(self.terminal, el_rx, rows, self._rx_groups)
         atm_db = self._atm_const
         if atm_db is None:
