@@ -242,36 +242,6 @@ def test_scintillation_twice_is_refused(tmp_path):
         run(cfg)
 
 
-def test_each_interfering_satellite_path_takes_its_own_factor():
-    """``other_satellites_interference(..., path_factor_lin)``: the factor of satellite
-    ``k`` scales that satellite's beams only (one-hot factors add up to the total)."""
-    from leolink.app.scenario import build_scenario
-    from leolink.geometry import geodetic_to_ecef
-
-    cfg = load_config(ROOT / "configs/examples/walker.toml", ['link.interference="all_satellites"'])
-    eng = build_scenario(cfg).engine
-    pos, vel, _ = (a[0] for a in build_scenario(cfg).ephemeris(137.0))
-    lat0, lon0 = np.radians(cfg.roi.center_lat_deg), np.radians(cfg.roi.center_lon_deg)
-    c0 = geodetic_to_ecef(lat0, lon0)
-    near = np.argsort(-((pos - c0) @ c0))[:4]
-    rng = np.random.default_rng(3)
-    ut = geodetic_to_ecef(lat0 + np.radians(rng.uniform(-2, 2, 30)),
-                          lon0 + np.radians(rng.uniform(-2, 2, 30)))  # fmt: skip
-    snap = eng.evaluate(ut, pos[near], vel[near])
-    u = np.arange(30)
-    s = np.argmax(np.nan_to_num(snap.path_snr_lin, nan=-1.0), axis=1)
-    b = rng.integers(0, eng.n_beam, 30)
-    total = eng.other_satellites_interference(snap, s, b, u)
-    assert (total > 0).all()
-    parts = [eng.other_satellites_interference(snap, s, b, u, np.eye(4)[k][None, :].repeat(30, 0))
-             for k in range(4)]  # fmt: skip
-    np.testing.assert_allclose(sum(parts), total, rtol=1e-12)
-    f = rng.uniform(0.0, 1.0, (30, 4))
-    mixed = eng.other_satellites_interference(snap, s, b, u, f)
-    np.testing.assert_allclose(mixed, sum(f[:, k] * parts[k] for k in range(4)), rtol=1e-12)
-    assert not np.allclose(mixed, f[u, s] * total)  # not the serving path's factor
-
-
 def test_candidate_search_widens_by_what_the_environment_can_reorder():
     """A cell the search leaves out must stay out after the environment: the window grows
     by the largest clutter loss plus 6 shadowing deviations each way (Table 6.6.2-2, Ka:
@@ -309,13 +279,15 @@ def test_interfering_satellites_paths_keep_their_own_states(tmp_path, monkeypatc
 
     factors, real = [], LinkEngine.other_satellites_interference
 
-    def spy(self, snap, s, b, u, path_factor_lin=None):
-        factors.append(path_factor_lin)
-        return real(self, snap, s, b, u, path_factor_lin)
+    def spy(self, snap, s, b, u):
+        # The paths' power over the engine's own path without the UT gain: the factor.
+        el, path = snap.elevation_rad, snap.path_lin / 10.0 ** (snap.rx_db / 10.0)
+        factors.append(np.where(el > 0.0, snap.path_no_rx_lin / path, 1.0))
+        return real(self, snap, s, b, u)
 
     monkeypatch.setattr(LinkEngine, "other_satellites_interference", spy)
     t = run(load_config(tmp_path / "w.toml", over)).trace
-    f = np.concatenate([x for x in factors if x is not None and x.shape[1] > 1], axis=1)
+    f = np.concatenate([x for x in factors if x.shape[1] > 1], axis=1)
     assert len(factors) >= 60 and f.shape[1] > 120  # several satellites per epoch
     assert (f[1] == 1.0).all()  # the open twin's paths lose nothing
     urban_db = -10 * np.log10(f[0])
