@@ -331,3 +331,29 @@ def test_integer_metre_inputs_are_not_squared_in_integer_arithmetic():
     plane_point = np.array([6_371_000.0, 300_000.0, 200_000.0])
     np.testing.assert_allclose(p[0] / 6_371_000, plane_point / np.linalg.norm(plane_point),
                                atol=UNIT_TOL)  # fmt: skip
+
+
+# float32 carries 7 digits (0.5 m on an Earth-sized coordinate): every function must compute
+# in float64 whatever its inputs are stored in. Values exactly representable in float32,
+# so the float64 result of the same values is the reference.
+def _f32_cases():
+    sat, vel = _sat_state(0.6, -1.1, 700e3, 0.4)
+    ut = geodetic_to_ecef(0.62, -1.08, 0.0)
+    return {
+        "geodetic_to_ecef lat": (lambda a: geodetic_to_ecef(a, -1.1, 0.0), 0.6),
+        "geodetic_to_ecef lon": (lambda a: geodetic_to_ecef(0.6, a, 0.0), -1.1),
+        "ecef_to_geodetic": (lambda a: np.stack(ecef_to_geodetic(a)), ut),
+        "enu_basis lat": (lambda a: enu_basis(a, -1.1), 0.6),
+        "enu_basis lon": (lambda a: enu_basis(0.6, a), -1.1),
+        "slant_range altitude": (lambda a: slant_range_from_elevation_m(0.5, a), 700e3),
+        "ray_to_ground u_xy": (lambda a: ray_to_ground(sat, vel, a), [0.31, -0.17]),
+    }
+
+
+@pytest.mark.parametrize("name", list(_f32_cases()))
+def test_float32_inputs_are_computed_in_float64(name):
+    func, value = _f32_cases()[name]
+    x32 = np.asarray(value, dtype=np.float32)
+    got = func(x32)
+    assert got.dtype == np.float64
+    np.testing.assert_allclose(got, func(x32.astype(np.float64)), rtol=1e-13, atol=1e-9)

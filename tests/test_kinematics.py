@@ -316,3 +316,21 @@ def test_link_kinematics_line_of_sight_that_does_not_turn_has_zero_angular_speed
     # The approaching satellite: Doppler +v f / c, all of it the satellite's.
     assert got["doppler_hz"][0] == pytest.approx(7e3 * F_HZ / C, rel=1e-12)
     assert got["doppler_sat_hz"][0] == pytest.approx(7e3 * F_HZ / C, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "name", ["max_doppler rx", "max_doppler altitude", "mean_abs_doppler_ut speed"]
+)
+def test_float32_inputs_are_computed_in_float64(name):
+    # float32 carries 7 digits (0.1 Hz on a 100 kHz Doppler): the closed forms compute in
+    # float64 whatever their inputs are stored in; the values are exactly representable
+    # in float32, so the float64 result of the same values is the reference.
+    func, value = {
+        "max_doppler rx": (lambda a: max_doppler_sat_hz(a, H_M, F_HZ), RX_M),
+        "max_doppler altitude": (lambda a: max_doppler_sat_hz(RX_M, a, F_HZ), H_M),
+        "mean_abs_doppler_ut speed": (lambda a: mean_abs_doppler_ut_hz(a, F_HZ), 27.3),
+    }[name]
+    x32 = np.array([value], dtype=np.float32)
+    got = func(x32)
+    assert got.dtype == np.float64
+    np.testing.assert_allclose(got, func(x32.astype(np.float64)), rtol=1e-14)
