@@ -5,10 +5,13 @@ sets, the two-body acceleration of TLE states against sgp4's own positions, the 
 of the frame rotation and of the TLE ephemeris, the error-code shape and the names.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from sgp4.api import Satrec
 
+from leolink.constants import GM_EARTH_M3_S2
 from leolink.errors import ConfigError
 from leolink.orbit import (
     Elements,
@@ -92,3 +95,47 @@ def test_tle_ephemeris_from_satrec_objects_and_its_defaults():
     a, b = eph(np.array([0.0, 60.0]))[0], same(np.array([0.0, 60.0]))[0]
     # One float JD resolves 40 us (0.3 m of ISS motion); a day off would be 1e6 m.
     np.testing.assert_allclose(a, b, rtol=0, atol=1.0)
+
+
+def test_tle_rotation_uses_the_given_ut1_minus_utc():
+    # skyfield (builtin IERS table, no polar motion) rotates TEME to ITRS at UT1; with its
+    # UT1 - UTC of the TLE epoch (-0.172 s on 2019-12-09) leolink agrees to 0.12 m
+    # (measured). Without it the gap is 55-83 m, with the sign flipped 110-166 m: 1 m
+    # separates them.
+    from skyfield import api as skyfield_api
+    from skyfield.framelib import itrs
+
+    from leolink.io.tle import read_tle_file
+
+    tles = read_tle_file(Path(__file__).parent / "data" / "geo_iss.tle")
+    ts = skyfield_api.load.timescale(builtin=True)
+    sat = skyfield_api.EarthSatellite(tles[0][1], tles[0][2], tles[0][0], ts)
+    jd, fr = sat.model.jdsatepoch, sat.model.jdsatepochF
+    t = np.array([0.0, 300.0, 900.0])
+    when = ts.utc(2019, 12, 9, 0, 0, (jd + fr - 2458826.5) * 86400.0 + t)
+    ref = sat.at(when).frame_xyz(itrs).m.T
+    dut1_s = float(when.dut1[0])
+    eph = Ephemeris.from_tles(tles, jd, fr, earth_rotation=True, ut1_minus_utc_s=dut1_s)
+    assert np.linalg.norm(eph(t)[0][:, 0] - ref, axis=-1).max() < 1.0
+
+
+def test_tles_given_as_two_lines_are_named_by_their_index():
+    sats = [Satrec.twoline2rv(*ISS), Satrec.twoline2rv(*ISS)]
+    jd, fr = sats[0].jdsatepoch, sats[0].jdsatepochF
+    eph = Ephemeris.from_tles([ISS, ISS], jd, fr, earth_rotation=False)
+    assert eph.names == ["0", "1"]
+    e, r_km, _ = sats[1].sgp4(jd, fr + 120.0 / 86400.0)
+    assert e == 0
+    np.testing.assert_allclose(eph(120.0)[0][0, 1], np.array(r_km) * 1e3, rtol=0, atol=1e-3)
+
+
+def test_tle_acceleration_is_that_of_the_given_gm():
+    # Half the GM: half the two-body pull; sgp4's own motion (the finite difference of its
+    # positions) stays that of the Earth, within the J2 bound of 0.025 m/s^2.
+    sat = Satrec.twoline2rv(*ISS)
+    h_day = 0.5 / 86400.0
+    eph = Ephemeris.from_tles([sat], sat.jdsatepoch, sat.jdsatepochF - h_day,
+                              earth_rotation=False, gm_m3_s2=GM_EARTH_M3_S2 / 2)  # fmt: skip
+    pos, _, acc = eph(np.array([0.0, 0.5, 1.0]))
+    fd = (pos[2, 0] - 2 * pos[1, 0] + pos[0, 0]) / 0.5**2
+    assert np.linalg.norm(acc[1, 0] - fd / 2) < 0.03
