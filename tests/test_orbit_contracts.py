@@ -18,6 +18,7 @@ from leolink.orbit import (
     Ephemeris,
     circular_state,
     eci_to_ecef,
+    pass_over,
     tle_state,
     walker_delta,
 )
@@ -124,6 +125,7 @@ def test_tles_given_as_two_lines_are_named_by_their_index():
     jd, fr = sats[0].jdsatepoch, sats[0].jdsatepochF
     eph = Ephemeris.from_tles([ISS, ISS], jd, fr, earth_rotation=False)
     assert eph.names == ["0", "1"]
+    assert eph.state(0.0)[3].dtype.kind == "i"  # sgp4's error codes, integers
     e, r_km, _ = sats[1].sgp4(jd, fr + 120.0 / 86400.0)
     assert e == 0
     np.testing.assert_allclose(eph(120.0)[0][0, 1], np.array(r_km) * 1e3, rtol=0, atol=1e-3)
@@ -139,3 +141,41 @@ def test_tle_acceleration_is_that_of_the_given_gm():
     pos, _, acc = eph(np.array([0.0, 0.5, 1.0]))
     fd = (pos[2, 0] - 2 * pos[1, 0] + pos[0, 0]) / 0.5**2
     assert np.linalg.norm(acc[1, 0] - fd / 2) < 0.03
+
+
+def _sub_satellite_point(el, t_s):
+    """Inertial latitude, longitude of the satellite at ``t_s`` and its z velocity."""
+    pos, vel, _ = circular_state(np.array([t_s]), el.altitude_m, el.inclination_rad,
+                                 el.raan_rad, el.arg_lat0_rad)  # fmt: skip
+    p = pos[0, 0]
+    return np.arcsin(p[2] / np.linalg.norm(p)), np.arctan2(p[1], p[0]), vel[0, 0, 2]
+
+
+def test_pass_over_defaults_are_an_ascending_pass_without_earth_rotation():
+    # Ten minutes after t = 0 an Earth-fixed point would have turned by 2.5 deg: the
+    # default frame is inertial, so the pass is over (lat, lon) of that frame, going north.
+    el = pass_over(0.5, 1.2, 600.0, 550e3, 0.9)
+    lat, lon, v_z = _sub_satellite_point(el, 600.0)
+    assert lat == pytest.approx(0.5, abs=1e-12) and lon == pytest.approx(1.2, abs=1e-12)
+    assert v_z > 0.0
+
+
+def test_pass_over_equatorial_and_at_the_reachable_edge():
+    # Inclination 0: the equator only (sin u is undefined, u = 0 by convention).
+    lat, lon, _ = _sub_satellite_point(pass_over(0.0, -2.0, 100.0, 550e3, 0.0), 100.0)
+    assert lat == pytest.approx(0.0, abs=1e-12) and lon == pytest.approx(-2.0, abs=1e-12)
+    # |lat| up to 1e-12 rad beyond the inclination is accepted (degrees rounded through
+    # radians): the northernmost and southernmost points, not NaN.
+    for sign in (1.0, -1.0):
+        el = pass_over(sign * (0.9 + 5e-13), 0.3, 0.0, 550e3, 0.9)
+        lat, lon, _ = _sub_satellite_point(el, 0.0)
+        assert lat == pytest.approx(sign * 0.9, abs=1e-9) and lon == pytest.approx(0.3, abs=1e-9)
+
+
+def test_pass_over_retrograde_orbit_reaches_pi_minus_inclination():
+    # i = 120 deg reaches |lat| <= 60 deg only.
+    with pytest.raises(ConfigError, match="use \\|lat\\| <= 60.000 deg"):
+        pass_over(np.radians(70.0), 0.0, 0.0, 550e3, np.radians(120.0))
+    lat, _, _ = _sub_satellite_point(pass_over(np.radians(59.0), 0.0, 0.0, 550e3,
+                                               np.radians(120.0)), 0.0)  # fmt: skip
+    assert np.degrees(lat) == pytest.approx(59.0, abs=1e-9)
