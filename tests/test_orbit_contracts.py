@@ -179,3 +179,16 @@ def test_pass_over_retrograde_orbit_reaches_pi_minus_inclination():
     lat, _, _ = _sub_satellite_point(pass_over(np.radians(59.0), 0.0, 0.0, 550e3,
                                                np.radians(120.0)), 0.0)  # fmt: skip
     assert np.degrees(lat) == pytest.approx(59.0, abs=1e-9)
+
+
+def test_pass_over_of_another_body_uses_its_radius_and_gm():
+    # Mars (NASA fact sheet: GM = 42,828.37 km^3/s^2, mean radius 3,389.5 km): the orbit
+    # built for that body passes over the point at t_pass when propagated with its GM.
+    gm, radius = 4.282837e13, 3_389.5e3
+    el = pass_over(0.3, -0.4, 900.0, 400e3, 0.8, radius_m=radius, gm_m3_s2=gm)
+    pos, _, _ = circular_state(np.array([900.0]), el.altitude_m, el.inclination_rad,
+                               el.raan_rad, el.arg_lat0_rad, radius_m=radius, gm_m3_s2=gm)  # fmt: skip
+    p = pos[0, 0]
+    assert np.linalg.norm(p) == pytest.approx(radius + 400e3, rel=1e-12)
+    assert np.arcsin(p[2] / np.linalg.norm(p)) == pytest.approx(0.3, abs=1e-12)
+    assert np.arctan2(p[1], p[0]) == pytest.approx(-0.4, abs=1e-12)
