@@ -186,8 +186,8 @@ def test_pass_over_of_another_body_uses_its_radius_and_gm():
     # built for that body passes over the point at t_pass when propagated with its GM.
     gm, radius = 4.282837e13, 3_389.5e3
     el = pass_over(0.3, -0.4, 900.0, 400e3, 0.8, radius_m=radius, gm_m3_s2=gm)
-    pos, _, _ = circular_state(np.array([900.0]), el.altitude_m, el.inclination_rad,
-                               el.raan_rad, el.arg_lat0_rad, radius_m=radius, gm_m3_s2=gm)  # fmt: skip
+    elements = (el.altitude_m, el.inclination_rad, el.raan_rad, el.arg_lat0_rad)
+    pos, _, _ = circular_state(np.array([900.0]), *elements, radius_m=radius, gm_m3_s2=gm)
     p = pos[0, 0]
     assert np.linalg.norm(p) == pytest.approx(radius + 400e3, rel=1e-12)
     assert np.arcsin(p[2] / np.linalg.norm(p)) == pytest.approx(0.3, abs=1e-12)
