@@ -192,3 +192,44 @@ def test_pass_over_of_another_body_uses_its_radius_and_gm():
     assert np.linalg.norm(p) == pytest.approx(radius + 400e3, rel=1e-12)
     assert np.arcsin(p[2] / np.linalg.norm(p)) == pytest.approx(0.3, abs=1e-12)
     assert np.arctan2(p[1], p[0]) == pytest.approx(-0.4, abs=1e-12)
+
+
+def test_ephemeris_of_another_body_with_a_rotation_angle():
+    # Circular orbit about Mars: back at its start after 2 pi sqrt(a^3 / GM) (inertial).
+    gm, radius, h = 4.282837e13, 3_389.5e3, 400e3
+    el = Elements(h, 0.8, 0.3, 0.1)
+    period_s = 2 * np.pi * np.sqrt((radius + h) ** 3 / gm)
+    eph = Ephemeris.from_elements(el, radius_m=radius, gm_m3_s2=gm)
+    pos, _, _, err = eph.state(np.array([0.0, period_s / 2, period_s]))
+    np.testing.assert_allclose(pos[2], pos[0], atol=1e-6)
+    np.testing.assert_allclose(pos[1], -pos[0], atol=1e-6)  # half a period: opposite
+    assert err.dtype.kind == "i" and not err.any()
+    # Earth-fixed with a rotation angle gmst0 at t = 0: longitudes lag by gmst0, and the
+    # Earth-fixed velocity is the derivative of the Earth-fixed positions.
+    fixed = Ephemeris.from_elements(el, earth_rotation=True, radius_m=radius, gm_m3_s2=gm,
+                                    gmst0_rad=0.5)  # fmt: skip
+    t = np.array([-0.5, 0.0, 0.5])
+    pos_f, vel_f, _ = fixed(t)
+    lon = np.arctan2(pos[0, 0, 1], pos[0, 0, 0])
+    assert np.arctan2(pos_f[1, 0, 1], pos_f[1, 0, 0]) == pytest.approx(lon - 0.5, abs=1e-12)
+    # Central difference over 1 s: truncation |x'''| dt^2 / 6 ~ n^2 v / 6 ~ 1e-3 m/s.
+    np.testing.assert_allclose(vel_f[1, 0], (pos_f[2, 0] - pos_f[0, 0]) / 1.0, atol=5e-3)
+
+
+def test_ephemeris_default_rotation_angle_is_zero():
+    def propagate(t):
+        pos = np.broadcast_to(np.array([7e6, 0.0, 0.0]), (len(t), 1, 3)).copy()
+        return pos, np.zeros_like(pos), np.zeros_like(pos), np.zeros((len(t), 1), int)
+
+    pos, _, _ = Ephemeris(propagate, 1, earth_rotation=True)(np.array([0.0]))
+    np.testing.assert_array_equal(pos[0, 0], [7e6, 0.0, 0.0])
+
+
+def test_eci_to_ecef_times_in_float32_are_computed_in_float64():
+    # float32 times carry 7 digits: theta = w_E t in float32 is off by ~3e-8 rad (0.2 m).
+    pos, vel, acc = circular_state(np.array([5400.0]), 800e3, 1.0, 0.3, 0.7)
+    t32 = np.array([5400.0], dtype=np.float32)
+    got = eci_to_ecef(pos, vel, acc, t32)
+    want = eci_to_ecef(pos, vel, acc, t32.astype(np.float64))
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_allclose(g, w, rtol=1e-14, atol=1e-9)
