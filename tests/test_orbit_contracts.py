@@ -233,3 +233,21 @@ def test_eci_to_ecef_times_in_float32_are_computed_in_float64():
     want = eci_to_ecef(pos, vel, acc, t32.astype(np.float64))
     for g, w in zip(got, want, strict=True):
         np.testing.assert_allclose(g, w, rtol=1e-14, atol=1e-9)
+
+
+def test_float32_elements_and_times_are_computed_in_float64():
+    # float32 carries 7 digits (0.5 m on a 7e6 m radius): orbits compute in float64 whatever
+    # their inputs are stored in; the float64 result of the same values is the reference.
+    from leolink.orbit import angular_rate_rad_s, orbital_speed_m_s
+
+    h32 = np.array([550e3], dtype=np.float32)
+    for func in (orbital_speed_m_s, angular_rate_rad_s):
+        assert func(h32).dtype == np.float64
+        np.testing.assert_allclose(func(h32), func(h32.astype(float)), rtol=1e-15)
+    values = [np.array([v], dtype=np.float32) for v in (5400.0, 550e3, 0.9, 0.3, 0.7)]
+    got = circular_state(*values)
+    want = circular_state(*(v.astype(float) for v in values))
+    for g, w in zip(got, want, strict=True):
+        assert g.dtype == np.float64
+        np.testing.assert_allclose(g, w, rtol=1e-14, atol=1e-9)
+    assert Elements(*values[1:]).raan_rad.dtype == np.float64
