@@ -23,6 +23,7 @@ from leolink.geometry import body_frame
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.processes import candidate_satellites
 from leolink.sim.search import CandidateSearch
+from scopes import shared_run_scope
 
 CONSTELLATION = "configs/constellation.toml"
 N_EPOCH = 2
@@ -38,7 +39,7 @@ def test_envelope_bounds_every_beam_kernel(u, n, k):
     assert float(envelope(np.array([u]), beams, n)[0]) >= exact * (1.0 - 1e-12)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope=shared_run_scope)  # per test under mutmut (tests/scopes.py)
 def block():
     scen = build_scenario(load_config(CONSTELLATION, ["run.duration_s=10"]))
     n_ut = sum(p.n_ut for _, p in scen.populations)
