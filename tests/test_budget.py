@@ -1,5 +1,7 @@
 """Tests of leolink.link.budget against published link budgets and identities."""
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -165,3 +167,42 @@ def test_link_budget_reports_every_input_and_term():
     plain = LinkBudget.compute(**kw).as_dict()
     assert (plain["atm_db"], plain["cable_db"]) == (0.0, 0.0)
     assert plain["rss_dbw"] == pytest.approx(d["rss_dbw"] + 1.9, abs=1e-9)
+
+
+# --- Input precision and silent -inf (mutation testing, docs/testing.md) -----------------
+
+# float32 carries 7 digits: 1e-7 relative, 2e-5 dB on a 160 dB loss, far above the trace
+# checks' 1e-6 dB. The budget must compute in float64 whatever its inputs are stored in
+# (e.g. a float32 column of a table): the result of float32 values equals the float64
+# result of the same (exactly representable) values.
+F32_CASES = {
+    "lin": (lin, [-3.3]),
+    "fspl_db": (fspl_db, [1_234_567.891, 11.45e9]),
+    "noise_power_dbw": (noise_power_dbw, [24.1, 250e6]),
+    "rss_dbw ptx": (rss_dbw, [15.3, 0.7, 38.1, 0.9, 180.2, 39.7]),
+    "snr_db": (snr_db, [-118.3, -120.4]),
+    # I and N float32 as well: only the signal's conversion keeps the division in float64.
+    "sinr_lin": (lambda s: sinr_lin(s, np.float32(2.1e-13), np.float32(4.7e-13)), [1.3e-12]),
+    "spectral_efficiency_bps_hz": (spectral_efficiency_bps_hz, [3.7]),
+    "throughput_bps": (throughput_bps, [2.345, 400e6]),
+}
+
+
+@pytest.mark.parametrize("name", list(F32_CASES))
+def test_float32_inputs_are_computed_in_float64(name):
+    func, args = F32_CASES[name]
+    x32 = np.array([args[0]], dtype=np.float32)
+    got = func(x32, *args[1:])
+    want = func(x32.astype(np.float64), *args[1:])
+    assert np.asarray(got).dtype == np.float64
+    np.testing.assert_allclose(got, want, rtol=1e-15)
+
+
+def test_no_other_beam_is_minus_infinity_without_a_warning():
+    # Eq. (18) with no interfering beam: I = -inf dBW, and SINR = SNR (docs: "-inf when
+    # there is no other beam"); a warning per epoch would flood a run's log.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        i_dbw = interference_dbw(15.0, 0.0, np.array([0.0, 1.0]), 0.5, 180.0, 39.7)
+    assert i_dbw[0] == -np.inf
+    assert i_dbw[1] == pytest.approx(15.0 - 0.5 - 180.0 + 39.7, abs=1e-12)

@@ -1,5 +1,7 @@
 """Tests of leolink.geometry: published slant ranges, two independent computations, properties."""
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -252,3 +254,106 @@ def test_direction_cosines_of_many_targets_match_the_explicit_body_frame():
         y = np.cross(z, x)
         d = (tgt[i] - sat[i]) / np.linalg.norm(tgt[i] - sat[i])
         np.testing.assert_allclose(u[i], [d @ x, d @ y], rtol=0, atol=1e-14)
+
+
+# --- Edge cases found by mutation testing (docs/testing.md, "geometry") -------------------
+
+# arcsin near +-1: an argument 1 - 1e-16 below 1 gives pi/2 - 1.5e-8 rad.
+ARCSIN_EDGE_RAD = 1e-7
+
+
+def test_zenith_and_nadir_satellites_are_exactly_plus_minus_90_deg_never_nan():
+    # ~16 % of these UTs give |d.up| / |d| > 1 by one ulp: the clip to [-1, 1] must hold.
+    rng = np.random.default_rng(7)
+    lat, lon = rng.uniform(-1.5, 1.5, 2000), rng.uniform(-3.1, 3.1, 2000)
+    ut = geodetic_to_ecef(lat, lon, 0.0)
+    up = ut / np.linalg.norm(ut, axis=-1, keepdims=True)
+    for sign in (1.0, -1.0):
+        el, _, rng_m = look_angles(ut, ut + sign * 600e3 * up)
+        assert not np.isnan(el).any()
+        np.testing.assert_allclose(el, sign * np.pi / 2, atol=ARCSIN_EDGE_RAD)
+        np.testing.assert_allclose(rng_m, 600e3, rtol=1e-12)
+
+
+def test_elevation_from_nadir_beyond_the_horizon_is_nan_silently():
+    h = 600e3
+    horizon = np.arcsin(R / (R + h))  # the ray tangent to the sphere
+    nadir = np.array([0.0, horizon - 0.01, np.deg2rad(80.0), np.deg2rad(89.0)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        el = elevation_from_nadir_rad(nadir, h)
+    assert el.dtype == float
+    assert el[0] == pytest.approx(np.pi / 2)
+    assert 0.0 < el[1] < np.deg2rad(10.0)
+    assert np.isnan(el[2:]).all()  # cos(el) = (R + h) sin(nadir) / R = 1.07 and 1.09 > 1
+
+
+def test_elevation_from_nadir_grazing_ray_is_zero_elevation():
+    # At the surface, a ray 90 deg off nadir is horizontal: elevation 0, not NaN.
+    assert elevation_from_nadir_rad(np.pi / 2, 0.0) == 0.0
+
+
+def test_ground_to_roi_on_the_projection_horizon_is_nan_silently():
+    # p orthogonal to u_z: the central projection sends it to infinity; NaN, no warning.
+    sat, vel = np.array([R + 600e3, 0.0, 0.0]), np.array([0.0, 7500.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        x, y = ground_to_roi(np.array([0.0, R, 0.0]), sat, vel)
+    assert np.isnan(x) and np.isnan(y)
+
+
+def test_ray_to_ground_with_direction_cosines_beyond_one_is_nan_silently():
+    sat, vel = np.array([R + 600e3, 0.0, 0.0]), np.array([0.0, 7500.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        p = ray_to_ground(sat, vel, np.array([1.2, 0.0]))
+    assert np.isnan(p).all()
+
+
+def test_integer_metre_inputs_are_not_squared_in_integer_arithmetic():
+    # int32 arrays (metres read as integers): their squares (~5e13 m^2) overflow int32,
+    # so every function must square floats. Expected values are those of the simple
+    # geometry: satellite on the x axis moving along +y, so u_x = +y, u_z = +x.
+    sat = np.array([7_000_000, 0, 0], dtype=np.int32)
+    vel = np.array([0, 7_500, 0], dtype=np.int32)
+    np.testing.assert_allclose(
+        body_frame(sat, vel), [[0, 1, 0], [0, 0, 1], [1, 0, 0]], atol=UNIT_TOL
+    )
+    h = np.array([600_000], dtype=np.int32)
+    np.testing.assert_allclose(slant_range_from_elevation_m(np.pi / 2, h), 600e3, rtol=1e-12)
+    ground = ray_to_ground(sat, vel, np.array([0, 0], dtype=np.int32), radius_m=6_371_000)
+    np.testing.assert_allclose(ground, [6_371_000, 0, 0], atol=ROUND_TRIP_M)
+    x, y = np.array([300_000], dtype=np.int32), np.array([200_000], dtype=np.int32)
+    p = roi_to_ground(x, y, sat, vel, radius_m=6_371_000)
+    # Gnomonic: on the sphere, on the ray from the centre through the plane point
+    # (R u_z + x u_x + y u_y) = (R, x, y) here.
+    assert np.linalg.norm(p) == pytest.approx(6_371_000, abs=ROUND_TRIP_M)
+    plane_point = np.array([6_371_000.0, 300_000.0, 200_000.0])
+    np.testing.assert_allclose(p[0] / 6_371_000, plane_point / np.linalg.norm(plane_point),
+                               atol=UNIT_TOL)  # fmt: skip
+
+
+# float32 carries 7 digits (0.5 m on an Earth-sized coordinate): every function must compute
+# in float64 whatever its inputs are stored in. Values exactly representable in float32,
+# so the float64 result of the same values is the reference.
+def _f32_cases():
+    sat, vel = _sat_state(0.6, -1.1, 700e3, 0.4)
+    ut = geodetic_to_ecef(0.62, -1.08, 0.0)
+    return {
+        "geodetic_to_ecef lat": (lambda a: geodetic_to_ecef(a, -1.1, 0.0), 0.6),
+        "geodetic_to_ecef lon": (lambda a: geodetic_to_ecef(0.6, a, 0.0), -1.1),
+        "ecef_to_geodetic": (lambda a: np.stack(ecef_to_geodetic(a)), ut),
+        "enu_basis lat": (lambda a: enu_basis(a, -1.1), 0.6),
+        "enu_basis lon": (lambda a: enu_basis(0.6, a), -1.1),
+        "slant_range altitude": (lambda a: slant_range_from_elevation_m(0.5, a), 700e3),
+        "ray_to_ground u_xy": (lambda a: ray_to_ground(sat, vel, a), [0.31, -0.17]),
+    }
+
+
+@pytest.mark.parametrize("name", list(_f32_cases()))
+def test_float32_inputs_are_computed_in_float64(name):
+    func, value = _f32_cases()[name]
+    x32 = np.asarray(value, dtype=np.float32)
+    got = func(x32)
+    assert got.dtype == np.float64
+    np.testing.assert_allclose(got, func(x32.astype(np.float64)), rtol=1e-13, atol=1e-9)

@@ -271,3 +271,66 @@ def test_defaults_are_a_static_unaccelerated_ut():
         sat, vel, acc, ut, ut_vel, zero, freq_hz=F_HZ
     )
     assert angular_speed_rad_s(sat, vel, ut) == angular_speed_rad_s(sat, vel, ut, zero)
+
+
+# Mars (NASA Mars fact sheet: GM = 42,828.37 km^3/s^2, volumetric mean radius 3,389.5 km):
+# a body other than the default Earth, so that a dropped radius or GM argument shows.
+MARS_GM_M3_S2, MARS_R_M = 4.282837e13, 3_389.5e3
+
+
+def test_roi_maxima_use_the_given_body_radius_and_gm():
+    # Brute force over the along-track arc of a hand-built circular orbit: satellite at
+    # (R + h) e_z moving along e_x at the circular speed sqrt(GM / (R + h)); the ROI tip
+    # x = R_x is the ground point at central angle atan(R_x / R) (gnomonic projection).
+    h_m, rx_m = 400e3, 300e3
+    v_m_s = np.sqrt(MARS_GM_M3_S2 / (MARS_R_M + h_m))
+    sat, vel = np.array([0.0, 0.0, MARS_R_M + h_m]), np.array([v_m_s, 0.0, 0.0])
+    alpha = np.linspace(0.0, np.arctan(rx_m / MARS_R_M), 2001)
+    pts = MARS_R_M * np.stack([np.sin(alpha), np.zeros_like(alpha), np.cos(alpha)], axis=-1)
+    los = (pts - sat) / np.linalg.norm(pts - sat, axis=-1, keepdims=True)
+    brute_hz = np.max(np.abs(los @ vel)) * F_HZ / C
+    body = dict(radius_m=MARS_R_M, gm_m3_s2=MARS_GM_M3_S2)
+    assert max_doppler_sat_hz(rx_m, h_m, F_HZ, **body) == pytest.approx(brute_hz, rel=1e-9)
+    # R_x in whole metres as int32 (its square overflows int32): float arithmetic inside.
+    rx_int = np.array([300_000], dtype=np.int32)
+    assert max_doppler_sat_hz(rx_int, h_m, F_HZ, **body)[0] == pytest.approx(brute_hz, rel=1e-9)
+    assert max_doppler_sat_small_roi_hz(rx_m, h_m, F_HZ, **body) == pytest.approx(
+        rx_m * v_m_s / h_m * F_HZ / C, rel=1e-12
+    )
+    # At nadir the line of sight is orthogonal to the velocity: |dl/dt| = v / h.
+    assert max_angular_speed_rad_s(h_m, **body) == pytest.approx(v_m_s / h_m, rel=1e-12)
+    assert angular_speed_rad_s(sat, vel, pts[0]) == pytest.approx(v_m_s / h_m, rel=1e-12)
+
+
+def test_link_kinematics_line_of_sight_that_does_not_turn_has_zero_angular_speed():
+    # Relative velocity along the line of sight (a satellite rising straight at the UT,
+    # or a UT moving with the satellite): |v_perp| = 0, so the angular speed is 0 up to
+    # the rounding of |v|^2 - rho'^2 (~eps |v|^2 = 1e-8 m^2/s^2: 1e-10 rad/s at 1,000 km).
+    from leolink.kinematics import link_kinematics
+
+    los = np.array([[3e5, -4e5, 8e5], [1e6, 0.0, 0.0]])
+    sat_vel = np.array([-7e3 * los[0] / np.linalg.norm(los[0]), [0.0, 7.5e3, 0.0]])
+    ut_vel = np.array([[0.0, 0.0, 0.0], [0.0, 7.5e3, 0.0]])
+    got = link_kinematics(los, sat_vel, ut_vel, np.zeros((2, 3)), F_HZ)
+    np.testing.assert_allclose(got["angular_speed_rad_s"], 0.0, atol=1e-9)
+    # The approaching satellite: Doppler +v f / c, all of it the satellite's.
+    assert got["doppler_hz"][0] == pytest.approx(7e3 * F_HZ / C, rel=1e-12)
+    assert got["doppler_sat_hz"][0] == pytest.approx(7e3 * F_HZ / C, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "name", ["max_doppler rx", "max_doppler altitude", "mean_abs_doppler_ut speed"]
+)
+def test_float32_inputs_are_computed_in_float64(name):
+    # float32 carries 7 digits (0.1 Hz on a 100 kHz Doppler): the closed forms compute in
+    # float64 whatever their inputs are stored in; the values are exactly representable
+    # in float32, so the float64 result of the same values is the reference.
+    func, value = {
+        "max_doppler rx": (lambda a: max_doppler_sat_hz(a, H_M, F_HZ), RX_M),
+        "max_doppler altitude": (lambda a: max_doppler_sat_hz(RX_M, a, F_HZ), H_M),
+        "mean_abs_doppler_ut speed": (lambda a: mean_abs_doppler_ut_hz(a, F_HZ), 27.3),
+    }[name]
+    x32 = np.array([value], dtype=np.float32)
+    got = func(x32)
+    assert got.dtype == np.float64
+    np.testing.assert_allclose(got, func(x32.astype(np.float64)), rtol=1e-14)

@@ -25,6 +25,7 @@ from leolink.geometry import body_frame, enu_basis
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.processes import candidate_satellites
 from leolink.sim.search import CandidateSearch
+from scopes import shared_run_scope
 
 CONSTELLATION = "configs/constellation.toml"
 N_EPOCH = 2
@@ -40,7 +41,7 @@ def test_envelope_bounds_every_beam_kernel(u, n, k):
     assert float(envelope(np.array([u]), beams, n)[0]) >= exact * (1.0 - 1e-12)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope=shared_run_scope)  # per test under mutmut (tests/scopes.py)
 def block():
     scen = build_scenario(load_config(CONSTELLATION, ["run.duration_s=10"]))
     n_ut = sum(p.n_ut for _, p in scen.populations)
@@ -111,7 +112,50 @@ def test_a_bound_too_low_is_seen(block, monkeypatch):
     assert cells.shape != cells_ref.shape or not np.array_equal(cells, cells_ref)
 
 
-@pytest.fixture(scope="module")
+def test_screening_of_elevation_dependent_gains_on_the_ellipsoid():
+    """The per-pair factor (a metasurface terminal's gain falls with the elevation) and
+    the local up of WGS 84 (up to 0.19 deg from the radial one): visibility agrees with
+    the engine's exact evaluation from the same up, the bound is above every beam and
+    tight at the best pair of a UT, and pairs below the mask keep the bound -1."""
+    from leolink.geometry import enu_basis
+
+    over = ["run.duration_s=10", 'terminal.kind="metasurface"', 'earth.model="wgs84"']
+    scen = build_scenario(load_config(CONSTELLATION, over))
+    n_ut = sum(p.n_ut for _, p in scen.populations)
+    mb = MotionBlocks(scen.ephemeris, scen.populations, scen.times_s[:1],
+                      scen.ephemeris.n_sat, n_ut).block_of(0)  # fmt: skip
+    every = slice(None, None, 10)  # 100 UTs of the four populations: enough edge pairs
+    eng, ut_pos = scen.engine, mb.ut_pos_m[0][every]
+    up = enu_basis(mb.ut_lat_rad[0][every], mb.ut_lon_rad[0][every])[..., 2, :]
+    # The satellites within ~25 deg of the horizon of the area: the mask's edge is in it.
+    cone = candidate_satellites(mb.sat_pos_m[0], ut_pos, 0.0, np.zeros(0, np.int64),
+                                scen.radius_m)  # fmt: skip
+    sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
+    code, bound = screen(eng, ut_pos, sat_pos, body_frame(sat_pos, sat_vel), ut_up=up)
+    ut, sat = np.nonzero(np.ones(code.shape, bool))
+    links = eng.evaluate_pairs(ut_pos, sat_pos, sat_vel, ut, sat, ut_up=up)
+    vis = links.visible.reshape(code.shape)
+    assert vis.any() and (~vis).any()
+    assert (code[vis] > 0).all() and not (code[~vis] == VISIBLE).any()
+    assert (bound[code == 0] == -1.0).all()
+    best = links.gain_tx_bm(eng.beam_ix, eng.beam_iy).max(axis=0) * links.path_snr_lin
+    b, e = bound.reshape(-1)[links.visible], best[links.visible]
+    assert (b >= e).all() and (b / e).min() < 1.0 + 1e-3
+    # A pair on the mask's edge (1e-12 rad above it: inside the 1e-9 band of sin(el)) is
+    # "uncertain": its bound still carries the terminal's gain at that elevation.
+    e_, n_, u_ = enu_basis(mb.ut_lat_rad[0, :1], mb.ut_lon_rad[0, :1])[0]  # UT 0 = ut_pos[0]
+    el = eng.params.min_elevation_rad + 1e-12
+    edge = ut_pos[:1] + 1.5e6 * (np.cos(el) * n_ + np.sin(el) * u_)
+    edge_vel = 7.5e3 * e_[None, :]
+    code1, bound1 = screen(eng, ut_pos[:1], edge, body_frame(edge, edge_vel), ut_up=u_[None])
+    one = eng.evaluate_pairs(ut_pos[:1], edge, edge_vel, np.zeros(1, int), np.zeros(1, int),
+                             ut_up=u_[None])  # fmt: skip
+    assert code1[0, 0] == UNCERTAIN and one.visible[0]
+    exact = one.gain_tx_bm(eng.beam_ix, eng.beam_iy).max(axis=0) * one.path_snr_lin
+    assert bound1[0, 0] >= exact[0]
+
+
+@pytest.fixture(scope=shared_run_scope)  # as block (tests/scopes.py)
 def tilted(block):
     """The constellation's engine with a scan-loss UPA (its gain depends on the angle above
     the panel), and panels tilted up to 60 deg towards random azimuths."""

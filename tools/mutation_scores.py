@@ -26,10 +26,21 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 MUTMUT = [sys.executable, "-m", "mutmut"]
 
+ENGINE_TESTS = ["tests/test_engine.py", "tests/test_search.py", "tests/test_trace_independent.py"]
+SIM_RUN_TESTS = [
+    "tests/test_simulation.py",
+    "tests/test_summary_of_a_run.py",
+    "tests/test_trace_independent.py",
+]
 #: module -> the fast tests that exercise it (the whole suite would cost ~2 min per mutant
 #: batch; these run in seconds).
 MODULES = {
-    "engine": ["tests/test_engine.py", "tests/test_trace_independent.py"],
+    # The engine package, file by file; its numba kernels (engine/kernels.py) are not
+    # mutated (mutmut's trampolines cannot run inside jitted code): every run here sets
+    # LEOLINK_JIT=0, so the numpy reference path is what is measured.
+    "engine/__init__": ENGINE_TESTS,
+    "engine/links": ENGINE_TESTS,
+    "engine/screening": ENGINE_TESTS,
     "kinematics": ["tests/test_kinematics.py", "tests/test_trace_independent.py"],
     "geometry": [
         "tests/test_geometry.py",
@@ -53,6 +64,10 @@ MODULES = {
     "link/fading": ["tests/test_fading.py", "tests/test_fading_in_run.py"],
     "rng": ["tests/test_rng.py", "tests/test_fading_in_run.py"],
     "sim/controller": ["tests/test_controller.py", "tests/test_simulation.py"],
+    # The recording of a run (the former sim/recorder.py): trace frames and the deferred
+    # recording (sim/monitor.py), the policy step per epoch (sim/decide.py).
+    "sim/monitor": SIM_RUN_TESTS,
+    "sim/decide": SIM_RUN_TESTS,
     "sim/processes": [
         "tests/test_candidates.py",
         "tests/test_simulation.py",
@@ -107,7 +122,9 @@ def score(module: str, workdir: Path, children: int, root: Path = ROOT) -> dict:
     dest = workdir / module.replace("/", "_")
     _prepare(dest, module, root)
     # One run per test, not per module: mutmut credits each check (tests/scopes.py).
-    env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function")
+    # The numpy path of the engine (LEOLINK_JIT=0): mutants inside numba kernels are not
+    # meaningful, and the kernels give the numpy path's bits (tests/test_jit.py).
+    env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function", LEOLINK_JIT="0")
     subprocess.run([*MUTMUT, "run", "--max-children", str(children)], cwd=dest, check=False,
                    stdout=subprocess.DEVNULL, env=env)  # fmt: skip
     subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
@@ -119,7 +136,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("modules", nargs="*", default=list(MODULES))
     ap.add_argument("--keep", type=Path, default=None, help="keep the scratch folders here")
-    ap.add_argument("--children", type=int, default=2, help="parallel mutant runs")
+    ap.add_argument("--children", type=int, default=1, help="parallel mutant runs")
     ap.add_argument("--root", type=Path, default=ROOT, help="tree to score (default: this one)")
     args = ap.parse_args(argv)
     work = args.keep or Path(tempfile.mkdtemp(prefix="leolink-mutmut-"))
