@@ -1,4 +1,4 @@
-"""Command line: ``leolink run | coverage | budget | codebook | sweep | validate``.
+"""Command line: ``leolink run | coverage | budget | codebook | sweep | compare | validate``.
 
 Errors leolink raises on purpose are printed as one line (exit code 2); anything else
 is a bug and is printed as a short note (exit code 3) unless ``--debug`` is given.
@@ -170,6 +170,28 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    from leolink.app.compare import report_table, run_compare
+
+    _config(args)  # config mistakes fail here, before any run
+    policies = list(args.policy or [])
+    for group in args.policies or []:
+        policies += [p for p in group.split(",") if p.strip()]
+    table = run_compare(
+        args.config,
+        policies,
+        Path(args.out),
+        base_overrides=args.set or [],
+        seeds=args.seeds,
+        workers=int(args.workers),
+        progress=not args.quiet,
+        resume=args.resume,
+    )
+    if not args.quiet:
+        print(report_table(table), end="")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="leolink", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="show tracebacks of bugs")
@@ -222,6 +244,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--resume", action="store_true", help="reuse finished runs of the same points in --out"
     )
+    p.add_argument("--quiet", action="store_true")
+    p = add("compare", cmd_compare, "run several policies on the same seeds and compare KPIs")
+    p.add_argument(
+        "--policy",
+        action="append",
+        metavar="NAME[,KEY=VALUE...]",
+        help="a policy and its parameters (repeatable), e.g. a3,hysteresis_db=2",
+    )
+    p.add_argument(
+        "--policies", action="append", metavar="A,B,...", help="policy names, comma-separated"
+    )
+    p.add_argument("--seeds", type=int, default=1, help="seeds per policy (run.seed on)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.add_argument("--resume", action="store_true", help="reuse finished runs in --out")
     p.add_argument("--quiet", action="store_true")
     return parser
 

@@ -118,7 +118,7 @@ def run(cfg, out_dir=None, progress=None):
     if out_dir is not None:
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
-    summary = SummaryAccumulator()
+    summary = SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s)
     sinks = _sinks(cfg, out_dir, summary)
     stats = run_simulation(scen, sinks, progress=progress)
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}

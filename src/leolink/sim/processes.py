@@ -39,7 +39,8 @@ from leolink.sim.streams import EpochFrame
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
 #: no satellite above the minimum elevation; satellites above it but no beam above the
 #: service threshold.
-OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold")
+#: re-establishing after a radio link failure (appended: leolink.sim.rlf_run).
+OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold", "rlf")
 
 __all__ = [
     "OUTAGE_REASONS",
@@ -78,6 +79,7 @@ class SimState:
     best_snr_db: np.ndarray | None = None  # (n_ut,) the best candidate's SNR [dB], NaN if none
     best_unserved: tuple | None = None  # (UTs without a serving link, their best cell)
     n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
+    rlf_blocked: np.ndarray | None = None  # (n_ut,) re-establishing after an RLF, or None
 
     @property
     def t_s(self) -> float:
@@ -157,8 +159,13 @@ class _Decider:
         epoch_s=1.0,
         ellipsoidal=False,
         prune=True,
+        rlf=None,
     ):
         self.engine, self.policy = engine, policy
+        self.rlf = rlf  # leolink.sim.rlf_run.RlfRun or None
+        # A policy with per-cell state decides through its own run (leolink.sim.trigger_run).
+        run = getattr(policy, "run", None)
+        self.trigger = run(engine, min_snr_db, radius_m, future_state, epoch_s) if run else None
         self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
         self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
@@ -191,9 +198,15 @@ class _Decider:
             # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
             # for an aircraft over 10 s.
             future = self._future(found.table, state.t_s + self.policy.lookahead_s, up)
-        t = state.t_s
+        t, table, target = state.t_s, found.table, None
+        if self.rlf is not None:  # re-establishing UTs have no candidate yet
+            state.rlf_blocked = self.rlf.blocked(t)
+            table = table.like(np.where(state.rlf_blocked[:, None], np.nan, table.snr_db))
+        if self.trigger is not None:
+            pos, vel = state.sat_pos_m, state.sat_vel_m_s
+            target = self.trigger.target(t, table, c.serving, state.ut_pos_m, pos, vel, up)
         res = step(
-            t, found.table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future
+            t, table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future, target
         )
         resumed = resumed_events(t, self.epoch_s, res.state, found.table)
         res.events = concat_events(res.events, resumed)
@@ -237,8 +250,10 @@ class _Monitor:
 
     _LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps")
 
-    def __init__(self, engine, sink, fading_k=None, ut_keys=None, epoch_s=1.0, population=()):
-        self.engine, self.sink = engine, sink
+    def __init__(
+        self, engine, sink, fading_k=None, ut_keys=None, epoch_s=1.0, population=(), rlf=None
+    ):
+        self.engine, self.sink, self.rlf = engine, sink, rlf
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.epoch_s = float(epoch_s)
         self.population = np.asarray(population, dtype=object)
@@ -335,16 +350,21 @@ class _Monitor:
         return cols
 
     def __call__(self, state):
-        if not state.recording:
+        if not state.recording and self.rlf is None:
             return
         res = state.decision
+        cols, events, dwells = self._columns(state), res.events, res.dwells
+        if self.rlf is not None:  # RLF monitoring runs in the warm-up too
+            state.controller, events, dwells = self.rlf.merge(state, cols, events, dwells)
+        if not state.recording:
+            return
         start_s = state.times_s[state.n_warmup]
         frame = EpochFrame(
             state.k - state.n_warmup,
             state.t_s,
-            self._columns(state),
-            res.events,
-            warmup_censored(res.dwells, start_s),
+            cols,
+            events,
+            warmup_censored(dwells, start_s),
         )
         self.sink.epoch(frame)
 

@@ -21,6 +21,7 @@ from leolink.sim.controller import ControllerState
 from leolink.sim.mobility import concat_states
 from leolink.sim.policies import Policy
 from leolink.sim.processes import (
+    OUTAGE_REASONS,
     SimState,
     _Decider,
     _Monitor,
@@ -30,6 +31,7 @@ from leolink.sim.processes import (
     satellite_motion,
     ut_motion,
 )
+from leolink.sim.rlf_run import RLF_REASON, RlfRun
 from leolink.sim.streams import FinalFrame, RunInfo, SinkGroup
 
 __all__ = ["RunStats", "Scenario", "epoch_times", "run_simulation"]
@@ -63,6 +65,8 @@ class Scenario:
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
         cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
+    rlf : leolink.sim.rlf.RlfParams or None, radio link failure monitoring
+        (:mod:`leolink.sim.rlf_run`); None: off.
     """
 
     engine: LinkEngine
@@ -80,6 +84,7 @@ class Scenario:
     fading_k: float | None = None
     ellipsoidal: bool = False
     prune: bool = True
+    rlf: object | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -169,6 +174,9 @@ def run_simulation(
         pos, vel, _ = scen.ephemeris(t)
         return ut.pos_m, pos[0], vel[0]
 
+    rlf = None
+    if scen.rlf is not None:
+        rlf = RlfRun(scen.rlf, n_ut, scen.engine.n_beam, OUTAGE_REASONS.index(RLF_REASON))
     decide = _Decider(
         scen.engine,
         scen.policy,
@@ -180,10 +188,11 @@ def run_simulation(
         epoch_s=scen.epoch_s,
         ellipsoidal=scen.ellipsoidal,
         prune=scen.prune,
+        rlf=rlf,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
-    monitor = _Monitor(scen.engine, sink, scen.fading_k, keys, scen.epoch_s, names)
+    monitor = _Monitor(scen.engine, sink, scen.fading_k, keys, scen.epoch_s, names, rlf)
     times = scen.times_s
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, decide, monitor)
