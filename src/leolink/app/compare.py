@@ -1,8 +1,8 @@
 """``leolink compare``: the same scenario under several policies, on the same seeds.
 
 A policy is given as ``NAME`` or ``NAME,KEY=VALUE,...`` (``KEY`` relative to
-``controller.<NAME>``, e.g. ``a3,hysteresis_db=2,time_to_trigger_s=0.5``, or a full
-``section.key``). Every policy runs on the seeds ``run.seed``, ``run.seed + 1``, ...
+``controller.<NAME>``, e.g. ``a3,hysteresis_db=2,time_to_trigger_s=0.5`` or
+``cho,prepare.offset_db=-2``, or a full key starting with a section, ``kpi.ping_pong_s``). Every policy runs on the seeds ``run.seed``, ``run.seed + 1``, ...
 (``seeds`` of them): a seed fixes the UT placement, headings and fading draws, which do
 not depend on the policy, so every policy sees identical UT tracks, ephemeris and
 fading. Runs go to ``out_dir/runs/<policy>__seed<seed>`` (through the machinery of
@@ -59,9 +59,17 @@ def parse_policy(spec):
         key, sep, value = part.partition("=")
         if not sep or not key.strip():
             raise ConfigError(f"--policy {spec!r}: {part!r} is not KEY=VALUE")
-        key = key.strip() if "." in key else f"controller.{name}.{key.strip()}"
+        key = key.strip()
+        if key.split(".")[0] not in _sections():  # relative to [controller.<name>]
+            key = f"controller.{name}.{key}"
         overrides.append(f"{key}={value.strip()}")
     return spec, overrides
+
+
+def _sections():
+    from leolink.config import config_model
+
+    return set(config_model().model_fields)
 
 
 def _jobs(cfg_path, specs, seeds, base, out_dir, resume):
