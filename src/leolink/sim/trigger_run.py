@@ -158,7 +158,7 @@ class TriggerRun:
             el = self._elevation(axis, ut_pos_m, sat_pos_m, ut_up)
             fields["elevation_rad"] = np.repeat(np.where(sat_ok, el, np.nan), nb, axis=1)
         if "service_end_s" in needs:
-            end_cell, end_sat = self.service.update(t_s, axis, usable, ut_up)
+            end_cell, end_sat = self.service.update(t_s, axis, usable, ut_up, not satellite)
             fields["service_end_s"] = np.repeat(end_sat, nb, axis=1) if satellite else end_cell
         return fields
 
