@@ -42,7 +42,7 @@ from leolink.sim.handover_config import POLICY_CONFIGS, FilterConfig, build_filt
 from leolink.sim.policies import POLICIES
 from leolink.sim.trigger_run import TriggerRun
 
-__all__ = ["TriggerPolicyEntry", "horizon_s"]
+__all__ = ["TriggerPolicyEntry", "entry", "horizon_s"]
 
 #: Look-ahead horizon when a config gives none [s].
 DEFAULT_HORIZON_S = 300.0
@@ -92,11 +92,17 @@ class TriggerPolicyEntry:
         return f"TriggerPolicyEntry({self.name!r}, {self.inner!r}, {self.l3!r})"
 
 
+def entry(name, policy, context=None, horizon=DEFAULT_HORIZON_S):
+    """The registry's object for ``policy`` (a TriggerPolicy or ConditionalHandover), with
+    the layer-3 filter of the build context (``[controller.filter]``; fc4 without one)."""
+    section = getattr(context, "filter", None)
+    l3 = build_filter(section if section is not None else FilterConfig())
+    return TriggerPolicyEntry(name, policy, l3, horizon)
+
+
 def _builder(name):
     def build(params, context=None):
-        section = getattr(context, "filter", None)
-        l3 = build_filter(section if section is not None else FilterConfig())
-        return TriggerPolicyEntry(name, build_policy(params), l3, horizon_s(params))
+        return entry(name, build_policy(params), context, horizon_s(params))
 
     return build
 
