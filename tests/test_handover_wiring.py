@@ -78,11 +78,30 @@ def test_rlf_timing_by_hand(reestablishment_s, rlf_s, end_s, down_s):
         down = list(rows.index[rows.outage_reason == "rlf"])
         assert down == down_s
         assert np.isnan(rows.sinr_db[down]).all() and (rows.service[down] == "outage").all()
+    # A handover stops T310 (38.331 5.3.10.3, reconfiguration with sync): the handover
+    # epoch's out-of-sync restarts it, so the next RLF comes T310 = 1 s later, never at
+    # the handover itself.
+    n_checked = 0
+    for ut in moved:
+        mine = ev[(ev.ut_id == ut) & (ev.kind != "service_resumed")].reset_index(drop=True)
+        for i in np.flatnonzero(mine.kind.str.endswith("handover").to_numpy()):
+            nxt = mine.iloc[i + 1] if i + 1 < len(mine) else None
+            if nxt is None or nxt.kind.endswith("handover"):
+                continue
+            assert nxt.kind == "rlf" and nxt.time_s == mine.time_s[i] + 1.0
+            n_checked += 1
+    assert n_checked > 0
     kpi = res.summary["overall"]["kpi"]
     assert kpi["rlf_count"] == (ev.kind == "rlf").sum()
     n_down = (tr.outage_reason == "rlf").sum()
     assert kpi["interruption_s"]["rlf"] == n_down * 1.0
     assert res.summary["overall"]["outage_fraction_by_reason"]["rlf"] == n_down / len(tr)
+    # unserved epochs count in the SINR percentiles, below every SINR
+    assert kpi["unserved_fraction"] == n_down / len(tr)
+    sinr = np.where(np.isnan(tr.sinr_db), -np.inf, tr.sinr_db)
+    for q in (1, 5, 10, 50, 90):
+        want, got = np.percentile(sinr, q), kpi["sinr_db_percentiles"][f"p{q}"]
+        assert (got is None) if want == -np.inf else abs(got - want) <= 0.005 + 1e-9
 
 
 def test_rlf_monitoring_changes_nothing_while_links_hold():

@@ -88,3 +88,42 @@ def test_satellite_ends_alone_stay_exact_without_per_cell_look_ahead():
         now = (snr[k] >= MIN_SNR_DB).reshape(N_UT, -1)
         _, sat = times.update(k * DT_S, axis, now, per_cell=False)
         np.testing.assert_array_equal(sat, _brute(snr, k, horizon)[1])
+
+
+def test_t1_hands_over_lead_s_before_the_serving_satellite_stops_serving():
+    """One UT, two one-beam satellites: satellite 0 (better) serves until t = 10 s,
+    satellite 1 all along. T1 with lead 4 s: Thresh1 = 10 - 4 = 6 s, the condition
+    ``Mt > Thresh1`` first holds at t = 7 s: the handover to satellite 1. (Max-SNR would
+    stay until satellite 0 is lost at t = 10 s.)"""
+    from leolink.sim.candidates import Candidates
+    from leolink.sim.handover import TriggerPolicy
+    from leolink.sim.measurements import L3Filter
+    from leolink.sim.trigger_run import TriggerRun
+    from leolink.sim.triggers_ntn import T1
+
+    n_t = 16
+    snr = np.full((n_t + 40, 1, 2, 1), 5.0)
+    snr[:10, 0, 0, 0] = 12.0
+    snr[10:, 0, 0, 0] = -30.0
+
+    class Engine(_Engine):
+        n_beam = 1
+        codebook = SimpleNamespace(u_xy=np.zeros((1, 2)))
+
+    def future(t_s):
+        ut, sats, vel = _future(t_s)
+        return ut[:1], sats[:2], vel[:2]
+
+    for lead_s, expected_s in ((4.0, 7.0), (0.5, 10.0)):
+        policy = TriggerPolicy(T1(duration_s=3.0, lead_s=lead_s), level="satellite")
+        run = TriggerRun(
+            policy, L3Filter(0, 1.0), Engine(snr), MIN_SNR_DB, 6.371e6, future, DT_S, 30.0
+        )
+        serving, moved = np.array([-1]), None
+        for k in range(n_t):
+            table = Candidates.dense(snr[k, :, :, 0])
+            new = run.target(k * DT_S, table, serving, np.zeros((1, 3)), None, None)
+            if serving[0] == 0 and new[0] == 1 and moved is None:
+                moved = k * DT_S
+            serving = new
+        assert moved == expected_s  # lead 0.5 s: Thresh1 = 9.5 s, t = 10 s, when it is lost anyway

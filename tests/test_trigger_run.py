@@ -29,7 +29,9 @@ def test_local_axis_maps_cells_both_ways_and_carries_values_by_satellite():
     np.testing.assert_array_equal(axis.global_cell([5, 1]), [14, 7])
     new = LocalAxis.union(2, N_BEAM, [0, 0, 1], [0, 4, 2])  # sat 1 left UT 0, sat 0 came
     per_sat = np.array([[10.0, 40.0], [20.0, -1.0]])
-    np.testing.assert_array_equal(axis.remap(new, per_sat, np.nan), [[np.nan, 40.0], [20.0, np.nan]])
+    np.testing.assert_array_equal(
+        axis.remap(new, per_sat, np.nan), [[np.nan, 40.0], [20.0, np.nan]]
+    )
     per_cell = np.arange(12.0).reshape(2, 6)
     got = axis.remap(new, per_cell, -1.0)
     np.testing.assert_array_equal(got[0], [-1, -1, -1, 3, 4, 5])  # sat 4's beams follow it
@@ -124,3 +126,19 @@ def test_a_satellite_missing_from_one_table_keeps_its_prepared_cell():
     path = _sparse_run(policy(), snr, L3Filter(0, 1.0))[:, 0]
     assert list(path) == [0] * 6 + [3] * 6
     np.testing.assert_array_equal(path, _dense_run(policy(), snr, L3Filter(0, 1.0))[:, 0])
+
+
+def test_a_cell_below_the_service_threshold_never_triggers_on_its_filtered_past():
+    """Cell 3 is 8 dB above the serving cell for two epochs, then falls to -20 dB (below
+    the -10 dB service threshold). Its layer-3 value (fc8, a = 1/4) is still 1 dB at
+    t = 3 s, above the serving cell's 0 dB, but a cell that cannot serve is no candidate:
+    no handover, and the run of its entering condition lapses."""
+    snr = np.full((5, 1, 6), np.nan)
+    snr[:, 0, 0] = 0.0
+    snr[1:3, 0, 3] = 8.0
+    snr[3:, 0, 3] = -20.0
+    path = _sparse_run(TriggerPolicy(A3(0.0, 0.0, 2.0)), snr, L3Filter(8, 1.0))[:, 0]
+    assert list(path) == [0] * 5
+    snr[3:, 0, 3] = 8.0  # the same cell, still serving: triggers after TTT (t = 1 + 2 s)
+    path = _sparse_run(TriggerPolicy(A3(0.0, 0.0, 2.0)), snr, L3Filter(8, 1.0))[:, 0]
+    assert list(path) == [0, 0, 0, 3, 3]
