@@ -192,6 +192,23 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def _compare_parser(p):
+    p.add_argument(
+        "--policy",
+        action="append",
+        metavar="NAME[,KEY=VALUE...]",
+        help="a policy and its parameters (repeatable), e.g. a3,hysteresis_db=2",
+    )
+    p.add_argument(
+        "--policies", action="append", metavar="A,B,...", help="policy names, comma-separated"
+    )
+    p.add_argument("--seeds", type=int, default=1, help="seeds per policy (run.seed on)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.add_argument("--resume", action="store_true", help="reuse finished runs in --out")
+    p.add_argument("--quiet", action="store_true")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="leolink", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="show tracebacks of bugs")
@@ -245,21 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--resume", action="store_true", help="reuse finished runs of the same points in --out"
     )
     p.add_argument("--quiet", action="store_true")
-    p = add("compare", cmd_compare, "run several policies on the same seeds and compare KPIs")
-    p.add_argument(
-        "--policy",
-        action="append",
-        metavar="NAME[,KEY=VALUE...]",
-        help="a policy and its parameters (repeatable), e.g. a3,hysteresis_db=2",
-    )
-    p.add_argument(
-        "--policies", action="append", metavar="A,B,...", help="policy names, comma-separated"
-    )
-    p.add_argument("--seeds", type=int, default=1, help="seeds per policy (run.seed on)")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--workers", type=int, default=1, help="parallel processes")
-    p.add_argument("--resume", action="store_true", help="reuse finished runs in --out")
-    p.add_argument("--quiet", action="store_true")
+    _compare_parser(add("compare", cmd_compare, "run policies on the same seeds, compare KPIs"))
     return parser
 
 

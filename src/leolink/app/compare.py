@@ -2,11 +2,12 @@
 
 A policy is given as ``NAME`` or ``NAME,KEY=VALUE,...`` (``KEY`` relative to
 ``controller.<NAME>``, e.g. ``a3,hysteresis_db=2,time_to_trigger_s=0.5`` or
-``cho,prepare.offset_db=-2``, or a full key starting with a section, ``kpi.ping_pong_s``). Every policy runs on the seeds ``run.seed``, ``run.seed + 1``, ...
-(``seeds`` of them): a seed fixes the UT placement, headings and fading draws, which do
-not depend on the policy, so every policy sees identical UT tracks, ephemeris and
-fading. Runs go to ``out_dir/runs/<policy>__seed<seed>`` (through the machinery of
-:mod:`leolink.app.sweep`: validated first, serial, local processes or dask).
+``cho,prepare.offset_db=-2``, or a full key starting with a section, ``kpi.ping_pong_s``).
+Every policy runs on the seeds ``run.seed``, ``run.seed + 1``, ... (``seeds`` of them):
+a seed fixes the UT placement, headings and fading draws, which do not depend on the
+policy, so every policy sees identical UT tracks, ephemeris and fading. Runs go to
+``out_dir/runs/<policy>__seed<seed>`` (through the machinery of :mod:`leolink.app.sweep`:
+validated first, serial or local processes).
 
 Outputs (written at the end, ``compare.csv`` last):
 
@@ -36,7 +37,8 @@ __all__ = ["MAIN_KPIS", "parse_policy", "run_compare"]
 MAIN_KPIS = (
     ("kpi_handover_rate_per_ut_min", "HO /UT-min", 1.0, "{:.3f}"),
     ("kpi_handover_rate_per_ut_min_by_kind_sat_handover", "sat HO /UT-min", 1.0, "{:.3f}"),
-    ("kpi_ping_pong_fraction", "ping-pong", 1.0, "{:.3f}"),
+    ("kpi_ping_pong_fraction", "ping-pong cell", 1.0, "{:.3f}"),
+    ("kpi_ping_pong_fraction_satellite", "ping-pong sat", 1.0, "{:.3f}"),
     ("kpi_rlf_rate_per_ut_min", "RLF /UT-min", 1.0, "{:.4f}"),
     ("kpi_mean_time_of_stay_s_beam", "stay beam [s]", 1.0, "{:.1f}"),
     ("kpi_mean_time_of_stay_s_satellite", "stay sat [s]", 1.0, "{:.1f}"),

@@ -56,11 +56,11 @@ class ControllerBase(kinds.SelectorSection):
         -10.0, ge=-100.0, le=100.0, description="below this SNR the UT is in outage [dB]"
     )
     filter: FilterConfig = Field(
-        default_factory=FilterConfig,
+        default_factory=FilterConfig,  # type: ignore[arg-type]
         description="layer-3 filter of the trigger policies' measurements (TS 38.331 5.5.3.2)",
     )
     rlf: RlfConfig = Field(
-        default_factory=RlfConfig,
+        default_factory=RlfConfig,  # type: ignore[arg-type]
         description="radio link failure on the serving SINR (TS 38.331 5.3.10), any policy",
     )
 

@@ -11,7 +11,8 @@ __all__ = ["plot_compare", "sinr_cdf"]
 #: (column, axis label, scale) of the trade-off panels.
 TRADE_OFF = (
     ("kpi_handover_rate_per_ut_min", "handovers per UT-minute", 1.0),
-    ("kpi_ping_pong_fraction", "ping-pong fraction", 1.0),
+    ("kpi_ping_pong_fraction", "ping-pong fraction (cell)", 1.0),
+    ("kpi_ping_pong_fraction_satellite", "ping-pong fraction (satellite)", 1.0),
     ("mean_throughput_bps", "mean throughput [Mb/s]", 1e-6),
     ("kpi_rlf_rate_per_ut_min", "RLFs per UT-minute", 1.0),
 )
@@ -29,8 +30,8 @@ def sinr_cdf(sinr_db):
 
 def plot_compare(table, out_dir, cdfs=None):
     """``compare_kpis.png`` (one bar panel per KPI, error bars: standard deviation over
-    seeds), ``compare_tradeoff.png`` (handover rate vs mean throughput, colour: ping-pong
-    fraction) and, with ``cdfs`` ``{policy: (x_db, F)}``, ``compare_sinr_cdf.png``.
+    seeds), ``compare_tradeoff.png`` (handover rate vs mean throughput, colour: satellite
+    ping-pong fraction) and, with ``cdfs`` ``{policy: (x_db, F)}``, ``compare_sinr_cdf.png``.
 
     ``table``: ``compare.csv`` as a DataFrame (columns ``policy``, KPI, ``KPI_std``).
     Returns the written paths.
@@ -54,11 +55,11 @@ def plot_compare(table, out_dir, cdfs=None):
         ax = axes[0, 0]
         x = table["kpi_handover_rate_per_ut_min"].to_numpy(float)
         y = table["mean_throughput_bps"].to_numpy(float) * 1e-6
-        pp = table["kpi_ping_pong_fraction"].to_numpy(float)
+        pp = table["kpi_ping_pong_fraction_satellite"].to_numpy(float)
         sc = ax.scatter(x, y, c=np.nan_to_num(pp), cmap="viridis", s=60, zorder=3)
         for xi, yi, name in zip(x, y, labels, strict=True):
             ax.annotate(name, (xi, yi), textcoords="offset points", xytext=(5, 4), fontsize=8)
-        fig.colorbar(sc, ax=ax, label="ping-pong fraction")
+        fig.colorbar(sc, ax=ax, label="ping-pong fraction (satellite)")
         ax.set_xlabel("handovers per UT-minute")
         ax.set_ylabel("mean throughput [Mb/s]")
         ax.grid(True, alpha=0.3)
