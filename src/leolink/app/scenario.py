@@ -20,6 +20,7 @@ from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_fr
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES
+from leolink.sim.handover_config import build_rlf
 from leolink.sim.mobility import OnWgs84
 from leolink.sim.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
@@ -155,7 +156,7 @@ def build_scenario(cfg):
         engine=build_engine(cfg, codebook, ut_terminals(cfg, populations)),
         ephemeris=ephemeris,
         populations=populations,
-        policy=cfg.controller.build(),
+        policy=cfg.controller.build(SimpleNamespace(filter=cfg.controller.filter)),
         min_snr_db=cfg.controller.min_snr_db,
         handover_time_s=cfg.controller.handover_time_s,
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
@@ -166,4 +167,5 @@ def build_scenario(cfg):
         seed=r.seed,
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
+        rlf=build_rlf(cfg.controller.rlf),
     )

@@ -147,12 +147,21 @@ def flatten_summary(overall):
             for kind, count in value.items():
                 row[kind if kind.endswith(("s", "total")) else f"{kind}s"] = count
         elif isinstance(value, dict):
-            for sub, item in value.items():
-                if not isinstance(item, list):  # lists (all dwell times) stay in summary.json
-                    row[f"{key}_{sub}"] = item
+            row.update(_flat(key, value))
         else:
             row[key] = value
     return {k: math.nan if v is None else _plain(v) for k, v in row.items()}
+
+
+def _flat(prefix, node):
+    """Nested dicts joined with ``_``; lists (all dwell times) stay in summary.json."""
+    row = {}
+    for sub, item in node.items():
+        if isinstance(item, dict):
+            row.update(_flat(f"{prefix}_{sub}", item))
+        elif not isinstance(item, list):
+            row[f"{prefix}_{sub}"] = item
+    return row
 
 
 def _plain(value):

@@ -6,6 +6,12 @@ candidates of the whole block in a few vectorized engine calls
 (:class:`~leolink.sim.search.CandidateSearch`); every epoch it adds each UT's serving
 cell to its row (from the pairs already evaluated, or evaluated then), evaluates the
 table at ``t + lookahead`` if the policy asks, and runs the controller.
+
+A policy with per-cell state (the 3GPP triggers of :mod:`leolink.sim.trigger_policies`)
+has a ``run(...)`` method: its :class:`~leolink.sim.trigger_run.TriggerRun` picks the
+target from the epoch's table and the controller executes it. With radio link failure
+monitoring (:mod:`leolink.sim.rlf_run`), the candidates of UTs still re-establishing are
+masked (NaN) so that the controller leaves them unserved.
 """
 
 from __future__ import annotations
@@ -42,12 +48,16 @@ class Decider:
     prune : bool
         Screen the (UT, satellite) pairs before evaluating them (the same tables,
         :mod:`leolink.sim.search`); False evaluates every pair (the reference).
+    rlf : leolink.sim.rlf_run.RlfRun or None
+        Radio link failure bookkeeping (None: off).
     """
 
     def __init__(self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad,
                  radius_m, future_state, motion, epoch_s=1.0, ellipsoidal=False,
-                 prune=True):  # fmt: skip
-        self.engine, self.policy = engine, policy
+                 prune=True, rlf=None):  # fmt: skip
+        self.engine, self.policy, self.rlf = engine, policy, rlf
+        run = getattr(policy, "run", None)  # per-cell state: the policy's own run
+        self.trigger = run(engine, min_snr_db, radius_m, future_state, epoch_s) if run else None
         self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
         self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
@@ -91,7 +101,14 @@ class Decider:
             # for an aircraft over 10 s.
             future = self._future(table, state.t_s + self.policy.lookahead_s, k)
         t = state.t_s
-        res = step(t, table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
+        decided, target = self._masked(state, table), None
+        if self.trigger is not None:
+            j, mb = k - blk.k0, self.mb
+            up = None if self.enu is None else self.enu[j][:, 2, :]
+            target = self.trigger.target(t, decided, c.serving, mb.ut_pos_m[j],
+                                         mb.sat_pos_m[j], mb.sat_vel_m_s[j], up)  # fmt: skip
+        res = step(t, decided, c, self.policy, self.min_snr_db, self.handover_time_s, nb,
+                   future, target)  # fmt: skip
         resumed = resumed_events(t, self.epoch_s, res.state, table)
         res.events = concat_events(res.events, resumed)
         unserved = np.flatnonzero(res.sat_id < 0)
@@ -102,6 +119,15 @@ class Decider:
         state.cand_sats, state.decision = cone, res
         state.enu = None if self.enu is None else self.enu[k - blk.k0]
         state.controller = res.state
+
+    def _masked(self, state, table):
+        """``table`` with the candidates of UTs re-establishing after an RLF masked."""
+        if self.rlf is None:
+            return table
+        state.rlf_blocked = self.rlf.blocked(state.t_s)
+        if not state.rlf_blocked.any():
+            return table
+        return table.like(np.where(state.rlf_blocked[:, None], np.nan, table.snr_db))
 
     def _with_serving(self, table, rows, serving):
         """``table`` with each UT's serving cell added where it is missing and above the

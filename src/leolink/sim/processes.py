@@ -25,8 +25,9 @@ from leolink.sim.controller import ControllerState, StepResult, close_dwells
 
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
 #: no satellite above the minimum elevation; satellites above it but no beam above the
-#: service threshold.
-OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold")
+#: service threshold; re-establishing after a radio link failure (appended:
+#: :mod:`leolink.sim.rlf_run`).
+OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold", "rlf")
 
 __all__ = [
     "OUTAGE_REASONS",
@@ -62,6 +63,7 @@ class SimState:
     best_snr_db: np.ndarray | None = None  # (n_ut,) the best candidate's SNR [dB], NaN if none
     best_unserved: tuple | None = None  # (UTs without a serving link, their best cell)
     n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
+    rlf_blocked: np.ndarray | None = None  # (n_ut,) re-establishing after an RLF, or None
 
     @property
     def t_s(self) -> float:

@@ -25,6 +25,7 @@ from leolink.sim.motion import MotionBlocks
 from leolink.sim.policies import Policy
 from leolink.sim.populations import MotionModel
 from leolink.sim.processes import (
+    OUTAGE_REASONS,
     SimState,
     beam_controller,
     final_dwells,
@@ -32,6 +33,7 @@ from leolink.sim.processes import (
     satellite_motion,
     ut_motion,
 )
+from leolink.sim.rlf_run import RLF_REASON, RlfRun
 from leolink.sim.streams import FinalFrame, RunInfo, SinkGroup
 
 __all__ = ["RunStats", "Scenario", "epoch_times", "run_simulation"]
@@ -65,6 +67,8 @@ class Scenario:
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
         cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
+    rlf : leolink.sim.rlf.RlfParams or None, radio link failure monitoring
+        (:mod:`leolink.sim.rlf_run`); None: off.
     """
 
     engine: LinkEngine
@@ -82,6 +86,7 @@ class Scenario:
     fading_k: float | None = None
     ellipsoidal: bool = False
     prune: bool = True
+    rlf: object | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,6 +177,9 @@ def run_simulation(
         return ut.pos_m, pos[0], vel[0]
 
     times = scen.times_s
+    rlf = None
+    if scen.rlf is not None:
+        rlf = RlfRun(scen.rlf, n_ut, scen.engine.n_beam, OUTAGE_REASONS.index(RLF_REASON))
     motion = MotionBlocks(scen.ephemeris, scen.populations, times, scen.ephemeris.n_sat, n_ut)
     decide = Decider(
         scen.engine,
@@ -185,10 +193,11 @@ def run_simulation(
         epoch_s=scen.epoch_s,
         ellipsoidal=scen.ellipsoidal,
         prune=scen.prune,
+        rlf=rlf,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
-    monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names)
+    monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, rlf)
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
