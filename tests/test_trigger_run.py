@@ -64,9 +64,9 @@ def _dense_run(policy, snr, l3):
     state, filt = policy.initial_state(n_ut, n_cand, N_BEAM), L3State.initial(n_ut, n_cand)
     serving, path = np.full(n_ut, -1), []
     for k in range(n_t):
-        filt, f = l3_update(filt, k * DT_S, snr[k], l3)
         usable = snr[k] >= MIN_SNR_DB
-        meas = np.where(usable, f, np.nan)
+        # Only detected cells (at or above the threshold) are measured and filtered.
+        filt, meas = l3_update(filt, k * DT_S, np.where(usable, snr[k], np.nan), l3)
         dec, state = policy.decide(Epoch(k * DT_S, serving, meas), state, N_BEAM)
         best = np.argmax(np.where(usable, snr[k], -np.inf), axis=1)
         best = np.where(usable.any(axis=1), best, -1)
@@ -142,3 +142,19 @@ def test_a_cell_below_the_service_threshold_never_triggers_on_its_filtered_past(
     snr[3:, 0, 3] = 8.0  # the same cell, still serving: triggers after TTT (t = 1 + 2 s)
     path = _sparse_run(TriggerPolicy(A3(0.0, 0.0, 2.0)), snr, L3Filter(8, 1.0))[:, 0]
     assert list(path) == [0, 0, 0, 3, 3]
+
+
+def test_a_cell_detected_again_restarts_its_filter():
+    """Cell 3 is unseen at t = 0 (the first assignment goes to cell 0, 5 dB), -20 dB at
+    t = 1 s (below the -10 dB threshold: not detected), 8 dB from t = 2 s. A3(+2 dB, TTT
+    0), fc8 (a = 1/4). Undetected, the cell's filter restarts: at t = 2 s F = 8 > 5 + 2
+    and the UT hands over at once. Filtering the undetected -20 dB would give F = 0.75 x
+    (-20) + 0.25 x 8 = -13 dB at t = 2 s, -7.75, -3.8, -0.9 dB after: no handover."""
+    snr = np.full((6, 1, 6), np.nan)
+    snr[:, 0, 0] = 5.0
+    snr[:, 0, 3] = 8.0
+    snr[0, 0, 3], snr[1, 0, 3] = np.nan, -20.0
+    path = _sparse_run(TriggerPolicy(A3(2.0, 0.0, 0.0)), snr, L3Filter(8, 1.0))[:, 0]
+    assert list(path) == [0, 0, 3, 3, 3, 3]
+    np.testing.assert_array_equal(path, _dense_run(TriggerPolicy(A3(2.0, 0.0, 0.0)), snr,
+                                                   L3Filter(8, 1.0))[:, 0])  # fmt: skip

@@ -64,7 +64,9 @@ class Decider:
         self.radius_m = radius_m
         self.future_state, self.motion = future_state, motion
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
-        self.search = CandidateSearch(engine, neighbour_window_db(policy), prune)
+        # A policy blind to cells below the service threshold needs none of them.
+        floor_db = min_snr_db if getattr(policy, "usable_cells_only", False) else -np.inf
+        self.search = CandidateSearch(engine, neighbour_window_db(policy), prune, floor_db)
         self.block = self.mb = self.cones = self.enu = None
 
     def _open(self, k):

@@ -29,9 +29,10 @@ These policies keep per-cell state (time-to-trigger runs, triggered cells, layer
 filters, prepared CHO candidates), so they are not driven by ``choose`` like the
 stateless policies of :mod:`leolink.sim.policies`: the simulator asks the policy for a
 :class:`~leolink.sim.trigger_run.TriggerRun` (``policy.run(...)``) and hands its target
-to the controller. They see every cell above the minimum elevation
-(``neighbour_window_db = inf``): a cell's state must not depend on whether it was near
-the best one.
+to the controller. They see every cell at or above the service threshold
+(``neighbour_window_db = inf``, ``usable_cells_only = True``): a cell's state must not
+depend on whether it was near the best one, and cells below the threshold are not
+detected (:mod:`leolink.sim.trigger_run`), so the candidate search leaves them out.
 """
 
 from __future__ import annotations
@@ -68,6 +69,7 @@ class TriggerPolicyEntry:
     lookahead_s = 0.0  # no future table: the look-ahead is the policy's own (service_time)
     time_to_trigger_s = 0.0  # the policy owns its time-to-trigger
     neighbour_window_db = math.inf
+    usable_cells_only = True  # blind below the service threshold (module docstring)
 
     def __init__(self, name, inner, l3, horizon):
         self.name, self.inner, self.l3, self.horizon_s = name, inner, l3, float(horizon)

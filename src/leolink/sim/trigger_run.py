@@ -8,11 +8,14 @@ one of them through a run whose candidates come as sparse per-UT tables
 1. the UT's :class:`~leolink.sim.local_axis.LocalAxis` (the satellites of this table and
    those of the last axis that still have live state) and the policy and filter state
    carried onto it by global satellite id;
-2. the measurements: the table's SNR [dB] (unmeasured: NaN), layer-3 filtered
-   (:func:`~leolink.sim.measurements.l3_update`, ``[controller.filter]``); the trigger
-   quantity is the filtered value where the cell is usable now (SNR >= the service
-   threshold), NaN elsewhere, so a cell below the threshold never enters and is never a
-   target;
+2. the measurements: the table's SNR [dB] of the cells the UT detects, those at or above
+   the service threshold (``controller.min_snr_db``), NaN elsewhere, layer-3 filtered
+   (:func:`~leolink.sim.measurements.l3_update`, ``[controller.filter]``). A cell below
+   the threshold is not detected (TS 38.133 detects a cell only above a side condition,
+   its SS-SINR / Es/Iot): its filter restarts when it is detected again, it never enters
+   and is never a target (docs/errata.md). So nothing here depends on cells below the
+   threshold, and the policy declares ``usable_cells_only``: the candidate search leaves
+   them out (:mod:`leolink.sim.search`), which changes no decision;
 3. the other :class:`~leolink.sim.triggers.Epoch` fields the policy ``needs``, NaN
    wherever the candidate is not usable now (so it never enters either): ``ut_pos_m``;
    ``ref_pos_m``, the cells' ground centres now (D1: each beam's boresight on the
@@ -204,8 +207,7 @@ class TriggerRun:
         raw = axis.values(table)
         with np.errstate(invalid="ignore"):
             usable = raw >= self.min_snr_db  # False for NaN and -inf (a beam's null)
-        filt, filtered = l3_update(filt, t_s, np.where(np.isfinite(raw), raw, np.nan), self.l3)
-        meas = np.where(usable, filtered, np.nan)
+        filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)
         extra = self._fields(t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up)
         local_serving = axis.local_cell(serving)
         epoch = Epoch(t_s=float(t_s), serving=local_serving, meas=meas, **extra)
