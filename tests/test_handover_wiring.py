@@ -184,3 +184,13 @@ def test_d1_references_are_the_beams_ground_centres():
         np.testing.assert_allclose(np.linalg.norm(cells, axis=1), cfg.earth.radius_m, rtol=1e-12)
         got = direction_cosines(pos[0][sat], vel[0][sat], cells)
         np.testing.assert_allclose(got, u_xy, atol=1e-9)
+
+
+def test_rlf_that_never_fires_leaves_the_run_as_without_rlf(walker_max_snr):
+    """With RLF on the monitor evaluates the links every epoch (the next decision needs
+    the SINR) instead of once per block; with Q_out below every SINR nothing fails, and
+    the frames must be those of the block path, bit for bit."""
+    sets = ["run.duration_s=200", "controller.rlf.enabled=true"]
+    res = _run(WALKER, [*sets, "controller.rlf.q_out_db=-200", "controller.rlf.q_in_db=-199"])
+    pd.testing.assert_frame_equal(res.trace, walker_max_snr.trace)
+    pd.testing.assert_frame_equal(res.events, walker_max_snr.events)
