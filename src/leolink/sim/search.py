@@ -251,12 +251,33 @@ class CandidateSearch:
         with np.errstate(invalid="ignore"):
             keep = snr >= (best_db - self.window_db)[rows][:, None]
         r = np.broadcast_to(rows[:, None], cell.shape)
-        table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
-        best_cell, _ = table.best()
-        if self.floor_db > -np.inf:  # after the best cell: the diagnostics keep it
+        if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
+            best_cell = _best_cells(rows, cell, snr, best_db, n_rows)
             with np.errstate(invalid="ignore"):
                 keep &= snr >= self.floor_db
             table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
+        else:
+            table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
+            best_cell, _ = table.best()
         return BlockCandidates(
             k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
         )
+
+
+def _best_cells(rows, cell, snr, best_db, n_rows):
+    """Each row's best cell (-1 where its best SNR is not finite), ties to the lowest id,
+    as :meth:`Candidates.best` of the whole table, without building it.
+
+    ``rows`` (m,) sorted, with the pairs of a row by ascending satellite, so that the
+    entries ``(pair, beam)`` of a row, flattened, are in ascending cell id: the first
+    entry equal to the row's best is the lowest tied cell.
+    """
+    out = np.full(n_rows, -1, np.int64)
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(best_db)
+        tied = (snr == best_db[rows][:, None]) & ok[rows][:, None]
+    flat = np.flatnonzero(tied)
+    row_of = rows[flat // snr.shape[1]]
+    first = np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]]) if flat.size else flat
+    out[row_of[first]] = cell.reshape(-1)[flat[first]]
+    return out
