@@ -33,7 +33,10 @@ __all__ = ["RLF_REASON", "RlfRun"]
 
 #: Trace ``outage_reason`` name of a UT that lost its link by RLF (re-establishing).
 RLF_REASON = "rlf"
-_LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps")
+# The link columns of an outage row: NaN (the link figures of sim/service_link.py too; the
+# MODCOD -1, none), as the monitor leaves them in any outage.
+_LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps", "cn0_dbhz", "esn0_db",
+         "margin_db", "throughput_dvbs2x_bps", "throughput_shannon_bps")  # fmt: skip
 _SERVING_CHANGES = ("beam_handover", "sat_handover", "outage_start", "outage_end")
 # Epoch times accumulate float rounding; 1 ns is far below any timer value.
 TIME_TOL_S = 1e-9
@@ -124,7 +127,10 @@ class RlfRun:
         for name in ("sat_id", "beam_id"):
             columns[name] = np.where(rows, -1, columns[name])
         for name in _LINK:
-            columns[name] = np.where(rows, np.nan, columns[name])
+            if name in columns:
+                columns[name] = np.where(rows, np.nan, columns[name])
+        if "modcod" in columns:
+            columns["modcod"] = np.where(rows, -1, columns["modcod"])
         columns["interruption_s"] = np.where(rows, 0.0, columns["interruption_s"])
 
 

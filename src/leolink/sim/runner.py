@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import simpy
 
+from leolink.antenna.panel import PanelOrientation
 from leolink.engine import LinkEngine
 from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
@@ -34,6 +35,7 @@ from leolink.sim.processes import (
     ut_motion,
 )
 from leolink.sim.rlf_run import RLF_REASON, RlfRun
+from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import FinalFrame, RunInfo, SinkGroup
 
 __all__ = ["RunStats", "Scenario", "epoch_times", "run_simulation"]
@@ -69,6 +71,9 @@ class Scenario:
         evaluates every pair of the cone-selected satellites (the reference).
     rlf : leolink.sim.rlf.RlfParams or None, radio link failure monitoring
         (:mod:`leolink.sim.rlf_run`); None: off.
+    link : ServiceLink or None, the link figures and the SINR service threshold (None:
+        default figures, service on SNR).
+    panels : PanelOrientation or None, the UTs' turned or tilted panels (None: flat).
     """
 
     engine: LinkEngine
@@ -86,6 +91,8 @@ class Scenario:
     fading_k: float | None = None
     ellipsoidal: bool = False
     prune: bool = True
+    link: ServiceLink | None = None
+    panels: PanelOrientation | None = None
     rlf: object | None = None
 
 
@@ -193,11 +200,14 @@ def run_simulation(
         epoch_s=scen.epoch_s,
         ellipsoidal=scen.ellipsoidal,
         prune=scen.prune,
+        panels=scen.panels,
         rlf=rlf,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
-    monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, rlf)
+    monitor = Monitor(
+        scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link, rlf
+    )
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
