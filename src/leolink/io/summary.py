@@ -289,6 +289,7 @@ class SummaryAccumulator:
         link_all, link_ut = self._link.summary(
             self.n_epochs, lambda g, v, n: grouped_percentiles(g, v, n, _PERCENTILES)
         )
+        kpi_all, kpi_ut = self._kpi()
         per_ut = []
         for i in range(self.n_ut):  # output formatting only; all statistics are vectorized
             per_ut.append(
@@ -308,6 +309,7 @@ class SummaryAccumulator:
                     "max_abs_doppler_hz": self.max_abs_doppler_hz[i],
                     "max_angular_speed_deg_s": self.max_angular_speed_deg_s[i],
                     "link": link_ut[i],
+                    "kpi": kpi_ut[i],
                 }
             )
         n_all = self.n_epochs.sum()
@@ -319,12 +321,7 @@ class SummaryAccumulator:
             "handovers": _handover_counts({k: c.sum() for k, c in counts.items()}),
             "dwell": dwell_all,
             "outage_fraction": self.n_outage.sum() / n_all if n_all else None,
-            "outage_fraction_by_reason": _by_reason(
-                self.n_no_satellite.sum() / n_all if n_all else None,
-                self.n_below_threshold.sum() / n_all if n_all else None,
-                interrupted_all,
-                self.n_rlf.sum() / n_all if n_all else None,
-            ),
+            "outage_fraction_by_reason": self._overall_by_reason(n_all, interrupted_all),
             "handover_interruption_fraction": interrupted_all,
             "snr_db": snr_all,
             "sinr_db": sinr_all,
@@ -332,11 +329,17 @@ class SummaryAccumulator:
             "max_abs_doppler_hz": _nanmax(self.max_abs_doppler_hz),
             "max_angular_speed_deg_s": _nanmax(self.max_angular_speed_deg_s),
             "link": link_all,
+            "kpi": kpi_all,
         }
-        overall["kpi"], kpi_ut = self._kpi()
-        for row, kpi in zip(per_ut, kpi_ut, strict=True):
-            row["kpi"] = kpi
         return to_jsonable({"overall": overall, "per_ut": per_ut})
+
+    def _overall_by_reason(self, n_all, interrupted_all):
+        def share(count):
+            return count.sum() / n_all if n_all else None
+
+        below = self.n_below_threshold
+        return _by_reason(share(self.n_no_satellite), share(below), interrupted_all,
+                          share(self.n_rlf))  # fmt: skip
 
     def _kpi(self):
         """``overall.kpi`` and the per-UT KPI dicts (:mod:`leolink.io.kpi_summary`)."""
