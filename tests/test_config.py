@@ -150,8 +150,8 @@ MISTAKES = [
     ),
     (
         ['controller.policy="greedy"'],
-        r"controller\.policy = 'greedy' is not allowed: .*'max_snr', 'hysteresis' or "
-        r"'predictive'",
+        r"controller\.policy = 'greedy' is not allowed: .*'max_snr', 'hysteresis', "
+        r"'predictive', 'a3', .*'time_to_exit' or 'cho'",
     ),
     (
         ["population.1.x_m=[1.0, 2.0, 3.0]"],

@@ -62,3 +62,45 @@ def test_the_documented_refusal(my_policies):
         leolink.ConfigError, match=r"controller\.min_dwell\.min_dwell_s = -1 is not"
     ):
         load_config(PAPER, ["controller.policy=min_dwell", "controller.min_dwell.min_dwell_s=-1"])
+
+
+@pytest.fixture
+def my_triggers(monkeypatch):
+    """The trigger block of docs/extending.md, importable as ``my_triggers``."""
+    module = types.ModuleType("my_triggers")
+    exec(compile(_blocks("extending.md")[2], "docs/extending.md", "exec"), module.__dict__)
+    monkeypatch.setitem(sys.modules, "my_triggers", module)
+    yield module
+    POLICIES.remove("gated_a3")
+
+
+def test_the_worked_trigger_runs_and_reduces_to_max_snr_and_to_forced_handovers(
+    my_triggers, monkeypatch, capsys
+):
+    monkeypatch.chdir(DOCS.parent)
+    exec(compile(_blocks("extending.md")[3], "docs/extending.md", "exec"), {})
+    printed = float(capsys.readouterr().out)
+    quiet = ["output.plots.enabled=false", "controller.filter.k=0"]
+    plain = leolink.run(load_config(PAPER, quiet))
+    gate_open = leolink.run(
+        load_config(
+            PAPER,
+            [
+                *quiet,
+                "controller.policy=gated_a3",
+                "controller.gated_a3.offset_db=0",
+                "controller.gated_a3.serving_below_db=1000",
+            ],
+        )
+    )
+    assert gate_open.events.equals(plain.events) and gate_open.trace.equals(plain.trace)
+    shut = leolink.run(
+        load_config(
+            PAPER,
+            [*quiet, "controller.policy=gated_a3", "controller.gated_a3.serving_below_db=-1000"],
+        )
+    )
+    # Never triggered: a UT changes cell only when its serving cell becomes unusable.
+    ev = shut.events
+    assert len(ev[ev.kind.str.endswith("handover")]) < len(plain.events)
+    assert 0 < printed < plain.summary["overall"]["kpi"]["handover_rate_per_ut_min"]

@@ -84,5 +84,6 @@ def test_mistakes_are_refused_naming_the_key(model, data, loc):
 
 def test_filter_and_rlf_tables_build_their_parameters():
     assert build_filter(FilterConfig(k=8, reference_period_s=0.1)).k == 8
-    p = build_rlf(RlfConfig(t310_s=2.0, n310=6, n311=2))
+    assert build_rlf(RlfConfig(t310_s=2.0)) is None  # off unless enabled
+    p = build_rlf(RlfConfig(enabled=True, t310_s=2.0, n310=6, n311=2))
     assert (p.t310_s, p.n310, p.n311, p.q_out_db, p.q_in_db) == (2.0, 6, 2, -8.0, -6.0)

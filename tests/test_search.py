@@ -74,8 +74,8 @@ def test_screening_bound_is_above_every_beam_and_visibility_agrees(block):
     assert np.median(b / e) < 30.0 and (b / e).min() < 1.0 + 1e-3
 
 
-def _tables(eng, n_ut, mb, cones, window_db, prune):
-    blk = CandidateSearch(eng, window_db, prune).block(
+def _tables(eng, n_ut, mb, cones, window_db, prune, floor_db=-np.inf):
+    blk = CandidateSearch(eng, window_db, prune, floor_db).block(
         0, n_ut, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones
     )
     t = blk.table
@@ -100,6 +100,23 @@ def test_pruned_tables_are_the_exhaustive_tables(block, window_db):
     assert (blk.n_visible > 20).mean() > 0.9
     if window_db > 0.0:  # some UTs have neighbours within 3 dB
         assert (np.bincount(cells[0], minlength=2 * n_ut) > 1).mean() > 0.3
+
+
+@pytest.mark.parametrize("floor_db", [-10.0, 5.0])
+def test_tables_with_a_floor_are_the_exhaustive_cells_at_or_above_it(block, floor_db):
+    """The trigger policies' tables (window inf, floor = the service threshold): every
+    cell of every visible satellite whose SNR is at least the floor, and nothing else;
+    the diagnostics are those of the search without a floor."""
+    eng, n_ut, mb, cones = block
+    cells, snr, blk = _tables(eng, n_ut, mb, cones, np.inf, True, floor_db)
+    cells_all, snr_all, ref = _tables(eng, n_ut, mb, cones, np.inf, False)
+    keep = snr_all >= floor_db
+    assert 0 < keep.sum() < 0.2 * keep.size  # most visible cells are below the floor
+    assert np.array_equal(cells, cells_all[:, keep]) and np.array_equal(snr, snr_all[keep])
+    assert np.array_equal(blk.n_visible, ref.n_visible)
+    assert np.array_equal(blk.best_cell, ref.best_cell)
+    assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
+    assert blk.links.n_pair < 0.5 * ref.links.n_pair
 
 
 def test_a_bound_too_low_is_seen(block, monkeypatch):

@@ -144,6 +144,29 @@ MUTATIONS = (
         'complete = summary["overall"]["dwell"].get("dwell_times_s", [])',
         ("tests/test_plots.py",),
     ),
+    # Issue 12 (handover triggers, RLF): each killed when it was added.
+    Mutation(
+        "trigger_filter_on_undetected_cells",
+        "src/leolink/sim/trigger_run.py",
+        "filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)",
+        "filt, meas = l3_update(filt, t_s, raw, self.l3)\n"
+        "        meas = np.where(usable, meas, np.nan)",
+        ("tests/test_trigger_run.py",),
+    ),
+    Mutation(
+        "search_floor_3_db_high",
+        "src/leolink/sim/search.py",
+        "low = np.maximum(reach[rows] * factor, floor_lin)",
+        "low = np.maximum(reach[rows] * factor, floor_lin * 2.0)",
+        ("tests/test_search.py",),
+    ),
+    Mutation(
+        "rlf_leaves_the_serving_cell",
+        "src/leolink/sim/monitor.py",
+        "state.controller, events, dwells = self.rlf.merge(",
+        "_, events, dwells = self.rlf.merge(",
+        ("tests/test_handover_wiring.py",),
+    ),
 )
 
 

@@ -1,4 +1,5 @@
-"""Command line: ``leolink run | coverage | budget | codebook | sweep | report | validate``.
+"""Command line: ``leolink run | coverage | budget | codebook | sweep | compare | report |
+validate``.
 
 Errors leolink raises on purpose, and errors of the environment (a folder that cannot
 be written, a full disk, an unreachable dask scheduler), are printed as one line (exit
@@ -219,6 +220,51 @@ def _version():
     return f"leolink {leolink.__version__}"
 
 
+def cmd_compare(args) -> int:
+    from leolink.app.compare import report_table, run_compare
+
+    _config(args)  # config mistakes fail here, before any run
+    policies = list(args.policy or [])
+    for group in args.policies or []:
+        policies += [p for p in group.split(",") if p.strip()]
+    table = run_compare(
+        args.config,
+        policies,
+        Path(args.out),
+        base_overrides=args.set or [],
+        seeds=args.seeds,
+        workers=int(args.workers) if str(args.workers).isdigit() else args.workers,
+        progress=not args.quiet,
+        resume=args.resume,
+        overwrite=args.overwrite,
+    )
+    if not args.quiet:
+        print(report_table(table), end="")
+    return 0
+
+
+def _compare_parser(p):
+    p.add_argument(
+        "--policy",
+        action="append",
+        metavar="NAME[,KEY=VALUE...]",
+        help="a policy and its parameters (repeatable), e.g. a3,hysteresis_db=2",
+    )
+    p.add_argument(
+        "--policies", action="append", metavar="A,B,...", help="policy names, comma-separated"
+    )
+    p.add_argument("--seeds", type=int, default=1, help="seeds per policy (run.seed on)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument(
+        "--workers",
+        default="1",
+        help="parallel processes, or dask://HOST:PORT for a dask.distributed cluster",
+    )
+    p.add_argument("--resume", action="store_true", help="reuse finished runs in --out")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    p.add_argument("--quiet", action="store_true")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="leolink", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=_version())
@@ -258,6 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
     _add_sweep(add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries"))
+    _compare_parser(add("compare", cmd_compare, "run policies on the same seeds, compare KPIs"))
     _add_report(sub.add_parser("report", help="rebuild report.html of a run folder, no rerun"))
     return parser
 

@@ -187,7 +187,7 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
     if out_dir is not None:  # after the scenario built: a bad config removes nothing
         out_dir = claim_out_dir(out_dir, overwrite)
-    summary, position = SummaryAccumulator(), _Position()
+    summary, position = SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s), _Position()
     sinks = _sinks(cfg, out_dir, summary, scen)
     try:
         return _run_and_write(cfg, scen, out_dir, summary, [*sinks, position], progress)

@@ -24,6 +24,7 @@ from leolink.link.acm import LinkFigureParams
 from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
 from leolink.sim.environment import environment_models
+from leolink.sim.handover_config import build_rlf
 from leolink.sim.mobility import OnWgs84
 from leolink.sim.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
@@ -212,7 +213,7 @@ def build_scenario(cfg):
         engine=engine,
         ephemeris=ephemeris,
         populations=populations,
-        policy=cfg.controller.build(),
+        policy=cfg.controller.build(SimpleNamespace(filter=cfg.controller.filter)),
         min_snr_db=cfg.controller.min_snr_db,
         handover_time_s=cfg.controller.handover_time_s,
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
@@ -224,6 +225,7 @@ def build_scenario(cfg):
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
         environments=_environments(cfg),
+        rlf=build_rlf(cfg.controller.rlf),
         link=service_link(cfg, engine),
         panels=panel_orientation(cfg, populations),
     )

@@ -34,6 +34,7 @@ from leolink.config.schema import (
 )
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
+from leolink.sim.handover_config import FilterConfig, KpiConfig, RlfConfig
 
 __all__ = [
     "ConfigBase",
@@ -54,6 +55,14 @@ class ControllerBase(kinds.SelectorSection):
     )
     min_snr_db: float = Field(
         -10.0, ge=-100.0, le=100.0, description="below this SNR the UT is in outage [dB]"
+    )
+    filter: FilterConfig = Field(
+        default_factory=FilterConfig,  # type: ignore[arg-type]
+        description="layer-3 filter of the trigger policies' measurements (TS 38.331 5.5.3.2)",
+    )
+    rlf: RlfConfig = Field(
+        default_factory=RlfConfig,  # type: ignore[arg-type]
+        description="radio link failure on the serving SINR (TS 38.331 5.3.10), any policy",
     )
     service_metric: Literal["snr", "sinr"] = Field(
         "snr",
@@ -165,6 +174,7 @@ def _model(gen):
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),
         "output": kinds.output_section(REGISTRIES["output"]),
+        "kpi": KpiConfig,
     }  # fmt: skip
     fields: dict[str, Any] = {k: (m, Field(default_factory=m)) for k, m in sections.items()}
     fields["population"] = (

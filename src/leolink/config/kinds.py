@@ -39,6 +39,7 @@ OWNERS = (
     "leolink.antenna.terminal",
     "leolink.link.atmosphere",
     "leolink.sim.policies",
+    "leolink.sim.trigger_policies",
     "leolink.sim.populations",
     "leolink.io.tracks",
     "leolink.io.sinks",

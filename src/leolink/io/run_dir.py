@@ -69,6 +69,8 @@ KNOWN_NAMES = frozenset(
         "sweep.csv",
         "sweep.json",
         "compare.csv",
+        "compare_runs.csv",
+        "compare.md",
     }
 )
 #: Name patterns of files a command writes (sweep and compare plots).

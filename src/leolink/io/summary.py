@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.io.atomic import to_jsonable
+from leolink.io.kpi_summary import KpiAccumulator
 from leolink.io.link_summary import LinkStats
 from leolink.io.summary_environment import by_environment
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
@@ -91,6 +92,7 @@ def _service_codes(service):
 _NO_SATELLITE = OUTAGE_REASONS.index("no_satellite")
 _BELOW_THRESHOLD = OUTAGE_REASONS.index("below_threshold")
 _BLOCKED = OUTAGE_REASONS.index("blocked")
+_RLF = OUTAGE_REASONS.index("rlf")
 
 
 _PERCENTILES = (5.0, 50.0, 95.0)
@@ -113,13 +115,16 @@ class SummaryAccumulator:
     every row (the handover execution time inside each epoch) / (epochs x ``epoch_s``);
     ``outage_fraction_by_reason``: ``no_satellite`` and ``below_threshold`` = epochs in
     outage for that reason / epochs (an outage lasts whole epochs; the two add up to
-    ``outage_fraction``), ``handover`` = ``handover_interruption_fraction``.
-    The link figures (margin, MODCOD usage, ACM and Shannon throughput): ``link``,
-    :class:`leolink.io.link_summary.LinkStats`.
+    ``outage_fraction``), ``handover`` = ``handover_interruption_fraction``, ``rlf`` =
+    epochs re-establishing after a radio link failure / epochs.
+
+    Handover KPIs (``overall.kpi``, each UT's ``kpi``): :mod:`leolink.io.kpi_summary`,
+    with ``ping_pong_s`` [s] (``[kpi]``). The link figures (margin, MODCOD usage, ACM and
+    Shannon throughput): ``link``, :class:`leolink.io.link_summary.LinkStats`.
     """
 
-    def __init__(self, n_ut=0, epoch_s=1.0, environment=()):
-        self.epoch_s = float(epoch_s)
+    def __init__(self, n_ut=0, epoch_s=1.0, ping_pong_s=1.0, environment=()):
+        self.epoch_s, self.ping_pong_s = float(epoch_s), float(ping_pong_s)
         self._reset(n_ut)
         self.environment = tuple(environment)  # per UT; empty: open country, no env block
 
@@ -151,8 +156,9 @@ class SummaryAccumulator:
         zeros = lambda dtype=np.int64: np.zeros(self.n_ut, dtype)  # noqa: E731
         self.n_epochs, self.n_outage = zeros(), zeros()
         self.interrupted_s = zeros(np.float64)
-        self.n_no_satellite, self.n_below_threshold = zeros(), zeros()
+        self.n_no_satellite, self.n_below_threshold, self.n_rlf = zeros(), zeros(), zeros()
         self.n_blocked, self.n_los, self.n_link = zeros(), zeros(), zeros()
+        self.kpi = KpiAccumulator(self.n_ut, self.ping_pong_s)
         self.throughput_sum = zeros(np.float64)
         self.max_abs_doppler_hz = np.full(self.n_ut, np.nan)
         self.max_angular_speed_deg_s = np.full(self.n_ut, np.nan)
@@ -184,12 +190,14 @@ class SummaryAccumulator:
                 (self.n_no_satellite, _NO_SATELLITE),
                 (self.n_below_threshold, _BELOW_THRESHOLD),
                 (self.n_blocked, _BLOCKED),
+                (self.n_rlf, _RLF),
             ):
                 store += np.bincount(ut, reason == code, minlength=n).astype(np.int64)
         if "los" in columns:
             los = np.asarray(columns["los"], float)
             self.n_los += np.bincount(ut, los == 1.0, minlength=n).astype(np.int64)
             self.n_link += np.bincount(ut, np.isfinite(los), minlength=n).astype(np.int64)
+        self.kpi.add_trace(columns)
         tput = np.nan_to_num(np.asarray(columns["throughput_bps"], float), nan=0.0)
         self.throughput_sum += np.bincount(ut, tput, minlength=n)
         np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(columns["doppler_hz"], float)))
@@ -207,6 +215,7 @@ class SummaryAccumulator:
         ut = np.asarray(events["ut_id"], np.int64)
         for i, name in enumerate(EVENT_KINDS):
             self.event_counts[i] += np.bincount(ut[kind == name], minlength=self.n_ut)
+        self.kpi.add_events(events)
 
     def add_dwells(self, dwells):
         """Keep dwell records (dict of arrays, ``controller.DWELL_COLUMNS``)."""
@@ -282,6 +291,7 @@ class SummaryAccumulator:
             interrupted_fraction = self.interrupted_s / (self.n_epochs * self.epoch_s)
             no_sat = self.n_no_satellite / self.n_epochs
             below = self.n_below_threshold / self.n_epochs
+            rlf = self.n_rlf / self.n_epochs
             tput_mean = self.throughput_sum / self.n_epochs
         snr_ut, snr_all = self._stats("snr_db")
         sinr_ut, sinr_all = self._stats("sinr_db")
@@ -289,6 +299,7 @@ class SummaryAccumulator:
         link_all, link_ut = self._link.summary(
             self.n_epochs, lambda g, v, n: grouped_percentiles(g, v, n, _PERCENTILES)
         )
+        kpi_all, kpi_ut = self._kpi()
         per_ut = []
         for i in range(self.n_ut):  # output formatting only; all statistics are vectorized
             per_ut.append(
@@ -299,7 +310,7 @@ class SummaryAccumulator:
                     "dwell": dwell_ut[i],
                     "outage_fraction": outage_fraction[i],
                     "outage_fraction_by_reason": _by_reason(
-                        no_sat[i], below[i], interrupted_fraction[i]
+                        no_sat[i], below[i], interrupted_fraction[i], rlf[i]
                     ),
                     "handover_interruption_fraction": interrupted_fraction[i],
                     "snr_db": snr_ut[i],
@@ -308,6 +319,7 @@ class SummaryAccumulator:
                     "max_abs_doppler_hz": self.max_abs_doppler_hz[i],
                     "max_angular_speed_deg_s": self.max_angular_speed_deg_s[i],
                     "link": link_ut[i],
+                    "kpi": kpi_ut[i],
                 }
             )
         n_all = self.n_epochs.sum()
@@ -319,11 +331,7 @@ class SummaryAccumulator:
             "handovers": _handover_counts({k: c.sum() for k, c in counts.items()}),
             "dwell": dwell_all,
             "outage_fraction": self.n_outage.sum() / n_all if n_all else None,
-            "outage_fraction_by_reason": _by_reason(
-                self.n_no_satellite.sum() / n_all if n_all else None,
-                self.n_below_threshold.sum() / n_all if n_all else None,
-                interrupted_all,
-            ),
+            "outage_fraction_by_reason": self._overall_by_reason(n_all, interrupted_all),
             "handover_interruption_fraction": interrupted_all,
             "snr_db": snr_all,
             "sinr_db": sinr_all,
@@ -331,6 +339,7 @@ class SummaryAccumulator:
             "max_abs_doppler_hz": _nanmax(self.max_abs_doppler_hz),
             "max_angular_speed_deg_s": _nanmax(self.max_angular_speed_deg_s),
             "link": link_all,
+            "kpi": kpi_all,
         }
         return to_jsonable(self._with_environment({"overall": overall, "per_ut": per_ut}, counts))
 
@@ -350,12 +359,32 @@ class SummaryAccumulator:
         overall["by_environment"] = by_environment(self.environment, self, counts)
         return out
 
+    def _overall_by_reason(self, n_all, interrupted_all):
+        def share(count):
+            return count.sum() / n_all if n_all else None
 
-def _by_reason(no_satellite, below_threshold, handover):
+        below = self.n_below_threshold
+        return _by_reason(share(self.n_no_satellite), share(below), interrupted_all,
+                          share(self.n_rlf))  # fmt: skip
+
+    def _kpi(self):
+        """``overall.kpi`` and the per-UT KPI dicts (:mod:`leolink.io.kpi_summary`)."""
+        n_rlf = int(self.n_rlf.sum())
+        interruption = {
+            "handover": float(self.interrupted_s.sum()),
+            "rlf": n_rlf * self.epoch_s,
+            "outage": (int(self.n_outage.sum()) - n_rlf) * self.epoch_s,
+        }
+        observed = self.n_epochs * self.epoch_s
+        return self.kpi.summary(self._dwell_frame(), observed, interruption)
+
+
+def _by_reason(no_satellite, below_threshold, handover, rlf):
     return {
         "no_satellite": no_satellite,
         "below_threshold": below_threshold,
         "handover": handover,
+        "rlf": rlf,
     }
 
 

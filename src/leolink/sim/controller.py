@@ -33,7 +33,14 @@ SERVICE_SERVED, SERVICE_HANDOVER, SERVICE_OUTAGE = 0, 1, 2
 SERVICE_NAMES = ("served", "handover", "outage")
 #: Event kinds (new kinds are appended, never renamed). ``service_resumed``: the end of a
 #: handover's execution time (``to_*`` the serving link, ``from_*`` -1).
-EVENT_KINDS = ("beam_handover", "sat_handover", "outage_start", "outage_end", "service_resumed")
+EVENT_KINDS = (
+    "beam_handover",
+    "sat_handover",
+    "outage_start",
+    "outage_end",
+    "service_resumed",
+    "rlf",  # radio link failure (leolink.sim.rlf_run): from_* the failed cell, to_* -1
+)
 SERVICE_RESUMED = EVENT_KINDS.index("service_resumed")
 EVENT_COLUMNS = (
     "time_s",
@@ -188,7 +195,17 @@ def _check_targets(policy, target, usable_db, needs):
         )
 
 
-def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future_snr_db=None):
+def step(
+    t_s,
+    snr_db,
+    state,
+    policy,
+    min_snr_db,
+    handover_time_s,
+    n_beam,
+    future_snr_db=None,
+    target=None,
+):
     """Apply ``policy`` to every UT at epoch ``t_s``; returns a :class:`StepResult`.
 
     Pure: ``state`` is not mutated; the new state is ``result.state``.
@@ -209,6 +226,8 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
     n_beam : int, beams per satellite.
     future_snr_db : Candidates (the same cells) or ndarray (n_ut, n_cand) [dB] at
         ``t_s + policy.lookahead_s``, or None.
+    target : int64 (n_ut,) or None, the policy's choice made by the caller (policies with
+        per-cell state, :mod:`leolink.sim.trigger_run`); None asks ``policy.choose``.
 
     Notes
     -----
@@ -221,7 +240,9 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
     snr_db = _as_table(snr_db)
     usable_db = snr_db.masked(min_snr_db)
     future_db = None if future_snr_db is None else _as_table(future_snr_db).masked(min_snr_db)
-    target = np.asarray(policy.choose(t_s, usable_db, state, future_db), np.int64)
+    if target is None:
+        target = policy.choose(t_s, usable_db, state, future_db)
+    target = np.asarray(target, np.int64)
     old = state.serving
     has_usable = np.isfinite(usable_db.snr_db).any(axis=1)
     first = has_usable & (old < 0) & ~state.in_outage

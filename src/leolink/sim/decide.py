@@ -6,6 +6,12 @@ candidates of the whole block in a few vectorized engine calls
 (:class:`~leolink.sim.search.CandidateSearch`); every epoch it adds each UT's serving
 cell to its row (from the pairs already evaluated, or evaluated then), evaluates the
 table at ``t + lookahead`` if the policy asks, and runs the controller.
+
+A policy with per-cell state (the 3GPP triggers of :mod:`leolink.sim.trigger_policies`)
+has a ``run(...)`` method: its :class:`~leolink.sim.trigger_run.TriggerRun` picks the
+target from the epoch's table and the controller executes it. With radio link failure
+monitoring (:mod:`leolink.sim.rlf_run`), the candidates of UTs still re-establishing are
+masked (NaN) so that the controller leaves them unserved.
 """
 
 from __future__ import annotations
@@ -43,6 +49,8 @@ class Decider:
     prune : bool
         Screen the (UT, satellite) pairs before evaluating them (the same tables,
         :mod:`leolink.sim.search`); False evaluates every pair (the reference).
+    rlf : leolink.sim.rlf_run.RlfRun or None
+        Radio link failure bookkeeping (None: off).
     panels : leolink.antenna.panel.PanelOrientation or None
         The UTs' turned or tilted panels (None: lying flat, x east): their rows per epoch
         of the block are ``panel`` (n_k, n_ut, 3, 3), handed to the engine.
@@ -50,8 +58,10 @@ class Decider:
 
     def __init__(self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad,
                  radius_m, future_state, motion, epoch_s=1.0, ellipsoidal=False,
-                 prune=True, panels=None):  # fmt: skip
-        self.engine, self.policy = engine, policy
+                 prune=True, panels=None, rlf=None):  # fmt: skip
+        self.engine, self.policy, self.rlf = engine, policy, rlf
+        run = getattr(policy, "run", None)  # per-cell state: the policy's own run
+        self.trigger = run(engine, min_snr_db, radius_m, future_state, epoch_s) if run else None
         self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
         self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
@@ -59,7 +69,9 @@ class Decider:
         self.future_state, self.motion = future_state, motion
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
         self.window_db, self.prune = neighbour_window_db(policy), prune
-        self.search = CandidateSearch(engine, self.window_db, prune)
+        # A policy blind to cells below the service threshold needs none of them.
+        self.floor_db = min_snr_db if getattr(policy, "usable_cells_only", False) else -np.inf
+        self.search = CandidateSearch(engine, self.window_db, prune, self.floor_db)
         self.panels = panels
         self.block = self.mb = self.cones = self.enu = self.panel = None
         self.channel = None  # ChannelTracker of the UTs' environments (None: open country)
@@ -69,7 +81,10 @@ class Decider:
         the search window widens by what the environment can reorder."""
         self.channel = tracker
         margin_db = candidate_margin_db(tracker.models)
-        self.search = CandidateSearch(self.engine, self.window_db + margin_db, self.prune)
+        # The floor (open-country SNR) drops by as much: shadowing may lift a path above it.
+        self.search = CandidateSearch(
+            self.engine, self.window_db + margin_db, self.prune, self.floor_db - margin_db
+        )
 
     def _open(self, k):
         """The candidates of the motion block of epoch ``k`` (computed once per block)."""
@@ -118,7 +133,14 @@ class Decider:
         if self.channel is not None:
             table, future, best_cell = self._environment(state, table, future)
         t = state.t_s
-        res = step(t, table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
+        decided, target = self._masked(state, table), None
+        if self.trigger is not None:
+            j, mb = k - blk.k0, self.mb
+            up = None if self.enu is None else self.enu[j][:, 2, :]
+            target = self.trigger.target(t, decided, c.serving, mb.ut_pos_m[j],
+                                         mb.sat_pos_m[j], mb.sat_vel_m_s[j], up)  # fmt: skip
+        res = step(t, decided, c, self.policy, self.min_snr_db, self.handover_time_s, nb,
+                   future, target)  # fmt: skip
         resumed = resumed_events(t, self.epoch_s, res.state, table)
         res.events = concat_events(res.events, resumed)
         unserved = np.flatnonzero(res.sat_id < 0)
@@ -144,6 +166,15 @@ class Decider:
         future = None if future is None else ch.apply(future, nb)
         best_cell, state.best_snr_db = table.best()
         return table, future, best_cell
+
+    def _masked(self, state, table):
+        """``table`` with the candidates of UTs re-establishing after an RLF masked."""
+        if self.rlf is None:
+            return table
+        state.rlf_blocked = self.rlf.blocked(state.t_s)
+        if not state.rlf_blocked.any():
+            return table
+        return table.like(np.where(state.rlf_blocked[:, None], np.nan, table.snr_db))
 
     def _with_serving(self, table, rows, serving):
         """``table`` with each UT's serving cell added where it is missing and above the

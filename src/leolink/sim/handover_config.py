@@ -85,6 +85,9 @@ class T1Config(Params):
     lead_s: float = Field(
         0.0, description="Thresh1 this long before the serving's end of service [s]"
     )
+    horizon_s: float = Field(
+        300.0, gt=0, description="look-ahead of the end of service; beyond it: inf [s]"
+    )
     level: Level = _LEVEL
 
 
@@ -106,6 +109,9 @@ class TimeToExitConfig(Params):
     time_to_trigger_s: float = _TTT
     serving_below_s: float | None = Field(
         None, gt=0, description="only once the serving has less than this left [s]; none: always"
+    )
+    horizon_s: float = Field(
+        300.0, gt=0, description="look-ahead of the end of service; beyond it: inf [s]"
     )
     level: Level = _LEVEL
 
@@ -161,6 +167,8 @@ class FilterConfig(Params):
 class RlfConfig(Params):
     """``[controller.rlf]``: radio link failure (TS 38.331 5.3.10; defaults 9.2.3)."""
 
+    enabled: bool = Field(False, description="monitor the serving SINR and declare RLF")
+
     q_out_db: float = Field(-8.0, description="out-of-sync below this SINR [dB] (study value)")
     q_in_db: float = Field(-6.0, description="in-sync above this SINR [dB] (study value)")
     t310_s: float = Field(1.0, ge=0, description="T310 [s] (ms0..ms6000)")
@@ -197,7 +205,7 @@ _TRIGGER_OF = {
 }
 
 #: Policy config models by ``controller.policy`` name.
-POLICY_CONFIGS = {
+POLICY_CONFIGS: dict[str, type[Params]] = {
     "a3": A3Config,
     "a4": A4Config,
     "a5": A5Config,
@@ -234,4 +242,7 @@ def build_filter(config):
 
 
 def build_rlf(config):
-    return RlfParams(**dict(config))
+    """The RLF parameters of ``[controller.rlf]``, None when it is not enabled."""
+    if not getattr(config, "enabled", True):
+        return None
+    return RlfParams(**{k: v for k, v in dict(config).items() if k != "enabled"})

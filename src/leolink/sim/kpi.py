@@ -140,7 +140,7 @@ def stays(dwells, level="beam"):
     ut, sat, start, end = ut[order], sat[order], start[order], end[order]
     touching = np.abs(start[1:] - end[:-1]) <= TIME_TOL_S
     joins = (ut[1:] == ut[:-1]) & (sat[1:] == sat[:-1]) & touching
-    first = np.flatnonzero(np.concatenate(([True], ~joins)))
+    first = np.flatnonzero(np.concatenate(([True], ~joins))) if len(ut) else np.zeros(0, int)
     last = np.concatenate((first[1:] - 1, [len(ut) - 1])) if len(ut) else first
     cs = np.asarray(dwells["censored_start"], bool)[order]
     ce = np.asarray(dwells["censored_end"], bool)[order]

@@ -12,6 +12,11 @@ columns are those of the best candidate (``best_snr_db``); the link columns (SNR
 SE, throughput) are NaN. In a handover epoch SE and throughput are the epoch's means:
 the link's, times the part of the epoch with service.
 
+With radio link failure monitoring (:mod:`leolink.sim.rlf_run`) the next decision needs
+this epoch's serving SINR, so the links are evaluated every epoch (warm-up included) and
+the RLF state machine may end a UT's service before the frame is sent; without it,
+recording waits for the end of the block.
+
 Beyond the engine's columns (:class:`~leolink.sim.service_link.ServiceLink`): the link
 figures (EIRP, C/N0, Es/N0, margin, MODCOD, ACM throughput), and with a SINR service
 threshold the served rows below it turned to outage (``below_threshold``, no interruption).
@@ -73,11 +78,13 @@ class Monitor:
     link : ServiceLink or None
         The link figures and the SINR service threshold (None: the default figures of the
         engine's power and bandwidth, service as the controller judged it).
+    rlf : leolink.sim.rlf_run.RlfRun or None
+        Radio link failure bookkeeping (None: off; module docstring).
     """
 
     def __init__(self, engine, sink, decider, fading_k=None, ut_keys=None, epoch_s=1.0,
-                 population=(), link=None):  # fmt: skip
-        self.engine, self.sink, self.decider = engine, sink, decider
+                 population=(), link=None, rlf=None):  # fmt: skip
+        self.engine, self.sink, self.decider, self.rlf = engine, sink, decider, rlf
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.epoch_s = float(epoch_s)
         self.population = np.asarray(population, dtype=object)
@@ -88,11 +95,29 @@ class Monitor:
         self.link = link
 
     def __call__(self, state):
+        if self.rlf is not None:
+            self._per_epoch(state)
+            return
         if state.recording:
             self.pending.append(self._record(state))
         block = self.decider.mb
         if state.k == block.k1 - 1 or state.k == len(state.times_s) - 1:
             self.flush(state)
+
+    def _per_epoch(self, state):
+        """This epoch's links, then RLF (which may drop serving cells), then its frame."""
+        rec = self._record(state)
+        cols = self._columns(rec, self._links([rec]))
+        res = rec.decision
+        state.controller, events, dwells = self.rlf.merge(state, cols, res.events, res.dwells)
+        if state.recording:
+            self._send(state, rec, cols, events, dwells)
+
+    def _send(self, state, rec, cols, events, dwells):
+        start_s = state.times_s[state.n_warmup]
+        frame = EpochFrame(rec.k - state.n_warmup, rec.t_s, cols, events,
+                           _warmup_censored(dwells, start_s))  # fmt: skip
+        self.sink.epoch(frame)
 
     def _record(self, state):
         res, nb = state.decision, self.engine.n_beam
@@ -116,18 +141,10 @@ class Monitor:
         recs, self.pending = self.pending, []
         cols = self._links(recs)
         n_ut = len(recs[0].geo_sat)
-        start_s = state.times_s[state.n_warmup]
         for i, rec in enumerate(recs):
             part = {name: v[i * n_ut : (i + 1) * n_ut] for name, v in cols.items()}
             frame_cols = self._columns(rec, part)
-            frame = EpochFrame(
-                rec.k - state.n_warmup,
-                rec.t_s,
-                frame_cols,
-                rec.decision.events,
-                _warmup_censored(rec.decision.dwells, start_s),
-            )
-            self.sink.epoch(frame)
+            self._send(state, rec, frame_cols, rec.decision.events, rec.decision.dwells)
 
     def _links(self, recs):
         """``serve_pairs`` of every UT of every kept epoch, in one call."""

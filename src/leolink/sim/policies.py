@@ -24,6 +24,9 @@ Policy protocol (:class:`Policy`)
   The simulator then evaluates only those (the table holds every cell within the
   window, and the serving cell); ``inf`` asks for every cell above the minimum
   elevation. A policy that looks only at its best and its serving cell declares 0.
+- ``usable_cells_only`` (bool), optional (default False): the decision does not depend on
+  cells below the service threshold (``controller.min_snr_db``) other than the serving
+  cell; the simulator then leaves them out of the table too.
 
 A new policy is one small class following this protocol, registered in :data:`POLICIES`
 with its parameter model (``[controller.<name>]`` in the config); see docs/extending.md.

@@ -26,8 +26,9 @@ from leolink.sim.controller import ControllerState, StepResult, close_dwells
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
 #: no satellite above the minimum elevation; satellites above it but no beam above the
 #: service threshold; the environment (blockage, shadowing, clutter: ``leolink.sim.environment``)
-#: took every beam below the threshold that the best beam reaches in open country.
-OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold", "blocked")
+#: took every beam below the threshold that the best beam reaches in open country;
+#: re-establishing after a radio link failure (:mod:`leolink.sim.rlf_run`).
+OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold", "blocked", "rlf")
 
 __all__ = [
     "OUTAGE_REASONS",
@@ -65,6 +66,7 @@ class SimState:
     n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
     channel: object = None  # EpochChannel of the UTs' environments, None in open country
     open_snr_db: np.ndarray | None = None  # (n_ut,) best SNR without the environment [dB]
+    rlf_blocked: np.ndarray | None = None  # (n_ut,) re-establishing after an RLF, or None
 
     @property
     def t_s(self) -> float:

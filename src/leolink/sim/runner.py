@@ -27,6 +27,7 @@ from leolink.sim.motion import MotionBlocks
 from leolink.sim.policies import Policy
 from leolink.sim.populations import MotionModel
 from leolink.sim.processes import (
+    OUTAGE_REASONS,
     SimState,
     beam_controller,
     final_dwells,
@@ -34,6 +35,7 @@ from leolink.sim.processes import (
     satellite_motion,
     ut_motion,
 )
+from leolink.sim.rlf_run import RLF_REASON, RlfRun
 from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import FinalFrame, RunInfo, SinkGroup
 
@@ -68,6 +70,8 @@ class Scenario:
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
         cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
+    rlf : leolink.sim.rlf.RlfParams or None, radio link failure monitoring
+        (:mod:`leolink.sim.rlf_run`); None: off.
     link : ServiceLink or None, the link figures and the SINR service threshold (None:
         default figures, service on SNR).
     panels : PanelOrientation or None, the UTs' turned or tilted panels (None: flat).
@@ -94,6 +98,7 @@ class Scenario:
     link: ServiceLink | None = None
     panels: PanelOrientation | None = None
     environments: list | None = None
+    rlf: object | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -184,6 +189,9 @@ def run_simulation(
         return ut.pos_m, pos[0], vel[0]
 
     times = scen.times_s
+    rlf = None
+    if scen.rlf is not None:
+        rlf = RlfRun(scen.rlf, n_ut, scen.engine.n_beam, OUTAGE_REASONS.index(RLF_REASON))
     motion = MotionBlocks(scen.ephemeris, scen.populations, times, scen.ephemeris.n_sat, n_ut)
     decide = Decider(
         scen.engine,
@@ -198,6 +206,7 @@ def run_simulation(
         ellipsoidal=scen.ellipsoidal,
         prune=scen.prune,
         panels=scen.panels,
+        rlf=rlf,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None or scen.environments else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
@@ -207,7 +216,7 @@ def run_simulation(
         decide.with_channel(ChannelTracker(scen.environments, counts, keys, decide.min_el))
         environment = decide.channel.environment
     monitor = Monitor(
-        scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link
+        scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link, rlf
     )
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)

@@ -14,12 +14,16 @@ Pairs evaluated, per epoch, among the satellites of the epoch's cone
   (visible, uncertain, below the mask) and bounds the SNR of every beam of the pair from
   above. Each UT's pair with the largest bound, and every uncertain pair, are evaluated
   first: their best beam gives ``L``, an SNR the UT certainly reaches. Then every pair
-  above the mask whose bound is at least ``L`` minus the policy's ``neighbour_window_db``.
+  above the mask whose bound is at least ``max(L - window, floor)``: ``window`` the
+  policy's ``neighbour_window_db``, ``floor`` the service threshold for a policy that
+  declares ``usable_cells_only`` (else no floor).
 
-A pair left out has a bound below ``L - window``: none of its cells can be within the
-window of the best cell. So a row holds exactly the cells within the window of the UT's
-best cell, pruned or not; the serving cell is added at decision time
-(:meth:`BlockCandidates.with_serving`), from the evaluated pairs or evaluated then.
+A pair left out has a bound below ``L - window`` or below the floor: none of its cells can
+be within the window of the best cell and at or above the floor. So a row holds exactly
+the cells within the window of the UT's best cell and at or above the floor, pruned or
+not; the serving cell is added at decision time (:meth:`Decider._with_serving
+<leolink.sim.decide.Decider>`), from the evaluated pairs or evaluated then. The
+diagnostics (``n_visible``, the best cell and its SNR) do not depend on the floor.
 """
 
 from __future__ import annotations
@@ -107,10 +111,13 @@ class CandidateSearch:
         The policy's ``neighbour_window_db`` [dB] (``inf``: every cell above the mask).
     prune : bool
         Screen the pairs (default); False evaluates every pair (the reference).
+    floor_db : float
+        Cells below this SNR [dB] are left out of the tables (``-inf``: none).
     """
 
-    def __init__(self, engine, window_db, prune=True):
+    def __init__(self, engine, window_db, prune=True, floor_db=-np.inf):
         self.engine, self.window_db, self.prune = engine, float(window_db), bool(prune)
+        self.floor_db = float(floor_db)
 
     def block(self, k0, n_ut, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones, normal=None):
         """The candidates of the epochs ``k0 .. k0 + n_k - 1``.
@@ -179,9 +186,11 @@ class CandidateSearch:
         lin = np.where(links1.visible, gain, 0.0)
         np.maximum.at(reach, links1.ut, lin * links1.path_lin)
         factor = 10.0 ** (-self.window_db / 10.0)
+        floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
         for i, rows, cone, code, bound, chosen in screened:
+            low = np.maximum(reach[rows] * factor, floor_lin)
             with np.errstate(invalid="ignore"):
-                more = (code > 0) & (bound >= (reach[rows] * factor)[:, None]) & ~chosen
+                more = (code > 0) & (bound >= low[:, None]) & ~chosen
             r, s = np.nonzero(more)
             rows2.append(rows[r])
             sats2.append(cone[s])
@@ -247,8 +256,33 @@ class CandidateSearch:
         with np.errstate(invalid="ignore"):
             keep = snr >= (best_db - self.window_db)[rows][:, None]
         r = np.broadcast_to(rows[:, None], cell.shape)
-        table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
-        best_cell, _ = table.best()
+        if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
+            best_cell = _best_cells(rows, cell, snr, best_db, n_rows)
+            with np.errstate(invalid="ignore"):
+                keep &= snr >= self.floor_db
+            table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
+        else:
+            table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
+            best_cell, _ = table.best()
         return BlockCandidates(
             k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
         )
+
+
+def _best_cells(rows, cell, snr, best_db, n_rows):
+    """Each row's best cell (-1 where its best SNR is not finite), ties to the lowest id,
+    as :meth:`Candidates.best` of the whole table, without building it.
+
+    ``rows`` (m,) sorted, with the pairs of a row by ascending satellite, so that the
+    entries ``(pair, beam)`` of a row, flattened, are in ascending cell id: the first
+    entry equal to the row's best is the lowest tied cell.
+    """
+    out = np.full(n_rows, -1, np.int64)
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(best_db)
+        tied = (snr == best_db[rows][:, None]) & ok[rows][:, None]
+    flat = np.flatnonzero(tied)
+    row_of = rows[flat // snr.shape[1]]
+    first = np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]]) if flat.size else flat
+    out[row_of[first]] = cell.reshape(-1)[flat[first]]
+    return out

@@ -27,10 +27,11 @@ from leolink.sim.triggers import any_nan, check_param, check_ttt
 
 def _distances_m(epoch, field, who):
     """``(Ml1 (n_ut, 1), Ml2 (n_ut, n_cand))`` [m]: UT to the serving's / each candidate's
-    reference location."""
+    reference location. References: ``(n_cand, 3)`` shared by every UT, or ``(n_ut,
+    n_cand, 3)`` per UT (a run's per-UT candidate axes, :mod:`leolink.sim.local_axis`)."""
     ut = epoch.need("ut_pos_m", who)
     ref = epoch.need(field, who)
-    diff_m = ut[:, None, :] - ref[None, :, :]
+    diff_m = ut[:, None, :] - (ref if ref.ndim == 3 else ref[None, :, :])
     ml2 = np.sqrt(np.einsum("ijk,ijk->ij", diff_m, diff_m))
     return epoch.at_serving(ml2), ml2
 

@@ -1,0 +1,207 @@
+"""``leolink compare``: the same scenario under several policies, on the same seeds.
+
+A policy is given as ``NAME`` or ``NAME,KEY=VALUE,...`` (``KEY`` relative to
+``controller.<NAME>``, e.g. ``a3,hysteresis_db=2,time_to_trigger_s=0.5`` or
+``cho,prepare.offset_db=-2``, or a full key starting with a section, ``kpi.ping_pong_s``).
+Every policy runs on the seeds ``run.seed``, ``run.seed + 1``, ... (``seeds`` of them):
+a seed fixes the UT placement, headings and fading draws, which do not depend on the
+policy, so every policy sees identical UT tracks, ephemeris and fading. Runs go to
+``out_dir/runs/<policy>__seed<seed>`` (through the machinery of :mod:`leolink.app.sweep`:
+validated first, serial, local processes or dask). A folder holding an earlier compare is
+refused unless ``overwrite`` or ``resume``.
+
+Outputs (written at the end, ``compare.csv`` last):
+
+- ``compare_runs.csv``: one row per (policy, seed), the flattened overall summary;
+- ``compare.csv``: one row per policy, column ``policy``, ``n_seeds``, and for every
+  numeric summary column its mean over seeds and ``<column>_std`` (sample standard
+  deviation; NaN with one seed);
+- ``compare.md``: the main KPIs as a table (mean +- std);
+- ``compare_kpis.png``, ``compare_tradeoff.png``, ``compare_sinr_cdf.png`` (the SINR of
+  every UT-epoch of every seed, read back from each run's trace).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from leolink.app.sweep import _base_overrides, _progress_bar, _run_point
+from leolink.errors import ConfigError
+
+__all__ = ["MAIN_KPIS", "parse_policy", "run_compare"]
+
+#: (column of compare.csv, heading, scale, format) of the report table.
+MAIN_KPIS = (
+    ("kpi_handover_rate_per_ut_min", "HO /UT-min", 1.0, "{:.3f}"),
+    ("kpi_handover_rate_per_ut_min_by_kind_sat_handover", "sat HO /UT-min", 1.0, "{:.3f}"),
+    ("kpi_ping_pong_fraction", "ping-pong cell", 1.0, "{:.3f}"),
+    ("kpi_ping_pong_fraction_satellite", "ping-pong sat", 1.0, "{:.3f}"),
+    ("kpi_rlf_rate_per_ut_min", "RLF /UT-min", 1.0, "{:.4f}"),
+    ("kpi_mean_time_of_stay_s_beam", "stay beam [s]", 1.0, "{:.1f}"),
+    ("kpi_mean_time_of_stay_s_satellite", "stay sat [s]", 1.0, "{:.1f}"),
+    ("outage_fraction", "outage", 1.0, "{:.4f}"),
+    ("kpi_sinr_db_percentiles_p5", "SINR p5 [dB]", 1.0, "{:.2f}"),
+    ("kpi_sinr_db_percentiles_p50", "SINR p50 [dB]", 1.0, "{:.2f}"),
+    ("mean_throughput_bps", "thr. [Mb/s]", 1e-6, "{:.1f}"),
+)
+_SAFE = re.compile(r"[^A-Za-z0-9._=+-]+")
+
+
+def parse_policy(spec):
+    """``NAME[,KEY=VALUE...]`` -> ``(label, overrides)``; the label is the spec itself."""
+    parts = [p.strip() for p in spec.split(",")]
+    name = parts[0]
+    if not name or not name.isidentifier():
+        raise ConfigError(f"--policy {spec!r} is not allowed: use NAME or NAME,KEY=VALUE,...")
+    overrides = [f"controller.policy={name}"]
+    for part in parts[1:]:
+        key, sep, value = part.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--policy {spec!r}: {part!r} is not KEY=VALUE")
+        key = key.strip()
+        if key.split(".")[0] not in _sections():  # relative to [controller.<name>]
+            key = f"controller.{name}.{key}"
+        overrides.append(f"{key}={value.strip()}")
+    return spec, overrides
+
+
+def _sections():
+    from leolink.config import config_model
+
+    return set(config_model().model_fields)
+
+
+def _jobs(cfg_path, specs, seeds, base, out_dir, resume):
+    """Validated (policy label, seed, job) triples."""
+    from leolink.config import load_config
+
+    base_seed = load_config(cfg_path, base).run.seed
+    labels = [parse_policy(s) for s in specs]
+    if len({lab for lab, _ in labels}) != len(labels):
+        raise ConfigError("--policy: a policy is given twice")
+    rows = []
+    for label, overrides in labels:
+        for k in range(seeds):
+            seed = base_seed + k
+            full = [*base, *overrides, f"run.seed={seed}"]
+            try:
+                load_config(cfg_path, full)
+            except ConfigError as exc:
+                raise ConfigError(f"policy {label}: {exc}") from None
+            run_dir = out_dir / "runs" / _SAFE.sub("_", f"{label}__seed{seed}")
+            rows.append((label, seed, (str(cfg_path), full, str(run_dir), resume)))
+    return rows
+
+
+def _aggregate(runs):
+    """compare.csv from compare_runs.csv: mean and std over seeds, policies in order."""
+    numeric = [c for c in runs.columns if c not in ("policy", "seed", "run")]
+    numeric = [c for c in numeric if pd.api.types.is_numeric_dtype(runs[c])]
+    groups = runs.groupby("policy", sort=False)
+    mean, std = groups[numeric].mean(), groups[numeric].std(ddof=1)
+    table = mean.copy()
+    for col in numeric:
+        table[f"{col}_std"] = std[col]
+    table.insert(0, "n_seeds", groups.size())
+    return table.reset_index()
+
+
+def _cdfs(runs):
+    """SINR CDF per policy from the runs' traces (all seeds pooled); {} without traces."""
+    from leolink.io.compare_plots import sinr_cdf
+
+    out = {}
+    for label, group in runs.groupby("policy", sort=False):
+        parts = []
+        for run_dir in map(Path, group["run"]):
+            if (run_dir / "trace.parquet").exists():
+                parts.append(pd.read_parquet(run_dir / "trace.parquet", columns=["sinr_db"]))
+            elif (run_dir / "trace.csv").exists():
+                parts.append(pd.read_csv(run_dir / "trace.csv", usecols=["sinr_db"]))
+        if parts:
+            out[label] = sinr_cdf(pd.concat(parts)["sinr_db"].to_numpy(float))
+    return out
+
+
+def report_table(table):
+    """The main KPIs of ``compare.csv`` as a Markdown table (mean +- std over seeds)."""
+    cols = [c for c in MAIN_KPIS if c[0] in table.columns]
+    lines = ["| policy | " + " | ".join(h for _, h, _, _ in cols) + " |"]
+    lines.append("|" + "---|" * (len(cols) + 1))
+    for _, row in table.iterrows():
+        cells = []
+        for col, _, scale, fmt in cols:
+            text = fmt.format(row[col] * scale)
+            std = row.get(f"{col}_std")
+            if std is not None and np.isfinite(std):
+                text += " ± " + fmt.format(std * scale)
+            cells.append(text)
+        lines.append(f"| {row['policy']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def run_compare(
+    cfg_path, policies, out_dir, base_overrides=None, seeds=1, workers=1, progress=True, *,
+    resume=False, overwrite=False, plot=True,
+):  # fmt: skip
+    """Run every policy on the same seeds and tabulate their KPIs (module docstring).
+
+    Parameters
+    ----------
+    cfg_path : path-like, the scenario.
+    policies : list of str, ``NAME[,KEY=VALUE...]`` each (at least one).
+    out_dir : path-like
+    base_overrides : list of str, ``section.key=value`` applied to every run.
+    seeds : int >= 1, seeds per policy (``run.seed`` on).
+    workers : int, local processes (1: in this process).
+    resume : bool, reuse finished runs of the same config.
+    overwrite : bool, replace an earlier compare's files in ``out_dir``.
+    plot : bool, draw the figures.
+
+    Returns
+    -------
+    pandas.DataFrame, ``compare.csv``.
+    """
+    from leolink.app.sweep_exec import check_workers, run_jobs
+    from leolink.io.atomic import write_csv_atomic, write_text_atomic
+    from leolink.io.run_dir import claim_out_dir
+
+    if not policies:
+        raise ConfigError("compare: give at least one --policy")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ConfigError(f"--seeds {seeds!r} is not allowed; use an integer >= 1")
+    check_workers(workers)
+    cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
+    base = _base_overrides(base_overrides, [], False)
+    triples = _jobs(cfg_path, list(policies), seeds, base, out_dir, resume)
+    out_dir = claim_out_dir(
+        out_dir,
+        overwrite or resume,
+        flag="--overwrite (or --resume, to reuse its finished runs)",
+        keep=("runs",) if resume else (),
+    )
+    jobs = [(i, job) for i, (_, _, job) in enumerate(triples)]
+    with _progress_bar(len(jobs), progress) as bar:
+        rows = run_jobs(_run_point, jobs, lambda i: bar.update(1), workers)
+    failed = [(triples[i][0], row["error"]) for i, row in sorted(rows.items()) if "error" in row]
+    if failed:
+        raise ConfigError(f"policy {failed[0][0]}: {failed[0][1]}")
+    runs = pd.DataFrame(
+        [
+            {"policy": label, "seed": seed, "run": job[2], **rows[i]}
+            for i, (label, seed, job) in enumerate(triples)
+        ]
+    )
+    table = _aggregate(runs)
+    write_csv_atomic(runs, out_dir / "compare_runs.csv")
+    write_text_atomic(out_dir / "compare.md", report_table(table))
+    if plot:
+        from leolink.io.compare_plots import plot_compare
+
+        plot_compare(table, out_dir, _cdfs(runs))
+    write_csv_atomic(table, out_dir / "compare.csv")  # last: its presence means "complete"
+    return table

@@ -1,0 +1,86 @@
+"""``leolink compare``: every policy on the same seeds, KPIs tabulated with their spread."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from leolink.app.compare import parse_policy, run_compare
+from leolink.cli import main
+from leolink.errors import ConfigError
+
+PAPER = str(Path(__file__).resolve().parents[1] / "configs" / "paper.toml")
+BASE = ["run.duration_s=20", "link.fading=rician", 'output.trace.formats=["csv"]']
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    out = tmp_path_factory.mktemp("compare")
+    table = run_compare(
+        PAPER, ["max_snr", "a3,hysteresis_db=3"], out, BASE, seeds=2, progress=False
+    )
+    return out, table
+
+
+def test_policies_see_the_same_uts_and_fading_on_each_seed(compared):
+    out, _ = compared
+    runs = pd.read_csv(out / "compare_runs.csv")
+    assert list(runs.seed) == [20201, 20202, 20201, 20202]  # paper.toml: run.seed = 20201
+    traces = {(r.policy, r.seed): pd.read_csv(Path(r.run) / "trace.csv") for r in runs.itertuples()}
+    same_cells = 0
+    for seed in (20201, 20202):
+        a, b = traces[("max_snr", seed)], traces[("a3,hysteresis_db=3", seed)]
+        np.testing.assert_array_equal(a[["lat_deg", "lon_deg"]], b[["lat_deg", "lon_deg"]])
+        same = (a.sat_id == b.sat_id) & (a.beam_id == b.beam_id)
+        np.testing.assert_array_equal(a.snr_db[same], b.snr_db[same])  # the same fading draw
+        same_cells += same.sum()
+    assert same_cells > 100
+    a, b = traces[("max_snr", 20201)], traces[("max_snr", 20202)]
+    assert not np.allclose(a.snr_db, b.snr_db)  # another seed draws other fading
+
+
+def test_the_table_is_the_mean_and_spread_of_the_runs(compared):
+    out, table = compared
+    assert list(table.policy) == ["max_snr", "a3,hysteresis_db=3"]
+    assert (table.n_seeds == 2).all()
+    disk = pd.read_csv(out / "compare.csv")
+    assert list(disk.policy) == list(table.policy)
+    runs = pd.read_csv(out / "compare_runs.csv")
+    for policy, group in runs.groupby("policy"):
+        values = [
+            json.loads((Path(r) / "summary.json").read_text())["overall"]["kpi"][
+                "handover_rate_per_ut_min"
+            ]
+            for r in group.run
+        ]
+        row = disk[disk.policy == policy].iloc[0]
+        assert row.kpi_handover_rate_per_ut_min == pytest.approx(np.mean(values))
+        assert row.kpi_handover_rate_per_ut_min_std == pytest.approx(np.std(values, ddof=1))
+    hyst = disk[disk.policy == "a3,hysteresis_db=3"].iloc[0]
+    plain = disk[disk.policy == "max_snr"].iloc[0]
+    assert hyst.handovers_total <= plain.handovers_total
+    for name in ("compare_kpis.png", "compare_tradeoff.png", "compare_sinr_cdf.png", "compare.md"):
+        assert (out / name).stat().st_size > 0
+    assert "| a3,hysteresis_db=3 |" in (out / "compare.md").read_text()
+
+
+def test_policy_specs_and_mistakes():
+    assert parse_policy("cho,prepare.offset_db=-2,kpi.ping_pong_s=3")[1] == [
+        "controller.policy=cho",
+        "controller.cho.prepare.offset_db=-2",
+        "kpi.ping_pong_s=3",
+    ]
+    with pytest.raises(ConfigError, match="is not KEY=VALUE"):
+        parse_policy("a3,hysteresis_db")
+    with pytest.raises(ConfigError, match=r"policy a3,hysteresis_db=-1: .*hysteresis_db = -1"):
+        run_compare(PAPER, ["a3,hysteresis_db=-1"], "/nonexistent/never", BASE, progress=False)
+
+
+def test_cli_compare(tmp_path, capsys):
+    code = main(["compare", PAPER, "--policies", "max_snr,a3", "--out", str(tmp_path),
+                 "--set", "run.duration_s=5", "--set", "output.trace.enabled=false"])  # fmt: skip
+    assert code == 0
+    assert "| a3 |" in capsys.readouterr().out
+    assert len(pd.read_csv(tmp_path / "compare.csv")) == 2
