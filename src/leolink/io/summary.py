@@ -11,7 +11,7 @@ import numpy as np
 from leolink.io.atomic import to_jsonable
 from leolink.io.kpi_summary import KpiAccumulator
 from leolink.io.link_summary import LinkStats
-from leolink.io.summary_environment import by_environment
+from leolink.io.summary_environment import with_environment
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
 from leolink.sim.processes import OUTAGE_REASONS
 
@@ -341,23 +341,7 @@ class SummaryAccumulator:
             "link": link_all,
             "kpi": kpi_all,
         }
-        return to_jsonable(self._with_environment({"overall": overall, "per_ut": per_ut}, counts))
-
-    def _with_environment(self, out, counts):
-        """``out`` with the ``blocked`` outage fractions and ``by_environment`` of a run with
-        TR 38.811 environments (else as it was)."""
-        if not self.environment:
-            return out
-        overall, per_ut = out["overall"], out["per_ut"]
-        n_all = self.n_epochs.sum()
-        reasons = overall["outage_fraction_by_reason"]
-        reasons["blocked"] = self.n_blocked.sum() / n_all if n_all else None
-        with np.errstate(invalid="ignore", divide="ignore"):
-            blocked = self.n_blocked / self.n_epochs
-        for i, row in enumerate(per_ut):
-            row["outage_fraction_by_reason"]["blocked"] = blocked[i]
-        overall["by_environment"] = by_environment(self.environment, self, counts)
-        return out
+        return to_jsonable(with_environment(self, {"overall": overall, "per_ut": per_ut}, counts))
 
     def _overall_by_reason(self, n_all, interrupted_all):
         def share(count):

@@ -59,3 +59,21 @@ def by_environment(environment, acc, counts):
             "los_fraction": _fraction(acc.n_los[m].sum(), acc.n_link[m].sum()),
         }
     return out
+
+
+def with_environment(acc, out, counts):
+    """``out`` (the summary of ``acc``, a :class:`~leolink.io.summary.SummaryAccumulator`)
+    with the ``blocked`` outage fractions and ``by_environment`` of a run with TR 38.811
+    environments (else as it was)."""
+    if not acc.environment:
+        return out
+    overall, per_ut = out["overall"], out["per_ut"]
+    n_all = acc.n_epochs.sum()
+    reasons = overall["outage_fraction_by_reason"]
+    reasons["blocked"] = acc.n_blocked.sum() / n_all if n_all else None
+    with np.errstate(invalid="ignore", divide="ignore"):
+        blocked = acc.n_blocked / acc.n_epochs
+    for i, row in enumerate(per_ut):
+        row["outage_fraction_by_reason"]["blocked"] = blocked[i]
+    overall["by_environment"] = by_environment(acc.environment, acc, counts)
+    return out
