@@ -14,17 +14,20 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from leolink.antenna.array import HybridArray
 from leolink.antenna.terminal import TerminalGroups
 from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES
+from leolink.sim.beam_service import BeamService
 from leolink.sim.mobility import OnWgs84
 from leolink.sim.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
 
 __all__ = [
+    "beams_from",
     "build_engine",
     "build_populations",
     "build_scenario",
@@ -142,6 +145,21 @@ def build_populations(cfg, heading_rad, rng):
     return pops
 
 
+def beams_from(cfg, engine):
+    """``(selector, service)`` of the active beams, the scheduler and the precoder; None
+    for each part that keeps today's run (every beam lit; no sharing)."""
+    a = cfg.satellite_array
+    n_rf = a.n_rf_x * a.n_rf_y
+    selector = a.build(SimpleNamespace(n_beam=engine.n_beam, n_rf=n_rf))
+    scheduler = cfg.scheduler.build()
+    precoder = cfg.link.build()
+    service = None
+    if scheduler.shares or precoder.kind != "none" or not selector.lights_all:
+        array = HybridArray(a.n_x, a.n_y, a.n_rf_x, a.n_rf_y)
+        service = BeamService(engine, scheduler, precoder, array)
+    return (None if selector.lights_all else selector), service
+
+
 def build_scenario(cfg):
     """The :class:`~leolink.sim.runner.Scenario` of a validated config."""
     codebook = codebook_from_config(cfg)
@@ -151,8 +169,10 @@ def build_scenario(cfg):
     r = cfg.run
     times, n_warm = epoch_times(r.start_s, r.epoch_s, r.warmup_s, r.duration_s)
     populations = build_populations(cfg, heading, rng)
+    engine = build_engine(cfg, codebook, ut_terminals(cfg, populations))
+    selector, service = beams_from(cfg, engine)
     return Scenario(
-        engine=build_engine(cfg, codebook, ut_terminals(cfg, populations)),
+        engine=engine,
         ephemeris=ephemeris,
         populations=populations,
         policy=cfg.controller.build(),
@@ -166,4 +186,6 @@ def build_scenario(cfg):
         seed=r.seed,
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
+        selector=selector,
+        service=service,
     )

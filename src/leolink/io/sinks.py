@@ -20,7 +20,15 @@ import pandas as pd
 import pyarrow as pa
 from pydantic import Field
 
-from leolink.io.tables import EVENT_SCHEMA, TRACE_SCHEMA, EventLog, TraceWriter, to_table
+from leolink.io.tables import (
+    EVENT_SCHEMA,
+    TRACE_COLUMNS,
+    TRACE_SCHEMA,
+    EventLog,
+    TraceWriter,
+    schema_for,
+    to_table,
+)
 from leolink.registry import Params, Registry
 from leolink.sim.streams import Sink
 
@@ -56,10 +64,12 @@ class TraceSink:
         self.writer, self.files = None, []
 
     def start(self, info):
-        self.writer = TraceWriter(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows)
+        self.columns = TRACE_COLUMNS + tuple(info.extra_columns)
+        self.writer = TraceWriter(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows,
+                                  columns=self.columns)  # fmt: skip
 
     def epoch(self, frame):
-        self.writer.append(_trace_columns(frame.columns))
+        self.writer.append({name: frame.columns[name] for name in self.columns})
 
     def finish(self, final):
         self.files = list(self.writer.close().values())
@@ -97,12 +107,15 @@ class MemorySink:
 
     def __init__(self):
         self._trace, self._events = [], []
+        self._schema = TRACE_SCHEMA
 
     def start(self, info):
         self._trace, self._events = [], []
+        self._schema = schema_for(TRACE_COLUMNS + tuple(info.extra_columns))
 
     def epoch(self, frame):
-        self._trace.append(to_table(_trace_columns(frame.columns), TRACE_SCHEMA))
+        cols = {name: frame.columns[name] for name in self._schema.names}
+        self._trace.append(to_table(cols, self._schema))
         if len(frame.events["ut_id"]):
             self._events.append(to_table(frame.events, EVENT_SCHEMA))
 
@@ -114,7 +127,7 @@ class MemorySink:
 
     def trace(self) -> pd.DataFrame:
         if not self._trace:
-            return TRACE_SCHEMA.empty_table().to_pandas()
+            return self._schema.empty_table().to_pandas()
         return pa.concat_tables(self._trace).to_pandas()
 
     def events(self) -> pd.DataFrame:

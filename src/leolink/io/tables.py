@@ -61,7 +61,8 @@ TRACE_COLUMNS = (
     "interruption_s",  # part of the epoch without service: handover execution [s]
 )
 _INT_COLUMNS = {
-    "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible"
+    "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible",
+    "n_sharing",
 }  # fmt: skip
 _STRING_COLUMNS = {"service", "kind", "outage_reason", "population"}
 #: Columns given as integer codes and written as names.

@@ -51,12 +51,17 @@ References
    inverses," IEEE Trans. Signal Process., 56(9), pp. 4409-4418, 2008.
 """
 
+from typing import Protocol, runtime_checkable
+
 import numpy as np
+from pydantic import Field
 
 from leolink.errors import ConfigError
+from leolink.registry import Params, Registry
 
 __all__ = [
     "PRECODERS",
+    "Precoder",
     "chain_power",
     "mmse_regularization",
     "precode",
@@ -64,8 +69,57 @@ __all__ = [
     "sinr_after_precoding",
 ]
 
-#: Names accepted by :func:`precoder_matrix` (``link.precoder`` in a config).
-PRECODERS = ("none", "zf", "mmse")
+
+@runtime_checkable
+class Precoder(Protocol):
+    """A digital precoder ``F_BB`` (``link.precoder``), :func:`precoder_matrix` of a kind."""
+
+    #: ``"none"``: the engine's path is kept (no baseband precoding: today's leolink).
+    kind: str
+
+    def __call__(self, h_est, p_rf=1.0, serving_beam=None, ut_mask=None, beam_mask=None):
+        """``F_BB (..., n_beam, n_ut)`` of :func:`precoder_matrix`."""
+        ...
+
+
+#: Precoders by config name (``link.precoder``); their names are the kinds of
+#: :func:`precoder_matrix`.
+PRECODERS: Registry[Precoder] = Registry("link.precoder", Precoder)
+_KINDS = ("none", "zf", "mmse")  # the closed forms of precoder_matrix
+
+
+class _Fixed:
+    def __init__(self, kind, alpha_scale=1.0):
+        self.kind, self.alpha_scale = kind, float(alpha_scale)
+
+    def __call__(self, h_est, p_rf=1.0, serving_beam=None, ut_mask=None, beam_mask=None):
+        alpha = None
+        if self.kind == "mmse" and self.alpha_scale != 1.0:
+            ut, beam = _masks(np.asarray(h_est), ut_mask, beam_mask)
+            alpha = self.alpha_scale * mmse_regularization(
+                ut.sum(-1), np.maximum(beam.sum(-1), 1), p_rf
+            )
+        return precoder_matrix(h_est, self.kind, p_rf, serving_beam, ut_mask, beam_mask,
+                               alpha=alpha)  # fmt: skip
+
+
+class MmseConfig(Params):
+    alpha_scale: float = Field(
+        1.0,
+        gt=0.0,
+        le=1e6,
+        description="regularization over the noise-optimal n_ut / (n_beam P_RF)",
+    )
+
+
+PRECODERS.add("none", lambda p, c: _Fixed("none"), doc="no digital precoder (F_BB = selection)")
+PRECODERS.add("zf", lambda p, c: _Fixed("zf"), doc="zero forcing, F = H^H (H H^H)^-1")
+PRECODERS.add(
+    "mmse",
+    lambda p, c: _Fixed("mmse", p.alpha_scale),
+    config=MmseConfig,
+    doc="regularized ZF, F = H^H (H H^H + alpha I)^-1",
+)
 
 
 def _masks(h, ut_mask, beam_mask):
@@ -148,8 +202,8 @@ def precoder_matrix(
     ConfigError
         For an unknown ``kind``, or ``"none"`` without ``serving_beam``.
     """
-    if kind not in PRECODERS:
-        raise ConfigError(f"link.precoder = {kind!r} is not allowed; use one of {PRECODERS}")
+    if kind not in _KINDS:
+        raise ConfigError(f"link.precoder = {kind!r} is not allowed; use one of {_KINDS}")
     h = np.asarray(h_est, dtype=complex)
     ut, beam = _masks(h, ut_mask, beam_mask)
     h = np.where(ut[..., :, None] & beam[..., None, :], h, 0.0)

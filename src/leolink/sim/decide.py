@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.geometry import enu_basis
+from leolink.sim.active_beams import restrict
 from leolink.sim.candidates import Candidates
 from leolink.sim.controller import concat_events, resumed_events, step
 from leolink.sim.policies import neighbour_window_db
@@ -42,11 +43,15 @@ class Decider:
     prune : bool
         Screen the (UT, satellite) pairs before evaluating them (the same tables,
         :mod:`leolink.sim.search`); False evaluates every pair (the reference).
+    selector : leolink.sim.active_beams.BeamSelector, optional
+        Active beams: the controller chooses among the lit beams of each epoch, and every
+        visible cell is a candidate (a lit neighbour may be further down than the
+        policy's window). None: every beam lit (today's run, untouched).
     """
 
     def __init__(self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad,
                  radius_m, future_state, motion, epoch_s=1.0, ellipsoidal=False,
-                 prune=True):  # fmt: skip
+                 prune=True, selector=None):  # fmt: skip
         self.engine, self.policy = engine, policy
         self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
@@ -54,7 +59,9 @@ class Decider:
         self.radius_m = radius_m
         self.future_state, self.motion = future_state, motion
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
-        self.search = CandidateSearch(engine, neighbour_window_db(policy), prune)
+        self.selector = selector
+        window = neighbour_window_db(policy) if selector is None else np.inf
+        self.search = CandidateSearch(engine, window, prune)
         self.block = self.mb = self.cones = self.enu = None
 
     def _open(self, k):
@@ -90,6 +97,8 @@ class Decider:
             # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
             # for an aircraft over 10 s.
             future = self._future(table, state.t_s + self.policy.lookahead_s, k)
+        if self.selector is not None:
+            table, future = self._lit_only(state, table, future, blk.best_cell[rows], k)
         t = state.t_s
         res = step(t, table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
         resumed = resumed_events(t, self.epoch_s, res.state, table)
@@ -102,6 +111,15 @@ class Decider:
         state.cand_sats, state.decision = cone, res
         state.enu = None if self.enu is None else self.enu[k - blk.k0]
         state.controller = res.state
+
+    def _lit_only(self, state, table, future, best_cell, k):
+        """The tables restricted to this epoch's lit beams (``state.lit`` set)."""
+        sel = self.selector
+        state.lit = np.asarray(sel.lit(k, best_cell, self.mb.sat_pos_m.shape[1]), bool)
+        table = restrict(table, state.lit, best_cell, sel.dark_fallback)
+        if future is not None:  # the beams lit now (the future's are not decided yet)
+            future = restrict(future, state.lit, best_cell, sel.dark_fallback)
+        return table, future
 
     def _with_serving(self, table, rows, serving):
         """``table`` with each UT's serving cell added where it is missing and above the

@@ -43,6 +43,7 @@ class _Record:
     n_visible: np.ndarray
     best_snr_db: np.ndarray
     cone: np.ndarray  # the satellites of the other-satellite interference
+    lit: np.ndarray | None = None  # (n_sat, n_beam) lit beams (active beams), None: all
 
 
 class Monitor:
@@ -61,11 +62,14 @@ class Monitor:
     epoch_s : float
     population : sequence of str
         The population name of every UT.
+    service : leolink.sim.beam_service.BeamService, optional
+        Beam sharing and precoding (adds the ``n_sharing`` column); None: today's links.
     """
 
     def __init__(self, engine, sink, decider, fading_k=None, ut_keys=None, epoch_s=1.0,
-                 population=()):  # fmt: skip
+                 population=(), service=None):  # fmt: skip
         self.engine, self.sink, self.decider = engine, sink, decider
+        self.service = service
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.epoch_s = float(epoch_s)
         self.population = np.asarray(population, dtype=object)
@@ -87,7 +91,7 @@ class Monitor:
             geo_beam[unserved] = np.where(best >= 0, best % nb, -1)
         gap_s = interruption_s(state.t_s, self.epoch_s, res.state)
         return _Record(state.k, state.t_s, res, geo_sat, geo_beam, gap_s, state.n_visible,
-                       state.best_snr_db, state.cand_sats)  # fmt: skip
+                       state.best_snr_db, state.cand_sats, getattr(state, "lit", None))  # fmt: skip
 
     def flush(self, state):
         """Evaluate and send the kept epochs (all in the current motion block)."""
@@ -129,7 +133,15 @@ class Monitor:
         epoch = rows // n_ut
         s = np.where(served, geo_sat, 0)
         up_enu = None if dec.enu is None else dec.enu.reshape(-1, 3, 3)[rows]
-        return eng.serve_pairs(
+        lit = None
+        if recs[0].lit is not None:  # active beams: the lit beams of each row's satellite
+            lit = np.concatenate([r.lit[np.maximum(r.geo_sat, 0)] for r in recs])
+            # an outage row's geometry beam (its best, maybe dark) counts as its signal
+            lit[np.arange(rows.size), np.maximum(geo_beam, 0)] = True
+        fading = self._fading(recs, links, pair)
+        i_other = self._other_satellites(recs, geo_sat, geo_beam)
+        ut_pos = mb.ut_pos_m.reshape(-1, 3)[rows]
+        cols = eng.serve_pairs(
             links,
             pair,
             geo_beam,
@@ -137,11 +149,34 @@ class Monitor:
             mb.ut_acc_m_s2.reshape(-1, 3)[rows],
             mb.sat_vel_m_s[epoch, s],
             mb.sat_acc_m_s2[epoch, s],
-            rx_fading_lin=self._fading(recs, links, pair),
-            i_other=self._other_satellites(recs, geo_sat, geo_beam),
-            ut_pos_m=mb.ut_pos_m.reshape(-1, 3)[rows],
+            rx_fading_lin=fading,
+            i_other=i_other,
+            ut_pos_m=ut_pos,
             ut_enu=up_enu,
+            lit=lit,
         )
+        if self.service is not None:
+            path = links.path_snr_lin[np.maximum(pair, 0)] * (1.0 if fading is None else fading)
+            inputs = dict(ut_pos_m=ut_pos, sat_pos_m=mb.sat_pos_m[epoch, s],
+                          sat_vel_m_s=mb.sat_vel_m_s[epoch, s], path_snr_lin=path,
+                          i_other=i_other)  # fmt: skip
+            self._share(recs, cols, inputs)
+        return cols
+
+    def _share(self, recs, cols, inputs):
+        """Beam sharing and precoding, epoch by epoch (:mod:`leolink.sim.beam_service`)."""
+        n_ut = len(recs[0].geo_sat)
+        cols["n_sharing"] = np.zeros(len(recs) * n_ut, np.int64)
+        for i, rec in enumerate(recs):
+            sl = slice(i * n_ut, (i + 1) * n_ut)
+            part = {name: v[sl].copy() for name, v in cols.items()}
+            res = rec.decision
+            served = (res.sat_id >= 0) & (res.service != SERVICE_OUTAGE)
+            self.service.apply(part, res.sat_id, res.beam_id, served, rec.lit,
+                               lambda sl=sl: {k: None if v is None else v[sl]
+                                              for k, v in inputs.items()})  # fmt: skip
+            for name, v in part.items():
+                cols[name][sl] = v
 
     def _fading(self, recs, links, pair):
         if self.fading_k is None or not (pair >= 0).any():
@@ -173,7 +208,8 @@ class Monitor:
                                 ut_enu=enu)  # fmt: skip
             s = np.where(geo_sat[sl] >= 0, np.searchsorted(cone, geo_sat[sl]), 0)
             b = np.where(geo_sat[sl] >= 0, geo_beam[sl], 0)
-            out.append(eng.other_satellites_interference(snap, s, b, u))
+            lit = None if rec.lit is None else rec.lit[cone]
+            out.append(eng.other_satellites_interference(snap, s, b, u, lit))
         return np.concatenate(out)
 
     def _columns(self, rec, cols):

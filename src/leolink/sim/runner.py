@@ -17,6 +17,8 @@ import simpy
 from leolink.engine import LinkEngine
 from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
+from leolink.sim.active_beams import BeamSelector
+from leolink.sim.beam_service import BeamService
 from leolink.sim.controller import ControllerState
 from leolink.sim.decide import Decider
 from leolink.sim.mobility import concat_states
@@ -65,6 +67,10 @@ class Scenario:
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
         cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
+    selector : BeamSelector or None, active beams (:mod:`leolink.sim.active_beams`);
+        None: every beam lit.
+    service : BeamService or None, beam sharing and precoding
+        (:mod:`leolink.sim.beam_service`; adds the ``n_sharing`` trace column); None: none.
     """
 
     engine: LinkEngine
@@ -82,6 +88,8 @@ class Scenario:
     fading_k: float | None = None
     ellipsoidal: bool = False
     prune: bool = True
+    selector: BeamSelector | None = None
+    service: BeamService | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -185,15 +193,18 @@ def run_simulation(
         epoch_s=scen.epoch_s,
         ellipsoidal=scen.ellipsoidal,
         prune=scen.prune,
+        selector=scen.selector,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
-    monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names)
+    monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names,
+                      scen.service)  # fmt: skip
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
         n_ut, scen.ephemeris.n_sat, scen.engine.n_beam, scen.epoch_s,
         float(times[scen.n_warmup]), len(times) - scen.n_warmup, names,
+        ("n_sharing",) if scen.service is not None else (),
     )  # fmt: skip
     t_wall = time.perf_counter()
     sink.start(info)

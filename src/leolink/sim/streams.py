@@ -29,6 +29,8 @@ class RunInfo:
     start_s : float [s], first recorded epoch (after the warm-up).
     n_epochs : int, recorded epochs.
     population : tuple of str, the population name of every UT (``n_ut``).
+    extra_columns : tuple of str, trace columns of this run beyond ``TRACE_COLUMNS``
+        (``n_sharing`` with beam sharing).
     """
 
     n_ut: int
@@ -38,6 +40,7 @@ class RunInfo:
     start_s: float
     n_epochs: int
     population: tuple[str, ...]
+    extra_columns: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
