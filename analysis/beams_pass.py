@@ -51,7 +51,9 @@ def drop_config(folder, n_ut=60, sets=()):
     """The paper's config with ``n_ut`` random static UTs instead of its populations."""
     text = PAPER_CONFIG.read_text()
     text = text[: text.index("[[population]]")].replace("uts = [0, 5, 6]", "uts = [0]")
-    text += f'[[population]]\nname = "random"\nkind = "static"\nplacement = "random"\ncount = {n_ut}\n'
+    text += (
+        f'[[population]]\nname = "random"\nkind = "static"\nplacement = "random"\ncount = {n_ut}\n'
+    )
     path = Path(folder) / "drop.toml"
     path.write_text(text)
     return load_config(path, list(sets))

@@ -60,7 +60,10 @@ class BeamService:
         lit : ndarray of bool, shape (n_sat, n_beam), or None (every beam lit)
         rows : callable or None
             ``rows() -> dict`` of the per-UT inputs of the precoder (``ut_pos_m``,
-            ``sat_pos_m``, ``sat_vel_m_s``, ``path_snr_lin``, ``i_other``); None without.
+            ``sat_pos_m``, ``sat_vel_m_s``, ``path_snr_lin``, ``i_other``, and
+            optionally ``sat_pos_est_m``: the satellite position the satellite believes,
+            from which the precoder's channel is computed while the signal goes through
+            the true one — the seam of the ephemeris-error model, issue 15); None without.
         """
         nb = self.engine.n_beam
         sat = np.where(served, sat_id, -1)
@@ -106,7 +109,13 @@ class BeamService:
         h = precoded.channel(u, path, beam_u, np.where(ok, chain, -1), eng.colors[b], ok,
                              self.array)  # fmt: skip
         i_other = 0.0 if inp["i_other"] is None else inp["i_other"][m]
-        sinr = precoded.precoded_sinr(self.precoder, h, ok, i_other)
+        h_est = None
+        if inp.get("sat_pos_est_m") is not None:  # seam of the ephemeris-error model
+            u_est = direction_cosines(inp["sat_pos_est_m"][m], inp["sat_vel_m_s"][m],
+                                      inp["ut_pos_m"][m])  # fmt: skip
+            h_est = precoded.channel(u_est, path, beam_u, np.where(ok, chain, -1),
+                                     eng.colors[b], ok, self.array)  # fmt: skip
+        sinr = precoded.precoded_sinr(self.precoder, h, ok, i_other, h_est)
         rate = np.log1p(np.where(ok, sinr, 0.0)) / np.log(2.0)
         n_ut = sat_id.size
         total = np.bincount(member[ok], weights=rate[ok], minlength=n_ut)
