@@ -3,7 +3,7 @@
 Part 1, the simulator: ``configs/paper.toml`` (one satellite over Vigo, 120 s) with 60
 static UTs dropped uniformly in the ROI (seeded), each variant a run of the same drop:
 today's (no sharing: every UT at its beam's full rate), and round-robin sharing with
-``link.precoder`` none / zf / mmse at full reuse, and none at reuse 3 and 4 (and ZF on
+``link.precoder`` none / zf / zf_normalized / mmse at full reuse, and none at reuse 3 and 4 (and ZF on
 the colours). Numbers: mean served SINR [dB] (rows with service), mean per-UT
 throughput [Mbit/s], and the mean number of UTs sharing a beam.
 
@@ -11,7 +11,7 @@ Part 2, the 4-beam corners at the overhead instant (t = 60 s): a UT at each poin
 four beams of the 5 x 3 lattice meet (direction cosines at the mean of the four
 boresights, 8 interior corners), served by the first of the four; the other 14 beams
 each serve a UT at their footprint centre (the boresight's ground point); the SINR of
-the corner UTs under none / zf / mmse. The paper (Sec. 5): "a SINR not larger than
+the corner UTs under none / zf / zf_normalized / mmse. The paper (Sec. 5): "a SINR not larger than
 -4.77 dB" at these points without precoder (1 / 3 of equal beams, at high SNR).
 
 Run: ``python analysis/beams_pass.py [--fast] [--out DIR]``.
@@ -40,6 +40,7 @@ VARIANTS = {
     "today (no sharing)": [],
     "none, reuse 1": RR,
     "zf, reuse 1": RR + ["link.precoder=zf"],
+    "zf_normalized, reuse 1": RR + ["link.precoder=zf_normalized"],
     "mmse, reuse 1": RR + ["link.precoder=mmse"],
     "none, reuse 3": RR + ["link.reuse_colors=3"],
     "none, reuse 4": RR + ["link.reuse_colors=4"],
@@ -85,7 +86,7 @@ def corner_sinr(folder):
     beam_at = {(int(a), int(b)): m for m, (a, b) in enumerate(zip(ix, iy, strict=True))}
     corners = [(i, j) for i in range(ix.max()) for j in range(iy.max())]
     centres = ray_to_ground(sat, v, u_b, scen.radius_m)
-    out = {k: [] for k in ("none", "zf", "mmse")}
+    out = {k: [] for k in ("none", "zf", "zf_normalized", "mmse")}
     array = HybridArray(60, 72, 5, 3)
     for i, j in corners:
         four = [beam_at[(i + a, j + b)] for a in (0, 1) for b in (0, 1)]

@@ -12,7 +12,8 @@ For each O: the paper's pass (``configs/paper.toml``) with 60 static UTs dropped
 ROI (the seeded drop of ``beams_pass.py``), ``allow_holes`` on (O < 1.1 leaves holes);
 ``active_beams = "all"`` while the codebook fits the chains, ``"demand"`` beyond. Curves:
 mean served SNR and SINR without precoder (every UT at its beam's full rate, the paper's
-model), and the SINR with round-robin sharing and ZF / MMSE across the lit beams.
+model), and the SINR with round-robin sharing and ZF / normalized ZF / MMSE across the
+lit beams.
 
 Run: ``python analysis/oversampling_active.py [--fast] [--out DIR]``; writes
 ``oversampling_active.png`` (copied to ``docs/img/`` for the docs) and its JSON.
@@ -58,11 +59,13 @@ def study(folder, o_values, fast):
         snr, sinr, served = _run(folder, base)
         rr = [*base, "scheduler.kind=round_robin"]
         _, zf, _ = _run(folder, [*rr, "link.precoder=zf"])
+        _, zfn, _ = _run(folder, [*rr, "link.precoder=zf_normalized"])
         _, mmse, _ = _run(folder, [*rr, "link.precoder=mmse"])
         rows.append(dict(o=o, n_beam=n_beam, selector=sel, snr_db=snr, sinr_db=sinr,
-                         sinr_zf_db=zf, sinr_mmse_db=mmse, served=served))  # fmt: skip
+                         sinr_zf_db=zf, sinr_zfn_db=zfn, sinr_mmse_db=mmse,
+                         served=served))  # fmt: skip
         print(f"O = {o:5.2f}: {n_beam:3d} beams ({sel}), SNR {snr:6.2f}, SINR {sinr:6.2f}, "
-              f"ZF {zf:6.2f}, MMSE {mmse:6.2f} dB, served {served:.3f}")  # fmt: skip
+              f"ZF {zf:6.2f}, ZF-n {zfn:6.2f}, MMSE {mmse:6.2f} dB, served {served:.3f}")  # fmt: skip
     return rows
 
 
@@ -74,7 +77,8 @@ def main(argv=None):
     fig, axes = figure(1, 1, figsize=(7.5, 4.8))
     ax = axes[0, 0]
     for key, label in (("snr_db", "SNR"), ("sinr_db", "SINR, no precoder"),
-                       ("sinr_zf_db", "SINR, ZF"), ("sinr_mmse_db", "SINR, MMSE")):  # fmt: skip
+                       ("sinr_zf_db", "SINR, ZF"), ("sinr_zfn_db", "SINR, ZF normalized"),
+                       ("sinr_mmse_db", "SINR, MMSE")):  # fmt: skip
         ax.plot(o, [r[key] for r in rows], "o-", label=label)
     limit = max((r["o"] for r in rows if r["n_beam"] <= N_RF), default=o[0])
     ax.axvline(limit, color="k", ls="--", lw=0.8)

@@ -172,6 +172,9 @@ def _explicit_se(ut_pos, sat_pos, sat_vel, path, beam, kind, colors, u_beams, li
         hh = h.conj().T
         if kind == "zf":
             f = hh @ np.linalg.inv(h @ hh)
+        elif kind == "zf_normalized":  # each UT's column scaled to unit norm
+            f = hh @ np.linalg.inv(h @ hh)
+            f = f / np.sqrt(np.sum(np.abs(f) ** 2, axis=0))
         else:  # Peel et al.: alpha = n_ut noise / (n_beam P_RF) = 1 (square problem)
             f = hh @ np.linalg.inv(h @ hh + np.eye(len(ks)))
         f = f * np.sqrt(1.0 / max(np.sum(np.abs(f) ** 2, axis=1)))
@@ -189,6 +192,7 @@ def _explicit_se(ut_pos, sat_pos, sat_vel, path, beam, kind, colors, u_beams, li
         ("zf", []),
         ("mmse", []),
         ("zf", ["link.reuse_colors=3"]),
+        ("zf_normalized", []),
         ("mmse", ["satellite_array.oversampling=2.0", "satellite_array.active_beams=demand"]),
     ],
 )
