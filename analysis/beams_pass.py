@@ -3,8 +3,8 @@
 Part 1, the simulator: ``configs/paper.toml`` (one satellite over Vigo, 120 s) with 60
 static UTs dropped uniformly in the ROI (seeded), each variant a run of the same drop:
 today's (no sharing: every UT at its beam's full rate), and round-robin sharing with
-``link.precoder`` none / zf / zf_normalized / mmse at full reuse, and none at reuse 3 and 4 (and ZF on
-the colours). Numbers: mean served SINR [dB] (rows with service), mean per-UT
+``link.precoder`` none / zf / zf_normalized / mmse at full reuse, and none at reuse 3
+and 4 (and ZF on the colours). Numbers: mean served SINR [dB] (rows with service), mean per-UT
 throughput [Mbit/s], and the mean number of UTs sharing a beam.
 
 Part 2, the 4-beam corners at the overhead instant (t = 60 s): a UT at each point where

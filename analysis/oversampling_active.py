@@ -65,7 +65,8 @@ def study(folder, o_values, fast):
                          sinr_zf_db=zf, sinr_zfn_db=zfn, sinr_mmse_db=mmse,
                          served=served))  # fmt: skip
         print(f"O = {o:5.2f}: {n_beam:3d} beams ({sel}), SNR {snr:6.2f}, SINR {sinr:6.2f}, "
-              f"ZF {zf:6.2f}, ZF-n {zfn:6.2f}, MMSE {mmse:6.2f} dB, served {served:.3f}")  # fmt: skip
+              f"ZF {zf:6.2f}, ZF-n {zfn:6.2f}, MMSE {mmse:6.2f} dB, "
+              f"served {served:.3f}")  # fmt: skip
     return rows
 
 
