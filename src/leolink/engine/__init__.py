@@ -26,13 +26,14 @@ import numpy as np
 from leolink.antenna.array import dirichlet_coefficients
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.engine import jit
+from leolink.engine import interference, jit
 from leolink.engine.links import (
     Links,
     Snapshot,
     azimuth_deg,
     group_constants_db,
     pair_geometry,
+    panel_elevation_of_pairs,
     reuse_colors,
     rows_gain_db,
 )
@@ -70,8 +71,8 @@ SERVE_GEOMETRY_COLUMNS = ("azimuth_deg",)
 class LinkParams:
     """Scalars of the link budget (paper's Table).
 
-    ``ptx_dbw`` is the power of one beam (one RF chain), as in the paper.
-    """
+    ``ptx_dbw``: power of one beam (one RF chain), as in the paper; ``other_loss_db``: the
+    losses besides FSPL and atmosphere (TR 38.821 Table 6.1.3.3-1)."""
 
     freq_hz: float
     bandwidth_hz: float
@@ -79,6 +80,7 @@ class LinkParams:
     cable_loss_db: float
     noise_temp_dbk: float
     min_elevation_rad: float
+    other_loss_db: float = 0.0
 
 
 class LinkEngine:
@@ -115,7 +117,7 @@ class LinkEngine:
         self.bandwidth_hz = params.bandwidth_hz / self.n_colors
         self.noise_dbw = float(noise_power_dbw(params.noise_temp_dbk, self.bandwidth_hz))
         # SNR per unit TX gain = K / rho^2 x G_rx / L_atm (Eq. of RSS and FSPL, in watts).
-        k_db = params.ptx_dbw - params.cable_loss_db - self.noise_dbw
+        k_db = params.ptx_dbw - params.cable_loss_db - params.other_loss_db - self.noise_dbw
         self._k_lin = (
             10.0 ** (k_db / 10.0) / (4.0 * np.pi * params.freq_hz / SPEED_OF_LIGHT_M_S) ** 2
         )
@@ -137,7 +139,7 @@ class LinkEngine:
         cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
         return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)
 
-    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None):
+    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None, ut_panel=None):
         """Geometry, gains and SNR for every (UT, satellite, beam).
 
         Parameters
@@ -148,6 +150,9 @@ class LinkEngine:
         ut_enu : ndarray, shape (n_ut, 3, 3), optional
             Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
             elevations, azimuths and panel frames use them. None: the sphere's radial up.
+        ut_panel : ndarray, shape (n_ut, 3, 3), optional
+            Turned or tilted panels (rows x, y, normal): terminal gains take the angle above
+            the panel plane, other satellites' cosines these rows. None: flat, x east.
 
         Returns
         -------
@@ -157,7 +162,8 @@ class LinkEngine:
         ut = np.tile(np.arange(n_ut), n_sat)  # satellite-major grid: p = s n_ut + u
         sat = np.repeat(np.arange(n_sat), n_ut)
         up = None if ut_enu is None else ut_enu[:, 2, :]
-        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up)
+        normal = None if ut_panel is None else ut_panel[:, 2, :]
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, None, normal)
         snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
@@ -167,10 +173,12 @@ class LinkEngine:
                 el > 0.0, snap.path_lin / 10.0 ** (snap.rx_db / 10.0), 0.0
             )
             basis = panel_basis(ut_pos_m) if ut_enu is None else ut_enu
+            basis = basis if ut_panel is None else ut_panel
             snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
         return snap
 
-    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None):
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
+                       ut_normal=None):  # fmt: skip
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -184,6 +192,9 @@ class LinkEngine:
             Each UT row's local up (the WGS 84 normal); None: the sphere's radial up.
         ut_id : ndarray of int, shape (n_u,), optional
             The UT of each UT row, for per-population terminals; None: row = UT.
+        ut_normal : ndarray, shape (n_u, 3), optional
+            Each UT row's panel normal: the terminal gain takes the angle above the panel
+            plane (visibility and atmosphere the elevation). None: panels lying flat.
 
         Returns
         -------
@@ -200,7 +211,10 @@ class LinkEngine:
         rx_db = self._rx_const
         if rx_db is None:
             rows = ut if ut_id is None else ut_id[ut]
-            rx_db = rows_gain_db(self.terminal, elevation, rows, self._rx_groups)
+            el_rx = elevation
+            if ut_normal is not None:  # tilted panels: the angle above the panel plane
+                el_rx = panel_elevation_of_pairs(rel, rho, ut_normal, ut)
+            rx_db = rows_gain_db(self.terminal, el_rx, rows, self._rx_groups)
         atm_db = self._atm_const
         if atm_db is None:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))
@@ -363,34 +377,8 @@ class LinkEngine:
         return self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy)
 
     def other_satellites_interference(self, snap, s, b, u, lit=None):
-        """Interference over noise from the beams of the other satellites, per UT.
-
-        Their beams of the serving beam's colour, at full power, seen through the UT
-        antenna pointed at the serving satellite (``terminal.pattern_lin``); ``s``, ``b``:
-        each UT's serving satellite (index into the snapshot's) and beam; ``lit``
-        (n_sat, n_beam): the beams each satellite lights (None: all).
-        """
-        bm = snap.gain_tx_bm  # (n_beam, n_sat, n_ut)
-        same = (self.colors[None, :] == self.colors[b][:, None]).astype(float)  # (n_ut, n_beam)
-        if lit is None:
-            tx = np.einsum("bsu,ub->us", bm, same)  # same-colour TX gain of each satellite
-        else:
-            tx = np.einsum("bsu,ub,sb->us", bm, same, lit.astype(float))
-        du = snap.u_panel - snap.u_panel[u, s][:, None, :]
-        rx = self.terminal.pattern_lin(du[..., 0], du[..., 1])  # (n_ut, n_sat)
-        contrib = tx * rx * snap.path_no_rx_lin
-        contrib[u, s] = 0.0  # the serving satellite is counted by _same_colour_total
-        return contrib.sum(axis=1)
+        """:func:`leolink.engine.interference.other_satellites` of this engine."""
+        return interference.other_satellites(self, snap, s, b, u, lit)
 
     def _same_colour_total(self, kx, ky, b, lit=None):
-        """Sum of the TX gains of the lit beams that share the serving beam's colour, per
-        row (``kx``, ``ky``: the rows' kernels, (n_k, n); ``lit`` (n, n_beam) or None)."""
-        if lit is None and self._full_reuse_lattice:
-            # Full lattice, full reuse: sum_ij kx_i ky_j = (sum_i kx_i)(sum_j ky_j).
-            return kx.sum(axis=0) * ky.sum(axis=0)
-        # (n, n_beam), C-ordered: the sum over beams then adds in one order for any caller.
-        g = np.ascontiguousarray((kx[self.beam_ix] * ky[self.beam_iy]).T)
-        same = self.colors[None, :] == self.colors[b][:, None]
-        if lit is not None:
-            same = same & lit
-        return np.einsum("ub,ub->u", g, same)
+        return interference.same_colour_total(self, kx, ky, b, lit)

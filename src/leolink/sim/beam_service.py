@@ -64,13 +64,18 @@ class BeamService:
             optionally ``sat_pos_est_m``: the satellite position the satellite believes,
             from which the precoder's channel is computed while the signal goes through
             the true one — the seam of the ephemeris-error model, issue 15); None without.
+
+        Returns
+        -------
+        ndarray, shape (n_ut,), or None
+            Each UT's time share of its beam (1 where not served); None without sharing.
         """
         nb = self.engine.n_beam
         sat = np.where(served, sat_id, -1)
         group, n_sharing = beam_groups(sat, np.where(served, beam_id, -1), nb)
         cols["n_sharing"] = n_sharing.astype(np.int64)
         if not self.scheduler.shares:
-            return
+            return None
         ids, compact = np.unique(group[group >= 0], return_inverse=True)
         g = np.full(group.size, -1)
         g[group >= 0] = compact
@@ -81,6 +86,7 @@ class BeamService:
         bw = self.engine.bandwidth_hz
         cols["se_bps_hz"] = np.where(served, se * share, cols["se_bps_hz"])
         cols["throughput_bps"] = np.where(served, se * share * bw, cols["throughput_bps"])
+        return np.where(served, share, 1.0)
 
     def _precoded_se(self, schedule, ids, sat_id, beam_id, lit, inp, se_analog, cols):
         """Mean SE over each UT's scheduled slots after precoding (analog where never)."""
