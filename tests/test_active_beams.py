@@ -314,3 +314,15 @@ def test_ephemeris_error_seam_leaves_residual_interference(tmp_path):
     np.testing.assert_array_equal(out["true"], out["known"])
     # the mismatch leaves residual interference in every slot
     assert out["off"].mean() < out["known"].mean() * (1 - 5e-3)
+
+
+def test_acm_throughput_is_shared_too(tmp_path):
+    """With the DVB-S2X throughput model the MODCOD rate of a UT is its share of the beam's."""
+    sets = ["modcod.throughput_model=dvbs2x", "run.duration_s=5"]
+    _, base = _run(_cfg(tmp_path, 30, sets))
+    _, rr = _run(_cfg(tmp_path, 30, [*sets, "scheduler.kind=round_robin"]))
+    on = rr.service == "served"
+    assert on.sum() > 100
+    np.testing.assert_allclose(
+        (rr.throughput_bps * rr.n_sharing)[on], base.throughput_bps[on], rtol=1e-12
+    )
