@@ -81,14 +81,16 @@ def _auto(cfg, sub, geometry):
 def _fixed(cfg, o, sub, geometry):
     design = design_at(*sub, float(o), *geometry)
     n_rf = sub[2]
-    if design.n_beam > n_rf:
+    if design.n_beam > n_rf and cfg.satellite_array.active_beams == "all":
         # Each RF chain drives one subarray and so one beam (paper Sec. 2.1): a codebook
-        # with more beams than chains cannot be radiated at once.
+        # with more beams than chains cannot be radiated at once; a selector lights at
+        # most n_rf of them per epoch.
         raise ConfigError(
             f"satellite_array.oversampling = {o!r} gives {design.n_beam} beams over the "
             f"{_roi_text(geometry)}, but {n_rf} RF chains drive one beam each; "
             'use a smaller oversampling ("auto" picks the most beams the chains can drive), '
-            "more RF chains or a smaller ROI"
+            "more RF chains, a smaller ROI, or light at most one beam per chain with "
+            "satellite_array.active_beams = 'demand' or 'hopping'"
         )
     if design.n_beam == 0:
         raise ConfigError(

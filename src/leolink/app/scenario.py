@@ -14,6 +14,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from leolink.antenna.array import HybridArray
 from leolink.antenna.panel import PanelOrientation
 from leolink.antenna.terminal import TerminalGroups
 from leolink.app.codebook import codebook_from_config
@@ -23,6 +24,7 @@ from leolink.errors import ConfigError
 from leolink.link.acm import LinkFigureParams
 from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
+from leolink.sim.beam_service import BeamService
 from leolink.sim.environment import environment_models
 from leolink.sim.handover_config import build_rlf
 from leolink.sim.mobility import OnWgs84
@@ -31,6 +33,7 @@ from leolink.sim.runner import Scenario, epoch_times
 from leolink.sim.service_link import ServiceLink
 
 __all__ = [
+    "beams_from",
     "build_engine",
     "build_populations",
     "build_scenario",
@@ -180,6 +183,21 @@ def build_populations(cfg, heading_rad, rng):
     return pops
 
 
+def beams_from(cfg, engine):
+    """``(selector, service)`` of the active beams, the scheduler and the precoder; None
+    for each part that keeps today's run (every beam lit; no sharing)."""
+    a = cfg.satellite_array
+    n_rf = a.n_rf_x * a.n_rf_y
+    selector = a.build(SimpleNamespace(n_beam=engine.n_beam, n_rf=n_rf))
+    scheduler = cfg.scheduler.build()
+    precoder = cfg.link.build()
+    service = None
+    if scheduler.shares or precoder.kind != "none" or not selector.lights_all:
+        array = HybridArray(a.n_x, a.n_y, a.n_rf_x, a.n_rf_y)
+        service = BeamService(engine, scheduler, precoder, array)
+    return (None if selector.lights_all else selector), service
+
+
 def panel_orientation(cfg, populations):
     """The UTs' :class:`~leolink.antenna.panel.PanelOrientation` from each population's
     ``panel_tilt_deg`` and ``panel_azimuth_deg``; None when every panel lies flat with x
@@ -209,6 +227,7 @@ def build_scenario(cfg):
     times, n_warm = epoch_times(r.start_s, r.epoch_s, r.warmup_s, r.duration_s)
     populations = build_populations(cfg, heading, rng)
     engine = build_engine(cfg, codebook, ut_terminals(cfg, populations))
+    selector, service = beams_from(cfg, engine)
     return Scenario(
         engine=engine,
         ephemeris=ephemeris,
@@ -226,6 +245,8 @@ def build_scenario(cfg):
         ellipsoidal=cfg.earth.model == "wgs84",
         environments=_environments(cfg),
         rlf=build_rlf(cfg.controller.rlf),
+        selector=selector,
+        service=service,
         link=service_link(cfg, engine),
         panels=panel_orientation(cfg, populations),
     )

@@ -72,6 +72,14 @@ class ControllerBase(kinds.SelectorSection):
     )
 
 
+class LinkBase(LinkSection, kinds.SelectorSection):
+    """``[link]``: the budget; ``precoder`` chooses the digital precoder (``[link.<name>]``)."""
+
+
+class SatelliteArrayBase(SatelliteArraySection, kinds.SelectorSection):
+    """``[satellite_array]``: the array; ``active_beams`` chooses the beam selector."""
+
+
 class ConfigBase(Section):
     """A whole run. Sections mirror the TOML tables; see :func:`config_model`."""
 
@@ -81,6 +89,8 @@ class ConfigBase(Section):
         constellation: Any
         roi: Any
         earth: Any
+        link: Any
+        scheduler: Any
 
     @model_validator(mode="after")
     def _check(self):
@@ -95,6 +105,12 @@ class ConfigBase(Section):
         if c.kind == "tle" and not c.tle_file:
             raise ValueError("constellation.tle_file is required when constellation.kind = 'tle'")
         self._check_roi_cap()
+        if self.link.precoder != "none" and self.scheduler.kind == "none":
+            raise ValueError(
+                f"link.precoder = {self.link.precoder!r} is not allowed with scheduler.kind = "
+                "'none': a precoder serves one UT per lit beam per slot; use scheduler.kind "
+                "= 'round_robin' or 'proportional_fair'"
+            )
         if c.tle_epoch_utc and self.run.start_utc:
             raise ValueError(
                 f"constellation.tle_epoch_utc = {c.tle_epoch_utc!r} is not allowed together with "
@@ -165,11 +181,17 @@ def _model(gen):
         "earth": EarthSection,
         "constellation": ConstellationSection,
         "roi": RoiSection,
-        "link": LinkSection,
+        "link": sel("LinkSection", REGISTRIES["link.precoder"], "precoder", "none",
+                    base=LinkBase, doc="digital precoder F_BB across the lit beams"),
         "modcod": ModcodSection,
         "atmosphere": sel("AtmosphereSection", REGISTRIES["atmosphere.model"], "model", "fixed",
                           doc="atmospheric loss model"),
-        "satellite_array": SatelliteArraySection,
+        "satellite_array": sel("SatelliteArraySection",
+                               REGISTRIES["satellite_array.active_beams"], "active_beams",
+                               "all", base=SatelliteArrayBase,
+                               doc="which beams each satellite lights each epoch"),
+        "scheduler": sel("SchedulerSection", REGISTRIES["scheduler.kind"], "kind", "none",
+                         doc="how the UTs of one beam share its time"),
         "terminal": kinds.terminal_section(),
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),

@@ -43,6 +43,9 @@ OWNERS = (
     "leolink.sim.populations",
     "leolink.io.tracks",
     "leolink.io.sinks",
+    "leolink.sim.active_beams",
+    "leolink.sim.scheduler",
+    "leolink.link.precoder",
 )
 
 

@@ -26,7 +26,7 @@ import numpy as np
 from leolink.antenna.array import dirichlet_coefficients
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.engine import jit
+from leolink.engine import interference, jit
 from leolink.engine.links import (
     Links,
     Snapshot,
@@ -287,6 +287,7 @@ class LinkEngine:
         i_other=None,
         ut_pos_m=None,
         ut_enu=None,
+        lit=None,
     ):
         """Link figures of ``n`` rows, row ``i`` served by pair ``pair[i]``, beam ``beam_idx[i]``.
 
@@ -307,6 +308,9 @@ class LinkEngine:
         ut_pos_m, ut_enu : ndarray, shapes (n, 3) and (n, 3, 3)
             Each row's UT position, and its local east, north, up rows (None: the
             sphere's, from the position): the azimuth.
+        lit : ndarray of bool, shape (n, n_beam), optional
+            The beams the row's satellite lights (active beams): only they interfere.
+            None: every beam (the default path, and the fused kernel's).
 
         Returns
         -------
@@ -319,7 +323,7 @@ class LinkEngine:
             return {name: np.full(n, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
         pr = np.where(served, pair, 0)
         b = np.where(served, beam_idx, 0)
-        if jit.use(n) and self._full_reuse_lattice:  # the same operations, fused
+        if jit.use(n) and self._full_reuse_lattice and lit is None:  # the same, fused
             rows = dict(fading=rx_fading_lin, i_other=i_other, ut_vel=ut_vel_m_s,
                         ut_acc=ut_acc_m_s2, sat_vel=sat_vel_m_s, sat_acc=sat_acc_m_s2,
                         ut_pos=ut_pos_m, enu=ut_enu)  # fmt: skip
@@ -327,7 +331,7 @@ class LinkEngine:
         # Flat gathers: several times faster than fancy indexing with 3 index arrays.
         kx, ky = links.kx[:, pr], links.ky[:, pr]
         g_sig = kx[self.beam_ix[b], np.arange(n)] * ky[self.beam_iy[b], np.arange(n)]
-        g_int = self._same_colour_total(kx, ky, b) - g_sig
+        g_int = self._same_colour_total(kx, ky, b, lit) - g_sig
         path = links.path_snr_lin[pr]
         if rx_fading_lin is not None:
             path = path * rx_fading_lin
@@ -372,29 +376,9 @@ class LinkEngine:
         """Every beam of the lattice, one colour (the fused serving kernel's case)."""
         return self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy)
 
-    def other_satellites_interference(self, snap, s, b, u):
-        """Interference over noise from the beams of the other satellites, per UT.
+    def other_satellites_interference(self, snap, s, b, u, lit=None):
+        """:func:`leolink.engine.interference.other_satellites` of this engine."""
+        return interference.other_satellites(self, snap, s, b, u, lit)
 
-        Their beams of the serving beam's colour, at full power, seen through the UT
-        antenna pointed at the serving satellite (``terminal.pattern_lin``); ``s``, ``b``:
-        each UT's serving satellite (index into the snapshot's) and beam.
-        """
-        bm = snap.gain_tx_bm  # (n_beam, n_sat, n_ut)
-        same = (self.colors[None, :] == self.colors[b][:, None]).astype(float)  # (n_ut, n_beam)
-        tx = np.einsum("bsu,ub->us", bm, same)  # same-colour TX gain of each satellite
-        du = snap.u_panel - snap.u_panel[u, s][:, None, :]
-        rx = self.terminal.pattern_lin(du[..., 0], du[..., 1])  # (n_ut, n_sat)
-        contrib = tx * rx * snap.path_no_rx_lin
-        contrib[u, s] = 0.0  # the serving satellite is counted by _same_colour_total
-        return contrib.sum(axis=1)
-
-    def _same_colour_total(self, kx, ky, b):
-        """Sum of the TX gains of the beams that share the serving beam's colour, per row
-        (``kx``, ``ky``: the rows' kernels, (n_k, n))."""
-        if self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy):
-            # Full lattice, full reuse: sum_ij kx_i ky_j = (sum_i kx_i)(sum_j ky_j).
-            return kx.sum(axis=0) * ky.sum(axis=0)
-        # (n, n_beam), C-ordered: the sum over beams then adds in one order for any caller.
-        g = np.ascontiguousarray((kx[self.beam_ix] * ky[self.beam_iy]).T)
-        same = self.colors[None, :] == self.colors[b][:, None]
-        return np.einsum("ub,ub->u", g, same)
+    def _same_colour_total(self, kx, ky, b, lit=None):
+        return interference.same_colour_total(self, kx, ky, b, lit)

@@ -71,7 +71,8 @@ TRACE_COLUMNS = (
 #: shadowing, clutter and scintillation losses [dB] (:mod:`leolink.sim.environment`).
 ENVIRONMENT_COLUMNS = ("los", "shadow_db", "clutter_db", "scintillation_db")
 _INT_COLUMNS = {
-    "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible"
+    "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible",
+    "n_sharing",
 }  # fmt: skip
 _STRING_COLUMNS = {"service", "kind", "outage_reason", "population", "modcod"}
 #: Name of MODCOD code -1 (no MODCOD closes the link, or no link).
@@ -104,8 +105,10 @@ TRACE_ENVIRONMENT_SCHEMA = schema_for(TRACE_COLUMNS + ENVIRONMENT_COLUMNS)
 
 def trace_schema(info):
     """The trace schema of a run (:class:`~leolink.sim.streams.RunInfo`): with the
-    ``ENVIRONMENT_COLUMNS`` when it models environments."""
-    return TRACE_ENVIRONMENT_SCHEMA if getattr(info, "environment", ()) else TRACE_SCHEMA
+    ``ENVIRONMENT_COLUMNS`` when it models environments, then its ``extra_columns``."""
+    base = TRACE_ENVIRONMENT_SCHEMA if getattr(info, "environment", ()) else TRACE_SCHEMA
+    extra = tuple(getattr(info, "extra_columns", ()))
+    return schema_for(tuple(base.names) + extra) if extra else base
 
 
 EVENT_SCHEMA = schema_for(EVENT_COLUMNS)

@@ -22,7 +22,13 @@ Precoders (``kind``):
 - ``"none"``: ``F = sqrt(p_rf) E``, ``E[m, k] = 1`` if beam ``m`` serves UT ``k`` (today's
   leolink: each beam radiates its own UT's symbol at full power; the SINR is the paper's).
 - ``"zf"``: ``F = H^H (H H^H)^{-1}`` (the pseudo-inverse; zero interference when the
-  precoder's channel is the true one).
+  precoder's channel is the true one). Every UT then receives the same amplitude
+  (``H F = c I``): under the common power scaling below every UT of a slot gets the SINR
+  of the weakest, ill-conditioned slots cost everyone.
+- ``"zf_normalized"``: the pseudo-inverse with unit-norm columns, ``F = H^+ D``, ``D``
+  diagonal (still ``H F`` diagonal: zero interference), so each UT's direction carries
+  the same power before the per-chain scaling instead of the same received amplitude
+  (the "ZF beamforming" of Yoo and Goldsmith [5] with equal power per UT).
 - ``"mmse"``: regularized ZF ``F = H^H (H H^H + alpha I)^{-1}`` with the noise-optimal
   ``alpha = n_ut noise_lin / P_total`` of Peel, Hochwald and Swindlehurst [2] (their
   ``alpha = K / rho``, ``rho`` the total transmit SNR), ``P_total = n_beam p_rf`` the power
@@ -49,14 +55,21 @@ References
    system," Sensors, 22(7), 2586, 2022.
 .. [4] A. Wiesel, Y. C. Eldar, S. Shamai, "Zero-forcing precoding and generalized
    inverses," IEEE Trans. Signal Process., 56(9), pp. 4409-4418, 2008.
+.. [5] T. Yoo, A. Goldsmith, "On the optimality of multiantenna broadcast scheduling
+   using zero-forcing beamforming," IEEE J. Sel. Areas Commun., 24(3), pp. 528-541, 2006.
 """
 
+from typing import Protocol, runtime_checkable
+
 import numpy as np
+from pydantic import Field
 
 from leolink.errors import ConfigError
+from leolink.registry import Params, Registry
 
 __all__ = [
     "PRECODERS",
+    "Precoder",
     "chain_power",
     "mmse_regularization",
     "precode",
@@ -64,8 +77,62 @@ __all__ = [
     "sinr_after_precoding",
 ]
 
-#: Names accepted by :func:`precoder_matrix` (``link.precoder`` in a config).
-PRECODERS = ("none", "zf", "mmse")
+
+@runtime_checkable
+class Precoder(Protocol):
+    """A digital precoder ``F_BB`` (``link.precoder``), :func:`precoder_matrix` of a kind."""
+
+    #: ``"none"``: the engine's path is kept (no baseband precoding: today's leolink).
+    kind: str
+
+    def __call__(self, h_est, p_rf=1.0, serving_beam=None, ut_mask=None, beam_mask=None):
+        """``F_BB (..., n_beam, n_ut)`` of :func:`precoder_matrix`."""
+        ...
+
+
+#: Precoders by config name (``link.precoder``); their names are the kinds of
+#: :func:`precoder_matrix`.
+PRECODERS: Registry[Precoder] = Registry("link.precoder", Precoder)
+_KINDS = ("none", "zf", "zf_normalized", "mmse")  # the closed forms of precoder_matrix
+
+
+class _Fixed:
+    def __init__(self, kind, alpha_scale=1.0):
+        self.kind, self.alpha_scale = kind, float(alpha_scale)
+
+    def __call__(self, h_est, p_rf=1.0, serving_beam=None, ut_mask=None, beam_mask=None):
+        alpha = None
+        if self.kind == "mmse" and self.alpha_scale != 1.0:
+            ut, beam = _masks(np.asarray(h_est), ut_mask, beam_mask)
+            alpha = self.alpha_scale * mmse_regularization(
+                ut.sum(-1), np.maximum(beam.sum(-1), 1), p_rf
+            )
+        return precoder_matrix(h_est, self.kind, p_rf, serving_beam, ut_mask, beam_mask,
+                               alpha=alpha)  # fmt: skip
+
+
+class MmseConfig(Params):
+    alpha_scale: float = Field(
+        1.0,
+        gt=0.0,
+        le=1e6,
+        description="regularization over the noise-optimal n_ut / (n_beam P_RF)",
+    )
+
+
+PRECODERS.add("none", lambda p, c: _Fixed("none"), doc="no digital precoder (F_BB = selection)")
+PRECODERS.add("zf", lambda p, c: _Fixed("zf"), doc="zero forcing, F = H^H (H H^H)^-1")
+PRECODERS.add(
+    "zf_normalized",
+    lambda p, c: _Fixed("zf_normalized"),
+    doc="zero forcing with unit-norm columns (equal power per UT)",
+)
+PRECODERS.add(
+    "mmse",
+    lambda p, c: _Fixed("mmse", p.alpha_scale),
+    config=MmseConfig,
+    doc="regularized ZF, F = H^H (H H^H + alpha I)^-1",
+)
 
 
 def _masks(h, ut_mask, beam_mask):
@@ -125,7 +192,7 @@ def precoder_matrix(
     h_est : array_like of complex, shape (..., n_ut, n_beam)
         Channel used to compute the precoder (noise-normalized, see the module docstring);
         any batch shape (satellites, slots, drops).
-    kind : {"none", "zf", "mmse"}
+    kind : {"none", "zf", "zf_normalized", "mmse"}
     p_rf : float
         Power per RF chain, ``P_RF`` [unit of ``H``], > 0.
     serving_beam : array_like of int, shape (..., n_ut), optional
@@ -148,8 +215,8 @@ def precoder_matrix(
     ConfigError
         For an unknown ``kind``, or ``"none"`` without ``serving_beam``.
     """
-    if kind not in PRECODERS:
-        raise ConfigError(f"link.precoder = {kind!r} is not allowed; use one of {PRECODERS}")
+    if kind not in _KINDS:
+        raise ConfigError(f"link.precoder = {kind!r} is not allowed; use one of {_KINDS}")
     h = np.asarray(h_est, dtype=complex)
     ut, beam = _masks(h, ut_mask, beam_mask)
     h = np.where(ut[..., :, None] & beam[..., None, :], h, 0.0)
@@ -157,9 +224,12 @@ def precoder_matrix(
         if serving_beam is None:
             raise ConfigError("precoder 'none' needs serving_beam (the beam of each UT)")
         f0 = _selection(serving_beam, ut, h.shape[-1])
-    elif kind == "zf":
+    elif kind in ("zf", "zf_normalized"):
         # pinv = H^H (H H^H)^-1 for full row rank; zero rows (padding) give zero columns.
         f0 = np.linalg.pinv(h)
+        if kind == "zf_normalized":
+            norm = np.linalg.norm(f0, axis=-2, keepdims=True)
+            f0 = f0 / np.where(norm > 0.0, norm, 1.0)
     else:
         if alpha is None:
             alpha = mmse_regularization(ut.sum(-1), np.maximum(beam.sum(-1), 1), p_rf, noise_lin)

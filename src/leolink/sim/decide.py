@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.geometry import enu_basis
+from leolink.sim.active_beams import restrict
 from leolink.sim.candidates import Candidates
 from leolink.sim.controller import concat_events, resumed_events, step
 from leolink.sim.environment import candidate_margin_db
@@ -54,11 +55,15 @@ class Decider:
     panels : leolink.antenna.panel.PanelOrientation or None
         The UTs' turned or tilted panels (None: lying flat, x east): their rows per epoch
         of the block are ``panel`` (n_k, n_ut, 3, 3), handed to the engine.
+    selector : leolink.sim.active_beams.BeamSelector, optional
+        Active beams: the controller chooses among the lit beams of each epoch, and every
+        visible cell is a candidate (a lit neighbour may be further down than the
+        policy's window). None: every beam lit (today's run, untouched).
     """
 
     def __init__(self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad,
                  radius_m, future_state, motion, epoch_s=1.0, ellipsoidal=False,
-                 prune=True, panels=None, rlf=None):  # fmt: skip
+                 prune=True, panels=None, rlf=None, selector=None):  # fmt: skip
         self.engine, self.policy, self.rlf = engine, policy, rlf
         run = getattr(policy, "run", None)  # per-cell state: the policy's own run
         self.trigger = run(engine, min_snr_db, radius_m, future_state, epoch_s) if run else None
@@ -68,7 +73,10 @@ class Decider:
         self.radius_m = radius_m
         self.future_state, self.motion = future_state, motion
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
-        self.window_db, self.prune = neighbour_window_db(policy), prune
+        self.selector = selector
+        # Active beams: the best lit cell may be far below the best cell, so no window.
+        self.window_db = neighbour_window_db(policy) if selector is None else np.inf
+        self.prune = prune
         # A policy blind to cells below the service threshold needs none of them.
         self.floor_db = min_snr_db if getattr(policy, "usable_cells_only", False) else -np.inf
         self.search = CandidateSearch(engine, self.window_db, prune, self.floor_db)
@@ -132,6 +140,8 @@ class Decider:
             future = self._future(table, state.t_s + self.policy.lookahead_s, k)
         if self.channel is not None:
             table, future, best_cell = self._environment(state, table, future)
+        if self.selector is not None:
+            table, future = self._lit_only(state, table, future, best_cell, k)
         t = state.t_s
         decided, target = self._masked(state, table), None
         if self.trigger is not None:
@@ -175,6 +185,15 @@ class Decider:
         if not state.rlf_blocked.any():
             return table
         return table.like(np.where(state.rlf_blocked[:, None], np.nan, table.snr_db))
+
+    def _lit_only(self, state, table, future, best_cell, k):
+        """The tables restricted to this epoch's lit beams (``state.lit`` set)."""
+        sel = self.selector
+        state.lit = np.asarray(sel.lit(k, best_cell, self.mb.sat_pos_m.shape[1]), bool)
+        table = restrict(table, state.lit, best_cell, sel.dark_fallback)
+        if future is not None:  # the beams lit now (the future's are not decided yet)
+            future = restrict(future, state.lit, best_cell, sel.dark_fallback)
+        return table, future
 
     def _with_serving(self, table, rows, serving):
         """``table`` with each UT's serving cell added where it is missing and above the

@@ -57,6 +57,8 @@ class _Record:
     channel: object = None  # EpochChannel of the UTs' environments (None: open country)
     env_cols: dict | None = None  # the environment columns of each UT's link (geo_sat)
     open_snr_db: np.ndarray | None = None  # best SNR without the environment [dB]
+    lit: np.ndarray | None = None  # (n_sat, n_beam) lit beams (active beams), None: all
+    share: np.ndarray | None = None  # (n_ut,) time share of the UT's beam (sharing on)
 
 
 class Monitor:
@@ -80,11 +82,14 @@ class Monitor:
         engine's power and bandwidth, service as the controller judged it).
     rlf : leolink.sim.rlf_run.RlfRun or None
         Radio link failure bookkeeping (None: off; module docstring).
+    service : leolink.sim.beam_service.BeamService, optional
+        Beam sharing and precoding (adds the ``n_sharing`` column); None: today's links.
     """
 
     def __init__(self, engine, sink, decider, fading_k=None, ut_keys=None, epoch_s=1.0,
-                 population=(), link=None, rlf=None):  # fmt: skip
+                 population=(), link=None, rlf=None, service=None):  # fmt: skip
         self.engine, self.sink, self.decider, self.rlf = engine, sink, decider, rlf
+        self.service = service
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.epoch_s = float(epoch_s)
         self.population = np.asarray(population, dtype=object)
@@ -129,6 +134,7 @@ class Monitor:
         gap_s = interruption_s(state.t_s, self.epoch_s, res.state)
         rec = _Record(state.k, state.t_s, res, geo_sat, geo_beam, gap_s, state.n_visible,
                       state.best_snr_db, state.cand_sats)  # fmt: skip
+        rec.lit = getattr(state, "lit", None)
         if state.channel is not None:
             rec.channel, rec.open_snr_db = state.channel, state.open_snr_db
             rec.env_cols = state.channel.columns(geo_sat)
@@ -166,7 +172,15 @@ class Monitor:
         epoch = rows // n_ut
         s = np.where(served, geo_sat, 0)
         up_enu = None if dec.enu is None else dec.enu.reshape(-1, 3, 3)[rows]
-        return eng.serve_pairs(
+        lit = None
+        if recs[0].lit is not None:  # active beams: the lit beams of each row's satellite
+            lit = np.concatenate([r.lit[np.maximum(r.geo_sat, 0)] for r in recs])
+            # an outage row's geometry beam (its best, maybe dark) counts as its signal
+            lit[np.arange(rows.size), np.maximum(geo_beam, 0)] = True
+        fading = self._rx_factor(recs, links, pair)  # with the environment's loss
+        i_other = self._other_satellites(recs, geo_sat, geo_beam)
+        ut_pos = mb.ut_pos_m.reshape(-1, 3)[rows]
+        cols = eng.serve_pairs(
             links,
             pair,
             geo_beam,
@@ -174,11 +188,34 @@ class Monitor:
             mb.ut_acc_m_s2.reshape(-1, 3)[rows],
             mb.sat_vel_m_s[epoch, s],
             mb.sat_acc_m_s2[epoch, s],
-            rx_fading_lin=self._rx_factor(recs, links, pair),
-            i_other=self._other_satellites(recs, geo_sat, geo_beam),
-            ut_pos_m=mb.ut_pos_m.reshape(-1, 3)[rows],
+            rx_fading_lin=fading,
+            i_other=i_other,
+            ut_pos_m=ut_pos,
             ut_enu=up_enu,
+            lit=lit,
         )
+        if self.service is not None:
+            path = links.path_snr_lin[np.maximum(pair, 0)] * (1.0 if fading is None else fading)
+            inputs = dict(ut_pos_m=ut_pos, sat_pos_m=mb.sat_pos_m[epoch, s],
+                          sat_vel_m_s=mb.sat_vel_m_s[epoch, s], path_snr_lin=path,
+                          i_other=i_other)  # fmt: skip
+            self._share(recs, cols, inputs)
+        return cols
+
+    def _share(self, recs, cols, inputs):
+        """Beam sharing and precoding, epoch by epoch (:mod:`leolink.sim.beam_service`)."""
+        n_ut = len(recs[0].geo_sat)
+        cols["n_sharing"] = np.zeros(len(recs) * n_ut, np.int64)
+        for i, rec in enumerate(recs):
+            sl = slice(i * n_ut, (i + 1) * n_ut)
+            part = {name: v[sl].copy() for name, v in cols.items()}
+            res = rec.decision
+            served = (res.sat_id >= 0) & (res.service != SERVICE_OUTAGE)
+            rec.share = self.service.apply(part, res.sat_id, res.beam_id, served, rec.lit,
+                                           lambda sl=sl: {k: None if v is None else v[sl]
+                                                          for k, v in inputs.items()})  # fmt: skip
+            for name, v in part.items():
+                cols[name][sl] = v
 
     def _rx_factor(self, recs, links, pair):
         """Receive-power factor of each row's path: fading and the environment's loss."""
@@ -223,7 +260,8 @@ class Monitor:
             if rec.channel is not None:  # each interfering path with its own state
                 loss_db = rec.channel.loss_db(np.broadcast_to(cone, (n_ut, len(cone))))
                 snap.path_no_rx_lin = snap.path_no_rx_lin * 10.0 ** (-loss_db / 10.0)
-            out.append(eng.other_satellites_interference(snap, s, b, u))
+            lit = None if rec.lit is None else rec.lit[cone]
+            out.append(eng.other_satellites_interference(snap, s, b, u, lit))
         return np.concatenate(out)
 
     def _columns(self, rec, cols):
@@ -242,7 +280,8 @@ class Monitor:
         if handover.any():  # the served part of the epoch only
             for name in ("se_bps_hz", "throughput_bps"):
                 cols[name] = np.where(handover, cols[name] * served, cols[name])
-        self.link.add_figures(cols, served)
+        # the ACM throughput too is the UT's share of its beam's time
+        self.link.add_figures(cols, served if rec.share is None else served * rec.share)
         reason = service.astype(np.int8)  # served -> none, handover -> handover
         reason[outage] = np.where(rec.n_visible[outage] > 0, 3, 2)
         if rec.env_cols is not None:

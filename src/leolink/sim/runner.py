@@ -18,6 +18,8 @@ from leolink.antenna.panel import PanelOrientation
 from leolink.engine import LinkEngine
 from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
+from leolink.sim.active_beams import BeamSelector
+from leolink.sim.beam_service import BeamService
 from leolink.sim.controller import ControllerState
 from leolink.sim.decide import Decider
 from leolink.sim.environment import ChannelTracker
@@ -78,6 +80,10 @@ class Scenario:
     environments : list of EnvironmentModel or None, one per population
         (:func:`leolink.sim.environment.environment_models`); None: every UT in open
         country, the paper's link.
+    selector : BeamSelector or None, active beams (:mod:`leolink.sim.active_beams`);
+        None: every beam lit.
+    service : BeamService or None, beam sharing and precoding
+        (:mod:`leolink.sim.beam_service`; adds the ``n_sharing`` trace column); None: none.
     """
 
     engine: LinkEngine
@@ -99,6 +105,8 @@ class Scenario:
     panels: PanelOrientation | None = None
     environments: list | None = None
     rlf: object | None = None
+    selector: BeamSelector | None = None
+    service: BeamService | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -207,6 +215,7 @@ def run_simulation(
         prune=scen.prune,
         panels=scen.panels,
         rlf=rlf,
+        selector=scen.selector,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None or scen.environments else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
@@ -216,13 +225,23 @@ def run_simulation(
         decide.with_channel(ChannelTracker(scen.environments, counts, keys, decide.min_el))
         environment = decide.channel.environment
     monitor = Monitor(
-        scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link, rlf
+        scen.engine,
+        sink,
+        decide,
+        scen.fading_k,
+        keys,
+        scen.epoch_s,
+        names,
+        scen.link,
+        rlf,
+        service=scen.service,
     )
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
         n_ut, scen.ephemeris.n_sat, scen.engine.n_beam, scen.epoch_s,
         float(times[scen.n_warmup]), len(times) - scen.n_warmup, names, environment,
+        ("n_sharing",) if scen.service is not None else (),
     )  # fmt: skip
     t_wall = time.perf_counter()
     try:  # start inside: a signal while the later sinks start aborts the earlier ones

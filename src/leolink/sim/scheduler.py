@@ -33,12 +33,17 @@ References
    antennas," IEEE Trans. Inf. Theory, 48(6), pp. 1277-1294, 2002.
 """
 
+from typing import Protocol, runtime_checkable
+
 import numpy as np
+from pydantic import Field
 
 from leolink.errors import ConfigError
+from leolink.registry import Params, Registry
 
 __all__ = [
     "SCHEDULERS",
+    "Scheduler",
     "beam_groups",
     "delivered_rate",
     "proportional_fair",
@@ -47,8 +52,23 @@ __all__ = [
     "slot_shares",
 ]
 
-#: Names of the schedulers (``scheduler.kind`` in a config).
-SCHEDULERS = ("round_robin", "round_robin_slots", "proportional_fair")
+
+@runtime_checkable
+class Scheduler(Protocol):
+    """How the UTs of one beam share its time (``scheduler.kind``)."""
+
+    #: False: no sharing, every UT of a beam at the beam's full rate (today's leolink).
+    shares: bool
+
+    def schedule(self, group, n_group, rate):
+        """``(schedule (n_slots, n_group) of UT indices or -1, share (n_ut,))`` of one
+        epoch; ``group (n_ut,)`` from :func:`beam_groups`, ``rate (n_ut,)`` each UT's
+        rate when served [bit/s] (NaN or 0: no link)."""
+        ...
+
+
+#: Schedulers by config name (``scheduler.kind``).
+SCHEDULERS: Registry[Scheduler] = Registry("scheduler.kind", Scheduler)
 
 
 def beam_groups(sat_idx, beam_idx, n_beam):
@@ -199,3 +219,75 @@ def delivered_rate(schedule, rate):
     slot, _ = np.nonzero(s >= 0)
     ut = s[s >= 0]
     return np.bincount(ut, weights=rate[slot, ut], minlength=rate.shape[1]) / s.shape[0]
+
+
+@SCHEDULERS.register("none")
+class NoSharing:
+    """No sharing: every UT of a beam gets the beam's full rate (today's leolink)."""
+
+    shares = False
+
+    def schedule(self, group, n_group, rate):
+        raise NotImplementedError("scheduler 'none' shares nothing")
+
+
+def _rank_in_group(group):
+    """Rank of each served UT within its group by ``ut_id`` (0, 1, ...), -1 unserved."""
+    group = np.asarray(group)
+    ut = np.flatnonzero(group >= 0)
+    order = ut[np.lexsort((ut, group[ut]))]
+    first = np.r_[True, group[order][1:] != group[order][:-1]]
+    start = np.maximum.accumulate(np.where(first, np.arange(order.size), 0))
+    rank = np.full(group.size, -1)
+    rank[order] = np.arange(order.size) - start
+    return rank
+
+
+@SCHEDULERS.register("round_robin")
+class RoundRobin:
+    """Fluid round robin: each of the n UTs of a beam gets 1/n of the epoch."""
+
+    shares = True
+
+    def schedule(self, group, n_group, rate):
+        """Share ``1 / n``; the slots (for the precoder) are ``L`` = the largest group:
+        slot ``s`` serves the member of rank ``s mod n`` (by ``ut_id``) of each group."""
+        group = np.asarray(group)
+        share = round_robin_share(group)
+        size = np.bincount(group[group >= 0], minlength=n_group)
+        n_slots = max(int(size.max(initial=0)), 1)
+        rank = _rank_in_group(group)
+        schedule = np.full((n_slots, n_group), -1)
+        ut = np.flatnonzero(group >= 0)
+        for s in range(n_slots):  # loop over slots only (at most the largest group)
+            on = ut[rank[ut] == s % size[group[ut]]]
+            schedule[s, group[on]] = on
+        return schedule, share
+
+
+class ProportionalFairConfig(Params):
+    slots_per_epoch: int = Field(10, ge=1, le=10_000, description="scheduling slots per epoch")
+    t_c_slots: float = Field(
+        100.0, ge=1.0, le=1e9, description="averaging window of the served rate [slots]"
+    )
+
+
+@SCHEDULERS.register("proportional_fair", config=ProportionalFairConfig)
+class ProportionalFair:
+    """Proportional fair per beam over slots_per_epoch slots, averaged rate kept over epochs."""
+
+    shares = True
+
+    def __init__(self, slots_per_epoch=10, t_c_slots=100.0):
+        self.n_slots, self.t_c_slots = int(slots_per_epoch), float(t_c_slots)
+        self.avg_rate = None
+
+    def schedule(self, group, n_group, rate):
+        rate = np.nan_to_num(np.asarray(rate, dtype=float), nan=0.0)
+        if self.avg_rate is None or self.avg_rate.size != rate.size:
+            self.avg_rate = np.zeros(rate.size)
+        slots = np.broadcast_to(rate, (self.n_slots, rate.size))
+        sched, share, self.avg_rate = proportional_fair(
+            group, n_group, slots, self.avg_rate, self.t_c_slots
+        )
+        return sched, share

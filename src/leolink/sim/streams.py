@@ -32,6 +32,8 @@ class RunInfo:
     environment : tuple of str, the TR 38.811 environment of every UT when the run models
         environments (the trace then has ``leolink.io.tables.ENVIRONMENT_COLUMNS``);
         empty for the paper's open-country link.
+    extra_columns : tuple of str, trace columns of this run beyond ``TRACE_COLUMNS``
+        (``n_sharing`` with beam sharing).
     """
 
     n_ut: int
@@ -42,6 +44,7 @@ class RunInfo:
     n_epochs: int
     population: tuple[str, ...]
     environment: tuple[str, ...] = ()
+    extra_columns: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
