@@ -279,11 +279,11 @@ def test_interfering_satellites_paths_keep_their_own_states(tmp_path, monkeypatc
 
     factors, real = [], LinkEngine.other_satellites_interference
 
-    def spy(self, snap, s, b, u):
+    def spy(self, snap, s, b, u, *lit):
         # The paths' power over the engine's own path without the UT gain: the factor.
         el, path = snap.elevation_rad, snap.path_lin / 10.0 ** (snap.rx_db / 10.0)
         factors.append(np.where(el > 0.0, snap.path_no_rx_lin / path, 1.0))
-        return real(self, snap, s, b, u)
+        return real(self, snap, s, b, u, *lit)
 
     monkeypatch.setattr(LinkEngine, "other_satellites_interference", spy)
     t = run(load_config(tmp_path / "w.toml", over)).trace

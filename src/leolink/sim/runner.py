@@ -202,21 +202,11 @@ def run_simulation(
         rlf = RlfRun(scen.rlf, n_ut, scen.engine.n_beam, OUTAGE_REASONS.index(RLF_REASON))
     motion = MotionBlocks(scen.ephemeris, scen.populations, times, scen.ephemeris.n_sat, n_ut)
     decide = Decider(
-        scen.engine,
-        scen.policy,
-        scen.min_snr_db,
-        scen.handover_time_s,
-        scen.min_elevation_rad,
-        scen.radius_m,
-        future_state,
-        motion,
-        epoch_s=scen.epoch_s,
-        ellipsoidal=scen.ellipsoidal,
-        prune=scen.prune,
-        panels=scen.panels,
-        rlf=rlf,
+        scen.engine, scen.policy, scen.min_snr_db, scen.handover_time_s,
+        scen.min_elevation_rad, scen.radius_m, future_state, motion, epoch_s=scen.epoch_s,
+        ellipsoidal=scen.ellipsoidal, prune=scen.prune, panels=scen.panels, rlf=rlf,
         selector=scen.selector,
-    )
+    )  # fmt: skip
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None or scen.environments else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
     environment = ()
@@ -225,17 +215,9 @@ def run_simulation(
         decide.with_channel(ChannelTracker(scen.environments, counts, keys, decide.min_el))
         environment = decide.channel.environment
     monitor = Monitor(
-        scen.engine,
-        sink,
-        decide,
-        scen.fading_k,
-        keys,
-        scen.epoch_s,
-        names,
-        scen.link,
-        rlf,
+        scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link, rlf,
         service=scen.service,
-    )
+    )  # fmt: skip
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
