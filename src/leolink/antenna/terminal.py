@@ -50,7 +50,7 @@ __all__ = [
 
 
 @runtime_checkable
-class TerminalAntenna(Protocol):
+class TerminalAntenna(Protocol):  # pragma: no mutate block (mutants would add protocol members)
     """What the engine needs of a UT antenna steered at its serving satellite.
 
     ``gain_db(elevation_rad, off_boresight_rad, error_azimuth_rad)`` [dB] broadcasts;
