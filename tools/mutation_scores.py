@@ -56,6 +56,7 @@ MODULES = {
     "antenna/array": [
         "tests/test_array.py",
         "tests/test_array_contracts.py",
+        "tests/test_array_kernels.py",
         "tests/test_trace_independent.py",
     ],
     "antenna/codebook": ["tests/test_codebook.py", "tests/test_trace_independent.py"],
@@ -76,6 +77,7 @@ MODULES = {
     "antenna/response": ["tests/test_response.py", "tests/test_precoder.py"],
     "antenna/terminal": [
         "tests/test_terminal.py",
+        "tests/test_terminal_contracts.py",
         "tests/test_terminal_scan_loss.py",
         "tests/test_impairments.py",
         "tests/test_trace_independent.py",
