@@ -250,3 +250,28 @@ def test_scan_loss_beyond_90_deg_is_inf_without_a_warning():
         got = scan_loss_db(np.radians([90.0, 120.0, 60.0]), 2.0)
     assert np.isinf(got[:2]).all()
     assert got[2] == pytest.approx(-20.0 * np.log10(0.5), rel=1e-12)
+
+
+def test_panel_frame_functions_keep_float64_for_float32_inputs():
+    # float32 angles (7 digits) must give the float64 result of the same values.
+    el = np.array([0.11, 0.52, 1.2], np.float32)
+    az = np.array([0.3, 2.2, 5.1], np.float32)
+    f64 = el.astype(float), az.astype(float)
+    np.testing.assert_allclose(sky_direction(el, az), sky_direction(*f64), rtol=1e-14)
+    np.testing.assert_allclose(sky_direction(el, f64[1]), sky_direction(*f64), rtol=1e-14)
+    np.testing.assert_allclose(sky_direction(f64[0], az), sky_direction(*f64), rtol=1e-14)
+    d, psi = np.float32(0.05), np.array([0.4, 1.9, 4.0], np.float32)
+    got = np.array(pointing_offsets(el, d, psi, az))
+    ref = np.array(pointing_offsets(*f64[:1], np.float64(d), psi.astype(float), f64[1]))
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-15)
+    enu = _enu_by_cross_products(_ut_positions(3))
+    np.testing.assert_allclose(oriented_panel_basis(enu, el, az),
+                               oriented_panel_basis(enu, *f64), rtol=1e-13, atol=1e-15)  # fmt: skip
+
+
+def test_panel_elevation_right_behind_the_panel_is_minus_90_deg_not_nan():
+    enu = _enu_by_cross_products(_ut_positions(500))
+    basis = oriented_panel_basis(enu, RNG.uniform(0, 1, 500), RNG.uniform(-3, 3, 500))
+    got = panel_elevation_rad(basis, -basis[:, 2:3, :])
+    assert not np.isnan(got).any()
+    np.testing.assert_allclose(got, -np.pi / 2, atol=3e-8)

@@ -161,6 +161,10 @@ def test_terminal_groups_answer_with_each_uts_own_antenna():
         ref = m.gain_db(np.pi / 2) if m.elevation_independent else m.gain_db(el[u], err)
         np.testing.assert_allclose(got_err[u], np.broadcast_to(ref, 3), atol=1e-12)
     assert (got_err[1] < got[1] - 0.01).all()  # the scanned UPA loses by the error
+    # ... in the direction given (sideways here).
+    side = tg.gain_db(el, err, np.pi / 2)
+    np.testing.assert_allclose(side[1], members[0].gain_db(el[1], err, np.pi / 2), atol=1e-12)
+    assert np.abs(side[1] - got_err[1]).max() > 1e-3
     # The scanned UPA depends on the elevation; the others do not.
     assert np.ptp(got[1]) > 1.0 and np.ptp(got[0]) == 0.0
     members = (members[0], members[1], members[3])  # each with a pattern
@@ -181,7 +185,9 @@ def test_terminal_groups_without_a_pattern_and_bad_groups():
     assert both.pattern_lin is not None
     assert "n_ut=2" in repr(both)
     for group in ([0, 0, 0], [0, -1, 1], [1, 1]):
-        with pytest.raises(ValueError, match="every terminal needs UTs, every UT a terminal"):
+        with pytest.raises(
+            ValueError, match="^TerminalGroups: every terminal needs UTs, every UT a terminal$"
+        ):
             TerminalGroups((Isotropic(), FixedGain(3.0)), group)
 
 

@@ -39,7 +39,7 @@ MODULES = {
     # mutated (mutmut's trampolines cannot run inside jitted code): every run here sets
     # LEOLINK_JIT=0, so the numpy reference path is what is measured.
     "engine/__init__": ENGINE_TESTS,
-    "engine/links": ENGINE_TESTS,
+    "engine/links": [*ENGINE_TESTS, "tests/test_links_contracts.py"],
     "engine/screening": ENGINE_TESTS,
     "kinematics": ["tests/test_kinematics.py", "tests/test_trace_independent.py"],
     "geometry": [

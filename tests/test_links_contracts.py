@@ -1,0 +1,183 @@
+"""engine/links.py contracts: pairs taken and joined, per-UT terminal gains, edges of the
+geometry, reuse colours and azimuths, each checked another way.
+
+Written from the survivors of a mutation run (docs/testing.md). References: the pairs
+evaluated one at a time and in other orders; each terminal of a ``TerminalGroups`` alone;
+satellites exactly at the zenith / nadir of a UT (elevation +-90 deg, where ``|sin el|``
+exceeds 1 by an ulp for some UTs) and along / against a tilted panel normal; lines of sight
+built at a known azimuth in a local frame made by cross products; the neighbour property
+of the reuse colours.
+"""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from leolink.antenna.terminal import FixedGain, Isotropic, TerminalGroups, UPATerminal
+from leolink.app.scenario import codebook_from_config
+from leolink.config import load_config
+from leolink.engine import LinkEngine, LinkParams, reuse_colors
+from leolink.engine.links import (
+    Links,
+    azimuth_deg,
+    group_constants_db,
+    panel_elevation_of_pairs,
+    rows_gain_db,
+)
+from leolink.link.atmosphere import FixedLoss
+
+PAPER = "configs/paper.toml"
+R = 6_371_000.0
+RNG = np.random.default_rng(1616)
+
+
+def _engine(terminal=None):
+    cb = codebook_from_config(load_config(PAPER))
+    params = LinkParams(11.45e9, 250e6, 15.0, 0.0, 24.1, math.radians(25.0))
+    return LinkEngine(cb, terminal or Isotropic(), params, FixedLoss(0.0))
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _sphere_points(n):
+    return R * _unit(RNG.normal(size=(n, 3)))
+
+
+def _links(eng, n_ut=6, n_sat=3):
+    ut = _sphere_points(n_ut)
+    sat = 1.2 * _sphere_points(n_sat)
+    vel = np.cross(sat, [0.0, 0.0, 1.0])
+    iu, js = np.meshgrid(np.arange(n_ut), np.arange(n_sat), indexing="ij")
+    return eng.evaluate_pairs(ut, sat, vel, iu.ravel(), js.ravel()), (ut, sat, vel)
+
+
+def test_take_and_concat_keep_each_pairs_values():
+    eng = _engine(TerminalGroups((UPATerminal(4, 4, 10.0, scan_loss=True), Isotropic()),
+                                 [0, 1, 0, 1, 1, 0]))  # fmt: skip
+    links, _ = _links(eng)
+    assert np.ndim(links.rx_db) == 1  # per pair
+    idx = np.array([5, 0, 11, 3])
+    part = links.take(idx)
+    for name in ("ut", "sat", "rel_m", "slant_range_m", "elevation_rad", "path_lin", "rx_db"):
+        np.testing.assert_array_equal(getattr(part, name), getattr(links, name)[idx])
+    np.testing.assert_array_equal(part.kx, links.kx[:, idx])
+    both = Links.concat([links.take(np.arange(0, 7)), links.take(np.arange(7, 18))])
+    np.testing.assert_array_equal(both.rx_db, links.rx_db)
+    np.testing.assert_array_equal(both.ky, links.ky)
+
+
+def test_concat_of_constant_terminal_gains():
+    eng = _engine(FixedGain(7.5))
+    links, _ = _links(eng)
+    assert np.ndim(links.rx_db) == 0
+    assert np.ndim(links.take(np.array([1, 2])).rx_db) == 0
+    same = Links.concat([links.take(np.arange(0, 5)), links.take(np.arange(5, 18))])
+    assert np.ndim(same.rx_db) == 0 and same.rx_db == 7.5  # one constant stays one number
+    other = links.take(np.arange(5, 18))
+    other.rx_db = 2.0  # another part with another constant gain: one value per pair
+    mixed = Links.concat([links.take(np.arange(0, 5)), other])
+    np.testing.assert_array_equal(mixed.rx_db, [7.5] * 5 + [2.0] * 13)
+
+
+def test_rows_gain_db_per_ut_terminal_with_and_without_the_constants():
+    members = (UPATerminal(4, 4, 10.0, scan_loss=True), FixedGain(3.0), Isotropic())
+    groups = TerminalGroups(members, [2, 0, 1, 0, 2])
+    ut_id = np.array([0, 1, 1, 3, 2, 4, 1])
+    el = np.radians([20.0, 35.0, 60.0, 80.0, 10.0, 45.0, 15.0])
+    for constants in (None, group_constants_db(groups)):
+        got = rows_gain_db(groups, el, ut_id, constants)
+        for p, u in enumerate(ut_id):
+            assert got[p] == pytest.approx(
+                float(members[groups.group[u]].gain_db(el[p])), abs=1e-12
+            )
+    assert group_constants_db(groups) == [None, 3.0, 0.0]
+
+
+def test_elevation_at_the_zenith_and_nadir_and_along_a_tilted_normal():
+    eng = _engine()
+    ut = _sphere_points(400)
+    sat = np.concatenate([ut * 1.2, -ut * 1.2])  # right above, right below (through the Earth)
+    vel = np.cross(sat, [0.0, 0.0, 1.0]) + np.array([1.0, 0.0, 0.0])
+    iu = np.concatenate([np.arange(400), np.arange(400)])
+    for up in (None, _unit(ut)):
+        links = eng.evaluate_pairs(ut, sat, vel, iu, np.arange(800), ut_up=up)
+        np.testing.assert_allclose(links.elevation_rad[:400], np.pi / 2, atol=3e-8)
+        np.testing.assert_allclose(links.elevation_rad[400:], -np.pi / 2, atol=3e-8)
+        assert links.visible[:400].all() and not links.visible[400:].any()
+    # Tilted normals: a satellite along the normal is 90 deg above the panel plane.
+    normal = _unit(_unit(ut) + 0.4 * _unit(RNG.normal(size=(400, 3))))
+    rel = np.concatenate([-normal, normal]) * 7e5  # satellite -> UT
+    rho = np.linalg.norm(rel, axis=1)
+    el = panel_elevation_of_pairs(rel, rho, normal, iu)
+    np.testing.assert_allclose(el[:400], np.pi / 2, atol=3e-8)
+    np.testing.assert_allclose(el[400:], -np.pi / 2, atol=3e-8)
+
+
+def test_snr_in_db_of_a_null_kernel_is_minus_inf_without_a_warning():
+    ut = _sphere_points(2)
+    sat = 1.2 * ut  # at the zenith: visible
+    links = _engine().evaluate_pairs(
+        ut, sat, np.cross(sat, [0, 0, 1.0]), np.arange(2), np.arange(2)
+    )
+    links.kx[0, 0] = 0.0  # an exact null of the beam pattern
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        snr = links.snr_db_bm(np.array([0, 1]), np.array([0, 0]))
+    assert snr[0, 0] == -np.inf
+
+
+def test_reuse_colours_of_a_lattice():
+    i, j = np.meshgrid(np.arange(6), np.arange(5), indexing="ij")
+    ij = np.stack([i.ravel(), j.ravel()], axis=1)
+    grid = {(a, b): k for k, (a, b) in enumerate(ij)}
+    ones = reuse_colors(ij, 1)
+    assert ones.dtype.kind == "i" and (ones == 0).all()
+    for n in (3, 4):
+        c = reuse_colors(ij, n)
+        assert c.dtype.kind == "i" and set(c.tolist()) == set(range(n))
+        for (a, b), k in grid.items():  # no edge neighbour shares the colour
+            for nb in ((a + 1, b), (a, b + 1)):
+                if nb in grid:
+                    assert c[k] != c[grid[nb]]
+    # 2 x 2 pattern: the colour repeats with period 2 along each axis.
+    c4 = reuse_colors(ij, 4)
+    assert c4[grid[(0, 0)]] == c4[grid[(2, 0)]] == c4[grid[(0, 2)]] == c4[grid[(4, 4)]]
+    with pytest.raises(ValueError, match="reuse_colors = 2 is not allowed; use 1, 3 or 4"):
+        reuse_colors(ij, 2)
+
+
+def _enu(pos):
+    up = _unit(pos)
+    east = _unit(np.cross([0.0, 0.0, 1.0], up))
+    return np.stack([east, np.cross(up, east), up], axis=1)
+
+
+def _assert_same_angle(got_deg, want_deg):
+    assert ((got_deg >= 0.0) & (got_deg <= 360.0)).all()
+    np.testing.assert_allclose(np.mod(got_deg - want_deg + 180.0, 360.0) - 180.0, 0.0, atol=1e-9)
+
+
+def test_azimuth_of_lines_of_sight_in_the_sphere_and_in_a_given_frame():
+    n = 8
+    pos = _sphere_points(n)
+    az = np.array([0.0, 10.0, 89.0, 135.0, 181.0, 250.0, 300.0, 359.0])
+    el = np.radians(30.0)
+    for enu in (_enu(pos), None):
+        frame = _enu(pos) if enu is None else enu
+        los = (
+            (np.sin(np.radians(az)) * np.cos(el))[:, None] * frame[:, 0]
+            + (np.cos(np.radians(az)) * np.cos(el))[:, None] * frame[:, 1]
+            + np.sin(el) * frame[:, 2]
+        )
+        _assert_same_angle(azimuth_deg(los, pos, enu), az)
+    # A given frame (here turned 20 deg about up) is the one used, not the sphere's.
+    t = np.radians(20.0)
+    e, nn, u = _enu(pos)[:, 0], _enu(pos)[:, 1], _enu(pos)[:, 2]
+    turned = np.stack([np.cos(t) * e - np.sin(t) * nn, np.sin(t) * e + np.cos(t) * nn, u], axis=1)
+    los = np.cos(el) * turned[:, 1] + np.sin(el) * u  # due "north" of the turned frame
+    _assert_same_angle(azimuth_deg(los, pos, turned), np.zeros(n))
+    _assert_same_angle(azimuth_deg(los, pos, None), np.full(n, 20.0))  # the turned north
