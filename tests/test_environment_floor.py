@@ -32,7 +32,7 @@ def _run(tmp_path, policy_sets, exhaustive):
     path = tmp_path / "walker_suburban.toml"
     path.write_text(text)
     # The threshold (min_snr_db = 1 dB) in the middle of the SNRs after the environment.
-    sets = ["run.duration_s=200", "controller.min_snr_db=1", "output.plots.enabled=false"]
+    sets = ["run.duration_s=100", "controller.min_snr_db=1", "output.plots.enabled=false"]
     scen = build_scenario(load_config(path, sets + policy_sets))
     if exhaustive:
         scen.policy.usable_cells_only = False  # no floor: every visible cell in the tables
@@ -57,5 +57,5 @@ def test_shadowed_runs_on_the_pruned_tables_equal_every_cell(tmp_path, policy_se
     pd.testing.assert_frame_equal(trace, trace_ref)
     pd.testing.assert_frame_equal(events, events_ref)
     # The threshold sits in the middle of the shadowed SNRs: handovers and outages.
-    assert events.kind.isin(["beam_handover", "sat_handover"]).sum() >= 5
+    assert events.kind.isin(["beam_handover", "sat_handover"]).sum() >= 3
     assert (events.kind == "outage_end").sum() >= 5
