@@ -3,7 +3,8 @@
 The default sinks: the summary statistics (always), and the enabled ``[output.*]``
 sinks (trace and event files, plots) when there is an output folder; without one the
 trace and events are kept in memory. ``summary.json`` and ``config.resolved.toml`` are
-written last.
+written last; with more than ``PER_UT_IN_JSON_MAX`` UTs the per-UT statistics and the
+dwells go to ``per_ut.parquet`` and ``dwells.parquet`` instead of ``summary.json``.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from leolink.config import dump_toml
 from leolink.io.atomic import write_json_atomic, write_text_atomic
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary import SummaryAccumulator
+from leolink.io.tables import write_parquet_atomic
 from leolink.sim.runner import run_simulation
 
 __all__ = ["Result", "run", "run_notes"]
@@ -36,6 +38,12 @@ class Result:
     out_dir: Path | None
     files: list[Path] = dataclasses.field(default_factory=list)
     _memory: MemorySink | None = None
+    _per_ut: dict | None = None
+
+    @property
+    def per_ut(self) -> pd.DataFrame:
+        """Per-UT statistics, one row per UT (``SummaryAccumulator.per_ut_table``)."""
+        return pd.DataFrame(self._per_ut)
 
     @property
     def trace(self) -> pd.DataFrame:
@@ -123,9 +131,16 @@ def run(cfg, out_dir=None, progress=None):
     stats = run_simulation(scen, sinks, progress=progress)
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
     memory = sinks[1] if out_dir is None else None
+    per_ut = summary.per_ut_table()
     if out_dir is None:
-        return Result(result_summary, None, [], memory)
+        return Result(result_summary, None, [], memory, per_ut)
     files = [p for s in sinks for p in getattr(s, "files", [])]
+    if "per_ut" not in result_summary:  # a large run: the tables beside summary.json
+        files.append(write_parquet_atomic(per_ut, out_dir / "per_ut.parquet"))
+        files.append(write_parquet_atomic(summary.dwell_table(), out_dir / "dwells.parquet"))
+        result_summary["per_ut_file"], result_summary["dwells_file"] = (
+            "per_ut.parquet", "dwells.parquet"
+        )  # fmt: skip
     files.append(write_json_atomic(out_dir / "summary.json", result_summary))
     files.append(write_text_atomic(out_dir / "config.resolved.toml", dump_toml(cfg)))
-    return Result(result_summary, out_dir, files)
+    return Result(result_summary, out_dir, files, None, per_ut)

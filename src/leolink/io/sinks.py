@@ -138,9 +138,11 @@ class PlotSink:
         rows = pa.concat_tables([TRACE_SCHEMA.empty_table(), *self._rows]).to_pandas()
         events = pa.concat_tables([EVENT_SCHEMA.empty_table(), *self._events]).to_pandas()
         span = 0.0 if self._span[0] is None else self._span[1] - self._span[0]
+        stats = self.summary
         self.files = plot_run(
-            rows, events, self.summary.summary(), self.out_dir, self.ut_ids, duration_s=span
-        )
+            rows, events, stats.summary(), self.out_dir, self.ut_ids, duration_s=span,
+            per_ut=stats.per_ut_table(), dwells=stats.dwell_table(),
+        )  # fmt: skip
 
     def abort(self):
         self._rows, self._events = [], []

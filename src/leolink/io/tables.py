@@ -26,7 +26,7 @@ import pyarrow.parquet as pq
 
 from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.errors import ConfigError, require_at_least
-from leolink.io.atomic import PendingFiles
+from leolink.io.atomic import PendingFiles, atomic_file
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES
 from leolink.sim.processes import OUTAGE_REASONS
 
@@ -40,6 +40,7 @@ __all__ = [
     "TraceWriter",
     "schema_for",
     "to_table",
+    "write_parquet_atomic",
 ]
 
 TRACE_COLUMNS = (
@@ -252,3 +253,12 @@ class EventLog(TableWriter):
 
     def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
         super().__init__(out_dir, "events", EVENT_SCHEMA, formats, chunk_rows)
+
+
+def write_parquet_atomic(columns, path):
+    """Write a dict of equal-length 1-D arrays as one Parquet table, atomically (types
+    as the arrays'); return the path (e.g. ``per_ut.parquet``)."""
+    table = pa.table({name: np.asarray(values) for name, values in columns.items()})
+    with atomic_file(path) as f:
+        pq.write_table(table, f)
+    return Path(path)
