@@ -14,7 +14,7 @@ from leolink.io.summary import (
     SummaryAccumulator,
     grouped_percentiles,
 )
-from leolink.io.tables import TRACE_COLUMNS, EventLog, TraceWriter
+from leolink.io.tables import TRACE_COLUMNS, TRACE_FLOAT64_COLUMNS, EventLog, TraceWriter
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES, ControllerState, close_dwells, step
 from leolink.sim.policies import MaxSnr
 from leolink.sim.processes import OUTAGE_REASONS
@@ -88,10 +88,16 @@ def test_csv_and_parquet_round_trip_equal_the_appended_data(tmp_path):
     assert header == ",".join(TRACE_COLUMNS)
     from_csv = pd.read_csv(tmp_path / "trace.csv")
     from_parquet = pq.read_table(tmp_path / "trace.parquet").to_pandas()
-    for frame in (from_csv, from_parquet):
-        assert list(frame.columns) == list(TRACE_COLUMNS)
-        # exact: the CSV float text is the shortest round-trip representation
-        pd.testing.assert_frame_equal(frame, expected, check_dtype=False, rtol=0, atol=0)
+    assert list(from_csv.columns) == list(from_parquet.columns) == list(TRACE_COLUMNS)
+    # exact: the CSV float text is the shortest round-trip representation of the float64
+    pd.testing.assert_frame_equal(from_csv, expected, check_dtype=False, rtol=0, atol=0)
+    # Parquet: float32 but for the times and positions, each value the float64 rounded
+    as32 = [c for c in TRACE_COLUMNS if expected[c].dtype == np.float64]
+    as32 = [c for c in as32 if c not in TRACE_FLOAT64_COLUMNS]
+    assert {str(from_parquet[c].dtype) for c in as32} == {"float32"}
+    assert {str(from_parquet[c].dtype) for c in TRACE_FLOAT64_COLUMNS} == {"float64"}
+    rounded = expected.astype({c: np.float32 for c in as32})
+    pd.testing.assert_frame_equal(from_parquet, rounded, check_dtype=False, rtol=0, atol=0)
     assert str(from_parquet["ut_id"].dtype) == "int32"
 
 
