@@ -1,11 +1,11 @@
-"""Real run outputs for the report tests: ``leolink run`` through its CLI, plus what a
-report sink will write beside them (``satellites.csv``, ``codebook.json``).
+"""Real run outputs for the report tests: ``leolink run`` through its CLI, plus the
+geometry files that ``stats_from_dir`` reads when a folder has no ``report_stats.npz``
+(``satellites.csv``, ``codebook.json``).
 
-The satellite states are recomputed here from the resolved config with the stable
-``leolink.orbit`` functions (the simulator does not write them yet); the codebook comes
-from ``leolink codebook CONFIG --json``. The tests that compare drawn beams with the
-trace's serving beams and gains therefore also check that this reconstruction is the
-simulator's own geometry.
+The run's report sink keeps the satellite states itself (``report_stats.npz``); here they
+are recomputed from the resolved config with the stable ``leolink.orbit`` functions (pass
+and Walker constellations), and ``tests/test_report_sink.py`` checks that both agree; the
+codebook comes from ``leolink codebook CONFIG --json``.
 """
 
 from __future__ import annotations
@@ -83,7 +83,10 @@ def write_geometry(out_dir, config):
 
 
 def make_run(out_dir, config=PAPER, *extra):
-    """``leolink run CONFIG --out DIR`` plus the geometry files; returns the folder."""
-    cli("run", config, "--out", out_dir, "--quiet", *extra)
+    """``leolink run CONFIG --out DIR`` plus the geometry files; returns the folder.
+
+    The run's own report is off here (these tests build it from the folder's files;
+    tests/test_report_sink.py checks the one a run writes)."""
+    cli("run", config, "--out", out_dir, "--quiet", "--set", "output.report.enabled=false", *extra)
     write_geometry(out_dir, config)
     return Path(out_dir)

@@ -15,7 +15,8 @@ from leolink.config import load_config
 from leolink.registry import Params
 from leolink.sim.policies import POLICIES, best_candidate, value_at
 
-SRC = Path(leolink.__file__).resolve().parent  # the installed package (site-packages in CI)
+SRC = Path(leolink.__file__).resolve().parent
+# The config is in the repository, not next to the package (CI installs it non-editable).
 PAPER = Path(__file__).resolve().parents[1] / "configs" / "paper.toml"
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 60  # code lines, docstring excluded
@@ -27,7 +28,7 @@ PENDING = {"geometry.py", "engine.py:serve"}
 LAYERS = {
     "constants": 0, "errors": 0, "registry": 0, "rng": 0,
     "geometry": 1, "geodesy": 1,
-    "orbit": 2, "roi": 2, "placement": 2,
+    "orbit": 2, "roi": 2, "placement": 2, "visibility": 2,
     "antenna": 3, "link": 3, "kinematics": 3, "coverage": 3,
     "engine": 4,
     "sim": 5,

@@ -134,3 +134,34 @@ def test_link_budget_terms_add_up():
     assert d["eirp_dbw"] == pytest.approx(15.0 - 0.5 + 10 * np.log10(288))
     with pytest.raises(AttributeError):
         b.snr_db = 0.0  # frozen
+
+
+def test_link_budget_reports_every_input_and_term():
+    """Each field of the budget ``leolink budget`` prints is the input or term it names
+    (a field left out or mixed up would otherwise print silently wrong), and the losses
+    default to none."""
+    kw = dict(
+        elevation_deg=47.5,
+        slant_range_m=1.7e6,
+        freq_hz=20e9,
+        ptx_dbw=12.0,
+        gain_tx_db=24.6,
+        gain_rx_db=30.1,
+        noise_temp_dbk=25.0,
+        bandwidth_hz=100e6,
+    )
+    d = LinkBudget.compute(**kw, atm_db=0.7, cable_db=1.2).as_dict()
+    for key in ("elevation_deg", "slant_range_m", "gain_tx_db", "gain_rx_db", "ptx_dbw"):
+        assert d[key] == kw[key], key
+    assert (d["atm_db"], d["cable_db"]) == (0.7, 1.2)
+    lam = 299_792_458.0 / 20e9
+    fspl = -20 * np.log10(lam / (4 * np.pi * 1.7e6))  # Friis, not fspl_db
+    assert d["fspl_db"] == pytest.approx(fspl, abs=1e-9)
+    noise = 10 * np.log10(1.380649e-23 * 10**2.5 * 100e6)
+    assert d["noise_dbw"] == pytest.approx(noise, abs=1e-9)
+    assert d["rss_dbw"] == pytest.approx(12.0 - 1.2 + 24.6 - 0.7 - fspl + 30.1, abs=1e-9)
+    assert d["snr_db"] == pytest.approx(d["rss_dbw"] - noise, abs=1e-9)
+    assert all(isinstance(v, float) for v in d.values())
+    plain = LinkBudget.compute(**kw).as_dict()
+    assert (plain["atm_db"], plain["cable_db"]) == (0.0, 0.0)
+    assert plain["rss_dbw"] == pytest.approx(d["rss_dbw"] + 1.9, abs=1e-9)

@@ -256,3 +256,42 @@ def test_a_policy_returning_an_unusable_candidate_is_an_error():
     snr = np.array([[np.nan, 5.0]])
     with pytest.raises(ValueError, match="unusable candidate for 1 UT"):
         step(0.0, snr, ControllerState.initial(1), Bad(), 0.0, 0.0, 2)
+
+
+def _flat(n_epoch, *rows):
+    """SNR sequence of one UT: ``rows`` = (from_epoch, [snr per candidate]) steps."""
+    snr = np.zeros((n_epoch, 1, len(rows[0][1])))
+    for start, values in rows:
+        snr[start:, 0, :] = values
+    return snr
+
+
+def test_candidate_zero_is_an_ordinary_target_for_interruption_and_time_to_trigger():
+    """Candidate 0 (satellite 0, beam 0) is a valid id: a handover *to* it interrupts
+    service, and a pending switch to it keeps its time-to-trigger clock (ids >= 0, not > 0)."""
+    # Served by candidate 1, candidate 0 becomes better at epoch 3: with handover_time 2 s
+    # the epochs 3 and 4 are interrupted, service resumes at 5.
+    snr = _flat(8, (0, [5.0, 10.0]), (3, [12.0, 10.0]))
+    res, _, _ = run(MaxSnr(), snr, handover_time_s=2.0)
+    service = [int(r.service[0]) for r in res]
+    assert service == [SERVICE_SERVED] * 3 + [SERVICE_HANDOVER] * 2 + [SERVICE_SERVED] * 3
+    assert [int(r.state.serving[0]) for r in res][3:] == [0] * 5
+    # While the handover to candidate 0 executes (epochs 3-4), candidate 1 turning better
+    # at epoch 4 must wait for the end of the interruption: no switch before epoch 5.
+    snr = _flat(8, (0, [5.0, 10.0]), (3, [12.0, 10.0]), (4, [12.0, 15.0]))
+    res, _, _ = run(MaxSnr(), snr, handover_time_s=2.0)
+    assert [int(r.state.serving[0]) for r in res] == [1, 1, 1, 0, 0, 1, 1, 1]
+    # Hysteresis with a 2 s time-to-trigger towards candidate 0: ahead from epoch 2, the
+    # switch fires at epoch 4 (t = 4 s), not later (a pending id 0 must not be dropped).
+    snr = _flat(8, (0, [0.0, 10.0]), (2, [20.0, 10.0]))
+    res, events, _ = run(Hysteresis(margin_db=3.0, time_to_trigger_s=2.0), snr)
+    ho = events["time_s"][np.isin(events["kind"], HANDOVER_KINDS)]
+    assert ho.tolist() == [4.0]
+    assert [int(r.state.serving[0]) for r in res] == [1] * 4 + [0] * 4
+
+
+def test_initial_state_is_unserved_with_nothing_pending():
+    s = ControllerState.initial(3)
+    assert s.serving.tolist() == [-1, -1, -1] and s.pending.tolist() == [-1, -1, -1]
+    assert s.serving.dtype == np.int64 and s.pending.dtype == np.int64
+    assert np.isnan(s.pending_since_s).all() and np.isnan(s.serving_since_s).all()

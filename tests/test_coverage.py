@@ -61,7 +61,12 @@ def test_elevation_of_grid_points_is_consistent():
     # Nadir: 90 deg and h; ROI tip: the geometry of leolink.geometry, independently.
     assert np.degrees(el[0]) == pytest.approx(90.0, abs=1e-9)
     assert rng[0] == pytest.approx(1.3e6, abs=1e-3)
-    assert 60.0 < np.degrees(el[1]) < 70.0
+    # ROI tip x = 534.1 km: central angle a = atan(x / R); seen from the ground point the
+    # satellite is (R + h) cos a - R up and (R + h) sin a across (was: "60 < el < 70").
+    a = np.arctan(534.1e3 / cfg.earth.radius_m)
+    r_sat = cfg.earth.radius_m + cfg.constellation.altitude_m
+    el_tip = np.arctan2(r_sat * np.cos(a) - cfg.earth.radius_m, r_sat * np.sin(a))
+    assert el[1] == pytest.approx(el_tip, abs=1e-12)
 
 
 def test_coverage_cli_writes_csv(tmp_path):
@@ -98,3 +103,44 @@ def test_roi_axis_heading_is_the_ground_track_of_the_pass(rotation):
     )
     # 2 s of a ~6 km/s track curves the bearing by far less than 1e-3 rad.
     assert track_heading_rad(cfg) == pytest.approx(bearing, abs=1e-3)
+
+
+def test_grid_recomputed_with_explicit_steering_vectors(paper_grid):
+    """Every in-ROI grid point of ``leolink coverage`` recomputed another way
+    (tests/independent.py): the ROI plane mapped by the central projection of Sec. 3.1,
+    the satellite overhead on a Clairaut-heading orbit, explicit steering-vector gains of
+    all 15 beams, the CODATA budget. Replaces a check of the engine against itself."""
+    import math
+
+    import independent as ind
+
+    cfg = load_config(PAPER)
+    df = paper_grid[paper_grid.in_roi & (paper_grid.best_beam >= 0)]
+    lat_c, lon_c = math.radians(cfg.roi.center_lat_deg), math.radians(cfg.roi.center_lon_deg)
+    c, e, L = cfg.constellation, cfg.earth, cfg.link
+    a_m, inc = e.radius_m + c.altitude_m, math.radians(c.inclination_deg)
+    orbit = ind.PassOrbit(lat_c, lon_c, 0.0, a_m, inc, c.ascending, e.gm_m3_s2, False)
+    sat, vel = orbit(0.0)[0, 0], ind.velocity(orbit, 0.0)[0, 0]
+    up, ex, ey = ind.roi_frame(lat_c, lon_c, vel)
+    ut = np.array(
+        [ind.roi_point(x, y, up, ex, ey, e.radius_m) for x, y in zip(df.x_m, df.y_m, strict=True)]
+    )
+    np.testing.assert_allclose(df.lat_deg, np.degrees(np.arcsin(ut[:, 2] / e.radius_m)), atol=1e-9)
+    np.testing.assert_allclose(df.lon_deg, np.degrees(np.arctan2(ut[:, 1], ut[:, 0])), atol=1e-9)
+    a = cfg.satellite_array
+    u = ind.body_cosines(np.broadcast_to(sat, ut.shape), np.broadcast_to(vel, ut.shape), ut)
+    g = ind.beam_gains_lin(u, build_engine(cfg).codebook.u_xy, a.n_x // a.n_rf_x, a.n_y // a.n_rf_y)
+    best = g.argmax(axis=1)
+    np.testing.assert_array_equal(df.best_beam, best)
+    rho = np.linalg.norm(sat - ut, axis=1)
+    grx = 10 * np.log10(cfg.terminal.upa.n_x * cfg.terminal.upa.n_y + 1 / L.rician_k)
+    path_db = L.ptx_dbw - L.cable_loss_db + grx - ind.fspl_p525_db(rho, L.freq_hz)
+    path_db -= cfg.atmosphere.fixed.loss_db + ind.noise_dbw(L.noise_temp_dbk, L.bandwidth_hz)
+    g_sig = g[np.arange(len(best)), best]
+    snr = 10 ** (path_db / 10) * g_sig
+    sinr = snr / (10 ** (path_db / 10) * (g.sum(axis=1) - g_sig) + 1)
+    np.testing.assert_allclose(df.snr_db, 10 * np.log10(snr), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(df.sinr_db, 10 * np.log10(sinr), rtol=0, atol=1e-6)
+    # Static points: Doppler from the satellite's velocity alone, (f/c) <v, l_su>.
+    l_su = (ut - sat) / rho[:, None]
+    np.testing.assert_allclose(df.doppler_hz, L.freq_hz / ind.C_M_S * (l_su @ vel), atol=1e-3)

@@ -234,3 +234,22 @@ def test_ground_to_roi_far_side_is_nan():
 def test_nadir_elevation_inverse(el_deg):
     el = np.radians(el_deg)
     assert abs(elevation_from_nadir_rad(nadir_angle_rad(el, 700e3), 700e3) - el) < 1e-9
+
+
+def test_direction_cosines_of_many_targets_match_the_explicit_body_frame():
+    """Vectorized over targets and satellites: each row equals the body-frame projection
+    written out (x = v_perp / |v_perp|, z = r / |r|, y = z x x), target by target."""
+    from leolink.geometry import direction_cosines
+
+    rng = np.random.default_rng(3)
+    sat = rng.normal(size=(6, 3)) * 7.0e6
+    vel = rng.normal(size=(6, 3)) * 7.0e3
+    tgt = rng.normal(size=(6, 3)) * 6.4e6
+    u = direction_cosines(sat, vel, tgt)
+    for i in range(6):
+        z = sat[i] / np.linalg.norm(sat[i])
+        x = vel[i] - (vel[i] @ z) * z
+        x /= np.linalg.norm(x)
+        y = np.cross(z, x)
+        d = (tgt[i] - sat[i]) / np.linalg.norm(tgt[i] - sat[i])
+        np.testing.assert_allclose(u[i], [d @ x, d @ y], rtol=0, atol=1e-14)

@@ -258,3 +258,16 @@ def test_link_kinematics_equals_the_separate_functions():
     np.testing.assert_allclose(
         got["angular_speed_rad_s"], angular_speed_rad_s(sat, v_sat, ut, v_ut), atol=1e-9
     )
+
+
+def test_defaults_are_a_static_unaccelerated_ut():
+    """``ut_vel_m_s`` and ``ut_acc_m_s2`` default to zero (a static UT, uniform motion)."""
+    rng = np.random.default_rng(8)
+    sat, vel, acc = rng.normal(size=3) * 7e6, rng.normal(size=3) * 7e3, rng.normal(size=3)
+    ut, ut_vel = rng.normal(size=3) * 6.4e6, rng.normal(size=3) * 30.0
+    zero = np.zeros(3)
+    assert range_rate_m_s(sat, vel, ut) == range_rate_m_s(sat, vel, ut, zero)
+    assert doppler_rate_hz_s(sat, vel, acc, ut, ut_vel, freq_hz=F_HZ) == doppler_rate_hz_s(
+        sat, vel, acc, ut, ut_vel, zero, freq_hz=F_HZ
+    )
+    assert angular_speed_rad_s(sat, vel, ut) == angular_speed_rad_s(sat, vel, ut, zero)

@@ -171,11 +171,11 @@ def _counting_run(monkeypatch, fail_at=None):
     """Patch ``runner.run`` to count calls (and raise KeyboardInterrupt at call ``fail_at``)."""
     real, calls = runner.run, []
 
-    def fake(cfg, out_dir=None, progress=None):
+    def fake(cfg, out_dir=None, progress=None, **kw):
         calls.append(out_dir)
         if len(calls) == fail_at:
             raise KeyboardInterrupt
-        return real(cfg, out_dir=out_dir, progress=progress)
+        return real(cfg, out_dir=out_dir, progress=progress, **kw)
 
     monkeypatch.setattr(runner, "run", fake)
     return calls
@@ -185,10 +185,10 @@ def test_interrupt_keeps_finished_runs_and_writes_no_table(tmp_path, monkeypatch
     (tmp_path / "sweep.csv").write_text("old,table\n1,2\n")  # an earlier, finished sweep
     calls = _counting_run(monkeypatch, fail_at=2)
     with pytest.raises(KeyboardInterrupt):
-        run_sweep(PAPER, PARAMS, tmp_path, base_overrides=BASE, progress=False)
-    assert (Path(calls[0]) / "summary.json").exists()
-    assert not (Path(calls[1]) / "summary.json").exists()
-    assert not list(tmp_path.glob("sweep.*"))
+        run_sweep(PAPER, PARAMS, tmp_path, base_overrides=BASE, progress=False, overwrite=True)
+    assert (Path(calls[0]) / "run.json").exists()  # finished
+    assert not (Path(calls[1]) / "run.json").exists()
+    assert not list(tmp_path.glob("sweep.*")) and not (tmp_path / "run.json").exists()
 
 
 def test_resume_reuses_only_matching_runs(serial, tmp_path, monkeypatch):
@@ -212,6 +212,7 @@ def test_parallel_rows_follow_the_grid_not_completion_order(tmp_path):
     assert list(table["n_ut_epochs"]) == [n_ut * 40, n_ut * 4]
 
 
+@pytest.mark.optional_extra("dist")
 def test_dask_cluster_gives_the_same_table(tmp_path):
     """``workers="dask://ADDRESS"`` (the ``dist`` extra): same table as one process."""
     distributed = pytest.importorskip("dask.distributed")

@@ -1,9 +1,9 @@
 """Screenshot of the paper scenario's report.html, for the README: docs/img/report_paper.png.
 
 Usage: ``python tools/report_screenshot.py [--out DIR]``. Runs ``leolink run
-configs/paper.toml``, adds the geometry files a report sink writes, builds the report and
-photographs the top of the page in the system's headless Chromium (the same browser
-set-up as tests/test_report.py: Debian's chromium + chromium-driver, driven by Selenium).
+configs/paper.toml`` (its report sink writes the page) and photographs the top of the page
+in the system's headless Chromium (the same browser set-up as tests/test_report.py:
+Debian's chromium + chromium-driver, driven by Selenium).
 """
 
 from __future__ import annotations
@@ -16,8 +16,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
 from browser_helpers import open_page  # noqa: E402
-from leolink.io.report_dir import build_report_from_dir  # noqa: E402
-from report_helpers import make_run  # noqa: E402
+from report_helpers import PAPER, cli  # noqa: E402
 
 
 def main(argv=None):
@@ -25,8 +24,8 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=Path("/tmp/leolink_report_paper"))
     ap.add_argument("--png", type=Path, default=REPO / "docs" / "img" / "report_paper.png")
     args = ap.parse_args(argv)
-    out = make_run(args.out)
-    page = build_report_from_dir(out, series_ut=[0, 1, 5, 6])["report"]
+    cli("run", PAPER, "--out", args.out, "--quiet", "--overwrite")
+    page = args.out / "report.html"
     state = open_page(page, screenshot=args.png, width=1150, height=1500)
     bad = [i for i in state["images"] if not i["width"]]
     print(f"{args.png}: {len(state['images'])} images, {len(bad)} not loaded")

@@ -12,8 +12,8 @@ __version__ = "0.1.0"
 __all__ = ["ConfigError", "LeolinkError", "__version__", "run"]
 
 
-def run(config, out_dir=None, progress=None):
+def run(config, out_dir=None, progress=None, overwrite=False):
     """Run a simulation; see :func:`leolink.app.run.run`."""
     from leolink.app.run import run as _run
 
-    return _run(config, out_dir=out_dir, progress=progress)
+    return _run(config, out_dir=out_dir, progress=progress, overwrite=overwrite)

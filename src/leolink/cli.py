@@ -1,4 +1,4 @@
-"""Command line: ``leolink run | coverage | budget | codebook | sweep | validate``.
+"""Command line: ``leolink run | coverage | budget | codebook | sweep | report | validate``.
 
 Errors leolink raises on purpose are printed as one line (exit code 2); anything else
 is a bug and is printed as a short note (exit code 3) unless ``--debug`` is given.
@@ -16,6 +16,7 @@ from leolink.errors import LeolinkError
 EXIT_USAGE = 2
 EXIT_BUG = 3
 EXIT_INTERRUPTED = 130
+OVERWRITE_HELP = "replace an earlier run's files in --out (other files are kept)"
 
 
 def _config(args):
@@ -118,7 +119,12 @@ def cmd_coverage(args) -> int:
 
     cfg = _config(args)
     paths = run_coverage(
-        cfg, Path(args.out), n_grid=args.grid, margin=args.margin, plots=not args.no_plots
+        cfg,
+        Path(args.out),
+        n_grid=args.grid,
+        margin=args.margin,
+        plots=not args.no_plots,
+        overwrite=args.overwrite,
     )
     if not args.quiet:
         for p in paths:
@@ -133,7 +139,7 @@ def cmd_run(args) -> int:
     cfg = _config(args)
     _check_files(cfg)
     with progress_bar("leolink run", enabled=not args.quiet) as progress:
-        result = run(cfg, out_dir=Path(args.out), progress=progress)
+        result = run(cfg, out_dir=Path(args.out), progress=progress, overwrite=args.overwrite)
     for note in result.summary["run"]["notes"]:
         if not args.quiet or note.startswith("UT "):  # held tracks are shown even if quiet
             print(f"note: {note}", file=sys.stderr)
@@ -164,14 +170,53 @@ def cmd_sweep(args) -> int:
         workers=workers,
         progress=not args.quiet,
         resume=args.resume,
+        overwrite=args.overwrite,
     )
     if not args.quiet:
         print(table.to_string(index=False))
     return 0
 
 
+def cmd_report(args) -> int:
+    import leolink
+    from leolink.io.report_dir import rebuild_report
+
+    uts = _ut_list(args.uts) if args.uts else None
+    built = rebuild_report(
+        Path(args.dir),
+        series_ut=uts,
+        animate=not args.no_animation,
+        exports=args.exports,
+        version=leolink.__version__,
+    )
+    if not args.quiet:
+        for path in [built["report"], built["animation"], *built["exports"]]:
+            if path is not None:
+                print(path)
+    return 0
+
+
+def _ut_list(text):
+    from leolink.errors import ConfigError
+
+    try:
+        uts = [int(u) for u in text.split(",")]
+    except ValueError:
+        uts = []
+    if not uts or min(uts) < 0:
+        raise ConfigError(f"--uts = {text!r} is not allowed; use UT ids >= 0, e.g. --uts 0,5")
+    return uts
+
+
+def _version():
+    import leolink
+
+    return f"leolink {leolink.__version__}"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="leolink", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=_version())
     parser.add_argument("--debug", action="store_true", help="show tracebacks of bugs")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -199,13 +244,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grid", type=int, default=201, help="grid points per axis")
     p.add_argument("--margin", type=float, default=1.1, help="grid extent / ROI semi-axis")
     p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.add_argument("--quiet", action="store_true")
     p = add("run", cmd_run, "run the simulation and write traces, events, summary, plots")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--seed", type=int, help="override run.seed")
     p.add_argument("--parquet", action="store_true", help="also write trace.parquet")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
-    p = add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries")
+    _add_sweep(add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries"))
+    _add_report(sub.add_parser("report", help="rebuild report.html of a run folder, no rerun"))
+    return parser
+
+
+def _add_sweep(p):
     p.add_argument(
         "--param",
         action="append",
@@ -222,8 +274,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--resume", action="store_true", help="reuse finished runs of the same points in --out"
     )
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.add_argument("--quiet", action="store_true")
-    return parser
+
+
+def _add_report(p):
+    p.add_argument("dir", help="output folder of a finished leolink run")
+    p.add_argument("--uts", metavar="ID,ID,...", help="UTs of the time plots (default: the run's)")
+    p.add_argument("--no-animation", action="store_true", help="do not rewrite footprint.gif")
+    p.add_argument("--exports", action="store_true", help="also write run.geojson and run.czml")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_report)
 
 
 def main(argv=None) -> int:

@@ -319,7 +319,7 @@ class LinkEngine:
         i_other = 0.0
         if self.other_satellites and n_sat > 1:
             i_other = self._other_satellites_interference(snap, s, b, u)
-        sinr = snr / (g_int * path + i_other + 1.0)  # S / (I + N), over the noise (Sec. 4.1)
+        sinr = snr / (g_int * path + i_other + 1.0)  # S / (I + N), Eqs. (18)-(19), over N
         se = np.log1p(sinr) / np.log(2.0)  # log2(1 + SINR), accurate at low SINR
 
         rho = snap.slant_range_m.reshape(-1)[us]

@@ -1,7 +1,7 @@
 """Doppler shift, Doppler rate and angular speed of the UT-satellite line of sight.
 
-Sec. 2.2 ("Satellite angular speed and Doppler effects") of [1]: Eq. (doppler_ang),
-Eq. (doppler_ang_max) and its small-ROI shortcut, and the UT Doppler paragraph.
+Sec. 2.2.2 ("Satellite angular speed and Doppler effects") of [1]: Eq. (7), Eq. (8) and
+its small-ROI shortcut Eq. (9), and the UT Doppler paragraph (unnumbered).
 Positions, velocities and accelerations are given in one Earth-centred frame (ECI or
 ECEF, consistently) as arrays ``(..., 3)``; every function broadcasts, callers add
 axes (``sat_pos_m[:, None, :, :]``). Doppler is first order in ``v / c`` (classical).
@@ -47,7 +47,7 @@ def _los(from_pos_m, to_pos_m):
 
 
 def doppler_sat_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, freq_hz):
-    """Doppler shift due to the satellite's motion, Eq. (doppler_ang) of [1].
+    """Doppler shift due to the satellite's motion, Eq. (7) of [1].
 
     ``Delta f_sat = <v_sat, (x_u - x_sat) / ||x_u - x_sat||> f / c``
     (positive when the satellite moves towards the UT).
@@ -136,7 +136,7 @@ def angular_speed_rad_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
     """Angular speed of the line of sight seen from the UT, ``|dl/dt|`` [rad/s].
 
     ``w_rel = |v_rel - <v_rel, l> l| / rho`` with ``v_rel = v_sat - v_u``. For a static
-    UT this is the paper's Eq. (doppler_ang),
+    UT this is the paper's Eq. (7),
     ``sqrt(1 - <v_sat/|v_sat|, l>^2) |v_sat| / rho``; a moving UT adds its own motion.
 
     Parameters
@@ -197,7 +197,7 @@ def link_kinematics(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz):
 
 
 def max_doppler_sat_hz(rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):
-    """Maximum ``|Delta f_sat|`` over the ROI, Eq. (doppler_ang_max) of [1].
+    """Maximum ``|Delta f_sat|`` over the ROI, Eq. (8) of [1].
 
     Reached at the along-track tip of the ROI, the ground point
     ``R (R u_z + R_x u_x) / sqrt(R^2 + R_x^2)`` (gnomonic projection of ``x = R_x``),
@@ -233,7 +233,7 @@ def max_doppler_sat_hz(rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3
 def max_doppler_sat_small_roi_hz(
     rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2
 ):
-    """The paper's shortcut ``R_x v_sat / h f / c`` of Eq. (doppler_ang_max) [Hz].
+    """The paper's shortcut ``R_x v_sat / h f / c``, Eq. (9) [Hz].
 
     Valid only when ``R_x << h`` (the paper states ``R_x << R_earth``, which is not
     enough: with the paper's ROI it overestimates by ~10 %, see docs/errata.md).
@@ -243,7 +243,7 @@ def max_doppler_sat_small_roi_hz(
 
 
 def max_angular_speed_rad_s(altitude_m, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):
-    """Maximum angular speed seen by a static UT, ``v_sat / h`` [rad/s], Eq. (doppler_ang_max).
+    """Maximum angular speed seen by a static UT, ``v_sat / h`` [rad/s], Eq. (8).
 
     Reached at the sub-satellite point (nadir), where the velocity is orthogonal to the
     line of sight and the range is shortest.

@@ -28,12 +28,12 @@ SECONDS_PER_DAY = 86_400.0
 
 
 def orbital_speed_m_s(altitude_m, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):
-    """Circular orbital speed ``sqrt(GM / (R + h))`` [m/s]."""
+    """Circular orbital speed ``sqrt(GM / (R + h))`` [m/s], Eq. (1) of the paper."""
     return np.sqrt(gm_m3_s2 / (radius_m + np.asarray(altitude_m, dtype=float)))
 
 
 def angular_rate_rad_s(altitude_m, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):
-    """Circular mean motion ``sqrt(GM / (R + h)^3)`` [rad/s] (the paper's w_sat)."""
+    """Circular mean motion ``sqrt(GM / (R + h)^3)`` [rad/s] (the paper's w_sat, after Eq. (1))."""
     a = radius_m + np.asarray(altitude_m, dtype=float)
     return np.sqrt(gm_m3_s2 / a**3)
 
@@ -64,7 +64,7 @@ class Elements:
     altitude_m: np.ndarray
     inclination_rad: np.ndarray
     raan_rad: np.ndarray
-    arg_lat0_rad: np.ndarray = field(default=0.0)
+    arg_lat0_rad: np.ndarray | float = field(default=0.0)  # 1-D array after __post_init__
 
     def __post_init__(self):
         names = ("altitude_m", "inclination_rad", "raan_rad", "arg_lat0_rad")

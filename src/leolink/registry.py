@@ -66,7 +66,7 @@ class Entry(Generic[T]):
     name: str
     factory: Callable[..., T] | None
     config: type[Params]
-    build: Callable[[Params, Any], T] | None
+    build: Callable[[Any, Any], T] | None
     doc: str
 
     def make(self, params: Params | None = None, context: Any = None) -> T:
@@ -101,7 +101,7 @@ class Registry(Generic[T]):
         name: str,
         *,
         config: type[Params] = NoParams,
-        build: Callable[[Params, Any], T] | None = None,
+        build: Callable[[Any, Any], T] | None = None,
         replace: bool = False,
     ) -> Callable[[Callable[..., T]], Callable[..., T]]:
         """Decorator registering a class or factory function under ``name``."""
@@ -117,7 +117,7 @@ class Registry(Generic[T]):
     def add(
         self,
         name: str,
-        build: Callable[[Params, Any], T],
+        build: Callable[[Any, Any], T],
         *,
         doc: str,
         config: type[Params] = NoParams,

@@ -30,7 +30,7 @@ def _half_spacings_m(n_planes, sats_per_plane, inclination_rad, radius_m):
 
 
 def roi_semi_axes_m(n_planes, sats_per_plane, inclination_rad, radius_m=EARTH_RADIUS_M):
-    """ROI semi-axes that just close the coverage gaps, Eq. after (coverage condition) of [1].
+    """ROI semi-axes that just close the coverage gaps, Eq. (13) of [1].
 
     ``rx = sqrt(2) pi R / N_s``, ``ry = sqrt(2) pi R sin(i) / N_p``.
 
@@ -58,7 +58,7 @@ def roi_semi_axes_m(n_planes, sats_per_plane, inclination_rad, radius_m=EARTH_RA
 def coverage_condition(
     rx_m, ry_m, n_planes, sats_per_plane, inclination_rad, radius_m=EARTH_RADIUS_M
 ):
-    """Left side of the coverage condition of [1], Sec. 3.1: ``(dx/rx)^2 + (dy/ry)^2``.
+    """Left side of the coverage condition, Eq. (12) of [1]: ``(dx/rx)^2 + (dy/ry)^2``.
 
     Parameters
     ----------

@@ -168,7 +168,7 @@ def dirichlet_kernels(u, beam_u, n):
 
 
 def beam_gain_lin(u_xy, beam_u_xy, n_sub_x, n_sub_y):
-    """Closed-form gains of DFT beams of an ``n_sub_x x n_sub_y`` subarray (Eq. of F_RF, Sec. 3.2).
+    """Closed-form gains of DFT beams of an ``n_sub_x x n_sub_y`` subarray (Eqs. (14), (15)).
 
     The beams lie on a lattice, so the x-kernels are evaluated once per distinct beam
     ``u_x`` and the y-kernels once per distinct beam ``u_y``, then multiplied (a 5 x 3

@@ -26,7 +26,7 @@ from leolink.geometry import direction_cosines, ground_to_roi, ray_to_ground, ro
 
 
 def dft_lattice(n_sub, oversampling):
-    """Symmetric oversampled DFT lattice ``u_k = 2 k / (O n_sub)``, ``|u_k| < 1`` (Sec. 3.2).
+    """Symmetric oversampled DFT lattice ``u_k = 2 k / (O n_sub)``, ``|u_k| < 1`` (Eq. (14)).
 
     leolink departs from the paper's index set ``{2 pi (n - 1) / (O N)}_{n=1}^{O N}``: for a
     non-integer ``O N`` (the paper's 1.2 x 12 = 14.4) that set is not uniform across the

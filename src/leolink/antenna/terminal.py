@@ -59,7 +59,9 @@ class TerminalAntenna(Protocol):
     """
 
     elevation_independent: bool
-    pattern_lin: Callable[..., np.ndarray] | None
+
+    @property
+    def pattern_lin(self) -> Callable[..., np.ndarray] | None: ...  # a method, or None
 
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0): ...
 
@@ -168,7 +170,7 @@ class UPATerminal:
     elevation_independent = True
 
     def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
-        """Linear average gain ``G_LoS(du) + 1/K``."""
+        """Linear average gain ``G_LoS(du) + 1/K`` (Eq. (17) of the paper)."""
         return self.pattern_lin(
             *pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
         )

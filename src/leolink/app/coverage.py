@@ -7,8 +7,6 @@ that passes over the ROI centre, at its overhead instant.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
@@ -64,17 +62,43 @@ def coverage_grid(cfg, n_grid=201, margin=1.1):
     return df
 
 
-def run_coverage(cfg, out_dir, n_grid=201, margin=1.1, plots=True):
-    """``leolink coverage``: write ``coverage.csv`` and the maps; return the paths."""
+#: Columns summarised in the coverage report's table (over the grid points in the ROI).
+REPORT_COLUMNS = ("snr_db", "sinr_db", "se_bps_hz", "doppler_hz", "angular_speed_deg_s")
+
+
+def coverage_table(df):
+    """Statistics of :data:`REPORT_COLUMNS` over the grid points inside the ROI: one row
+    per quantity, ``min, p5, median, mean, p95, max`` (NaN points ignored)."""
+    inside = df[df["in_roi"]]
+    rows = []
+    for col in REPORT_COLUMNS:
+        v = inside[col].to_numpy(float)
+        v = v[np.isfinite(v)]
+        stats = (
+            [v.min(), *np.percentile(v, [5, 50]), v.mean(), np.percentile(v, 95), v.max()]
+            if v.size
+            else [np.nan] * 6
+        )
+        rows.append([col, *stats])
+    return pd.DataFrame(rows, columns=["quantity", "min", "p5", "median", "mean", "p95", "max"])
+
+
+def run_coverage(cfg, out_dir, n_grid=201, margin=1.1, plots=True, overwrite=False):
+    """``leolink coverage``: write ``coverage.csv``, the maps, ``report.html`` and last
+    ``run.json``; return the paths. An earlier output in ``out_dir`` is refused unless
+    ``overwrite`` (:func:`leolink.io.run_dir.claim_out_dir`)."""
+    import leolink
     from leolink.config import dump_toml
     from leolink.io.atomic import write_csv_atomic, write_text_atomic
+    from leolink.io.report import build_table_report
+    from leolink.io.run_dir import claim_out_dir, write_manifest
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     df = coverage_grid(cfg, n_grid=n_grid, margin=margin)
+    out_dir = claim_out_dir(out_dir, overwrite)
+    config_text = dump_toml(cfg)
     paths = [
         write_csv_atomic(df, out_dir / "coverage.csv"),
-        write_text_atomic(out_dir / "config.resolved.toml", dump_toml(cfg)),
+        write_text_atomic(out_dir / "config.resolved.toml", config_text),
     ]
     if plots:
         from leolink.io.coverage_plots import plot_coverage
@@ -82,4 +106,21 @@ def run_coverage(cfg, out_dir, n_grid=201, margin=1.1, plots=True):
         paths += plot_coverage(
             df, out_dir, cfg.roi_semi_axes_m(), title_suffix=f" ({cfg.terminal.kind} terminal)"
         )
+    n_in = int(df["in_roi"].sum())
+    paths.append(
+        build_table_report(
+            out_dir / "report.html",
+            "leolink coverage report",
+            coverage_table(df),
+            [(p.stem.replace("_", " "), p) for p in paths if p.suffix == ".png"],
+            config_text,
+            notes=f"{n_in:,} of {len(df):,} grid points ({n_grid} x {n_grid}) are in the ROI; "
+            "the statistics are over those.",
+        )
+    )
+    arguments = {"n_grid": int(n_grid), "margin": float(margin), "plots": bool(plots)}
+    version = leolink.__version__
+    paths.append(
+        write_manifest(out_dir, paths, "coverage", config_text, arguments, version=version)
+    )
     return paths

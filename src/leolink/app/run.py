@@ -1,10 +1,14 @@
 """``leolink.run(config) -> Result``: build the scenario, wire the sinks, run, write.
 
 The default sinks: the summary statistics (always), and the enabled ``[output.*]``
-sinks (trace and event files, plots) when there is an output folder; without one the
-trace and events are kept in memory. ``summary.json`` and ``config.resolved.toml`` are
-written last; with more than ``PER_UT_IN_JSON_MAX`` UTs the per-UT statistics and the
-dwells go to ``per_ut.parquet`` and ``dwells.parquet`` instead of ``summary.json``.
+sinks (trace and event files, plots, the report) when there is an output folder; without
+one the trace and events are kept in memory (and the report's statistics, for the
+notebook views). An output folder holding another run's files is refused unless
+``overwrite`` (:func:`leolink.io.run_dir.claim_out_dir`); ``summary.json`` and
+``config.resolved.toml`` are written after the stream (with more than
+``PER_UT_IN_JSON_MAX`` UTs the per-UT statistics and the dwells go to ``per_ut.parquet``
+and ``dwells.parquet`` instead of ``summary.json``), then the report page, and the
+manifest ``run.json`` last: a folder without it is not a finished run.
 """
 
 from __future__ import annotations
@@ -15,12 +19,17 @@ from types import SimpleNamespace
 
 import pandas as pd
 
+import leolink
 from leolink.app.codebook import codebook_design_from_config
 from leolink.app.notes import track_coverage, track_notes
 from leolink.app.orbits import earth_orientation, roi_frame
 from leolink.app.scenario import build_scenario
 from leolink.config import dump_toml
+from leolink.errors import LeolinkError
 from leolink.io.atomic import write_json_atomic, write_text_atomic
+from leolink.io.notebook import ResultViews
+from leolink.io.report_sink import epoch_utc_of
+from leolink.io.run_dir import claim_out_dir, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary import SummaryAccumulator
 from leolink.io.tables import write_parquet_atomic
@@ -30,14 +39,17 @@ __all__ = ["Result", "run", "run_notes"]
 
 
 @dataclasses.dataclass
-class Result:
-    """What a run produced: the summary, and the trace and events (in memory, or read back
-    from the files this run wrote)."""
+class Result(ResultViews):
+    """What a run produced: the summary, the trace and events (in memory, or read back from
+    the files this run wrote, never from another run's files in the same folder), and the
+    notebook views (``plot_sinr(ut_ids=...)``, ``plot_map()``, ``plot_dwell()``, ...,
+    ``_repr_html_``, ``to_xarray()``; :class:`leolink.io.notebook.ResultViews`)."""
 
     summary: dict
     out_dir: Path | None
     files: list[Path] = dataclasses.field(default_factory=list)
     _memory: MemorySink | None = None
+    report_stats: object = None  # ReportStats of the report sink, when it ran
     _per_ut: dict | None = None
 
     @property
@@ -45,27 +57,42 @@ class Result:
         """Per-UT statistics, one row per UT (``SummaryAccumulator.per_ut_table``)."""
         return pd.DataFrame(self._per_ut)
 
+    def _written(self, stem, what):
+        names = {p.name: p for p in self.files}
+        if f"{stem}.parquet" in names:  # Parquet first: faster to read
+            return pd.read_parquet(names[f"{stem}.parquet"])
+        if f"{stem}.csv" in names:
+            return pd.read_csv(names[f"{stem}.csv"])
+        raise LeolinkError(f"this run wrote no {what} (output.{what}.enabled = false)")
+
     @property
     def trace(self) -> pd.DataFrame:
         if self._memory is not None:
             return self._memory.trace()
-        for path in self.files:  # Parquet first: faster to read
-            if path.name == "trace.parquet":
-                return pd.read_parquet(path)
-        return pd.read_csv(self.out_dir / "trace.csv")
+        return self._written("trace", "trace")
 
     @property
     def events(self) -> pd.DataFrame:
         if self._memory is not None:
             return self._memory.events()
-        return pd.read_csv(self.out_dir / "events.csv")
+        return self._written("events", "events")
 
 
-def _sinks(cfg, out_dir, summary):
-    """The sinks of a run: summary first (the plots read it), then ``[output.*]``."""
+def _sinks(cfg, out_dir, summary, scen):
+    """The sinks of a run: summary first (the plots read it), then ``[output.*]``; without
+    a folder, the trace and events in memory (and the report's statistics)."""
+    context = SimpleNamespace(
+        out_dir=out_dir,
+        summary=summary,
+        ephemeris=scen.ephemeris,
+        codebook=scen.engine.codebook,
+        epoch_utc=epoch_utc_of(cfg),
+    )
     if out_dir is None:
-        return [summary, MemorySink()]
-    context = SimpleNamespace(out_dir=out_dir, summary=summary)
+        sinks = [summary, MemorySink()]
+        if cfg.output.report.enabled:
+            sinks.append(SINKS.build("report", cfg.output.report, context))
+        return sinks
     return [summary, *(SINKS.build(name, p, context) for name, p in cfg.output.enabled())]
 
 
@@ -105,7 +132,7 @@ def _run_section(cfg, scen, stats):
     }
 
 
-def run(cfg, out_dir=None, progress=None):
+def run(cfg, out_dir=None, progress=None, overwrite=False):
     """Run the simulation of ``cfg``.
 
     Parameters
@@ -113,27 +140,30 @@ def run(cfg, out_dir=None, progress=None):
     cfg : leolink.config.ConfigBase
     out_dir : path or None
         Where to write the enabled outputs (``trace.csv``/``trace.parquet``,
-        ``events.csv``, plots), ``summary.json`` and ``config.resolved.toml``. None keeps
-        the trace and events in memory (``Result.trace`` is then built at the end).
+        ``events.csv``/``events.parquet``, plots, ``report.html`` and its files),
+        ``summary.json``, ``config.resolved.toml`` and, last, ``run.json``. None keeps the
+        trace and events in memory (``Result.trace`` is then built at the end).
     progress : callable, optional
         ``progress(done_epochs, n_epochs)``, called about 200 times.
+    overwrite : bool
+        Replace the files of an earlier run in ``out_dir`` (only leolink's files); without
+        it such a folder raises :class:`~leolink.io.run_dir.OutputFolderError`.
 
     Returns
     -------
     Result
     """
     scen = build_scenario(cfg)
-    if out_dir is not None:
-        out_dir = Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir is not None:  # after the scenario built: a bad config removes nothing
+        out_dir = claim_out_dir(out_dir, overwrite)
     summary = SummaryAccumulator()
-    sinks = _sinks(cfg, out_dir, summary)
+    sinks = _sinks(cfg, out_dir, summary, scen)
     stats = run_simulation(scen, sinks, progress=progress)
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
-    memory = sinks[1] if out_dir is None else None
+    report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
     per_ut = summary.per_ut_table()
     if out_dir is None:
-        return Result(result_summary, None, [], memory, per_ut)
+        return Result(result_summary, None, [], sinks[1], report, per_ut)
     files = [p for s in sinks for p in getattr(s, "files", [])]
     if "per_ut" not in result_summary:  # a large run: the tables beside summary.json
         files.append(write_parquet_atomic(per_ut, out_dir / "per_ut.parquet"))
@@ -141,6 +171,10 @@ def run(cfg, out_dir=None, progress=None):
         result_summary["per_ut_file"], result_summary["dwells_file"] = (
             "per_ut.parquet", "dwells.parquet"
         )  # fmt: skip
+    config_text = dump_toml(cfg)
     files.append(write_json_atomic(out_dir / "summary.json", result_summary))
-    files.append(write_text_atomic(out_dir / "config.resolved.toml", dump_toml(cfg)))
-    return Result(result_summary, out_dir, files, None, per_ut)
+    files.append(write_text_atomic(out_dir / "config.resolved.toml", config_text))
+    for sink in sinks:
+        files += sink.after_run(result_summary, config_text) if hasattr(sink, "after_run") else []
+    files.append(write_manifest(out_dir, files, "run", config_text, version=leolink.__version__))
+    return Result(result_summary, out_dir, files, None, report, per_ut)

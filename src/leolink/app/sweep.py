@@ -4,10 +4,11 @@ A parameter is given as ``section.key=v1,v2,...``; each value is parsed as a TOM
 (as ``--set`` does: ``3``, ``0.5``, ``true``, ``"hysteresis"``; a bare word is a string).
 The grid is the Cartesian product of the parameters, in the order given (the last
 parameter varies fastest). Every point is validated before anything runs, then each
-point is one :func:`leolink.sim.runner.run` into ``out_dir/runs/<point name>``, and the
-table (one row per point: the swept values and the flattened ``summary["overall"]``) is
-written atomically to ``out_dir/sweep.csv`` and ``out_dir/sweep.json`` at the very end,
-so an interrupted sweep never leaves a table that looks complete.
+point is one :func:`leolink.app.run.run` into ``out_dir/runs/<point name>``. At the very
+end: the table (one row per point: the swept values and the flattened
+``summary["overall"]``) as ``sweep.csv`` and ``sweep.json``, ``report.html``, and last the
+manifest ``run.json``: an interrupted sweep never leaves a folder that looks finished. A
+folder holding an earlier sweep is refused unless ``overwrite`` or ``resume``.
 
 Each run is deterministic from its config (``run.seed``), so the table does not depend on
 ``workers`` or on the order in which points finish.
@@ -97,22 +98,9 @@ def _text(value):
 
 
 def point_name(index, point, width=4):
-    """Filesystem-safe folder name of one grid point, e.g. ``0003_controller.hysteresis_db=3``.
-
-    Parameters
-    ----------
-    index : int
-        Position of the point in the grid.
-    point : dict
-        ``{key: value}`` of the swept parameters at this point.
-    width : int
-        Digits of the zero-padded index.
-
-    Returns
-    -------
-    str
-        Only ``A-Z a-z 0-9 . _ = + -``; at most ``MAX_NAME_CHARS`` characters.
-    """
+    """Filesystem-safe folder name of grid point ``index`` (``point``: ``{key: value}``),
+    e.g. ``0003_controller.hysteresis_db=3``: the index zero-padded to ``width`` digits,
+    only ``A-Z a-z 0-9 . _ = + -``, at most ``MAX_NAME_CHARS`` characters."""
     body = "_".join(f"{k}={_text(v)}" for k, v in point.items())
     name = _UNSAFE.sub("_", f"{index:0{width}d}_{body}")
     return name[:MAX_NAME_CHARS]
@@ -175,24 +163,24 @@ def _run_point(cfg_path, overrides, run_dir, resume):
     """Run (or, with ``resume``, reuse) one point; return its flat metrics row.
 
     Top-level so that :class:`~concurrent.futures.ProcessPoolExecutor` can pickle it.
-    A run folder is reused only if its ``summary.json`` exists and its
-    ``config.resolved.toml`` is the config of this point (both are written at the end
-    of a run, the summary first).
+    A folder is reused only if it holds a finished run (its ``run.json``, written last)
+    of this point's config (the manifest's config hash); otherwise it is run again,
+    replacing what an earlier or interrupted run left there.
     """
     import json
 
     from leolink.app.run import run
     from leolink.config import dump_toml, load_config
+    from leolink.io.run_dir import config_sha256, read_manifest
 
     cfg = load_config(cfg_path, overrides)
     run_dir = Path(run_dir)
-    summary_path = run_dir / "summary.json"
-    resolved_path = run_dir / "config.resolved.toml"
-    if resume and summary_path.exists() and resolved_path.exists():
-        if resolved_path.read_text(encoding="utf-8") == dump_toml(cfg):
-            return flatten_summary(json.loads(summary_path.read_text("utf-8"))["overall"])
-    summary_path.unlink(missing_ok=True)  # an interrupted rerun must not look complete
-    result = run(cfg, out_dir=run_dir)
+    if resume and run_dir.is_dir():
+        manifest = read_manifest(run_dir)
+        if manifest and manifest.get("config_sha256") == config_sha256(dump_toml(cfg)):
+            summary = json.loads((run_dir / "summary.json").read_text("utf-8"))
+            return flatten_summary(summary["overall"])
+    result = run(cfg, out_dir=run_dir, overwrite=True)  # the sweep owns its runs/ folder
     return flatten_summary(result.summary["overall"])
 
 
@@ -273,13 +261,13 @@ def _validated_points(cfg_path, keys, points, base):
 
 
 def _base_overrides(base_overrides, keys, run_plots):
-    """The user's overrides, plus ``output.plots.enabled=false`` unless plots were asked for."""
+    """The user's overrides, plus ``output.plots.enabled=false`` and
+    ``output.report.enabled=false`` unless plots (or that output) were asked for."""
     base = list(base_overrides or [])
-    asked = "output.plots.enabled" in keys or any(
-        o.partition("=")[0].strip() == "output.plots.enabled" for o in base
-    )
-    if not run_plots and not asked:
-        base.append("output.plots.enabled=false")
+    for key in ("output.plots.enabled", "output.report.enabled"):
+        asked = key in keys or any(o.partition("=")[0].strip() == key for o in base)
+        if not run_plots and not asked:
+            base.append(f"{key}=false")
     return base
 
 
@@ -292,6 +280,7 @@ def run_sweep(
     progress=True,
     *,
     resume=False,
+    overwrite=False,
     run_plots=False,
     plot=True,
 ):
@@ -313,36 +302,42 @@ def run_sweep(
     progress : bool
         Show a progress bar over the points (stderr).
     resume : bool
-        Reuse run folders whose ``summary.json`` exists and whose resolved config equals
-        the point's config.
+        Reuse the finished runs (``run.json``) of the same point configs in ``out_dir``.
+    overwrite : bool
+        Replace an earlier sweep's files in ``out_dir`` (only leolink's files are removed);
+        without it (or ``resume``) such a folder raises ``OutputFolderError``.
     run_plots : bool
-        Write each run's own plots (off by default, for speed; also on if
-        ``output.plots.enabled`` is set explicitly in ``base_overrides`` or ``params``).
+        Write each run's own plots and report (off by default, for speed; also on if
+        ``output.plots.enabled`` / ``output.report.enabled`` is set explicitly in
+        ``base_overrides`` or ``params``).
     plot : bool
         Draw the main metrics against the parameter when exactly one is swept.
 
     Returns
     -------
     pandas.DataFrame
-        One row per point in grid order: ``point`` (folder name under ``runs/``), the
-        swept parameters (columns named ``section.key``) and the flattened overall summary
-        (see :func:`flatten_summary`).
+        One row per point in grid order: ``point`` (folder name under ``runs/``), the swept
+        parameters (columns ``section.key``), the flattened summary (:func:`flatten_summary`).
 
     Raises
     ------
     ConfigError
-        A malformed parameter, an empty value list, a bad ``workers`` or any point whose
-        config is invalid; raised before any run folder is created.
+        A bad parameter, value list or ``workers``, or an invalid point; before any run.
     """
     address = _check_workers(workers)
     keys, points = _grid(params)
     base = _base_overrides(base_overrides, keys, run_plots)
     _validated_points(cfg_path, keys, points, base)
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for stale in ("sweep.csv", "sweep.json"):  # a table of an earlier sweep must not linger
-        (out_dir / stale).unlink(missing_ok=True)
+    from leolink.io.run_dir import claim_out_dir
+
+    # An earlier sweep's tables and page go first (resumed: its point runs stay).
+    out_dir = claim_out_dir(
+        out_dir,
+        overwrite or resume,
+        flag="--overwrite (or --resume, to reuse its finished points)",
+        keep=("runs",) if resume else (),
+    )
     width = max(4, len(str(len(points) - 1)))
     names = [point_name(i, p, width) for i, p in enumerate(points)]
     jobs = [
@@ -358,25 +353,37 @@ def run_sweep(
             rows = _processes(jobs, bar, min(workers, len(jobs)))
 
     table = pd.DataFrame([{"point": names[i], **points[i], **rows[i]} for i in range(len(points))])
-    _write(table, out_dir, cfg_path, keys, base)
-    if plot and len(keys) == 1:
-        _plot(table, out_dir, keys[0])
+    _write(table, out_dir, cfg_path, (params, keys, base), names, plot)
     return table
 
 
-def _write(table, out_dir, cfg_path, keys, base):
+def _write(table, out_dir, cfg_path, spec, names, plot):
+    """``sweep.json``, ``sweep.csv``, the plot (one parameter), ``report.html``, and last
+    ``run.json`` (the tables, the page and every point's own ``run.json``)."""
+    import leolink
+    from leolink.config import dump_toml, load_config
     from leolink.io.atomic import write_csv_atomic, write_json_atomic
+    from leolink.io.report import build_table_report
+    from leolink.io.run_dir import write_manifest
 
-    write_json_atomic(
-        out_dir / "sweep.json",
-        {
-            "config": str(cfg_path),
-            "base_overrides": base,
-            "params": keys,
-            "points": table.to_dict(orient="records"),
-        },
+    params, keys, base = spec
+    head = {"config": str(cfg_path), "base_overrides": base, "params": keys}
+    files = [
+        write_json_atomic(out_dir / "sweep.json", {**head, "points": table.to_dict("records")}),
+        write_csv_atomic(table, out_dir / "sweep.csv"),
+    ]
+    files += _plot(table, out_dir, keys[0]) if plot and len(keys) == 1 else []
+    config_text = dump_toml(load_config(cfg_path, base))
+    figures = [(p.stem.replace("_", " "), p) for p in files if p.suffix == ".png"]
+    notes = f"{len(table)} points; the run of each is in runs/<point>/ (column 'point')."
+    page = build_table_report(
+        out_dir / "report.html", "leolink sweep report", table, figures, config_text, notes
     )
-    write_csv_atomic(table, out_dir / "sweep.csv")  # last: its presence means "complete"
+    runs = [out_dir / "runs" / name / "run.json" for name in names]
+    arguments = {"params": list(params), "base_overrides": base}
+    write_manifest(
+        out_dir, [*files, page, *runs], "sweep", config_text, arguments, version=leolink.__version__
+    )
 
 
 def _plot(table, out_dir, x):

@@ -14,7 +14,7 @@ import functools
 import math
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import tomli_w
 from pydantic import Field, ValidationError, create_model, model_validator
@@ -60,6 +60,11 @@ class ConfigBase(Section):
     """A whole run. Sections mirror the TOML tables; see :func:`config_model`."""
 
     source: str = Field("", exclude=True, description="where the config came from")
+
+    if TYPE_CHECKING:  # sections added by config_model() from the registries (for mypy)
+        constellation: Any
+        roi: Any
+        earth: Any
 
     @model_validator(mode="after")
     def _check(self):

@@ -253,8 +253,9 @@ def plot_run(
     events : pandas.DataFrame or None
         ``time_s, ut_id, kind, ...``; may be empty.
     summary : dict
-        ``summary["per_ut"]`` (``ut_id``, ``dwell_times_s``, ``handovers``) and
-        ``summary["overall"]`` (``handovers``, ``dwell_times_s`` [s]).
+        The ``summary.json`` layout (:class:`leolink.io.summary.SummaryAccumulator`):
+        ``summary["per_ut"]`` (``ut_id``, ``handovers``, ``dwell.censored``) and
+        ``summary["overall"]`` (``handovers``, ``dwell.complete_s`` [s]).
     out_dir : path-like
         Directory (created if missing).
     ut_ids : sequence of int

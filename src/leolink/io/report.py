@@ -300,18 +300,40 @@ def build_run_report(
     return write_text_atomic(path, _page(title, sections))
 
 
+def _any_figure_uri(fig):
+    """``data:`` URI of a Figure, or of a PNG file already written."""
+    if isinstance(fig, str | Path):
+        return "data:image/png;base64," + base64.b64encode(Path(fig).read_bytes()).decode("ascii")
+    return figure_data_uri(fig)
+
+
 def build_table_report(path, title, table, figures=(), config_text="", notes=""):
-    """Write a report page for ``compare`` / ``sweep`` / ``coverage``: a table, figures
-    (list of ``(caption, Figure)``), the resolved config."""
+    """Write a report page for ``compare`` / ``sweep`` / ``coverage``.
+
+    Parameters
+    ----------
+    path : path-like
+        Output file (written atomically).
+    title : str
+    table : DataFrame or anything ``pandas.DataFrame`` takes
+        The results, one row each (e.g. ``compare.csv``: ``policy`` + the KPIs).
+    figures : list of (caption, Figure or path of a PNG)
+    config_text : str
+        The resolved config (TOML), shown verbatim.
+    notes : str
+        A sentence above the table.
+    """
     frame = pd.DataFrame(table)
     sections = [
         (
             "Results",
             (f"<p>{html.escape(notes)}</p>" if notes else "")
-            + _table(list(frame.columns), frame.itertuples(index=False)),
+            + '<div class="wide">'
+            + _table(list(frame.columns), frame.itertuples(index=False))
+            + "</div>",
         )
     ]
-    sections += [(cap, _img(figure_data_uri(fig), cap)) for cap, fig in figures]
+    sections += [(cap, _img(_any_figure_uri(fig), cap)) for cap, fig in figures]
     if config_text:
         sections.append(("Resolved config", f"<pre>{html.escape(config_text)}</pre>"))
     return write_text_atomic(Path(path), _page(title, sections))

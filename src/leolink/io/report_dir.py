@@ -19,7 +19,13 @@ from leolink.constants import EARTH_RADIUS_M
 from leolink.io.report import build_run_report
 from leolink.io.report_stats import SERIES_COLUMNS, ReportStats
 
-__all__ = ["build_report_from_dir", "stats_from_dir", "tracks_from_stats", "write_exports"]
+__all__ = [
+    "build_report_from_dir",
+    "rebuild_report",
+    "stats_from_dir",
+    "tracks_from_stats",
+    "write_exports",
+]
 
 
 def _trace_chunks(out_dir, chunk_rows):
@@ -85,27 +91,91 @@ def stats_from_dir(out_dir, series_ut=None, n_sample_ut=500, max_frames=120, chu
     return stats
 
 
+def _stats_for(out_dir, series_ut):
+    """The saved statistics when they hold exactly ``series_ut`` (or none was asked), else
+    the folder's trace streamed anew, with the saved satellites and codebook when the kept
+    epochs agree (a run writes no ``satellites.csv``)."""
+    path = out_dir / "report_stats.npz"
+    saved = ReportStats.load(path) if path.exists() else None
+    if saved is not None and (series_ut is None or set(series_ut) == set(saved.series_ut)):
+        return saved
+    if saved is None:
+        return stats_from_dir(out_dir, series_ut)
+    stats = stats_from_dir(out_dir, series_ut, max_frames=saved.keep_times_s.size)
+    if stats.sat_pos_m is None and np.array_equal(stats.keep_times_s, saved.keep_times_s):
+        stats.sat_ids, stats.sat_pos_m, stats.sat_vel_m_s = (
+            saved.sat_ids, saved.sat_pos_m, saved.sat_vel_m_s
+        )  # fmt: skip
+    if stats.beam_u_xy is None and saved.beam_u_xy is not None:
+        stats.set_codebook(saved.beam_u_xy, *saved.n_sub_xy)
+    return stats
+
+
 def build_report_from_dir(out_dir, series_ut=None, animate=True, exports=False):
     """``leolink report DIR``: rebuild ``report.html`` (and ``footprint.gif``) from a folder.
 
-    Uses ``report_stats.npz`` when the run saved one, else :func:`stats_from_dir`. With
-    ``exports``, also writes ``run.geojson`` and ``run.czml`` (:func:`write_exports`).
+    Uses ``report_stats.npz`` when the run saved one (and ``series_ut`` is None or its
+    UTs), else :func:`stats_from_dir`. With ``exports``, also writes ``run.geojson`` and
+    ``run.czml`` (:func:`write_exports`).
     Returns ``{"report": path, "animation": path or None, "exports": paths or ()}``.
     """
     out_dir = Path(out_dir)
     summary = json.loads((out_dir / "summary.json").read_text())
-    saved = out_dir / "report_stats.npz"
-    stats = ReportStats.load(saved) if saved.exists() else stats_from_dir(out_dir, series_ut)
+    stats = _stats_for(out_dir, series_ut)
     gif = None
     if animate and stats.sat_pos_m is not None and stats.beam_u_xy is not None:
         from leolink.io.animation import frames_from_stats, write_footprint_gif
 
         gif = write_footprint_gif(out_dir / "footprint.gif", frames_from_stats(stats))["path"]
+    elif (out_dir / "footprint.gif").exists():
+        gif = out_dir / "footprint.gif"  # the run's animation, kept as it is
     config = out_dir / "config.resolved.toml"
     text = config.read_text() if config.exists() else ""
     page = build_run_report(out_dir / "report.html", summary, stats, text, animation_path=gif)
     written = write_exports(stats, out_dir) if exports else ()
     return {"report": page, "animation": gif, "exports": written}
+
+
+def rebuild_report(out_dir, series_ut=None, animate=True, exports=False, *, version):
+    """``leolink report DIR`` on a finished run's folder: :func:`build_report_from_dir`,
+    then ``run.json`` updated with the rewritten and the new files (``version``: the
+    ``leolink.__version__`` that rebuilt them).
+
+    Raises
+    ------
+    OutputFolderError
+        ``out_dir`` has no ``run.json`` (not a finished run), or is not a ``leolink run``
+        folder.
+    """
+    from leolink.io.run_dir import OutputFolderError, read_manifest, write_manifest
+
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        raise OutputFolderError(f"{out_dir} is not a folder")
+    manifest = read_manifest(out_dir)
+    if manifest is None:
+        raise OutputFolderError(
+            f"{out_dir} is not a finished leolink run (no run.json; an interrupted run leaves "
+            "none): rerun it with --overwrite"
+        )
+    if manifest.get("command") != "run":
+        raise OutputFolderError(
+            f"{out_dir} holds the output of 'leolink {manifest.get('command')}'; leolink "
+            "report rebuilds the report of a 'leolink run' folder"
+        )
+    built = build_report_from_dir(out_dir, series_ut, animate, exports)
+    files = [out_dir / e["path"] for e in manifest["files"]]
+    files += [p for p in (built["report"], built["animation"], *built["exports"]) if p]
+    config = out_dir / "config.resolved.toml"
+    write_manifest(
+        out_dir,
+        [p for p in files if p.is_file()],
+        "run",
+        config.read_text() if config.exists() else "",
+        manifest.get("arguments"),
+        version=version,
+    )
+    return built
 
 
 def tracks_from_stats(stats, max_frames=120):
@@ -153,13 +223,16 @@ def tracks_from_stats(stats, max_frames=120):
 def write_exports(stats, out_dir, epoch_utc=None):
     """Write ``run.geojson`` and ``run.czml`` of a run's statistics into ``out_dir``.
 
-    ``epoch_utc``: ISO 8601 time of ``t = 0`` for CZML (default J2000, see
-    :mod:`leolink.io.exports`). Returns the two paths.
+    ``epoch_utc``: ISO 8601 time of ``t = 0`` for CZML (default: the one the run saved in
+    the statistics, a TLE run's epoch, else J2000, see :mod:`leolink.io.exports`). Returns
+    the two paths.
     """
     from leolink.io.exports import DEFAULT_EPOCH_UTC, write_czml, write_geojson
 
     sats, uts, frames = tracks_from_stats(stats)
     out_dir = Path(out_dir)
+    saved = getattr(stats, "epoch_utc", None)
+    epoch_utc = epoch_utc or (str(saved) if saved is not None else None)
     geo = write_geojson(out_dir / "run.geojson", sats, uts, frames)
     czml = write_czml(
         out_dir / "run.czml",

@@ -3,15 +3,18 @@
 Output sinks are a pluggable kind: :data:`SINKS` holds one entry per ``[output.<name>]``
 table of the config, each with an ``enabled`` switch and its own keys. A sink is built
 with the context ``out_dir`` (a folder, or None for a run kept in memory) and
-``summary`` (the run's :class:`~leolink.io.summary.SummaryAccumulator`, fed first). A sink
-that writes files lists them, once finished, in its ``files`` attribute (the run's
-manifest is made of these lists).
+``summary`` (the run's :class:`~leolink.io.summary.SummaryAccumulator`, fed first),
+``ephemeris`` and ``codebook`` (the scenario's) and ``epoch_utc`` (UTC of time 0, or None).
+A sink that writes files lists them, once finished, in its ``files`` attribute (the run's
+manifest, ``run.json``, is made of these lists). A sink may also have
+``after_run(summary, config_text) -> list of paths``, called once ``summary.json`` is
+written, for outputs drawn from the final summary (the report page).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import pandas as pd
 import pyarrow as pa
@@ -21,7 +24,15 @@ from leolink.io.tables import EVENT_SCHEMA, TRACE_SCHEMA, EventLog, TraceWriter,
 from leolink.registry import Params, Registry
 from leolink.sim.streams import Sink
 
-__all__ = ["SINKS", "EventSink", "MemorySink", "PlotSink", "SinkParams", "TraceSink"]
+__all__ = [
+    "SINKS",
+    "EventSink",
+    "MemorySink",
+    "PlotSink",
+    "ReportParams",
+    "SinkParams",
+    "TraceSink",
+]
 
 #: Output sinks by config name (``[output.<name>]``).
 SINKS: Registry[Sink] = Registry("output", protocol=Sink)
@@ -59,14 +70,15 @@ class TraceSink:
 
 
 class EventSink:
-    """``events.csv``, in the order the controller emits events (time, then UT)."""
+    """``events.csv`` (and ``events.parquet``: the same rows), in the order the controller
+    emits events (time, then UT)."""
 
-    def __init__(self, out_dir, chunk_rows=200_000):
-        self.out_dir, self.chunk_rows = Path(out_dir), chunk_rows
+    def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
+        self.out_dir, self.formats, self.chunk_rows = Path(out_dir), tuple(formats), chunk_rows
         self.writer, self.files = None, []
 
     def start(self, info):
-        self.writer = EventLog(self.out_dir, formats=("csv",), chunk_rows=self.chunk_rows)
+        self.writer = EventLog(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows)
 
     def epoch(self, frame):
         if len(frame.events["ut_id"]):
@@ -151,18 +163,55 @@ class PlotSink:
 class TraceParams(SinkParams):
     enabled: bool = Field(True, description="write trace.csv / trace.parquet")
     formats: list[Literal["csv", "parquet"]] = Field(
-        default_factory=lambda: ["csv"], min_length=1, description="trace files to write"
+        default_factory=lambda: ["csv"],  # type: ignore[arg-type]  # mypy infers list[str]
+        min_length=1,
+        description="trace files to write",
     )
     chunk_rows: int = Field(200_000, ge=1, le=100_000_000, description="rows per written chunk")
 
 
 class EventsParams(SinkParams):
-    enabled: bool = Field(True, description="write events.csv")
+    enabled: bool = Field(True, description="write events.csv / events.parquet")
+    formats: list[Literal["csv", "parquet"]] = Field(
+        default_factory=lambda: ["csv", "parquet"],  # type: ignore[arg-type]  # list[str]
+        min_length=1,
+        description="event files",
+    )
 
 
 class PlotsParams(SinkParams):
     enabled: bool = Field(True, description="write PNG plots next to the traces")
     uts: list[int] = Field(default_factory=lambda: [0], description="UTs shown in the time plots")
+
+
+class ReportParams(SinkParams):
+    enabled: bool = Field(True, description="write report.html and what it is drawn from")
+    uts: list[Annotated[int, Field(ge=0)]] = Field(
+        default_factory=list,
+        description="UTs of the time plots; empty: the first UT of each population (at most 6)",
+    )
+    sample_uts: int = Field(
+        500, ge=1, le=1_000_000, description="UTs drawn on the map and in the animation"
+    )
+    max_frames: int = Field(
+        60, ge=2, le=5000, description="most epochs kept for the map and the animation"
+    )
+    animation: bool = Field(True, description="write footprint.gif (shown in the page)")
+    exports: bool = Field(
+        False, description="write run.geojson and run.czml (also: leolink report DIR --exports)"
+    )
+
+
+def _report_sink(p, ctx):
+    from leolink.io.report_sink import ReportSink
+
+    return ReportSink(
+        ctx.out_dir,
+        p,
+        getattr(ctx, "ephemeris", None),
+        getattr(ctx, "codebook", None),
+        getattr(ctx, "epoch_utc", None),
+    )
 
 
 SINKS.add(
@@ -173,7 +222,7 @@ SINKS.add(
 )
 SINKS.add(
     "events",
-    lambda p, ctx: EventSink(ctx.out_dir),
+    lambda p, ctx: EventSink(ctx.out_dir, p.formats),
     config=EventsParams,
     doc="handovers and outages, one row each",
 )
@@ -182,4 +231,10 @@ SINKS.add(
     lambda p, ctx: PlotSink(ctx.out_dir, ctx.summary, p.uts),
     config=PlotsParams,
     doc="SNR/SINR and Doppler vs time, dwell and handover plots (PNG)",
+)
+SINKS.add(
+    "report",
+    _report_sink,
+    config=ReportParams,
+    doc="report.html (tables, figures, map, animation), report_stats.npz, GeoJSON and CZML",
 )

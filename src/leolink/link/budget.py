@@ -47,7 +47,7 @@ def lin(x_db):
 
 
 def fspl_db(distance_m, freq_hz):
-    """Free-space path loss, Eq. (path_loss) of [1], ``20 log10(4 pi d f / c)``.
+    """Free-space path loss, Eq. (5) of [1], ``20 log10(4 pi d f / c)``.
 
     Parameters
     ----------
@@ -66,7 +66,7 @@ def fspl_db(distance_m, freq_hz):
 
 
 def noise_power_dbw(noise_temp_dbk, bandwidth_hz):
-    """Thermal noise power ``sigma^2 = T[dBK] + k[dBW/K/Hz] + B[dBHz]``, Sec. 2.2 of [1].
+    """Thermal noise power ``sigma^2 = T[dBK] + k[dBW/K/Hz] + B[dBHz]``, Eq. (4) of [1].
 
     Uses the exact ``10 log10(1.380649e-23) = -228.599`` dBW/K/Hz; the paper rounds
     it to -228.6 (0.001 dB, see docs/errata.md).
@@ -87,7 +87,7 @@ def noise_power_dbw(noise_temp_dbk, bandwidth_hz):
 
 
 def rss_dbw(ptx_dbw, cable_db, gain_tx_db, atm_db, fspl_db, gain_rx_db):
-    """Received signal strength, Sec. 2.2 of [1].
+    """Received signal strength, Eq. (3) of [1] (Sec. 2.2.1).
 
     ``RSS = P_TX - LP_cable + G_TX - LP_at - LP_fs + G_RX`` (all terms broadcast).
 
@@ -116,7 +116,7 @@ def rss_dbw(ptx_dbw, cable_db, gain_tx_db, atm_db, fspl_db, gain_rx_db):
 
 
 def interference_dbw(ptx_dbw, cable_db, gain_tx_other_lin, atm_db, fspl_db, gain_rx_db):
-    """Inter-beam interference power, the paper's ``I`` (Sec. 4.1 of [1]), corrected.
+    """Inter-beam interference power, the paper's ``I``, Eq. (18) of [1], corrected.
 
     The paper writes ``I = P - L_cable + G_TX - L_at - L_fs + G_RX^interf`` with
     ``G_RX^interf = sum_{n != sel} G_TX_n``: the labels are swapped. The sum of the
@@ -139,22 +139,22 @@ def interference_dbw(ptx_dbw, cable_db, gain_tx_other_lin, atm_db, fspl_db, gain
 
 
 def snr_db(rss_dbw, noise_dbw):
-    """SNR = RSS - sigma^2 [dB], Sec. 2.2 of [1]."""
+    """SNR = RSS - sigma^2 [dB], Eq. (2) of [1]."""
     return np.asarray(rss_dbw, dtype=float) - noise_dbw
 
 
 def sinr_lin(signal_w, interference_w, noise_w):
-    """SINR = RSS / (I + sigma^2), linear, Sec. 4.1 of [1]. Inputs in [W]."""
+    """SINR = RSS / (I + sigma^2), linear, Eq. (19) of [1]. Inputs in [W]."""
     return np.asarray(signal_w, dtype=float) / (np.asarray(interference_w) + noise_w)
 
 
 def spectral_efficiency_bps_hz(sinr_lin):
-    """Shannon spectral efficiency ``log2(1 + SINR)`` [bit/s/Hz], Sec. 4.2 of [1]."""
+    """Shannon spectral efficiency ``log2(1 + SINR)`` [bit/s/Hz], Sec. 4.2 of [1] (unnumbered)."""
     return np.log2(1.0 + np.asarray(sinr_lin, dtype=float))
 
 
 def throughput_bps(se_bps_hz, bandwidth_hz):
-    """Throughput ``B log2(1 + SINR)`` [bit/s], Sec. 4.2 of [1]."""
+    """Throughput ``B log2(1 + SINR)`` [bit/s], Sec. 4.2 of [1] (unnumbered)."""
     return np.asarray(se_bps_hz, dtype=float) * bandwidth_hz
 
 

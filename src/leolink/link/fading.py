@@ -1,7 +1,8 @@
-"""Rician receive gain of the UT, Sec. 4.1 of [1].
+"""Rician receive gain of the UT, Eqs. (15)-(17) of [1] (Sec. 4.1).
 
-With the channel of Eq. (channel), ``H = gamma (a_u(v) + a_R / sqrt(K)) a_sat^H``, and
-the UT combiner ``w_u`` matched to the known LoS direction, the receive gain is
+With the channel of Eq. (11) (Eq. (10) before the gain is factored out),
+``H = gamma (a_u(v) + a_R / sqrt(K)) a_sat^H``, and the UT combiner ``w_u`` matched to
+the known LoS direction, the receive gain is
 
     G_RX = |<a_u(v) + a_R / sqrt(K), w_u>|^2 / ||w_u||^2
          = |sqrt(N) e^{i phi} + g / sqrt(K)|^2,   g ~ CN(0, 1),
@@ -9,7 +10,8 @@ the UT combiner ``w_u`` matched to the known LoS direction, the receive gain is
 where ``N = |<a_u(v), w_u>|^2 / ||w_u||^2`` is the **LoS beamforming gain** of the UT
 (linear, e.g. ``n_x n_y`` for a UPA steered exactly at the satellite) and, for
 ``Sigma = I``, ``<a_R, w_u> / ||w_u|| ~ CN(0, 1)``. The LoS phase does not change the
-distribution, so it is dropped. Its mean is ``N + 1/K`` (the paper's final expression).
+distribution, so it is dropped. Its mean is ``N + 1/K`` (Eq. (17), the paper's final
+expression; Eq. (16) splits the mean into the LoS and diffuse terms).
 
 References
 ----------
@@ -23,7 +25,7 @@ __all__ = ["mean_rician_gain_lin", "rician_gain_from_draws_lin", "rician_gain_li
 
 
 def mean_rician_gain_lin(n_lin, k):
-    """Mean receive gain ``N + 1/K``, Sec. 4.1 of [1].
+    """Mean receive gain ``N + 1/K``, Eq. (17) of [1].
 
     Parameters
     ----------

@@ -127,7 +127,7 @@ def paper_model_db(
 ):
     """The paper's atmospheric loss ``LP_at = int A(f, T(h), P(h), rho(h)) ds`` [dB].
 
-    Sec. 2.2 of [1]: midpoint rule on shells of ``step_m`` from the UT altitude to
+    Eq. (6) of [1] (Sec. 2.2.1): midpoint rule on shells of ``step_m`` from the UT altitude to
     ``top_m`` (81 km), spherical-shell straight-ray geometry (refraction neglected),
     1976 US Standard Atmosphere, the paper's water vapour (:func:`paper_water_vapour_g_m3`).
     The paper writes ``dh``; the path element along the slant ray is used here.

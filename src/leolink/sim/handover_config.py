@@ -123,15 +123,23 @@ TriggerConfig = Annotated[
 ]
 
 
+def _default_prepare() -> TriggerConfig:
+    return A3Config.model_validate({})
+
+
+def _default_execute() -> list[TriggerConfig]:
+    return [A3Config.model_validate({"offset_db": 3.0})]
+
+
 class ChoConfig(Params):
     """Conditional handover; the default conditions are illustrative, not 3GPP values."""
 
     kind: Literal["cho"] = "cho"
     prepare: TriggerConfig = Field(
-        default_factory=A3Config, description="trigger that prepares a candidate"
+        default_factory=_default_prepare, description="trigger that prepares a candidate"
     )
     execute: list[TriggerConfig] = Field(
-        default_factory=lambda: [A3Config(offset_db=3.0)],
+        default_factory=_default_execute,
         min_length=1,
         max_length=2,
         description="one or two execution conditions (all must be fulfilled)",

@@ -4,7 +4,9 @@ A config ``[[population]]`` table names a ``kind`` of :data:`MOBILITY`; its keys
 kind's parameter model (validated once, when the config is loaded) and its builder turns
 them into a motion model of :mod:`leolink.sim.mobility`. Placement in the ROI plane is
 :mod:`leolink.placement`; headings ``along_track`` / ``against_track`` / ``cross_track``
-are relative to the ROI x axis (the satellites' ground track at the ROI centre).
+are relative to the ROI x axis (the satellites' ground track at the ROI centre):
++x, -x, and 90 deg clockwise of the track, i.e. to its right (the paper's +y, leolink's
+ROI -y; tests/test_populations.py).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ from leolink.rng import ut_keys
 from leolink.sim.controller import ControllerState
 from leolink.sim.mobility import concat_states
 from leolink.sim.policies import Policy
+from leolink.sim.populations import MotionModel
 from leolink.sim.processes import (
     SimState,
     _Decider,
@@ -64,7 +65,7 @@ class Scenario:
 
     engine: LinkEngine
     ephemeris: Ephemeris
-    populations: list[tuple[str, object]]
+    populations: list[tuple[str, MotionModel]]
     policy: Policy
     min_snr_db: float
     handover_time_s: float

@@ -1,0 +1,274 @@
+"""Output folders: recognise another run's files, replace them only when asked, and the
+manifest ``run.json`` that marks a finished run.
+
+A leolink output folder is recognisable by its ``run.json`` or by the names leolink writes
+(:data:`KNOWN_NAMES`, :data:`KNOWN_PATTERNS`). :func:`claim_out_dir` refuses a folder that
+holds such files unless ``overwrite``, which removes exactly those files (the ones listed
+in ``run.json`` plus any known name, and the temporary ``*.partial`` files of an interrupted
+run), never a file of another name: a user's notes beside a run survive ``--overwrite``.
+
+:func:`write_manifest` is called last by every command: ``run.json`` holds the leolink
+version, the command, the SHA-256 of the resolved config and every file written (path
+relative to the folder, size in bytes, SHA-256). A folder without it is not a finished run:
+an interrupted run leaves none (its files may be complete, the run is not), so the next run
+into that folder is refused with a message naming the files, and ``--overwrite`` clears them.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import hashlib
+import json
+from datetime import UTC, datetime
+from pathlib import Path
+
+from leolink.errors import LeolinkError
+from leolink.io.atomic import PARTIAL_SUFFIX, write_json_atomic
+
+__all__ = [
+    "KNOWN_NAMES",
+    "MANIFEST",
+    "OutputFolderError",
+    "claim_out_dir",
+    "config_sha256",
+    "file_sha256",
+    "owned_files",
+    "read_manifest",
+    "write_manifest",
+]
+
+MANIFEST = "run.json"
+MANIFEST_VERSION = 1
+#: Files the commands write at the top of their folder (run, coverage, sweep).
+KNOWN_NAMES = frozenset(
+    {
+        MANIFEST,
+        "trace.csv",
+        "trace.parquet",
+        "events.csv",
+        "events.parquet",
+        "summary.json",
+        "per_ut.parquet",
+        "dwells.parquet",
+        "config.resolved.toml",
+        "report.html",
+        "report_stats.npz",
+        "footprint.gif",
+        "run.geojson",
+        "run.czml",
+        "snr_time.png",
+        "doppler_time.png",
+        "dwell_hist.png",
+        "handovers.png",
+        "coverage.csv",
+        "coverage_beams.png",
+        "coverage_snr.png",
+        "coverage_sinr.png",
+        "coverage_se.png",
+        "coverage_doppler.png",
+        "coverage_angular_speed.png",
+        "coverage_cuts.png",
+        "sweep.csv",
+        "sweep.json",
+        "compare.csv",
+    }
+)
+#: Name patterns of files a command writes (sweep and compare plots).
+KNOWN_PATTERNS = ("sweep_*.png", "compare_*.png")
+_RUNS = "runs"  # sweep: one run folder per grid point
+_CHUNK = 1 << 20
+
+
+class OutputFolderError(LeolinkError):
+    """An output folder that holds another run's files, or a manifest that cannot be used."""
+
+
+def file_sha256(path):
+    """SHA-256 (hex) of a file, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(_CHUNK):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def config_sha256(config_text):
+    """SHA-256 (hex) of the resolved config's text (UTF-8)."""
+    return hashlib.sha256(config_text.encode("utf-8")).hexdigest()
+
+
+def read_manifest(out_dir):
+    """``run.json`` of a folder as a dict, or None when there is none.
+
+    Raises
+    ------
+    OutputFolderError
+        The file exists but is not a leolink manifest.
+    """
+    path = Path(out_dir) / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text("utf-8"))
+        if not isinstance(data, dict) or not isinstance(data["files"], list):
+            raise TypeError
+        [str(f["path"]) for f in data["files"]]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise OutputFolderError(
+            f"{path} is not a leolink manifest ({type(exc).__name__}); move it away or remove it"
+        ) from None
+    return data
+
+
+def _inside(out_dir, rel):
+    """``out_dir / rel`` if it stays inside ``out_dir`` (no absolute path, no ``..``)."""
+    rel_path = Path(rel)
+    if rel_path.is_absolute() or ".." in rel_path.parts or not rel_path.parts:
+        raise OutputFolderError(
+            f"{Path(out_dir) / MANIFEST} lists {rel!r}, which is outside its folder; "
+            "leolink removes only files inside the folder"
+        )
+    return Path(out_dir) / rel_path
+
+
+def _known(name):
+    """A name leolink writes, or the temporary file of one (``NAME.<hex>.partial`` of
+    :mod:`leolink.io.atomic`, ``footprint.partial.gif`` of the animation)."""
+    if name.endswith(PARTIAL_SUFFIX):
+        name = name[: -len(PARTIAL_SUFFIX)].rpartition(".")[0]
+    elif name == "footprint.partial.gif":
+        return True
+    return name in KNOWN_NAMES or any(fnmatch.fnmatchcase(name, p) for p in KNOWN_PATTERNS)
+
+
+def _known_in(folder):
+    if not folder.is_dir():
+        return []
+    return sorted(p for p in folder.iterdir() if _known(p.name) and not p.is_dir())
+
+
+def owned_files(out_dir):
+    """Files of leolink runs in ``out_dir``: those its ``run.json`` lists and any known name
+    (also in ``runs/*/``, a sweep's point folders). Returns existing paths, sorted."""
+    out_dir = Path(out_dir)
+    found = set(_known_in(out_dir))
+    folders = [out_dir]
+    runs = out_dir / _RUNS
+    if runs.is_dir() and not runs.is_symlink():
+        folders += sorted(p for p in runs.iterdir() if p.is_dir() and not p.is_symlink())
+        for sub in folders[1:]:
+            found.update(_known_in(sub))
+    for folder in folders:
+        manifest = read_manifest(folder)
+        for entry in manifest["files"] if manifest else []:
+            path = _inside(folder, entry["path"])
+            if path.is_file() or path.is_symlink():
+                found.add(path)
+    return sorted(found)
+
+
+def _describe(out_dir, files):
+    manifest = read_manifest(out_dir)
+    names = ", ".join(str(p.relative_to(out_dir)) for p in files[:4])
+    names += f" and {len(files) - 4} more" if len(files) > 4 else ""
+    if manifest is not None:
+        what, version = manifest.get("command", "run"), manifest.get("leolink_version")
+        return f"the files of a finished 'leolink {what}' (run.json of leolink {version})"
+    return f"files of an unfinished leolink run (no run.json: {names})"
+
+
+def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
+    """Make ``out_dir`` ready for a new run; returns it as a Path.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Created if missing. A folder with only other files (not leolink's) is used as is.
+    overwrite : bool
+        Remove the files of an earlier run first (:func:`owned_files`); without it such
+        files make this raise.
+    flag : str
+        How the caller's user asks for ``overwrite`` (named in the message).
+    keep : sequence of str
+        Paths relative to ``out_dir`` to leave in place (a resumed sweep keeps ``runs``).
+
+    Raises
+    ------
+    OutputFolderError
+        ``out_dir`` is a file, or holds an earlier run's files and ``overwrite`` is off.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputFolderError(f"--out {out_dir} is a file; give a folder")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    theirs = [p for p in owned_files(out_dir) if not _kept(p, out_dir, keep)]
+    if not theirs:
+        return out_dir
+    if not overwrite:
+        raise OutputFolderError(
+            f"--out {out_dir} holds {_describe(out_dir, theirs)}; rerun with {flag} to "
+            "replace it (only leolink's files are removed), or choose another folder"
+        )
+    manifests = [p for p in theirs if p.name == MANIFEST]
+    for path in [p for p in theirs if p.name != MANIFEST] + manifests:  # manifests last
+        path.unlink(missing_ok=True)
+    runs = out_dir / _RUNS
+    if runs.is_dir() and not _kept(runs, out_dir, keep):
+        for sub in sorted(runs.iterdir()):
+            _rmdir_if_empty(sub)
+        _rmdir_if_empty(runs)
+    return out_dir
+
+
+def _kept(path, out_dir, keep):
+    rel = path.relative_to(out_dir)
+    return any(rel == Path(k) or Path(k) in rel.parents for k in keep)
+
+
+def _rmdir_if_empty(folder):
+    if folder.is_dir() and not folder.is_symlink() and not any(folder.iterdir()):
+        folder.rmdir()
+
+
+def write_manifest(out_dir, files, command, config_text, arguments=None, *, version):
+    """Write ``run.json`` last: the leolink version, ``command``, the config's SHA-256 and
+    every file of ``files`` (inside ``out_dir``) with its size and SHA-256.
+
+    Parameters
+    ----------
+    out_dir : path-like
+    files : iterable of path-like
+        Files the command wrote (duplicates and ``run.json`` itself are dropped).
+    command : str
+        ``"run"``, ``"coverage"``, ``"sweep"``, ...
+    config_text : str
+        The resolved config (its hash identifies the run).
+    arguments : dict, optional
+        Command arguments that change the outputs besides the config (e.g. the grid).
+    version : str
+        ``leolink.__version__`` (passed in: ``io`` does not import the package root).
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    out_dir = Path(out_dir)
+    entries, seen = [], set()
+    for f in files:
+        path = Path(f)
+        path = path if path.is_absolute() else out_dir / path
+        rel = path.resolve().relative_to(out_dir.resolve()).as_posix()
+        if rel in seen or rel == MANIFEST:
+            continue
+        seen.add(rel)
+        entries.append({"path": rel, "bytes": path.stat().st_size, "sha256": file_sha256(path)})
+    manifest = {
+        "manifest_version": MANIFEST_VERSION,
+        "leolink_version": version,
+        "command": command,
+        "config_sha256": config_sha256(config_text),
+        "arguments": arguments or {},
+        "finished_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "files": entries,
+    }
+    return write_json_atomic(out_dir / MANIFEST, manifest)

@@ -1,0 +1,66 @@
+"""leolink.io.tables: contracts that mutation testing found unchecked (docs/testing.md).
+
+Row groups at exact multiples of ``chunk_rows``, an extra column, append after close,
+the messages of bad formats and chunk sizes, and a nested output folder.
+"""
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from leolink.errors import ConfigError
+from leolink.io.tables import TRACE_SCHEMA, TableWriter, TraceWriter
+
+
+def _rows(n, start=0):
+    cols = {}
+    for f in TRACE_SCHEMA:
+        if f.name == "service":
+            cols[f.name] = np.array(["served"] * n)
+        elif str(f.type).startswith("int"):
+            cols[f.name] = np.arange(start, start + n, dtype=np.int64)
+        else:
+            cols[f.name] = np.linspace(0.0, 1.0, n) + start
+    return cols
+
+
+@pytest.mark.parametrize(("n_rows", "chunk", "groups"), [(6, 3, [3, 3]), (7, 3, [3, 3, 1]),
+                                                         (3, 3, [3]), (2, 3, [2])])  # fmt: skip
+def test_row_groups_follow_chunk_rows_exactly(tmp_path, n_rows, chunk, groups):
+    with TraceWriter(tmp_path, formats=("parquet", "csv"), chunk_rows=chunk) as w:
+        for i in range(n_rows):  # one row per append, as a one-UT run
+            w.append(_rows(1, start=i))
+    meta = pq.ParquetFile(tmp_path / "trace.parquet").metadata
+    assert [meta.row_group(i).num_rows for i in range(meta.num_row_groups)] == groups
+    assert (tmp_path / "trace.csv").read_text().count("\n") == n_rows + 1
+    np.testing.assert_array_equal(pq.read_table(tmp_path / "trace.parquet")["ut_id"], range(n_rows))
+
+
+def test_an_extra_column_or_append_after_close_is_refused(tmp_path):
+    w = TraceWriter(tmp_path)
+    with pytest.raises(ValueError, match=r"unexpected: \['bogus'\]"):
+        w.append({**_rows(2), "bogus": np.zeros(2)})
+    w.close()
+    with pytest.raises(ValueError, match=r"append\(\) after close\(\) or abort\(\)"):
+        w.append(_rows(2))
+    a = TraceWriter(tmp_path / "other")
+    a.abort()
+    with pytest.raises(ValueError, match="after close"):
+        a.append(_rows(1))
+
+
+def test_bad_formats_and_chunk_rows_name_the_key(tmp_path):
+    with pytest.raises(
+        ConfigError, match=r"output formats = \[\]; use some of \['csv', 'parquet'\]"
+    ):
+        TableWriter(tmp_path, "t", TRACE_SCHEMA, formats=())
+    with pytest.raises(ConfigError, match=r"output formats = \['xlsx'\]"):
+        TableWriter(tmp_path, "t", TRACE_SCHEMA, formats=("xlsx",))
+    with pytest.raises(ConfigError, match=r"output\.chunk_rows = 0 .*rows per chunk"):
+        TableWriter(tmp_path, "t", TRACE_SCHEMA, chunk_rows=0)
+
+
+def test_nested_output_folder_is_created(tmp_path):
+    with TraceWriter(tmp_path / "a" / "b" / "c") as w:
+        w.append(_rows(2))
+    assert (tmp_path / "a" / "b" / "c" / "trace.csv").exists()

@@ -1,0 +1,184 @@
+"""Re-check that the suite catches the mutations a review once found it blind to.
+
+    python tools/known_mutations.py [--full] [--only NAME ...] [--list]
+
+Each mutation is one source edit (issue 16: a single changed line that passed every
+test). For each, the working tree's ``src``, ``tests``, ``configs``, ``examples``,
+``docs`` and ``pyproject.toml`` are copied to a temporary folder, the edit is applied
+there (it must match exactly once), and the tests that should see it are run with that
+copy first on ``PYTHONPATH``. A mutation is *killed* when pytest fails; the script prints
+the failing tests. ``--full`` runs the whole suite per mutation instead (slow: ~2 min
+each). Exit status 1 when a mutation survives or an edit no longer applies.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+COPIED = ("src", "tests", "configs", "examples", "docs", "analysis", "pyproject.toml", "README.md")
+
+
+@dataclass(frozen=True)
+class Mutation:
+    name: str
+    path: str
+    old: str
+    new: str
+    tests: tuple[str, ...]
+
+
+MUTATIONS = (
+    Mutation(
+        "rician_not_normalized",
+        "src/leolink/sim/processes.py",
+        "rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)",
+        "rician_gain_from_draws_lin(n_lin, k, g)",
+        ("tests/test_fading_in_run.py",),
+    ),
+    Mutation(
+        "non_gaussian_draws",  # same mean power E|g|^2 = 1, but |g|^2 uniform, not Exp(1)
+        "src/leolink/rng.py",
+        "radius = np.sqrt(-np.log(u1))",
+        "radius = np.sqrt(2.0 * u1)",
+        ("tests/test_rng.py", "tests/test_fading_in_run.py"),
+    ),
+    Mutation(
+        "visibility_cone_halved",
+        "src/leolink/sim/processes.py",
+        "near = angle <= spread + reach + 1e-3",
+        "near = angle <= spread + reach / 2 + 1e-3",
+        ("tests/test_candidates.py", "tests/test_trace_independent.py"),
+    ),
+    Mutation(
+        "along_against_swapped",
+        "src/leolink/sim/populations.py",
+        '{"along_track": 0.0, "against_track": math.pi,',
+        '{"along_track": math.pi, "against_track": 0.0,',
+        ("tests/test_populations.py", "tests/test_trace_independent.py"),
+    ),
+    Mutation(
+        "cross_track_flipped",
+        "src/leolink/sim/populations.py",
+        '"cross_track": math.pi / 2}',
+        '"cross_track": -math.pi / 2}',
+        ("tests/test_populations.py", "tests/test_trace_independent.py"),
+    ),
+    Mutation(
+        "interruption_from_wrong_code",
+        "src/leolink/io/summary.py",
+        "self.n_interrupted += np.bincount(ut, codes == SERVICE_HANDOVER",
+        "self.n_interrupted += np.bincount(ut, codes == SERVICE_OUTAGE",
+        ("tests/test_summary_of_a_run.py",),
+    ),
+    Mutation(
+        "lat_lon_swapped",
+        "src/leolink/sim/processes.py",
+        "lat_deg=np.degrees(state.ut_lat_rad),\n            lon_deg=np.degrees(state.ut_lon_rad),",
+        "lat_deg=np.degrees(state.ut_lon_rad),\n            lon_deg=np.degrees(state.ut_lat_rad),",
+        ("tests/test_trace_independent.py",),
+    ),
+    Mutation(
+        "doppler_rate_sign",
+        "src/leolink/kinematics.py",
+        '"doppler_rate_hz_s": -k * rho_ddot,',
+        '"doppler_rate_hz_s": k * rho_ddot,',
+        ("tests/test_trace_independent.py", "tests/test_kinematics.py"),
+    ),
+    Mutation(
+        "fspl_at_twice_the_frequency",
+        "src/leolink/engine.py",
+        '"fspl_db": fspl_db(rho, self.params.freq_hz) * nan,',
+        '"fspl_db": fspl_db(rho, 2 * self.params.freq_hz) * nan,',
+        ("tests/test_trace_independent.py",),
+    ),
+    Mutation(
+        "angular_speed_in_rad_s",
+        "src/leolink/engine.py",
+        '"angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,',
+        '"angular_speed_deg_s": kin["angular_speed_rad_s"] * nan,',
+        ("tests/test_trace_independent.py",),
+    ),
+    Mutation(
+        "doppler_sat_ut_swapped",
+        "src/leolink/engine.py",
+        '"doppler_sat_hz": kin["doppler_sat_hz"] * nan,\n'
+        '                "doppler_ut_hz": kin["doppler_ut_hz"] * nan,',
+        '"doppler_sat_hz": kin["doppler_ut_hz"] * nan,\n'
+        '                "doppler_ut_hz": kin["doppler_sat_hz"] * nan,',
+        ("tests/test_trace_independent.py",),
+    ),
+    Mutation(
+        "dwell_histogram_reads_a_missing_key",
+        "src/leolink/io/plots.py",
+        'complete = summary["overall"]["dwell"]["complete_s"]',
+        'complete = summary["overall"]["dwell"].get("dwell_times_s", [])',
+        ("tests/test_plots.py",),
+    ),
+)
+
+
+def _copy_tree(dest: Path) -> None:
+    for name in COPIED:
+        src = ROOT / name
+        if src.is_dir():
+            shutil.copytree(src, dest / name, ignore=shutil.ignore_patterns("__pycache__"))
+        elif src.exists():
+            shutil.copy2(src, dest / name)
+
+
+def _apply(tree: Path, m: Mutation) -> None:
+    path = tree / m.path
+    text = path.read_text()
+    if text.count(m.old) != 1:
+        raise SystemExit(f"{m.name}: the edit matches {text.count(m.old)} times in {m.path}")
+    path.write_text(text.replace(m.old, m.new))
+
+
+def check(m: Mutation, full: bool) -> tuple[bool, list[str]]:
+    """Apply ``m`` in a temporary copy and run its tests: (killed, failing test ids)."""
+    with tempfile.TemporaryDirectory(prefix=f"mut-{m.name}-") as tmp:
+        tree = Path(tmp)
+        _copy_tree(tree)
+        _apply(tree, m)
+        env = dict(os.environ, PYTHONPATH=str(tree / "src"), PYTHONDONTWRITEBYTECODE="1")
+        env.pop("MPLBACKEND", None)
+        args = [sys.executable, "-m", "pytest", "-q", "-rf", "-p", "no:cacheprovider", "-x"]
+        if not full:
+            args += list(m.tests)
+        proc = subprocess.run(args, cwd=tree, env=env, capture_output=True, text=True)
+        failed = re.findall(r"^FAILED (\S+)", proc.stdout, flags=re.M)
+        return proc.returncode != 0, failed
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--full", action="store_true", help="run the whole suite per mutation")
+    ap.add_argument("--only", nargs="*", default=None, help="names of mutations to check")
+    ap.add_argument("--list", action="store_true", help="list the mutations and exit")
+    args = ap.parse_args(argv)
+    chosen = [m for m in MUTATIONS if not args.only or m.name in args.only]
+    if args.list:
+        for m in chosen:
+            print(f"{m.name:38s} {m.path}")
+        return 0
+    survived = 0
+    for m in chosen:
+        killed, failed = check(m, args.full)
+        survived += not killed
+        verdict = "killed by " + (failed[0] if failed else "an error") if killed else "SURVIVED"
+        print(f"{m.name:38s} {verdict}", flush=True)
+    print(f"{len(chosen) - survived} of {len(chosen)} mutations killed")
+    return 1 if survived else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

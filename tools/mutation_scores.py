@@ -1,0 +1,141 @@
+"""Mutation scores of the physics and simulator modules, one module at a time (mutmut 3).
+
+    python tools/mutation_scores.py [MODULE ...] [--keep DIR] [--children N] [--root TREE]
+
+For each module (default: all of :data:`MODULES`) the working tree is copied to a
+scratch folder, ``[tool.mutmut]`` there is set to mutate only that module and to select
+only the fast tests that cover it (:data:`MODULES`), and ``mutmut run`` is started; the
+killed / survived / timeout counts of ``mutmut export-cicd-stats`` are printed as one
+Markdown table row per module (docs/testing.md keeps the table). Mutants that no
+selected test reaches count as survivors ("no tests"). Slow (minutes per module on two
+cores): not part of .ci/run. ``--keep DIR`` keeps the scratch folders, so that
+``cd DIR/<module> && mutmut browse`` (or ``mutmut show NAME``) lists the survivors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MUTMUT = [sys.executable, "-m", "mutmut"]
+
+#: module -> the fast tests that exercise it (the whole suite would cost ~2 min per mutant
+#: batch; these run in seconds).
+MODULES = {
+    "engine": ["tests/test_engine.py", "tests/test_trace_independent.py"],
+    "kinematics": ["tests/test_kinematics.py", "tests/test_trace_independent.py"],
+    "geometry": [
+        "tests/test_geometry.py",
+        "tests/test_mobility.py",
+        "tests/test_trace_independent.py",
+    ],
+    "orbit": [
+        "tests/test_orbit.py",
+        "tests/test_orbit_contracts.py",
+        "tests/test_validation.py",
+        "tests/test_trace_independent.py",
+    ],
+    "antenna/array": [
+        "tests/test_array.py",
+        "tests/test_array_contracts.py",
+        "tests/test_trace_independent.py",
+    ],
+    "antenna/codebook": ["tests/test_codebook.py", "tests/test_trace_independent.py"],
+    "antenna/terminal": ["tests/test_terminal.py", "tests/test_trace_independent.py"],
+    "link/budget": ["tests/test_budget.py", "tests/test_trace_independent.py"],
+    "link/fading": ["tests/test_fading.py", "tests/test_fading_in_run.py"],
+    "rng": ["tests/test_rng.py", "tests/test_fading_in_run.py"],
+    "sim/controller": ["tests/test_controller.py", "tests/test_simulation.py"],
+    "sim/processes": [
+        "tests/test_candidates.py",
+        "tests/test_simulation.py",
+        "tests/test_trace_independent.py",
+        "tests/test_fading_in_run.py",
+    ],
+    "sim/populations": ["tests/test_populations.py", "tests/test_trace_independent.py"],
+    "io/tables": [
+        "tests/test_recorder.py",
+        "tests/test_tables_contracts.py",
+        "tests/test_simulation.py",
+    ],
+    "io/summary": ["tests/test_recorder.py", "tests/test_summary_of_a_run.py"],
+}
+COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
+#: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
+#: others cost 3x more; their columns are the same code paths, with the Earth rotating).
+FAST = ["-k", "not walker_rotating and not tle_rotating and not moving_rotating"]
+
+
+def _config(module: str, tests: list[str]) -> str:
+    lines = [
+        "[tool.mutmut]",
+        'source_paths = ["src"]',
+        f'only_mutate = ["src/leolink/{module}.py"]',
+        f"pytest_add_cli_args_test_selection = {json.dumps(tests + FAST)}",
+        'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
+        f"also_copy = {json.dumps([c for c in COPIED if c != 'src'])}",
+        "mutate_only_covered_lines = false",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _prepare(dest: Path, module: str, root: Path = ROOT) -> None:
+    dest.mkdir(parents=True)
+    for name in COPIED:
+        src = root / name
+        if src.is_dir():
+            shutil.copytree(src, dest / name, ignore=shutil.ignore_patterns("__pycache__"))
+        elif src.exists():
+            shutil.copy2(src, dest / name)
+    text = (root / "pyproject.toml").read_text()
+    head, sep, _ = text.partition("[tool.mutmut]")
+    if sep:  # drop the repository's own section (it mutates every listed module at once)
+        rest = _.split("\n[", 1)
+        head = head + ("[" + rest[1] if len(rest) > 1 else "")
+    tests = [t for t in MODULES[module] if (root / t).exists()]  # an older tree may lack some
+    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
+
+
+def score(module: str, workdir: Path, children: int, root: Path = ROOT) -> dict:
+    dest = workdir / module.replace("/", "_")
+    _prepare(dest, module, root)
+    # One run per test, not per module: mutmut credits each check (tests/scopes.py).
+    env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function")
+    subprocess.run([*MUTMUT, "run", "--max-children", str(children)], cwd=dest, check=False,
+                   stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
+                   stdout=subprocess.DEVNULL)  # fmt: skip
+    return json.loads((dest / "mutants" / "mutmut-cicd-stats.json").read_text())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("modules", nargs="*", default=list(MODULES))
+    ap.add_argument("--keep", type=Path, default=None, help="keep the scratch folders here")
+    ap.add_argument("--children", type=int, default=2, help="parallel mutant runs")
+    ap.add_argument("--root", type=Path, default=ROOT, help="tree to score (default: this one)")
+    args = ap.parse_args(argv)
+    work = args.keep or Path(tempfile.mkdtemp(prefix="leolink-mutmut-"))
+    print("| module | mutants | killed | survived | no tests | timeout | score |")
+    print("|---|---|---|---|---|---|---|")
+    for m in args.modules:
+        s = score(m, work, args.children, args.root)
+        total = s.get("total", 0)
+        killed = s.get("killed", 0) + s.get("timeout", 0) + s.get("segfault", 0)
+        pct = 100.0 * killed / total if total else float("nan")
+        cells = [m, total, *(s.get(k, 0) for k in ("killed", "survived", "no_tests", "timeout"))]
+        print("| " + " | ".join(map(str, cells)) + f" | {pct:.1f} % |", flush=True)
+    if args.keep is None:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
