@@ -138,12 +138,13 @@ class WalkerOrbits:
 @dataclass
 class TleOrbit:
     """sgp4's ``Satrec`` in TEME, rotated to the Earth-fixed frame by skyfield's GMST 1982
-    (with the UTC Julian date as UT1, as leolink documents)."""
+    of UT1 = UTC + ``dut1_s``."""
 
     line1: str
     line2: str
     epoch_utc: datetime
     rotation: bool
+    dut1_s: float = 0.0
 
     def state(self, t_s):
         from sgp4.api import Satrec
@@ -162,7 +163,7 @@ class TleOrbit:
         vel = np.asarray(v_km_s)[:, None, :] * 1e3
         if not self.rotation:
             return pos, vel
-        theta, theta_dot_rad_day = theta_GMST1982(whole, frac)
+        theta, theta_dot_rad_day = theta_GMST1982(whole, frac + self.dut1_s / 86400.0)
         r = rot_z(-np.asarray(theta))
         pos = np.einsum("tij,t...j->t...i", r, pos)
         # v_PEF = R v_TEME - w x r_PEF (Vallado, AIAA 2006-6753, Appendix C).

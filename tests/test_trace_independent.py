@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import math
 import tomllib
-from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.optimize import minimize_scalar
+from skyfield.api import load
 
 import independent as ind
 from leolink.app.run import run
@@ -151,25 +152,46 @@ def _orbit(cfg):
         )
     assert c.kind == "tle"
     ((_, l1, l2),) = read_tle_file(c.tle_file)
-    return ind.TleOrbit(l1, l2, datetime.fromisoformat(c.tle_epoch_utc), e.rotation)
+    t0_utc = cfg.run.utc_of_time_zero()
+    # UT1 - UTC from skyfield's own timescale (leolink reads the same IERS table its own way).
+    dut1_s = float(load.timescale(builtin=True).from_datetime(t0_utc).dut1)
+    return ind.TleOrbit(l1, l2, t0_utc, e.rotation, dut1_s)
 
 
 def _track_direction(cfg):
-    """ROI x axis: ground-track direction of a satellite of the configured orbit over the
-    centre (Earth-fixed velocity when the Earth rotates)."""
+    """ROI x axis: the ground-track direction at the centre (Earth-fixed velocity when the
+    Earth rotates). A pass: its satellite overhead. Otherwise (the rule of
+    ``leolink.app.orbits.roi_frame``, found here by brute force): the satellite highest
+    above the centre at ``run.start_s``, at its highest elevation on that pass (a 1 s grid
+    over +-20 min, then scipy's bounded Brent search to 1 us)."""
     c, e = cfg.constellation, cfg.earth
     lat, lon = math.radians(cfg.roi.center_lat_deg), math.radians(cfg.roi.center_lon_deg)
-    orbit = ind.PassOrbit(
-        lat,
-        lon,
-        0.0,
-        e.radius_m + c.altitude_m,
-        math.radians(c.inclination_deg),
-        c.ascending,
-        e.gm_m3_s2,
-        e.rotation,
-    )
-    return ind.velocity(orbit, 0.0)[0, 0]
+    if c.kind == "pass":
+        orbit = ind.PassOrbit(
+            lat,
+            lon,
+            0.0,
+            e.radius_m + c.altitude_m,
+            math.radians(c.inclination_deg),
+            c.ascending,
+            e.gm_m3_s2,
+            e.rotation,
+        )
+        return ind.velocity(orbit, 0.0)[0, 0]
+    orbit, t0 = _orbit(cfg), cfg.run.start_s
+    centre = e.radius_m * ind.unit_up(lat, lon)
+    sats = orbit(t0)[0]
+    sat = int(np.argmax(ind.elevation_rad(centre[None], sats)))
+    t = t0 + np.arange(-1200.0, 1201.0)
+    d = -ind.elevation_rad(centre[None], orbit(t)[:, sat])
+    i = int(np.argmin(d))
+    t_close = minimize_scalar(
+        lambda x: -float(ind.elevation_rad(centre, orbit(x)[0, sat])),
+        bounds=(t[i - 1], t[i + 1]),
+        method="bounded",
+        options={"xatol": 1e-6},
+    ).x
+    return ind.velocity(orbit, t_close)[0, sat]
 
 
 HEADING_OFFSET_RAD = {"along_track": 0.0, "against_track": math.pi, "cross_track": math.pi / 2}

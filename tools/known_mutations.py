@@ -75,9 +75,9 @@ MUTATIONS = (
     Mutation(
         "interruption_from_wrong_code",
         "src/leolink/io/summary.py",
-        "self.n_interrupted += np.bincount(ut, codes == SERVICE_HANDOVER",
-        "self.n_interrupted += np.bincount(ut, codes == SERVICE_OUTAGE",
-        ("tests/test_summary_of_a_run.py",),
+        'gap = columns.get("interruption_s")',
+        'gap = columns.get("interruption")',
+        ("tests/test_summary_of_a_run.py", "tests/test_diagnostics.py", "tests/test_recorder.py"),
     ),
     Mutation(
         "lat_lon_swapped",

@@ -202,7 +202,7 @@ class SummaryAccumulator:
         self._final = None
         self.n_ut = int(n_ut)
         zeros = lambda dtype=np.int64: np.zeros(self.n_ut, dtype)  # noqa: E731
-        self.n_epochs, self.n_outage, self.n_interrupted = zeros(), zeros(), zeros()
+        self.n_epochs, self.n_outage = zeros(), zeros()
         self.interrupted_s = zeros(np.float64)
         self.n_no_satellite, self.n_below_threshold = zeros(), zeros()
         self.throughput_sum = zeros(np.float64)
@@ -221,7 +221,6 @@ class SummaryAccumulator:
         codes = _service_codes(columns["service"])
         self.n_outage += np.bincount(ut[codes == SERVICE_OUTAGE], minlength=n)
         handover = codes == SERVICE_HANDOVER
-        self.n_interrupted += np.bincount(ut[handover], minlength=n)
         # Rows without the interruption_s column (older traces): a whole epoch each.
         gap = columns.get("interruption_s")
         gap = np.where(handover, self.epoch_s, 0.0) if gap is None else np.asarray(gap, float)
