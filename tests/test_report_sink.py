@@ -22,7 +22,6 @@ from report_helpers import PAPER, REPO, WALKER, cli, ephemeris
 
 TLE = REPO / "configs" / "examples" / "tle.toml"
 HALF_POWER_DB = 10.0 * np.log10(0.5)  # -3.0103 dB
-PEAK_DB = 10.0 * np.log10(12 * 24)  # a 12 x 24 subarray beam (every config here), normalized
 RADIUS_M = 6371e3
 OVERLAP_PX = 9.0  # a UT dot is ~7 px across at 80 dpi: closer dots may hide each other
 ON_CONTOUR_DB = 0.02  # the drawn polygon cannot decide closer to the contour than this
@@ -140,7 +139,8 @@ def test_ut_is_inside_its_serving_cell_exactly_when_the_trace_gain_is_above_half
         radius = dict(zip(kept.sat_ids, np.linalg.norm(kept.sat_pos_m[k], axis=-1), strict=True))
         alt = _ut_altitude_m(rows, rows["sat_id"].map(radius).to_numpy())
         rows = rows[np.abs(alt) < 100.0]  # the cells are drawn on the ground
-        margin_db = rows["gain_tx_db"].to_numpy() - PEAK_DB - HALF_POWER_DB
+        peak_db = 10.0 * np.log10(np.prod(kept.n_sub_xy))  # the run's subarray beam, normalized
+        margin_db = rows["gain_tx_db"].to_numpy() - peak_db - HALF_POWER_DB
         fp = f.footprints
         for (sat, beam, lon, lat), m in zip(
             rows[["sat_id", "beam_id", "lon_deg", "lat_deg"]].to_numpy(), margin_db, strict=True
@@ -153,7 +153,10 @@ def test_ut_is_inside_its_serving_cell_exactly_when_the_trace_gain_is_above_half
             inside = MplPath(ring).contains_point((lon, lat))
             assert inside == (m > 0), f"t = {f.time_s} sat {sat} beam {beam}: {m:.3f} dB"
             n_in, n_out = n_in + inside, n_out + (not inside)
-    assert n_in > 20 and n_out > 5  # both sides of the contour were tested
+    assert n_in > 20  # the inside of the contour was tested
+    # Both sides: the paper's codebook has holes; the walker and TLE examples' codebooks
+    # have none (configs/examples), so there every served UT is inside its serving cell.
+    assert n_out > 5 if which == "paper" else n_out == 0
 
 
 def _gif_frames(path):
@@ -235,7 +238,7 @@ def test_tle_exports_count_from_the_configured_utc_epoch(tle, tmp_path):
     assert cli("report", out, "--exports", "--no-animation", "--quiet") == ""
     czml = json.loads((out / "run.czml").read_text())
     sat = next(p for p in czml if str(p.get("id", "")).startswith("satellite"))
-    assert sat["position"]["epoch"] == "2019-12-09T16:37:29.363Z"  # tle.toml's tle_epoch_utc
+    assert sat["position"]["epoch"] == "2019-12-09T16:37:29.363Z"  # tle.toml's run.start_utc
 
 
 def test_report_uts_outside_the_run_are_refused(tmp_path, capsys):

@@ -16,7 +16,7 @@ written and :attr:`stats` feeds the notebook views of ``leolink.run()``'s result
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import UTC
 from pathlib import Path
 
 import numpy as np
@@ -42,15 +42,15 @@ def default_series_uts(population):
 
 
 def epoch_utc_of(cfg):
-    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML: a TLE run's
-    ``tle_epoch_utc`` (naive means UTC, as the scenario reads it) or its first TLE's epoch;
-    None for other constellations (the exports then count from J2000)."""
+    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML, for a TLE run: the
+    scenario's rule (``cfg.utc_of_time_zero()``: ``run.start_utc - run.start_s`` or the
+    older ``constellation.tle_epoch_utc``), else its first TLE's epoch; None for other
+    constellations (the exports then count from J2000)."""
     c = cfg.constellation
     if getattr(c, "kind", None) != "tle":
         return None
-    if c.tle_epoch_utc:
-        when = datetime.fromisoformat(c.tle_epoch_utc.replace("Z", "+00:00"))
-    else:
+    when = cfg.utc_of_time_zero()
+    if when is None:
         from sgp4.api import Satrec
         from sgp4.conveniences import sat_epoch_datetime
 
