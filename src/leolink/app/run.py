@@ -16,8 +16,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 from types import SimpleNamespace
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 import leolink
 from leolink.app.codebook import codebook_design_from_config
@@ -28,12 +27,14 @@ from leolink.config import dump_toml
 from leolink.errors import LeolinkError
 from leolink.io.atomic import write_json_atomic, write_text_atomic
 from leolink.io.notebook import ResultViews
-from leolink.io.report_sink import epoch_utc_of
 from leolink.io.run_dir import claim_out_dir, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary import SummaryAccumulator
 from leolink.io.tables import write_parquet_atomic
 from leolink.sim.runner import run_simulation
+
+if TYPE_CHECKING:  # pandas is imported when a table is asked for (~0.5 s of start-up)
+    import pandas as pd
 
 __all__ = ["Result", "run", "run_notes"]
 
@@ -55,9 +56,13 @@ class Result(ResultViews):
     @property
     def per_ut(self) -> pd.DataFrame:
         """Per-UT statistics, one row per UT (``SummaryAccumulator.per_ut_table``)."""
+        import pandas as pd
+
         return pd.DataFrame(self._per_ut)
 
     def _written(self, stem, what):
+        import pandas as pd
+
         names = {p.name: p for p in self.files}
         if f"{stem}.parquet" in names:  # Parquet first: faster to read
             return pd.read_parquet(names[f"{stem}.parquet"])
@@ -78,6 +83,16 @@ class Result(ResultViews):
         return self._written("events", "events")
 
 
+def _epoch_utc(cfg):
+    """UTC of time 0 for the report's exports, only when the report is on (the report
+    sink's module imports pandas: ~0.5-1.5 s of a small run's start-up)."""
+    if not cfg.output.report.enabled:
+        return None
+    from leolink.io.report_sink import epoch_utc_of
+
+    return epoch_utc_of(cfg)
+
+
 def _sinks(cfg, out_dir, summary, scen):
     """The sinks of a run: summary first (the plots read it), then ``[output.*]``; without
     a folder, the trace and events in memory (and the report's statistics)."""
@@ -86,7 +101,7 @@ def _sinks(cfg, out_dir, summary, scen):
         summary=summary,
         ephemeris=scen.ephemeris,
         codebook=scen.engine.codebook,
-        epoch_utc=epoch_utc_of(cfg),
+        epoch_utc=_epoch_utc(cfg),
     )
     if out_dir is None:
         sinks = [summary, MemorySink()]

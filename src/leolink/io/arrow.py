@@ -42,11 +42,20 @@ def string_array(names):
 
 
 def decoded_array(codes, names):
-    """Strings ``names[codes]`` as a plain pyarrow string array (decoded in C++)."""
-    dictionary = pa.DictionaryArray.from_arrays(
-        numeric_array(codes, pa.int32()), string_array(names)
-    )
-    return dictionary.cast(pa.string())
+    """Strings ``names[codes]`` as a plain Arrow string array, gathered in numpy (a
+    dictionary cast would import ``pyarrow.compute``, ~0.2 s)."""
+    raw = [str(n).encode() for n in names]
+    codes = np.asarray(codes, np.intp)
+    if codes.size and (codes.min() < 0 or codes.max() >= len(raw)):
+        raise ValueError(f"codes outside 0 .. {len(raw) - 1}: {codes.min()} .. {codes.max()}")
+    width = max([1, *map(len, raw)])
+    lengths = np.array([len(r) for r in raw], np.int32)[codes]
+    offsets = np.zeros(codes.size + 1, np.int32)
+    np.cumsum(lengths, out=offsets[1:])
+    padded = np.array(raw, f"S{width}")[codes].view(np.uint8).reshape(codes.size, width)
+    data = padded[np.arange(width) < lengths[:, None]]  # each row's bytes, in order
+    buffers = [None, pa.py_buffer(offsets), pa.py_buffer(data)]
+    return pa.Array.from_buffers(pa.string(), codes.size, buffers)
 
 
 class Vocabulary:

@@ -14,15 +14,18 @@ written, for outputs drawn from the final summary (the report page).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
-import pandas as pd
+import numpy as np
 import pyarrow as pa
 from pydantic import Field
 
 from leolink.io.tables import EVENT_SCHEMA, TRACE_SCHEMA, EventLog, TraceWriter, to_table
 from leolink.registry import Params, Registry
 from leolink.sim.streams import Sink
+
+if TYPE_CHECKING:  # pandas is imported where a DataFrame is made (~0.5 s of start-up)
+    import pandas as pd
 
 __all__ = [
     "SINKS",
@@ -135,13 +138,16 @@ class PlotSink:
 
     def epoch(self, frame):
         cols = frame.columns
-        keep = pd.Index(cols["ut_id"]).isin(self.ut_ids)
+        keep = np.isin(cols["ut_id"], self.ut_ids)
         if keep.any():
-            self._rows.append(to_table(_trace_columns(cols), TRACE_SCHEMA).filter(pa.array(keep)))
+            rows = {n: np.asarray(v)[keep] for n, v in _trace_columns(cols).items()}
+            self._rows.append(to_table(rows, TRACE_SCHEMA))
         ev = frame.events
-        if len(ev["ut_id"]):
-            table = to_table(ev, EVENT_SCHEMA)
-            self._events.append(table.filter(pa.array(pd.Index(ev["ut_id"]).isin(self.ut_ids))))
+        keep = np.isin(ev["ut_id"], self.ut_ids)
+        if keep.any():
+            self._events.append(
+                to_table({k: np.asarray(v)[keep] for k, v in ev.items()}, EVENT_SCHEMA)
+            )
         self._span = [frame.t_s if self._span[0] is None else self._span[0], frame.t_s]
 
     def finish(self, final):

@@ -43,8 +43,8 @@ OVERALL_RESOLUTION_DB = 0.01
 #: Bin of the per-UT SNR/SINR percentiles [dB]: coarser, so that the per-UT histograms of
 #: a long run stay small (a UT's SNR spans a few hundred 0.1 dB bins).
 PER_UT_RESOLUTION_DB = 0.1
-# Pooled samples buffered before they are binned (one bincount per 64 Ki samples, not
-# one per epoch: the fixed cost of a small run's epoch).
+# Trace rows buffered before they are folded into the statistics (~4 MiB): one set of
+# numpy calls per 64 Ki rows, not per epoch (the fixed cost of a small run's epoch).
 _POOL_BUFFER = 1 << 16
 
 
@@ -84,6 +84,13 @@ def grouped_percentiles(group, values, n_group, q_percent):
     return out
 
 
+def _running_sum(total, group, values):
+    """``total`` plus the ``values`` of each group, added one by one in their order (the
+    same float rounding as adding them one call at a time)."""
+    n = total.size
+    return np.bincount(np.r_[np.arange(n), group], np.r_[total, values], minlength=n)
+
+
 class _DbStats:
     """Streamed statistics of one dB column: per-UT count, sum and histogram, pooled
     histogram (finite values only)."""
@@ -92,24 +99,14 @@ class _DbStats:
         self.count, self.sum = np.zeros(n_ut, np.int64), np.zeros(n_ut)
         self.pooled = PercentileHistogram(*DB_RANGE, OVERALL_RESOLUTION_DB)
         self.per_ut = GroupedPercentileHistogram(n_ut, *DB_RANGE, PER_UT_RESOLUTION_DB)
-        self._buffer, self._n_buffer = [], 0
 
     def add(self, ut, values):
         ok = np.isfinite(values)
         ut, values = ut[ok], values[ok]
-        n = self.count.size
-        self.count += np.bincount(ut, minlength=n)
-        self.sum += np.bincount(ut, values, minlength=n)
+        self.count += np.bincount(ut, minlength=self.count.size)
+        self.sum[:] = _running_sum(self.sum, ut, values)
         self.per_ut.add(ut, values)
-        self._buffer.append(values)
-        self._n_buffer += values.size
-        if self._n_buffer >= _POOL_BUFFER:
-            self._fold()
-
-    def _fold(self):
-        if self._buffer:
-            self.pooled.add(np.concatenate(self._buffer))
-        self._buffer, self._n_buffer = [], 0
+        self.pooled.add(values)
 
     def per_ut_stats(self):
         """(n_ut, 4): mean, p5, p50, p95 [dB]."""
@@ -118,7 +115,6 @@ class _DbStats:
         return np.column_stack([mean, self.per_ut.percentiles(_PERCENTILES)])
 
     def overall(self):
-        self._fold()
         n = int(self.count.sum())
         pooled = self.pooled.percentiles(_PERCENTILES) if n else [None] * 3
         return dict(zip(STAT_KEYS, [self.sum.sum() / n if n else None, *pooled], strict=True))
@@ -146,6 +142,7 @@ _BELOW_THRESHOLD = OUTAGE_REASONS.index("below_threshold")
 _PERCENTILES = (5.0, 50.0, 95.0)
 
 _DB_COLUMNS = ("snr_db", "sinr_db")
+_BUFFERED = ("throughput_bps", "doppler_hz", "angular_speed_deg_s", *_DB_COLUMNS)
 _DWELL_KEYS = ("ut_id", "sat_id", "beam_id", "start_s", "end_s", "censored_start", "censored_end")
 
 
@@ -211,30 +208,50 @@ class SummaryAccumulator:
         self.event_counts = np.zeros((len(EVENT_KINDS), self.n_ut), np.int64)
         self._db = {k: _DbStats(self.n_ut) for k in _DB_COLUMNS}
         self._dwells = []
+        self._rows, self._n_rows = [], 0
 
     def add_trace(self, columns):
         """Add trace rows (dict of 1-D arrays; needs ``ut_id``, ``service``, ``snr_db``,
-        ``sinr_db``, ``throughput_bps``, ``doppler_hz``, ``angular_speed_deg_s``)."""
+        ``sinr_db``, ``throughput_bps``, ``doppler_hz``, ``angular_speed_deg_s``).
+
+        Rows are buffered and folded into the statistics every :data:`_POOL_BUFFER` rows
+        (a run's small epochs cost one append each, not ~20 numpy calls); a per-UT sum
+        still adds the rows in their order, so it is the same number either way.
+        """
         ut = np.asarray(columns["ut_id"], np.int64)
-        n = self.n_ut
-        self.n_epochs += np.bincount(ut, minlength=n)
         codes = _service_codes(columns["service"])
-        self.n_outage += np.bincount(ut[codes == SERVICE_OUTAGE], minlength=n)
-        handover = codes == SERVICE_HANDOVER
         # Rows without the interruption_s column (older traces): a whole epoch each.
         gap = columns.get("interruption_s")
-        gap = np.where(handover, self.epoch_s, 0.0) if gap is None else np.asarray(gap, float)
-        self.interrupted_s += np.bincount(ut, gap, minlength=n)
-        if "outage_reason" in columns:
-            reason = _codes(columns["outage_reason"], OUTAGE_REASONS)
-            self.n_no_satellite += np.bincount(ut[reason == _NO_SATELLITE], minlength=n)
-            self.n_below_threshold += np.bincount(ut[reason == _BELOW_THRESHOLD], minlength=n)
-        tput = np.nan_to_num(np.asarray(columns["throughput_bps"], float), nan=0.0)
-        self.throughput_sum += np.bincount(ut, tput, minlength=n)
-        np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(columns["doppler_hz"], float)))
-        np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(columns["angular_speed_deg_s"]))
+        if gap is None:
+            gap = np.where(codes == SERVICE_HANDOVER, self.epoch_s, 0.0)
+        reason = columns.get("outage_reason")
+        reason = np.full(ut.shape, -1) if reason is None else _codes(reason, OUTAGE_REASONS)
+        piece = {"ut": ut, "service": codes, "gap": gap, "reason": reason}
+        for key in _BUFFERED:
+            piece[key] = columns[key]
+        self._rows.append(piece)
+        self._n_rows += ut.size
+        if self._n_rows >= _POOL_BUFFER:
+            self._fold()
+
+    def _fold(self):
+        """Add the buffered rows to the statistics."""
+        if not self._rows:
+            return
+        c = {k: np.concatenate([np.asarray(r[k]) for r in self._rows]) for k in self._rows[0]}
+        self._rows, self._n_rows = [], 0
+        ut, n = c["ut"], self.n_ut
+        self.n_epochs += np.bincount(ut, minlength=n)
+        self.n_outage += np.bincount(ut[c["service"] == SERVICE_OUTAGE], minlength=n)
+        self.interrupted_s[:] = _running_sum(self.interrupted_s, ut, c["gap"])
+        self.n_no_satellite += np.bincount(ut[c["reason"] == _NO_SATELLITE], minlength=n)
+        self.n_below_threshold += np.bincount(ut[c["reason"] == _BELOW_THRESHOLD], minlength=n)
+        tput = np.nan_to_num(np.asarray(c["throughput_bps"], float), nan=0.0)
+        self.throughput_sum[:] = _running_sum(self.throughput_sum, ut, tput)
+        np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(c["doppler_hz"], float)))
+        np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(c["angular_speed_deg_s"], float))
         for key, stats in self._db.items():
-            stats.add(ut, np.asarray(columns[key], float))
+            stats.add(ut, np.asarray(c[key], float))
 
     def add_events(self, events):
         """Count events by kind and UT (dict with ``ut_id`` and ``kind``)."""
@@ -289,6 +306,7 @@ class SummaryAccumulator:
         ``snr_mean_db, snr_p5_db, snr_p50_db, snr_p95_db`` and the same for ``sinr``,
         ``mean_throughput_bps, max_abs_doppler_hz, max_angular_speed_deg_s``.
         """
+        self._fold()
         d = self.dwell_table() if dwells is None else dwells
         with np.errstate(invalid="ignore", divide="ignore"):
             epochs = self.n_epochs.astype(float)
@@ -349,6 +367,7 @@ class SummaryAccumulator:
         """
         if self._final is not None:
             return self._final
+        self._fold()
         d = self.dwell_table()
         in_json = self.n_ut <= PER_UT_IN_JSON_MAX
         _, complete = self._dwell_stats(d)
