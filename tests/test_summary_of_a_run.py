@@ -150,6 +150,35 @@ def test_the_trace_read_back_gives_the_same_summary(result):
         assert again[key] == pytest.approx(summary["overall"][key], rel=1e-12), key
 
 
+def test_rows_folded_in_many_small_buffers_give_the_same_per_ut_statistics(result, monkeypatch):
+    """The accumulator folds its buffered rows every _POOL_BUFFER rows: fed the run's
+    trace epoch by epoch with a buffer of a few epochs' rows, every per-UT statistic is
+    the one of the run (per-UT sums still added in row order)."""
+    import leolink.io.summary as S
+
+    summary, trace, _ = result
+    n_ut, n_epoch = trace.ut_id.nunique(), trace.time_s.nunique()
+    assert n_epoch % 8  # rows are left in the buffer at the end
+    monkeypatch.setattr(S, "_POOL_BUFFER", 8 * n_ut)  # a fold every 8 epochs
+    acc = S.SummaryAccumulator(n_ut)
+    for _, rows in trace.groupby("time_s", sort=True):
+        acc.add_trace({c: rows[c].to_numpy() for c in trace.columns})
+    table = acc.per_ut_table()
+    for ut in summary["per_ut"]:
+        i = ut["ut_id"]
+        assert table["n_epochs"][i] == ut["n_epochs"]
+        assert table["snr_mean_db"][i] == pytest.approx(ut["snr_db"]["mean"], rel=1e-12)
+        assert table["snr_p50_db"][i] == ut["snr_db"]["p50"]
+        assert table["mean_throughput_bps"][i] == pytest.approx(
+            ut["mean_throughput_bps"], rel=1e-12
+        )
+        assert table["handover_interruption_fraction"][i] == pytest.approx(
+            ut["handover_interruption_fraction"], rel=1e-12
+        )
+        assert table["max_abs_doppler_hz"][i] == ut["max_abs_doppler_hz"]
+    assert acc.summary()["overall"]["snr_db"] == summary["overall"]["snr_db"]
+
+
 def test_grouped_percentiles_of_tiny_and_empty_groups():
     from leolink.io.summary import grouped_percentiles
 
