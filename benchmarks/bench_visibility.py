@@ -62,10 +62,13 @@ def _skyfield(sats, lat, lon, seconds):
     return out, time.perf_counter() - t0, np.asarray(t.dut1, float)
 
 
-def main(quick=False, argv=None):
+def main(argv=None):
     """Figures: ``elevations_per_s`` (leolink), ``skyfield_elevations_per_s``,
     ``speedup_vs_skyfield``, ``max_diff_deg``."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    known, _ = ap.parse_known_args([] if argv is None else argv)
+    quick = known.quick
     ap.add_argument("--sats", type=int, default=100 if quick else 1000)
     ap.add_argument("--sites", type=int, default=100)
     ap.add_argument("--times", type=int, default=240 if quick else 1440)
@@ -107,4 +110,4 @@ def main(quick=False, argv=None):
 if __name__ == "__main__":
     import sys
 
-    main(quick="--quick" in sys.argv, argv=[a for a in sys.argv[1:] if a != "--quick"])
+    main(sys.argv[1:])
