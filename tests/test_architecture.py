@@ -21,13 +21,13 @@ PAPER = Path(__file__).resolve().parents[1] / "configs" / "paper.toml"
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 60  # code lines, docstring excluded
 # Over the limits while the constellation work (which edits them) is merged; emptied then.
-PENDING = {"geometry.py", "engine.py:serve"}
+PENDING = {"engine.py:serve"}
 
 # Layer of each top-level module or package of leolink (DESIGN.md "Layers"): a module may
 # import its own layer or lower ones only. The package root is the public API (leolink.run).
 LAYERS = {
     "constants": 0, "errors": 0, "registry": 0, "rng": 0,
-    "geometry": 1, "geodesy": 1,
+    "geometry": 1, "geodesy": 1, "greatcircle": 1,
     "orbit": 2, "roi": 2, "placement": 2, "visibility": 2,
     "antenna": 3, "link": 3, "kinematics": 3, "coverage": 3,
     "engine": 4,

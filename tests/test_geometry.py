@@ -8,13 +8,11 @@ from hypothesis import strategies as st
 from leolink.constants import EARTH_RADIUS_M as R
 from leolink.geometry import (
     body_frame,
-    destination_point,
     direction_cosines,
     ecef_to_geodetic,
     elevation_from_nadir_rad,
     enu_basis,
     geodetic_to_ecef,
-    great_circle_velocity,
     ground_to_roi,
     look_angles,
     nadir_angle_rad,
@@ -22,6 +20,7 @@ from leolink.geometry import (
     roi_to_ground,
     slant_range_from_elevation_m,
 )
+from leolink.greatcircle import destination_point, great_circle_velocity
 
 # Published slant ranges are printed to 10 m (0.01 km); allow half a digit.
 PRINTED_KM_ROUNDING_M = 5.0

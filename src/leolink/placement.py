@@ -20,10 +20,10 @@ from leolink.geometry import (
     ecef_to_geodetic,
     enu_basis,
     geodetic_to_ecef,
-    great_circle_velocity,
     ground_to_roi,
     roi_to_ground,
 )
+from leolink.greatcircle import great_circle_velocity
 
 __all__ = [
     "geodetic_to_roi_points",

@@ -16,7 +16,7 @@ written and :attr:`stats` feeds the notebook views of ``leolink.run()``'s result
 
 from __future__ import annotations
 
-from datetime import UTC
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -42,24 +42,30 @@ def default_series_uts(population):
 
 
 def epoch_utc_of(cfg):
-    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML, for a TLE run: the
-    scenario's rule (``cfg.utc_of_time_zero()``: ``run.start_utc - run.start_s`` or the
-    older ``constellation.tle_epoch_utc``), else its first TLE's epoch; None for other
-    constellations (the exports then count from J2000)."""
+    """ISO 8601 UTC time (``...Z``) of simulation time 0 for CZML: ``run.start_utc`` (minus
+    ``run.start_s``), else a TLE run's ``tle_epoch_utc`` (naive means UTC, as the scenario
+    reads it) or its first TLE's epoch; None otherwise (the exports count from J2000)."""
     c = cfg.constellation
-    if getattr(c, "kind", None) != "tle":
-        return None
-    when = cfg.utc_of_time_zero()
+    when = cfg.run.utc_of_time_zero()
+    if when is None and getattr(c, "kind", None) == "tle":
+        when = _tle_time_zero(c)
     if when is None:
-        from sgp4.api import Satrec
-        from sgp4.conveniences import sat_epoch_datetime
-
-        from leolink.io.tle import read_tle_file
-
-        _, line1, line2 = read_tle_file(c.tle_file)[0]
-        when = sat_epoch_datetime(Satrec.twoline2rv(line1, line2))
+        return None
     when = when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
     return when.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _tle_time_zero(c):
+    """``tle_epoch_utc`` (naive means UTC), else the epoch of the first TLE of the file."""
+    if c.tle_epoch_utc:
+        return datetime.fromisoformat(c.tle_epoch_utc.replace("Z", "+00:00"))
+    from sgp4.api import Satrec
+    from sgp4.conveniences import sat_epoch_datetime
+
+    from leolink.io.tle import read_tle_file
+
+    _, line1, line2 = read_tle_file(c.tle_file)[0]
+    return sat_epoch_datetime(Satrec.twoline2rv(line1, line2))
 
 
 def _decode(columns):

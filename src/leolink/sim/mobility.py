@@ -14,7 +14,8 @@ import numpy as np
 
 from leolink.constants import EARTH_RADIUS_M
 from leolink.errors import ConfigError
-from leolink.geometry import ecef_to_geodetic, enu_basis, geodetic_to_ecef, great_circle_velocity
+from leolink.geometry import ecef_to_geodetic, enu_basis, geodetic_to_ecef
+from leolink.greatcircle import great_circle_velocity
 
 __all__ = [
     "SPEED_PRESETS_M_S",
