@@ -90,10 +90,10 @@ def paper_overrides(n_ut, duration_s):
     ]
 
 
-def run_length(n_ut, short_s, long_s, tmp):
+def run_length(n_ut, short_s, long_s, tmp, variants=("plots", "no_plots")):
     """Peak RSS of a short and a long run, plots on and off."""
     figures = {}
-    for plots in (True, False):
+    for plots in [v == "plots" for v in variants]:
         tag = "plots" if plots else "no_plots"
         got = {}
         for label, dur in (("short", short_s), ("long", long_s)):
@@ -166,6 +166,9 @@ def main(argv=None):
     ap.add_argument("--uts", type=int, default=None, help="UTs of the run-length runs")
     ap.add_argument("--many-uts", type=int, default=None)
     ap.add_argument("--skip", nargs="*", default=[], choices=["length", "many", "summary"])
+    ap.add_argument(
+        "--variants", nargs="*", default=["plots", "no_plots"], choices=["plots", "no_plots"]
+    )
     args = ap.parse_args([] if argv is None else argv)
     n_ut = args.uts or (200 if args.quick else 1000)
     short_s, long_s = (60.0, 360.0) if args.quick else (300.0, 1800.0)
@@ -177,7 +180,7 @@ def main(argv=None):
         if "many" not in args.skip:
             figures.update(many_uts(many, 60.0, tmp))
         if "length" not in args.skip:
-            figures.update(run_length(n_ut, short_s, long_s, tmp))
+            figures.update(run_length(n_ut, short_s, long_s, tmp, args.variants))
     return figures
 
 

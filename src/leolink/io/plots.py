@@ -160,6 +160,11 @@ def _doppler_time(trace, uts):
     return fig
 
 
+#: Most bins of the dwell histogram ("auto" gives thousands for a long run's many dwells,
+#: each a matplotlib patch: tens of MB that grew with the run length).
+MAX_DWELL_BINS = 100
+
+
 def _dwell_durations(summary, dwells=None):
     """Complete and censored dwell durations [s]: of the dwell table (``dwells.parquet``
     columns) if given, else of a summary (``summary.json`` layout)."""
@@ -181,7 +186,10 @@ def _dwell_hist(summary, dwells=None):
         ax.text(0.5, 0.5, "no complete dwell", transform=ax.transAxes, ha="center",
                 va="center", fontsize=14)  # fmt: skip
     else:
-        edges = np.histogram_bin_edges(np.concatenate([complete_s, censored_s]), bins="auto")
+        every = np.concatenate([complete_s, censored_s])
+        edges = np.histogram_bin_edges(every, bins="auto")
+        if edges.size > MAX_DWELL_BINS + 1:  # one drawn patch per bin: bounded memory
+            edges = np.histogram_bin_edges(every, bins=MAX_DWELL_BINS)
         ax.hist(complete_s, bins=edges, color="tab:blue", edgecolor="white", label="complete")
         ax.axvline(np.mean(complete_s), color="black", linestyle="--",
                    label=f"mean {np.mean(complete_s):.1f} s")  # fmt: skip

@@ -124,6 +124,19 @@ class MemorySink:
         return pa.concat_tables([EVENT_SCHEMA.empty_table(), *self._events]).to_pandas()
 
 
+#: Small per-epoch tables merged into one every this many (an Arrow table of a few rows
+#: costs ~10 kB: 1,800 epochs of them were ~40 MB that grew with the run length).
+COMPACT_TABLES = 256
+
+
+def _compacted(tables, table):
+    """``tables + [table]``, merged into one contiguous table every COMPACT_TABLES."""
+    tables.append(table)
+    if len(tables) >= COMPACT_TABLES:
+        tables = [pa.concat_tables(tables).combine_chunks()]
+    return tables
+
+
 class PlotSink:
     """The run's PNG plots, drawn at the end from the streamed statistics and the rows of
     the chosen UTs only (bounded memory: never the whole trace)."""
@@ -141,13 +154,12 @@ class PlotSink:
         keep = np.isin(cols["ut_id"], self.ut_ids)
         if keep.any():
             rows = {n: np.asarray(v)[keep] for n, v in _trace_columns(cols).items()}
-            self._rows.append(to_table(rows, TRACE_SCHEMA))
+            self._rows = _compacted(self._rows, to_table(rows, TRACE_SCHEMA))
         ev = frame.events
         keep = np.isin(ev["ut_id"], self.ut_ids)
         if keep.any():
-            self._events.append(
-                to_table({k: np.asarray(v)[keep] for k, v in ev.items()}, EVENT_SCHEMA)
-            )
+            table = to_table({k: np.asarray(v)[keep] for k, v in ev.items()}, EVENT_SCHEMA)
+            self._events = _compacted(self._events, table)
         self._span = [frame.t_s if self._span[0] is None else self._span[0], frame.t_s]
 
     def finish(self, final):
