@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import resource
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -36,3 +39,33 @@ def row(name, value, unit, aim=None, better="higher"):
         )
     text = f"{value:>14.3e}" if 0 < abs(value) < 1e-3 else f"{value:>14,.3f}"
     print(f"  {name:<48} {text} {unit}{verdict}")
+
+
+#: A small parent for the measured child: Linux carries a process's peak RSS across fork
+#: and exec, so a child forked from this (large) process would report at least its size.
+_SPAWNER = (
+    "import os, subprocess, sys; p = subprocess.Popen(sys.argv[1:]); "
+    "_, st, ru = os.wait4(p.pid, 0); "
+    "print(os.waitstatus_to_exitcode(st), ru.ru_maxrss, ru.ru_utime + ru.ru_stime)"
+)
+
+
+def run_cli(args, env=None):
+    """``python -m leolink.cli ARGS`` in a child process, process start included:
+    (wall time [s], peak RSS [MiB], CPU time [s]) of the child alone."""
+    env = dict(os.environ, **(env or {}))
+    cmd = [sys.executable, "-c", _SPAWNER, sys.executable, "-m", "leolink.cli", *args]
+    t0 = time.perf_counter()
+    out = subprocess.run(cmd, cwd=ROOT, env=env, check=True, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    code, maxrss_kib, cpu_s = out.stdout.split()[-3:]
+    if int(code) != 0:
+        raise RuntimeError(f"leolink {' '.join(args)} exited with {code}: {out.stderr[-400:]}")
+    return wall, int(maxrss_kib) / 1024.0, float(cpu_s)
+
+
+def cpu_s():
+    """CPU time of this process so far [s] (user + system): on a shared machine, the
+    ratio of wall to CPU time says how much the other processes took."""
+    t = os.times()
+    return t.user + t.system

@@ -2,9 +2,11 @@
 
 (a) closed-form beam gains vs the explicit steering-vector product on the same work;
 (b) SNR and SINR for 1,000,000 ground points x 15 beams of one satellite (time, memory);
-(c) engine throughput in UT-epochs/s: SNR over 15 beams, SINR, Doppler, angular speed.
+(c) engine throughput in UT-epochs/s, 1,000 UTs, one satellite: SNR of all 15 beams, best
+beam, SINR, SE, Doppler and its rate, angular speed (the calls the simulator makes: blocks
+of 64 epochs), with the compiled kernels (the default) and numpy only.
 
-Run: ``python benchmarks/bench_engine.py [--points N]``. Prints figures; asserts nothing.
+Run: ``python benchmarks/bench_engine.py [--quick] [--points N]``. Prints figures.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ def closed_vs_explicit(engine, n_dir=2000):
     row("closed form (Dirichlet kernels)", n_dir / t_cf, "dir/s")
     row("speed ratio closed/explicit", t_exp / t_cf, "x", aim=20)
     row("max |difference| / peak", err, "", aim=1e-9, better="lower")
+    return t_exp / t_cf
 
 
 def million_points(cfg, engine, n_points):
@@ -57,49 +60,92 @@ def million_points(cfg, engine, n_points):
     row("wall time", t, "s", aim=1.0, better="lower")
     row("points x beams per second", n_points * engine.n_beam / t / 1e6, "M/s")
     row("peak resident memory (process)", peak_rss_mib(), "MiB", aim=2048, better="lower")
-    return cols
+    return t
 
 
-def engine_throughput(cfg, engine, n_ut=1000, n_epoch=300):
-    """evaluate + serve per epoch on one satellite moving over n_ut static UTs."""
+def _static_uts(cfg, n_ut, n_epoch):
+    """``n_ut`` static UTs over the ROI and one satellite's states at ``n_epoch`` epochs."""
     from leolink.app.scenario import ephemeris_from_config
 
     rx, ry = cfg.roi_semi_axes_m()
     rng = np.random.default_rng(3)
     x = rng.uniform(-0.6 * rx, 0.6 * rx, n_ut)
     y = rng.uniform(-0.6 * ry, 0.6 * ry, n_ut)
-    eph = ephemeris_from_config(cfg)
-    times = np.linspace(0.0, 120.0, n_epoch)
-    pos, vel, acc = eph(times)
+    pos, vel, acc = ephemeris_from_config(cfg)(np.linspace(0.0, 120.0, n_epoch))
     sp, sv, _ = overhead_satellite(cfg)
-    ut = roi_to_ground(x, y, sp[0], sv[0], cfg.earth.radius_m)
-    zero = np.zeros_like(ut)
-    sat0 = np.zeros(n_ut, dtype=int)
+    return roi_to_ground(x, y, sp[0], sv[0], cfg.earth.radius_m), pos[:, 0], vel[:, 0], acc[:, 0]
 
-    def work():
-        for k in range(n_epoch):
-            snap = engine.evaluate(ut, pos[k], vel[k])
-            beam = np.argmax(snap.snr_lin_bm[:, 0, :], axis=0)  # SNR of all 15 beams
-            engine.serve(snap, sat0, beam, zero, zero, vel[k], acc[k])
 
-    t, _ = best_of(work, repeat=2)
+def _snapshot_work(engine, ut, pos, vel, acc):
+    """One ``evaluate`` + ``serve`` call per epoch (the API of the main branch)."""
+    n_ut, zero, sat0 = len(ut), np.zeros_like(ut), np.zeros(len(ut), dtype=int)
+    for k in range(len(pos)):
+        snap = engine.evaluate(ut, pos[k : k + 1], vel[k : k + 1])
+        beam = np.argmax(snap.snr_lin_bm[:, 0, :], axis=0)  # SNR of all 15 beams
+        engine.serve(snap, sat0, beam, zero, zero, vel[k : k + 1], acc[k : k + 1])
+    return n_ut
+
+
+def _block_work(engine, ut, pos, vel, acc, block):
+    """The simulator's calls: the pairs of ``block`` epochs at once (``evaluate_pairs``),
+    SNR of all 15 beams, best beam, then every serving link (``serve_pairs``)."""
+    n_ut = len(ut)
+    zero = np.zeros((n_ut * block, 3))
+    for k0 in range(0, len(pos), block):
+        n_k = min(block, len(pos) - k0)
+        u, s = np.tile(np.arange(n_ut), n_k), np.repeat(np.arange(n_k), n_ut)
+        links = engine.evaluate_pairs(ut, pos[k0 : k0 + n_k], vel[k0 : k0 + n_k], u, s)
+        beam = np.argmax(links.snr_db_bm(engine.beam_ix, engine.beam_iy), axis=0)
+        m = u.size
+        engine.serve_pairs(links, np.arange(m), beam, zero[:m], zero[:m], vel[k0 + s],
+                           acc[k0 + s], ut_pos_m=ut[u])  # fmt: skip
+
+
+def engine_throughput(cfg, engine, n_ut=1000, n_epoch=640, block=64):
+    """UT-epochs/s of the engine on one satellite moving over ``n_ut`` static UTs:
+    (the simulator's block calls, or on an older tree one call per epoch)."""
+    ut, pos, vel, acc = _static_uts(cfg, n_ut, n_epoch)
+    if hasattr(engine, "serve_pairs"):
+        t, _ = best_of(lambda: _block_work(engine, ut, pos, vel, acc, block), repeat=3)
+        how = f"blocks of {block} epochs"
+    else:
+        t, _ = best_of(lambda: _snapshot_work(engine, ut, pos, vel, acc), repeat=3)
+        how = "one call per epoch"
     print(
-        f"(c) engine per epoch: {n_ut} UTs x {engine.n_beam} beams x {n_epoch} epochs "
-        "(SNR all beams, best beam, SINR, SE, Doppler + rate, angular speed)"
+        f"(c) engine: {n_ut} UTs x {engine.n_beam} beams x {n_epoch} epochs, {how} (SNR of "
+        "every beam, best beam, SINR, SE, Doppler + rate, angular speed, azimuth)"
     )
-    row("UT-epochs per second", n_ut * n_epoch / t, "UT-ep/s", aim=3e6)
+    rate = n_ut * n_epoch / t
+    row("UT-epochs per second", rate, "UT-ep/s", aim=3e6)
+    return rate
 
 
-def main(argv=None):
+def main(quick=False, argv=None):
+    """Figures: ``closed_vs_explicit_x``, ``coverage_wall_s``, ``ut_epochs_per_s`` (the
+    default path: compiled kernels where numba is installed), ``numpy_ut_epochs_per_s``."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--points", type=int, default=1_000_000)
-    args = ap.parse_args(argv)
+    ap.add_argument("--points", type=int, default=100_000 if quick else 1_000_000)
+    args = ap.parse_args([] if argv is None else argv)
     cfg = load_config(PAPER)
     engine = build_engine(cfg)
-    closed_vs_explicit(engine)
-    million_points(cfg, engine, args.points)
-    engine_throughput(cfg, engine)
+    figures = {"closed_vs_explicit_x": closed_vs_explicit(engine)}
+    figures["coverage_wall_s"] = million_points(cfg, engine, args.points)
+    figures["ut_epochs_per_s"] = engine_throughput(cfg, engine)
+    try:
+        from leolink.engine import jit
+    except ImportError:
+        return figures
+    use = jit.use
+    jit.use = lambda n: False
+    try:
+        print("    numpy only (LEOLINK_JIT=0):")
+        figures["numpy_ut_epochs_per_s"] = engine_throughput(cfg, engine)
+    finally:
+        jit.use = use
+    return figures
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    main(quick="--quick" in sys.argv, argv=[a for a in sys.argv[1:] if a != "--quick"])

@@ -1,28 +1,93 @@
-"""Run every benchmark and print its figures: ``python benchmarks/run_all.py [--quick]``.
+"""Every benchmark, one command: ``python benchmarks/run_all.py [--quick] [--json FILE]
+[--compare BEFORE.json]``.
 
-``--quick`` shrinks the work (100k points, 600 epochs) for a fast look; the figures
-quoted in the issues and the README come from the default sizes.
+Runs each ``bench_*`` module of :data:`MODULES` that exists (a missing one is skipped with
+a note), prints its figures, then one table of every figure by name with its aim and the
+ratio to the aim (> 1 is better than the aim either way) and, with ``--compare``, the
+ratio to the same figure of an earlier run (e.g. of the main branch:
+``PYTHONPATH=<main>/src python benchmarks/run_all.py --json before.json``).
+``--quick`` shrinks the work for a fast look; the README's figures come from the default.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import json
+import os
+import platform
 import sys
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import bench_engine  # noqa: E402
-import bench_sim  # noqa: E402
+#: The benchmark modules, in the order they run (each ``main(quick, argv) -> dict``).
+MODULES = ("bench_engine", "bench_sim", "bench_constellation", "bench_small",
+           "bench_memory", "bench_visibility", "bench_opensatcom")  # fmt: skip
+#: Aims of the issue (speed at constellation scale): name -> (unit, "<=" or ">=", aim).
+AIMS = {
+    "engine.ut_epochs_per_s": ("UT-ep/s", ">=", 3e6),
+    "sim.end_to_end_ut_epochs_per_s": ("UT-ep/s", ">=", 1e6),
+    "constellation.wall_s": ("s", "<=", 20.0),
+    "constellation.peak_rss_mib": ("MiB", "<=", 1024.0),
+    "constellation.noplots_wall_s": ("s", "<=", 20.0),
+    "constellation.noplots_peak_rss_mib": ("MiB", "<=", 1024.0),
+    "small.fixed_ms_per_epoch": ("ms", "<=", 0.2),
+    "small.ut_epochs_per_s": ("UT-ep/s", ">=", 15e3),
+    "visibility.speedup_vs_skyfield": ("x", ">=", 100.0),
+}
+
+
+def run_modules(quick):
+    """``{module short name: figures}`` of every module present."""
+    out = {}
+    for name in MODULES:
+        try:
+            mod = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise
+            print(f"[{name}: not in this tree, skipped]\n")
+            continue
+        t0 = time.perf_counter()
+        figures = mod.main(quick=quick, argv=[]) or {}
+        print(f"  ({name}: {time.perf_counter() - t0:.1f} s)\n")
+        out[name.removeprefix("bench_")] = figures
+    return out
+
+
+def flatten(results):
+    return {f"{m}.{k}": v for m, figs in results.items() for k, v in figs.items()}
+
+
+def print_table(flat, before=None):
+    print(f"{'figure':<40} {'value':>14} {'aim':>14} {'vs aim':>8}" + (" vs before" * bool(before)))
+    for name, value in flat.items():
+        unit, op, aim = AIMS.get(name, ("", None, None))
+        ratio = "" if aim is None else f"{(value / aim if op == '>=' else aim / value):7.2f}x"
+        target = "" if aim is None else f"{op} {aim:,.4g}"
+        line = f"{name:<40} {value:>14,.4g} {target:>14} {ratio:>8}"
+        if before and isinstance(before.get(name), (int, float)) and before[name]:
+            line += f" {value / before[name]:9.2f}x"
+        print(f"{line} {unit}")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--json", type=Path, help="write the figures by name to this file")
+    ap.add_argument("--compare", type=Path, help="figures of an earlier --json run")
     args = ap.parse_args(argv)
-    bench_engine.main(["--points", "100000"] if args.quick else [])
-    print()
-    bench_sim.main(["--epochs", "600"] if args.quick else [])
+    flat = flatten(run_modules(args.quick))
+    before = json.loads(args.compare.read_text())["figures"] if args.compare else None
+    print_table(flat, before)
+    if args.json:
+        meta = {"quick": args.quick, "python": platform.python_version(),
+                "load_average_1_5_15": os.getloadavg(),
+                "machine": platform.machine(), "time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ",
+                time.gmtime())}  # fmt: skip
+        args.json.write_text(json.dumps({"meta": meta, "figures": flat}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -68,18 +68,18 @@ def test_codebook_footprint_of_central_beam_is_the_roi_centre(capsys):
 
 
 def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch, capsys):
-    import leolink.engine
+    import leolink.sim.decide
 
     calls = {"n": 0}
-    real = leolink.engine.LinkEngine.serve
+    real = leolink.sim.decide.Decider.__call__
 
-    def serve(self, *a, **k):
+    def decide(self, *a, **k):  # once per epoch: the interrupt comes mid-run
         calls["n"] += 1
-        if calls["n"] == 50:
+        if calls["n"] == 80:
             raise KeyboardInterrupt
         return real(self, *a, **k)
 
-    monkeypatch.setattr(leolink.engine.LinkEngine, "serve", serve)
+    monkeypatch.setattr(leolink.sim.decide.Decider, "__call__", decide)
     code = main(
         ["run", PAPER, "--out", str(tmp_path), "--quiet", "--set", "output.trace.chunk_rows=70"]
     )

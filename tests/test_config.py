@@ -127,7 +127,10 @@ MISTAKES = [
         ["constellation.altitude_m=-5000"],
         r"constellation\.altitude_m = -5000 is not allowed: .*greater than 100000",
     ),
-    (["link.bandwidth_hz=0"], r"link\.bandwidth_hz = 0 is not allowed: .*greater than 0"),
+    (
+        ["link.bandwidth_hz=0"],
+        r"link\.bandwidth_hz = 0 is not allowed: .*greater than or equal to 1000",
+    ),
     (
         ["constellation.min_elevation_deg=95"],
         r"constellation\.min_elevation_deg = 95 is not allowed: .*less than or equal to 90",

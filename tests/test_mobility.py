@@ -311,10 +311,10 @@ def write(tmp_path, text):
         ),
         (
             "time_s,lat_deg,lon_deg,alt_m\n0,1,2,0\n1,1,east,0\n",
-            r"line 3, column 'lon_deg': 'east' is not a finite number",
+            r"line 3, column 'lon_deg': not a finite number",
         ),
         ("time_s,lat_deg,lon_deg,alt_m\n0,1,2\n", r"line 2: 3 fields, expected 4"),
-        ("time_s,lat_deg,lon_deg,alt_m\n0,1,2,nan\n", r"column 'alt_m': 'nan' is not a finite"),
+        ("time_s,lat_deg,lon_deg,alt_m\n0,1,2,nan\n", r"column 'alt_m': not a finite"),
         ("# only a comment\n\n", r"empty track file"),
         ("time_s,lat_deg,lon_deg,alt_m\n", r"no data rows after the header \(line 1\)"),
     ],

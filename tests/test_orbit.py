@@ -276,9 +276,9 @@ def test_read_tle_file_names_the_bad_line(tmp_path):
     lines = (DATA / "geo_iss.tle").read_text().splitlines()
     broken = tmp_path / "bad.tle"
     broken.write_text("\n".join([lines[0], lines[1], lines[2][:40]]) + "\n")
-    with pytest.raises(LeolinkError, match=r"bad.tle:3: malformed TLE line 2"):
+    with pytest.raises(LeolinkError, match=r"bad.tle:3: TLE line 2 is malformed \(40 columns\)"):
         read_tle_file(broken)
     bad_sum = tmp_path / "sum.tle"
     bad_sum.write_text("\n".join([lines[1][:-1] + "0", lines[2]]) + "\n")
-    with pytest.raises(LeolinkError, match=r"sum.tle:1: TLE line 1 checksum"):
+    with pytest.raises(LeolinkError, match=r"sum.tle:1: TLE line 1: checksum \(column 69\) fails"):
         read_tle_file(bad_sum)

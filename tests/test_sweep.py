@@ -114,11 +114,11 @@ def test_two_workers_give_the_same_table(serial, tmp_path):
         ("=0,3", "--param '=0,3' is not allowed"),
         ("controller.hysteresis.margin_db=", "controller.hysteresis.margin_db: no values"),
         ("controller.hysteresis.margin_db=0,,3", "controller.hysteresis.margin_db: an empty value"),
-        (
-            "controller.hysteresis.margin_db=0,-1",
-            "controller.hysteresis.margin_db = -1 is not allowed",
+        (  # every point fails: nothing runs (one bad point of several: test_reliability.py)
+            "controller.hysteresis.margin_db=-2,-1",
+            "controller.hysteresis.margin_db = -2 is not allowed",
         ),
-        ("controller.policy=max_snr,greedy", "controller.policy = 'greedy' is not allowed"),
+        ("controller.policy=greedy", "controller.policy = 'greedy' is not allowed"),
         ("controller.hysteresys_db=1", "controller.hysteresys_db is not a known key"),
     ],
 )

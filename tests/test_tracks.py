@@ -57,7 +57,7 @@ def test_gpx_needs_times_and_a_clock(tmp_path):
     with pytest.raises(TrackFileError, match="set run.start_utc"):
         read_track_gpx(path, None)
     path.write_text("<gpx>not closed", encoding="utf-8")
-    with pytest.raises(TrackFileError, match="cannot read GPX file"):
+    with pytest.raises(TrackFileError, match="x.gpx: line 1: not a valid GPX file"):
         read_track_gpx(path, T0)
 
 
@@ -74,9 +74,7 @@ def test_csv_with_utc_timestamps(tmp_path):
     with pytest.raises(TrackFileError, match="set run.start_utc"):
         read_track_csv(path, None)
     path.write_text("time_utc,lat_deg,lon_deg,alt_m\nnoon,40,-3.7,0\n", encoding="utf-8")
-    with pytest.raises(
-        TrackFileError, match=r"line 2, column 'time_utc': 'noon' is not an ISO 8601"
-    ):
+    with pytest.raises(TrackFileError, match=r"line 2, column 'time_utc': not an ISO 8601"):
         read_track_csv(path, T0)
 
 

@@ -39,7 +39,7 @@ class Mutation:
 MUTATIONS = (
     Mutation(
         "rician_not_normalized",
-        "src/leolink/sim/processes.py",
+        "src/leolink/sim/monitor.py",
         "rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)",
         "rician_gain_from_draws_lin(n_lin, k, g)",
         ("tests/test_fading_in_run.py",),
@@ -81,9 +81,9 @@ MUTATIONS = (
     ),
     Mutation(
         "lat_lon_swapped",
-        "src/leolink/sim/processes.py",
-        "lat_deg=np.degrees(state.ut_lat_rad),\n            lon_deg=np.degrees(state.ut_lon_rad),",
-        "lat_deg=np.degrees(state.ut_lon_rad),\n            lon_deg=np.degrees(state.ut_lat_rad),",
+        "src/leolink/sim/monitor.py",
+        "lat_deg=np.degrees(mb.ut_lat_rad[j]),\n            lon_deg=np.degrees(mb.ut_lon_rad[j]),",
+        "lat_deg=np.degrees(mb.ut_lon_rad[j]),\n            lon_deg=np.degrees(mb.ut_lat_rad[j]),",
         ("tests/test_trace_independent.py",),
     ),
     Mutation(
@@ -95,26 +95,47 @@ MUTATIONS = (
     ),
     Mutation(
         "fspl_at_twice_the_frequency",
-        "src/leolink/engine.py",
+        "src/leolink/engine/__init__.py",
         '"fspl_db": fspl_db(rho, self.params.freq_hz) * nan,',
         '"fspl_db": fspl_db(rho, 2 * self.params.freq_hz) * nan,',
-        ("tests/test_trace_independent.py",),
+        ("tests/test_trace_independent.py", "tests/test_jit.py"),
     ),
     Mutation(
         "angular_speed_in_rad_s",
-        "src/leolink/engine.py",
+        "src/leolink/engine/__init__.py",
         '"angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,',
         '"angular_speed_deg_s": kin["angular_speed_rad_s"] * nan,',
         ("tests/test_trace_independent.py",),
     ),
     Mutation(
         "doppler_sat_ut_swapped",
-        "src/leolink/engine.py",
+        "src/leolink/engine/__init__.py",
         '"doppler_sat_hz": kin["doppler_sat_hz"] * nan,\n'
         '                "doppler_ut_hz": kin["doppler_ut_hz"] * nan,',
         '"doppler_sat_hz": kin["doppler_ut_hz"] * nan,\n'
         '                "doppler_ut_hz": kin["doppler_sat_hz"] * nan,',
         ("tests/test_trace_independent.py",),
+    ),
+    Mutation(
+        "kernel_fspl_at_twice_the_frequency",  # the compiled path of runs >= 1,000 pairs/call
+        "src/leolink/engine/kernels.py",
+        "out[4, r] = (20.0 * np.log10(((_C4PI * rho) * freq) / c)) * nan",
+        "out[4, r] = (20.0 * np.log10(((_C4PI * rho) * 2.0 * freq) / c)) * nan",
+        ("tests/test_jit.py",),
+    ),
+    Mutation(
+        "kernel_elevation_from_cosine",
+        "src/leolink/engine/kernels.py",
+        "el = np.arcsin(s_el)",
+        "el = np.arccos(s_el)",
+        ("tests/test_jit.py",),
+    ),
+    Mutation(
+        "screening_bound_without_grating_lobes",
+        "src/leolink/engine/screening.py",
+        "np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u), out=d)",
+        "pass",
+        ("tests/test_search.py",),
     ),
     Mutation(
         "dwell_histogram_reads_a_missing_key",

@@ -1,7 +1,11 @@
 """Command line: ``leolink run | coverage | budget | codebook | sweep | report | validate``.
 
-Errors leolink raises on purpose are printed as one line (exit code 2); anything else
-is a bug and is printed as a short note (exit code 3) unless ``--debug`` is given.
+Errors leolink raises on purpose, and errors of the environment (a folder that cannot
+be written, a full disk, an unreachable dask scheduler), are printed as one line (exit
+code 2); anything else is a bug and is printed as a short note (exit code 3) unless
+``--debug`` is given. SIGINT (Ctrl-C) and SIGTERM stop a command cleanly: finished files
+stay, temporary ones are removed, one line says where it stopped (exit 130, 143). A sweep
+some of whose points failed writes its table (their ``error`` column) and exits 1.
 """
 
 from __future__ import annotations
@@ -11,11 +15,14 @@ import json
 import sys
 from pathlib import Path
 
-from leolink.errors import LeolinkError
+from leolink.errors import ConfigError, LeolinkError
 
+EXIT_POINTS_FAILED = 1
 EXIT_USAGE = 2
 EXIT_BUG = 3
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+MAX_GRID = 5001  # coverage grid points per axis (25 million points)
 OVERWRITE_HELP = "replace an earlier run's files in --out (other files are kept)"
 
 
@@ -36,7 +43,7 @@ def cmd_validate(args) -> int:
     import math
 
     from leolink.app.run import run_notes
-    from leolink.app.scenario import build_scenario
+    from leolink.app.validate import checked_scenario
     from leolink.roi import check_coverage
 
     cfg = _config(args)
@@ -45,10 +52,9 @@ def cmd_validate(args) -> int:
     verdict = check_coverage(
         rx, ry, c.n_planes, c.sats_per_plane, math.radians(c.inclination_deg), cfg.earth.radius_m
     )
-    _check_files(cfg)
-    # Build what a run builds (codebook, ephemeris, populations, tracks): a config that
-    # validates also runs.
-    notes, _, _ = run_notes(cfg, build_scenario(cfg))
+    # What a run checks and builds (files, codebook, ephemeris over the run, populations,
+    # tracks): a config that validates also runs (leolink.app.validate).
+    notes, _, _ = run_notes(cfg, checked_scenario(cfg))
     n_ut = sum(max(p.n_ut, 0) for p in cfg.population)
     n_pop = len(cfg.population)
     print(
@@ -59,19 +65,6 @@ def cmd_validate(args) -> int:
     for note in notes:
         print(note)
     return 0
-
-
-def _check_files(cfg):
-    """Files a config refers to must exist (checked before anything runs)."""
-    from leolink.errors import ConfigError
-
-    c = cfg.constellation
-    if c.kind == "tle" and not Path(c.tle_file).is_file():
-        raise ConfigError(f"constellation.tle_file = {c.tle_file!r} does not exist")
-    for i, p in enumerate(cfg.population):
-        path = getattr(p, "track_file", "")
-        if path and not Path(path).is_file():
-            raise ConfigError(f"population.{i}.track_file = {path!r} does not exist")
 
 
 def cmd_budget(args) -> int:
@@ -93,6 +86,8 @@ def cmd_codebook(args) -> int:
     from leolink.app.reports import codebook_table
 
     cfg = _config(args)
+    if args.plot and Path(args.plot).is_dir():
+        raise ConfigError(f"--plot {args.plot} is a folder; give the path of a PNG file")
     info = codebook_table(cfg)
     if args.plot:
         from leolink.io.coverage_plots import plot_codebook
@@ -117,6 +112,10 @@ def cmd_codebook(args) -> int:
 def cmd_coverage(args) -> int:
     from leolink.app.coverage import run_coverage
 
+    if not 2 <= args.grid <= MAX_GRID:
+        raise ConfigError(f"--grid {args.grid} is not allowed; use 2..{MAX_GRID} points per axis")
+    if not 0.0 < args.margin <= 10.0:  # also refuses NaN
+        raise ConfigError(f"--margin {args.margin} is not allowed; use a number in (0, 10]")
     cfg = _config(args)
     paths = run_coverage(
         cfg,
@@ -137,11 +136,10 @@ def cmd_run(args) -> int:
     from leolink.app.run import run
 
     cfg = _config(args)
-    _check_files(cfg)
     with progress_bar("leolink run", enabled=not args.quiet) as progress:
         result = run(cfg, out_dir=Path(args.out), progress=progress, overwrite=args.overwrite)
     for note in result.summary["run"]["notes"]:
-        if not args.quiet or note.startswith("UT "):  # held tracks are shown even if quiet
+        if not args.quiet or note.startswith(("UT ", "satellite ")):  # shown even if quiet
             print(f"note: {note}", file=sys.stderr)
     if not args.quiet:
         o, r = result.summary["overall"], result.summary["run"]
@@ -174,6 +172,15 @@ def cmd_sweep(args) -> int:
     )
     if not args.quiet:
         print(table.to_string(index=False))
+    failed = int((table["error"] != "").sum()) if "error" in table else 0
+    if failed:
+        first = table.loc[table["error"] != "", ["point", "error"]].iloc[0]
+        print(
+            f"leolink: {failed} of {len(table)} sweep points failed (column 'error' of "
+            f"sweep.csv); first: {first['point']}: {first['error']}",
+            file=sys.stderr,
+        )
+        return EXIT_POINTS_FAILED
     return 0
 
 
@@ -197,8 +204,6 @@ def cmd_report(args) -> int:
 
 
 def _ut_list(text):
-    from leolink.errors import ConfigError
-
     try:
         uts = [int(u) for u in text.split(",")]
     except ValueError:
@@ -288,16 +293,29 @@ def _add_report(p):
 
 
 def main(argv=None) -> int:
+    from leolink.app.guard import Stopped, environment_error, interruptible, quiet_warnings
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        with interruptible(), quiet_warnings():
+            return args.func(args)
     except LeolinkError as exc:
         print(f"leolink: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("leolink: interrupted; files already completed are intact", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Stopped)
+        name = exc.signal_name if isinstance(exc, Stopped) else "SIGINT"
+        where = "; ".join(getattr(exc, "__notes__", [])) or "before any output was finished"
+        print(
+            f"leolink: stopped by {name}: {where}; finished files are intact, temporary "
+            "files removed",
+            file=sys.stderr,
+        )
+        return EXIT_TERMINATED if name == "SIGTERM" else EXIT_INTERRUPTED
+    except OSError as exc:  # the environment: permissions, a full disk, the network
+        message = environment_error(exc, getattr(args, "out", None))
+        print(f"leolink: error: {message}", file=sys.stderr)
+        return EXIT_USAGE
     except Exception as exc:  # a bug: say so briefly
         if args.debug:
             raise

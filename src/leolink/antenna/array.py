@@ -143,17 +143,17 @@ def dirichlet_kernels(u, beam_u, n):
     beam_u = np.asarray(beam_u, dtype=float)
     k = beam_u.size
     x = (0.5 * np.pi) * u
-    b = (0.5 * np.pi) * beam_u
     trig = np.empty((4, u.size))
     np.sin(x, out=trig[0])
     np.cos(x, out=trig[1])
     x *= n
     np.sin(x, out=trig[2])
     np.cos(x, out=trig[3])
-    coef = np.zeros((2 * k, 4))
-    coef[:k, 0], coef[:k, 1] = np.cos(b), -np.sin(b)  # sin(x - b)
-    coef[k:, 2], coef[k:, 3] = np.cos(n * b), -np.sin(n * b)  # sin(n x - n b)
-    rows = coef @ trig
+    coef = dirichlet_coefficients(beam_u, n)
+    # BLAS computes a 1-column product on another path (matrix-vector), which rounds
+    # differently: a second column keeps every direction's kernel the same bit for bit
+    # whatever the number of directions in the call.
+    rows = (coef @ np.repeat(trig, 2, axis=1))[:, :1] if u.size == 1 else coef @ trig
     den, g = rows[:k], rows[k:]
     near = np.abs(den) < _SIN_RECOMPUTE
     with np.errstate(divide="ignore", invalid="ignore"):  # the near entries are redone below
@@ -165,6 +165,19 @@ def dirichlet_kernels(u, beam_u, n):
         kk, mm = np.nonzero(near)
         g[kk, mm] = ula_gain(u[mm] - beam_u[kk], n)
     return g
+
+
+def dirichlet_coefficients(beam_u, n):
+    """The angle-subtraction coefficients of :func:`dirichlet_kernels`, shape (2k, 4):
+    row ``j < k`` gives ``sin(x - b_j)``, row ``k + j`` gives ``sin(n x - n b_j)`` from
+    ``(sin x, cos x, sin n x, cos n x)``, ``b = pi beam_u / 2``."""
+    beam_u = np.asarray(beam_u, dtype=float)
+    k = beam_u.size
+    b = (0.5 * np.pi) * beam_u
+    coef = np.zeros((2 * k, 4))
+    coef[:k, 0], coef[:k, 1] = np.cos(b), -np.sin(b)  # sin(x - b)
+    coef[k:, 2], coef[k:, 3] = np.cos(n * b), -np.sin(n * b)  # sin(n x - n b)
+    return coef
 
 
 def beam_gain_lin(u_xy, beam_u_xy, n_sub_x, n_sub_y):

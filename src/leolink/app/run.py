@@ -22,7 +22,7 @@ import leolink
 from leolink.app.codebook import codebook_design_from_config
 from leolink.app.notes import track_coverage, track_notes
 from leolink.app.orbits import earth_orientation, roi_frame
-from leolink.app.scenario import build_scenario
+from leolink.app.validate import checked_scenario, ephemeris_health
 from leolink.config import dump_toml
 from leolink.errors import LeolinkError
 from leolink.io.atomic import write_json_atomic, write_text_atomic
@@ -93,6 +93,34 @@ def _epoch_utc(cfg):
     return epoch_utc_of(cfg)
 
 
+class _Position:
+    """A sink that only remembers the last recorded epoch (where an interrupted run stopped)."""
+
+    def __init__(self):
+        self.n_done, self.n_epochs, self.t_s = 0, 0, None
+
+    def start(self, info):
+        self.n_epochs = info.n_epochs
+
+    def epoch(self, frame):
+        self.n_done, self.t_s = self.n_done + 1, frame.t_s
+
+    def finish(self, final):
+        pass
+
+    def abort(self):
+        pass
+
+    def where(self, out_dir):
+        if self.t_s is None:
+            return "the run stopped before its first recorded epoch"
+        folder = f"; {out_dir} has no run.json (not a finished run)" if out_dir else ""
+        return (
+            f"the run stopped after t = {self.t_s:g} s (epoch {self.n_done} of "
+            f"{self.n_epochs}){folder}"
+        )
+
+
 def _sinks(cfg, out_dir, summary, scen):
     """The sinks of a run: summary first (the plots read it), then ``[output.*]``; without
     a folder, the trace and events in memory (and the report's statistics)."""
@@ -120,6 +148,7 @@ def run_notes(cfg, scen):
     if orientation is not None:
         notes.append(orientation.note)
     times = scen.times_s
+    notes += ephemeris_health(cfg, scen.ephemeris, times)
     coverage = track_coverage(scen.populations, times, scen.n_warmup, scen.epoch_s)
     notes += track_notes(coverage, float(times[scen.n_warmup]), float(times[-1]))
     return notes, coverage, design
@@ -168,12 +197,21 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     -------
     Result
     """
-    scen = build_scenario(cfg)
+    scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
     if out_dir is not None:  # after the scenario built: a bad config removes nothing
         out_dir = claim_out_dir(out_dir, overwrite)
-    summary = SummaryAccumulator()
+    summary, position = SummaryAccumulator(), _Position()
     sinks = _sinks(cfg, out_dir, summary, scen)
+    try:
+        return _run_and_write(cfg, scen, out_dir, summary, [*sinks, position], progress)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the sinks have aborted
+        exc.add_note(position.where(out_dir))
+        raise
+
+
+def _run_and_write(cfg, scen, out_dir, summary, sinks, progress):
     stats = run_simulation(scen, sinks, progress=progress)
+    sinks = sinks[:-1]  # without the position
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
     report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
     per_ut = summary.per_ut_table()

@@ -20,13 +20,12 @@ import itertools
 import math
 import re
 import tomllib
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
 import pandas as pd
 import tomli_w
 
-from leolink.errors import ConfigError
+from leolink.errors import ConfigError, LeolinkError
 
 __all__ = ["SWEEP_PLOT_METRICS", "flatten_summary", "parse_param", "point_name", "run_sweep"]
 
@@ -88,7 +87,9 @@ def _scalar(item, key):
 
 
 def _toml_value(value):
-    """``value`` written as a TOML literal (round-trips through ``tomllib`` exactly)."""
+    """``value`` written as a TOML literal on one line (round-trips through ``tomllib``)."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     return tomli_w.dumps({"v": value}).partition("=")[2].strip()
 
 
@@ -191,73 +192,26 @@ def _progress_bar(n, enabled):
     return tqdm(total=n, unit="point", desc="leolink sweep", disable=not enabled, leave=False)
 
 
-def _serial(jobs, bar):
-    rows = {}
-    for i, args in jobs:
-        rows[i] = _run_point(*args)
-        bar.update(1)
-    return rows
-
-
-def _processes(jobs, bar, workers):
-    """Run the jobs on ``workers`` processes; on any error cancel what has not started."""
-    rows = {}
-    pool = ProcessPoolExecutor(max_workers=workers)
-    try:
-        pending = {pool.submit(_run_point, *args): i for i, args in jobs}
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                rows[pending.pop(fut)] = fut.result()
-                bar.update(1)
-    except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True)
-    return rows
-
-
-def _dask(jobs, bar, address):
-    """Run the jobs on a ``dask.distributed`` cluster (only if dask is installed)."""
-    try:
-        from dask.distributed import Client, as_completed
-    except ImportError:
-        raise ConfigError(
-            f"workers = 'dask://{address}' needs dask.distributed, which is not installed; "
-            "give a number of local processes instead"
-        ) from None
-    rows = {}
-    with Client(address) as client:
-        futures = {client.submit(_run_point, *args, pure=False): i for i, args in jobs}
-        for fut in as_completed(list(futures)):
-            rows[futures[fut]] = fut.result()
-            bar.update(1)
-    return rows
-
-
-def _check_workers(workers):
-    if isinstance(workers, str) and workers.startswith("dask://"):
-        return workers.removeprefix("dask://")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError(
-            f"workers = {workers!r} is not allowed; use an integer >= 1 (local processes) "
-            "or 'dask://<scheduler address>'"
-        )
-    return None
-
-
 # --------------------------------------------------------------------------- the sweep
-def _validated_points(cfg_path, keys, points, base):
-    """Load every point's config once, before anything runs; name the failing point."""
+def _validated_points(cfg_path, points, base):
+    """Check every point as ``leolink validate`` does, before anything runs.
+
+    Returns ``{index: message}`` of the points that fail (they get a row with their
+    ``error``, the others run); raises if every point fails (nothing would run).
+    """
+    from leolink.app.validate import checked_scenario
     from leolink.config import load_config
 
-    for point in points:
+    errors = {}
+    for i, point in enumerate(points):
         try:
-            load_config(cfg_path, base + _overrides(point))
-        except ConfigError as exc:
+            checked_scenario(load_config(cfg_path, base + _overrides(point)))
+        except LeolinkError as exc:
             where = ", ".join(f"{k}={_text(v)}" for k, v in point.items())
-            raise ConfigError(f"sweep point {where}: {exc}") from None
-    return points
+            errors[i] = f"sweep point {where}: {exc}"
+    if len(errors) == len(points):
+        raise ConfigError(errors[0] if len(points) == 1 else f"every point fails; {errors[0]}")
+    return errors
 
 
 def _base_overrides(base_overrides, keys, run_plots):
@@ -324,10 +278,15 @@ def run_sweep(
     ConfigError
         A bad parameter, value list or ``workers``, or an invalid point; before any run.
     """
-    address = _check_workers(workers)
+    from leolink.app.sweep_exec import check_workers, run_jobs
+
+    check_workers(workers)
+    # Absolute paths: workers (dask's, on other machines' working directories) resolve
+    # the config's own relative paths from its folder, and write where this process does.
+    cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
     keys, points = _grid(params)
     base = _base_overrides(base_overrides, keys, run_plots)
-    _validated_points(cfg_path, keys, points, base)
+    failed = _validated_points(cfg_path, points, base)
 
     from leolink.io.run_dir import claim_out_dir
 
@@ -343,18 +302,33 @@ def run_sweep(
     jobs = [
         (i, (str(cfg_path), base + _overrides(p), str(out_dir / "runs" / names[i]), resume))
         for i, p in enumerate(points)
+        if i not in failed
     ]
-    with _progress_bar(len(jobs), progress) as bar:
-        if address is not None:
-            rows = _dask(jobs, bar, address)
-        elif workers == 1 or len(jobs) == 1:
-            rows = _serial(jobs, bar)
-        else:
-            rows = _processes(jobs, bar, min(workers, len(jobs)))
-
+    finished: list[int] = []
+    with _progress_bar(len(points), progress) as bar:
+        bar.update(len(failed))
+        try:
+            rows = run_jobs(
+                _run_point, jobs, lambda i: (finished.append(i), bar.update(1)), workers
+            )
+        except KeyboardInterrupt as exc:
+            exc.add_note(_stopped_note(finished, len(jobs), names, out_dir))
+            raise
+    rows.update({i: {"error": message} for i, message in failed.items()})
     table = pd.DataFrame([{"point": names[i], **points[i], **rows[i]} for i in range(len(points))])
+    if "error" in table:  # only when a point failed: "" for the others
+        table["error"] = table["error"].fillna("").astype(str)
     _write(table, out_dir, cfg_path, (params, keys, base), names, plot)
     return table
+
+
+def _stopped_note(finished, n_jobs, names, out_dir):
+    done = ", ".join(names[i] for i in sorted(finished)[:3]) + (" ..." if len(finished) > 3 else "")
+    return (
+        f"the sweep stopped with {len(finished)} of {n_jobs} points finished"
+        + (f" ({done})" if finished else "")
+        + f"; {out_dir} has no sweep.csv yet; rerun with --resume to reuse the finished points"
+    )
 
 
 def _write(table, out_dir, cfg_path, spec, names, plot):
@@ -379,7 +353,10 @@ def _write(table, out_dir, cfg_path, spec, names, plot):
     page = build_table_report(
         out_dir / "report.html", "leolink sweep report", table, figures, config_text, notes
     )
-    runs = [out_dir / "runs" / name / "run.json" for name in names]
+    ok = list(table["error"] == "") if "error" in table else [True] * len(names)
+    runs = [
+        out_dir / "runs" / name / "run.json" for name, good in zip(names, ok, strict=True) if good
+    ]
     arguments = {"params": list(params), "base_overrides": base}
     write_manifest(
         out_dir, [*files, page, *runs], "sweep", config_text, arguments, version=leolink.__version__

@@ -78,12 +78,32 @@ class ConfigBase(Section):
             )
         if c.kind == "tle" and not c.tle_file:
             raise ValueError("constellation.tle_file is required when constellation.kind = 'tle'")
+        self._check_roi_cap()
         if c.tle_epoch_utc and self.run.start_utc:
             raise ValueError(
                 f"constellation.tle_epoch_utc = {c.tle_epoch_utc!r} is not allowed together with "
                 f"run.start_utc = {self.run.start_utc!r}: give the start once, as run.start_utc"
             )
         return self
+
+    def _check_roi_cap(self):
+        """ROI semi-axes within the cap where a satellite overhead at
+        ``constellation.altitude_m`` is above the elevation mask: central angle
+        ``theta = acos(R cos(el) / (R + h)) - el``, ``R tan(theta)`` in the ROI plane (the
+        central projection of Sec. 3.1); 0.5 % slack for rounded configured values."""
+        c, r, radius = self.constellation, self.roi, self.earth.radius_m
+        el = math.radians(c.min_elevation_deg)
+        theta = math.acos(radius * math.cos(el) / (radius + c.altitude_m)) - el
+        cap_m = radius * math.tan(theta)
+        for axis in ("x", "y"):
+            value = getattr(r, f"semi_axis_{axis}_m")
+            if value is not None and value > 1.005 * cap_m:
+                raise ValueError(
+                    f"roi.semi_axis_{axis}_m = {value!r} is not allowed: it must be at most "
+                    f"{cap_m:.4g} m, the ROI-plane radius of the cap where a satellite at "
+                    f"constellation.altitude_m = {c.altitude_m:g} is above "
+                    f"constellation.min_elevation_deg = {c.min_elevation_deg:g}"
+                )
 
     def utc_of_time_zero(self):
         """Aware UTC ``datetime`` of simulation time 0, or None (``run.start_utc``, or the

@@ -16,6 +16,9 @@ from leolink.errors import ConfigError
 __all__ = ["field_info", "reword"]
 
 _SKIPPED = ("function-after", "function-before", "function-wrap", "tagged-union")
+#: loc parts naming the branch of a union (``float | Literal['auto']``), not a key.
+_BRANCHES = ("float", "int", "str", "bool", "list", "dict")
+_BRANCH_PREFIXES = ("literal[", "list[", "function-", "constrained-", "json-or-python")
 
 
 def _models_in(annotation) -> list[type[BaseModel]]:
@@ -38,7 +41,7 @@ def _clean_loc(model, loc) -> list:
         if isinstance(p, int):
             parts.append(p)
             continue
-        if p in _SKIPPED or str(p).startswith(("literal[", "list[", "function-")):
+        if p in _SKIPPED or p in _BRANCHES or str(p).startswith(_BRANCH_PREFIXES):
             continue
         tagged = [m for m in candidates if _tag(m) == p]
         if tagged and len(candidates) > 1:  # a discriminated-union tag, not a key
@@ -64,29 +67,50 @@ def field_info(model, loc):
     return info
 
 
-def _line(model, err) -> str:
-    loc = _clean_loc(model, err["loc"])
-    where = ".".join(str(p) for p in loc)
+def _special(where, loc, err) -> str | None:
+    """The line of an error that is not about a value's type or bounds, else None."""
     msg = err["msg"].removeprefix("Value error, ")
     kind = err["type"]
     if kind == "extra_forbidden":
         return f"{where} is not a known key (check the spelling; see docs/config.md)"
     if kind == "missing":
         return f"{where} is required"
-    if kind == "value_error":
-        return msg
+    if kind == "value_error":  # a validator's own message; name the key if it does not
+        named = not loc or msg.startswith(str(loc[0]))
+        return msg if named else f"{where}: {msg}"
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         tags = err.get("ctx", {}).get("expected_tags", "")
         value = err.get("ctx", {}).get("tag", err.get("input"))
         return f"{where}.kind = {value!r} is not allowed: use one of {tags}"
-    info = field_info(model, loc)
-    doc = info.description if info is not None and info.description else ""
-    meaning = f" ({doc})" if doc else ""
-    return f"{where} = {err.get('input')!r} is not allowed: {msg[:1].lower()}{msg[1:]}{meaning}"
+    return None
+
+
+def _lines(model, errors) -> list[str]:
+    """One line per key: the branches of a union (``float | 'auto'``) are joined by "or"."""
+    lines: dict[str, list] = {}
+    for err in errors:
+        loc = _clean_loc(model, err["loc"])
+        where = ".".join(str(p) for p in loc)
+        special = _special(where, loc, err)
+        if special is not None:
+            lines.setdefault(special, [])
+            continue
+        msg = err["msg"]
+        head = f"{where} = {err.get('input')!r} is not allowed: "
+        lines.setdefault(head, [loc]).append(msg[:1].lower() + msg[1:])
+    out = []
+    for head, parts in lines.items():
+        if not parts:
+            out.append(head)
+            continue
+        info = field_info(model, parts[0])
+        doc = f" ({info.description})" if info is not None and info.description else ""
+        out.append(head + ", or ".join(dict.fromkeys(parts[1:])) + doc)
+    return out
 
 
 def reword(exc: ValidationError, model, source: str = "") -> ConfigError:
     """One :class:`ConfigError` line per validation error, joined by ``; ``."""
-    lines = list(dict.fromkeys(_line(model, err) for err in exc.errors()))
+    lines = _lines(model, exc.errors())
     prefix = f"{source}: " if source else ""
     return ConfigError(prefix + "; ".join(lines))

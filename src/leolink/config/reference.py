@@ -44,9 +44,18 @@ def _type_text(annotation) -> str:
     return getattr(annotation, "__name__", str(annotation))
 
 
+def _inner_metadata(annotation) -> list:
+    """Constraints inside an annotation (list items, union members: ``Annotated[float, ...]``)."""
+    out: list = []
+    for arg in typing.get_args(annotation):
+        out += getattr(arg, "metadata", [])  # a FieldInfo inside Annotated
+        out += _inner_metadata(arg)
+    return out
+
+
 def _allowed_text(info) -> str:
     bounds = []
-    for m in info.metadata:
+    for m in [*info.metadata, *_inner_metadata(info.annotation)]:
         for name, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
             value = getattr(m, name, None)
             if value is not None:

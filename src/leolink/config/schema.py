@@ -6,7 +6,7 @@ populations, outputs) are built from the registries in :mod:`leolink.config.kind
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -41,6 +41,14 @@ __all__ = [
 
 #: Most epochs one run may have (their times alone take 8 bytes each).
 MAX_EPOCHS = 1e8
+#: Longest time span of a config [s]: 100 years (TLEs are useless long before).
+MAX_TIME_S = 3.2e9
+#: Largest ROI semi-axis in the ROI plane [m] (central angle 72 deg); the real limit is
+#: the visible cap, checked against the orbit (:class:`leolink.config.ConfigBase`).
+MAX_ROI_M = 2.0e7
+#: Epoch times are ``start_s + k epoch_s``: their float spacing must stay below this
+#: fraction of an epoch, and duration and warm-up must be whole epochs to this tolerance.
+EPOCH_TOLERANCE = 1e-6
 
 
 class Section(BaseModel):
@@ -56,11 +64,20 @@ def _f(default, *, gt=None, ge=None, le=None, lt=None, doc=""):
 
 
 class RunSection(Section):
-    seed: int = _f(20201, ge=0, doc="seed of the run's random generator")
-    epoch_s: float = _f(1.0, gt=0, doc="time step between two controller decisions [s]")
-    start_s: float = _f(0.0, doc="simulation time of the first epoch [s]")
-    duration_s: float = _f(120.0, gt=0, doc="simulated time after the warm-up [s]")
-    warmup_s: float = _f(0.0, ge=0, doc="simulated time before recording starts [s]")
+    seed: int = _f(20201, ge=0, le=2**63 - 1, doc="seed of the run's random generator")
+    epoch_s: float = _f(
+        1.0, ge=1e-6, le=86_400.0, doc="time step between two controller decisions [s]"
+    )
+    start_s: float = _f(
+        0.0,
+        ge=-MAX_TIME_S,
+        le=MAX_TIME_S,
+        doc="simulation time of the first epoch [s] (+-100 years)",
+    )
+    duration_s: float = _f(
+        120.0, gt=0, le=MAX_TIME_S, doc="simulated time after the warm-up [s] (<= 100 years)"
+    )
+    warmup_s: float = _f(0.0, ge=0, le=MAX_TIME_S, doc="simulated time before recording starts [s]")
     start_utc: str = _f(
         "",
         doc="UTC instant of the first epoch, ISO 8601 (none: TLE runs start at the first "
@@ -90,7 +107,29 @@ class RunSection(Section):
                 f"run.epoch_s = {self.epoch_s!r} is not allowed: {n_epoch:.3g} epochs; use at "
                 f"most {MAX_EPOCHS:.0e} (a longer epoch or a shorter run)"
             )
+        self._check_grid()
         return self
+
+    def _check_grid(self):
+        """Whole epochs in the duration and warm-up, and epoch times that float can hold
+        (``start_s = 1e17`` would collapse every epoch onto one time)."""
+        import math
+
+        for key in ("duration_s", "warmup_s"):
+            span = getattr(self, key)
+            n = round(span / self.epoch_s)
+            if abs(n * self.epoch_s - span) > EPOCH_TOLERANCE * self.epoch_s:
+                raise ValueError(
+                    f"run.{key} = {span!r} is not allowed: it must be a whole number of epochs "
+                    f"(run.epoch_s = {self.epoch_s!r}; {n} epochs give {n * self.epoch_s:g} s)"
+                )
+        last = max(abs(self.start_s), abs(self.start_s + self.warmup_s + self.duration_s))
+        if math.ulp(last) > EPOCH_TOLERANCE * self.epoch_s:
+            raise ValueError(
+                f"run.start_s = {self.start_s!r} is not allowed with run.epoch_s = "
+                f"{self.epoch_s!r}: epoch times near {last:.3g} s are only resolved to "
+                f"{math.ulp(last):.3g} s; use a start time closer to 0 or a longer epoch"
+            )
 
 
 class EarthSection(Section):
@@ -105,7 +144,12 @@ class EarthSection(Section):
         lt=6.5e6,
         doc="spherical Earth radius [m] (orbits, ROI plane and codebook use it with either model)",
     )
-    gm_m3_s2: float = _f(GM_EARTH_M3_S2, gt=0, doc="Earth's gravitational parameter [m^3/s^2]")
+    gm_m3_s2: float = _f(
+        GM_EARTH_M3_S2,
+        ge=3.9e14,
+        le=4.1e14,
+        doc="Earth's gravitational parameter [m^3/s^2] (within 2.5 % of 3.986e14)",
+    )
     rotation: bool = _f(False, doc="rotate the Earth under the orbits (ECEF frame)")
 
 
@@ -113,11 +157,14 @@ class ConstellationSection(Section):
     kind: Literal["pass", "walker", "tle"] = _f("pass", doc="how satellites are placed")
     altitude_m: float = _f(1_300_000.0, gt=100_000.0, lt=40_000_000.0, doc="orbit altitude [m]")
     inclination_deg: float = _f(53.0, ge=0.0, le=180.0, doc="orbital plane inclination [deg]")
-    n_planes: int = _f(83, ge=1, doc="number of orbital planes N_p")
-    sats_per_plane: int = _f(53, ge=1, doc="satellites per orbital plane N_s")
-    phasing: int = _f(1, ge=0, doc="Walker phasing factor F")
+    n_planes: int = _f(83, ge=1, le=1000, doc="number of orbital planes N_p")
+    sats_per_plane: int = _f(53, ge=1, le=1000, doc="satellites per orbital plane N_s")
+    phasing: int = _f(1, ge=0, le=999, doc="Walker phasing factor F (< n_planes)")
     pass_time_s: float = _f(
-        60.0, doc="kind = 'pass': time the satellite is over the ROI centre [s]"
+        60.0,
+        ge=-MAX_TIME_S,
+        le=MAX_TIME_S,
+        doc="kind = 'pass': time the satellite is over the ROI centre [s]",
     )
     ascending: bool = _f(True, doc="kind = 'pass': pass on the ascending half of the orbit")
     tle_file: str = _f("", doc="kind = 'tle': path of a file of two-line element sets")
@@ -130,6 +177,11 @@ class ConstellationSection(Section):
     def _check(self):
         if self.tle_epoch_utc:
             parse_utc("constellation.tle_epoch_utc", self.tle_epoch_utc)
+        if self.kind == "walker" and self.phasing >= self.n_planes:
+            raise ValueError(
+                f"constellation.phasing = {self.phasing} is not allowed: the Walker phasing "
+                f"factor F must be below constellation.n_planes = {self.n_planes}"
+            )
         return self
 
 
@@ -137,23 +189,34 @@ class RoiSection(Section):
     center_lat_deg: float = _f(42.24, ge=-90.0, le=90.0, doc="ROI centre latitude [deg]")
     center_lon_deg: float = _f(-8.72, ge=-180.0, le=360.0, doc="ROI centre longitude [deg]")
     semi_axis_x_m: float | None = _f(
-        None, gt=0, doc="ROI semi-axis along-track [m]; none: derived (Sec. 3.1)"
+        None,
+        gt=0,
+        le=MAX_ROI_M,
+        doc="ROI semi-axis along-track [m]; none: derived (Sec. 3.1); at most the visible cap",
     )
     semi_axis_y_m: float | None = _f(
-        None, gt=0, doc="ROI semi-axis cross-track [m]; none: derived (Sec. 3.1)"
+        None,
+        gt=0,
+        le=MAX_ROI_M,
+        doc="ROI semi-axis cross-track [m]; none: derived (Sec. 3.1); at most the visible cap",
     )
 
 
 class LinkSection(Section):
     freq_hz: float = _f(11.45e9, gt=1e8, lt=1e12, doc="carrier frequency [Hz]")
-    bandwidth_hz: float = _f(250e6, gt=0, doc="downlink bandwidth [Hz]")
+    bandwidth_hz: float = _f(250e6, ge=1e3, le=1e11, doc="downlink bandwidth [Hz]")
     ptx_dbw: float = _f(
-        15.0, doc="transmit power [dBW]; per beam unless power_mode = 'split_total'"
+        15.0,
+        ge=-100.0,
+        le=100.0,
+        doc="transmit power [dBW]; per beam unless power_mode = 'split_total'",
     )
     power_mode: Literal["per_beam", "split_total"] = _f("per_beam", doc="meaning of ptx_dbw")
-    cable_loss_db: float = _f(0.0, ge=0, doc="loss between transmitter and array [dB]")
-    noise_temp_dbk: float = _f(24.1, doc="receiver noise temperature [dBK]")
-    rician_k: float = _f(10.0, gt=0, doc="Rician factor K_r (linear)")
+    cable_loss_db: float = _f(0.0, ge=0, le=100.0, doc="loss between transmitter and array [dB]")
+    noise_temp_dbk: float = _f(
+        24.1, ge=-20.0, le=60.0, doc="receiver noise temperature [dBK] (0.01 K to 1e6 K)"
+    )
+    rician_k: float = _f(10.0, gt=0, le=1e6, doc="Rician factor K_r (linear)")
     fading: Literal["mean", "rician"] = _f("mean", doc="paper's mean receive gain or random draws")
     reuse_colors: Literal[1, 3, 4] = _f(1, doc="frequency-reuse colours (1 = full reuse)")
     interference: Literal["serving_satellite", "all_satellites"] = _f(
@@ -162,12 +225,14 @@ class LinkSection(Section):
 
 
 class SatelliteArraySection(Section):
-    n_x: int = _f(60, ge=1, doc="elements along-track")
-    n_y: int = _f(72, ge=1, doc="elements cross-track")
-    n_rf_x: int = _f(5, ge=1, doc="RF chains (subarrays) along-track")
-    n_rf_y: int = _f(3, ge=1, doc="RF chains (subarrays) cross-track")
-    oversampling: float | Literal["auto"] = _f(
-        1.2, doc="DFT oversampling factor O, or 'auto' (the most beams the RF chains can drive)"
+    n_x: int = _f(60, ge=1, le=2000, doc="elements along-track")
+    n_y: int = _f(72, ge=1, le=2000, doc="elements cross-track")
+    n_rf_x: int = _f(5, ge=1, le=2000, doc="RF chains (subarrays) along-track")
+    n_rf_y: int = _f(3, ge=1, le=2000, doc="RF chains (subarrays) cross-track")
+    oversampling: Annotated[float, Field(gt=0.0, le=100.0)] | Literal["auto"] = _f(
+        1.2,
+        doc="DFT oversampling factor O in (0, 100], or 'auto' (the most beams the RF chains "
+        "can drive)",
     )
     allow_holes: bool = _f(
         False,
@@ -184,9 +249,4 @@ class SatelliteArraySection(Section):
                     f"satellite_array.n_{axis} = {n} is not allowed: it must be a multiple of "
                     f"n_rf_{axis} = {n_rf} (equal subarrays, one per RF chain)"
                 )
-        if self.oversampling != "auto" and not self.oversampling > 0:
-            raise ValueError(
-                f"satellite_array.oversampling = {self.oversampling!r} is not allowed: "
-                "use a number > 0 or 'auto'"
-            )
         return self

@@ -199,12 +199,14 @@ class EventsParams(SinkParams):
 
 class PlotsParams(SinkParams):
     enabled: bool = Field(True, description="write PNG plots next to the traces")
-    uts: list[int] = Field(default_factory=lambda: [0], description="UTs shown in the time plots")
+    uts: list[Annotated[int, Field(ge=0, le=10_000_000)]] = Field(
+        default_factory=lambda: [0], description="UTs shown in the time plots (ids >= 0)"
+    )
 
 
 class ReportParams(SinkParams):
     enabled: bool = Field(True, description="write report.html and what it is drawn from")
-    uts: list[Annotated[int, Field(ge=0)]] = Field(
+    uts: list[Annotated[int, Field(ge=0, le=10_000_000)]] = Field(
         default_factory=list,
         description="UTs of the time plots; empty: the first UT of each population (at most 6)",
     )

@@ -8,10 +8,14 @@ offset is given); GPX track points carry UTC times. UTC timestamps become simula
 time through ``run.start_utc`` (``t = utc - start_utc + run.start_s``). Before a track's
 first fix and after its last the UT holds that fix; the run reports it
 (:func:`leolink.app.tracks.track_coverage`).
+
+Errors name the file, the line and the column, never the file's text (a config may point
+at any file): a value is shown only once parsed as a number.
 """
 
 import csv
 import math
+import re
 from datetime import UTC, datetime
 
 import numpy as np
@@ -19,7 +23,7 @@ from pydantic import Field, model_validator
 
 from leolink.errors import LeolinkError
 from leolink.sim.mobility import Track, Waypoints
-from leolink.sim.populations import MOBILITY, PopulationParams
+from leolink.sim.populations import FIX_LIMITS, MOBILITY, PopulationParams
 
 __all__ = ["TrackFileError", "TrackParams", "read_track", "read_track_csv", "read_track_gpx"]
 
@@ -30,11 +34,8 @@ class TrackFileError(LeolinkError, ValueError):
 
 _TRACK_COLUMNS = ("time_s", "lat_deg", "lon_deg", "alt_m")
 _POSITION_COLUMNS = _TRACK_COLUMNS[1:]
-_TRACK_LIMITS = {  # column: (low, high, meaning)
-    "lat_deg": (-90.0, 90.0, "latitude"),
-    "lon_deg": (-180.0, 360.0, "longitude"),
-    "alt_m": (-11_000.0, 100_000.0, "height between the deepest ocean and 100 km"),
-}
+_TRACK_LIMITS = FIX_LIMITS  # column: (low, high, meaning), as for configured waypoints
+_COLUMN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,39}")
 
 
 def _data_lines(path):
@@ -42,8 +43,12 @@ def _data_lines(path):
     try:
         with open(path, newline="", encoding="utf-8") as f:
             lines = f.read().splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TrackFileError(f"{path}: cannot read track file ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise TrackFileError(
+            f"{path}: not a text track file (byte {exc.start} is not UTF-8)"
+        ) from None
+    except OSError as exc:
+        raise TrackFileError(f"{path}: cannot read track file ({exc.strerror})") from None
     return [
         (i, [c.strip() for c in next(csv.reader([s]))])
         for i, s in enumerate(lines, 1)
@@ -57,8 +62,7 @@ def _utc_seconds(path, where, text, time_zero_utc):
         when = datetime.fromisoformat(text)
     except ValueError:
         raise TrackFileError(
-            f"{path}: {where}: {text!r} is not an ISO 8601 date and time "
-            "(e.g. 2019-12-09T16:38:29Z)"
+            f"{path}: {where}: not an ISO 8601 date and time (e.g. 2019-12-09T16:38:29Z)"
         ) from None
     when = when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
     return (when - time_zero_utc).total_seconds()
@@ -92,9 +96,7 @@ def _parse_row(path, line_no, header, fields, time_zero_utc=None):
         except ValueError:
             value = math.nan
         if not math.isfinite(value):
-            raise TrackFileError(
-                f"{path}: line {line_no}, column '{col}': {row[col]!r} is not a finite number"
-            )
+            raise TrackFileError(f"{path}: line {line_no}, column '{col}': not a finite number")
         low, high, meaning = _TRACK_LIMITS.get(col, (-math.inf, math.inf, ""))
         if not low <= value <= high:
             raise TrackFileError(
@@ -142,7 +144,7 @@ def read_track_csv(path, time_zero_utc=None):
     if missing:
         raise TrackFileError(
             f"{path}: line {header_line}: missing column(s) "
-            f"{', '.join(map(repr, missing))}; found {', '.join(header)}"
+            f"{', '.join(map(repr, missing))}; found {_header_text(header)}"
         )
     if "time_s" not in header:
         _need_time_zero(path, time_zero_utc)
@@ -165,6 +167,13 @@ def read_track_csv(path, time_zero_utc=None):
         t, lat, lon, alt = np.array(values).T
         out.append(Track(t, np.radians(lat), np.radians(lon), alt, ut_id=ut))
     return out
+
+
+def _header_text(header):
+    """The columns found, if they look like column names (else only how many)."""
+    if all(_COLUMN_NAME.fullmatch(h) for h in header) and len(header) <= 20:
+        return ", ".join(header)
+    return f"{len(header)} field(s) that are not column names"
 
 
 def _file_label(path):
@@ -190,8 +199,16 @@ def read_track_gpx(path, time_zero_utc):
     try:
         with open(path, encoding="utf-8") as f:
             gpx = gpxpy.parse(f)
-    except (OSError, UnicodeDecodeError, gpxpy.gpx.GPXException) as exc:
-        raise TrackFileError(f"{path}: cannot read GPX file ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise TrackFileError(f"{path}: not a GPX file (byte {exc.start} is not UTF-8)") from None
+    except OSError as exc:
+        raise TrackFileError(f"{path}: cannot read GPX file ({exc.strerror})") from None
+    except (gpxpy.gpx.GPXException, ValueError) as exc:
+        line = re.search(r"line (\d+)", str(exc))
+        where = f"line {line.group(1)}: " if line else ""
+        raise TrackFileError(
+            f"{path}: {where}not a valid GPX file ({type(exc).__name__})"
+        ) from None
     _need_time_zero(path, time_zero_utc)
     out = []
     for i, trk in enumerate(gpx.tracks):
@@ -211,13 +228,25 @@ def read_track_gpx(path, time_zero_utc):
                 f"{path}: track {label!r}, point {bad[0] + 1}: time {when[bad[0] + 1]} is not "
                 f"after {when[bad[0]]}; times must increase"
             )
-        lat = np.array([pt.latitude for pt in points])
-        lon = np.array([pt.longitude for pt in points])
-        alt = np.array([pt.elevation or 0.0 for pt in points])
+        lat = np.array([pt.latitude for pt in points], dtype=float)
+        lon = np.array([pt.longitude for pt in points], dtype=float)
+        alt = np.array([pt.elevation or 0.0 for pt in points], dtype=float)
+        _check_gpx_values(path, label, {"lat_deg": lat, "lon_deg": lon, "alt_m": alt})
         out.append(Track(t, np.radians(lat), np.radians(lon), alt, ut_id=label))
     if not out:
         raise TrackFileError(f"{path}: no track points (<trk><trkseg><trkpt>) in the GPX file")
     return out
+
+
+def _check_gpx_values(path, label, columns):
+    for col, values in columns.items():
+        low, high, meaning = _TRACK_LIMITS[col]
+        bad = np.flatnonzero(~((values >= low) & (values <= high)))  # NaN is bad too
+        if bad.size:
+            raise TrackFileError(
+                f"{path}: track {label!r}, point {bad[0]}: {col} = {values[bad[0]]!r} is out "
+                f"of [{low:g}, {high:g}] ({meaning})"
+            )
 
 
 def read_track(path, time_zero_utc=None):

@@ -1,11 +1,12 @@
 """The per-epoch controller step: policy, time-to-trigger, outage, handover execution.
 
-Every epoch the simulator evaluates an SNR matrix ``snr_db`` of shape ``(n_ut, n_cand)``
-over candidate (satellite, beam) pairs, flattened as ``cand = sat * n_beam + beam``
-(NaN where the satellite is below the minimum elevation or the beam is not usable).
-:func:`step` picks the serving candidate of every UT in one vectorized call with a policy
-of :mod:`leolink.sim.policies` and returns the handover/outage events and the closed beam
-dwells.
+Every epoch the simulator hands :func:`step` the candidate table of every UT
+(:class:`~leolink.sim.candidates.Candidates`: cells ``cell = sat_id * n_beam + beam_id``
+and their SNR, NaN where there is no usable link; a dense ``(n_ut, n_cand)`` matrix is
+read as the table of cells ``0 .. n_cand - 1``). :func:`step` picks the serving cell of
+every UT in one vectorized call with a policy of :mod:`leolink.sim.policies` and returns
+the handover/outage events and the closed beam dwells. Cell ids are global and stable,
+so the state (serving, pending) needs no translation from one epoch to the next.
 
 Handover execution is an event of its own: a handover at ``t`` interrupts service until
 ``t + handover_time_s`` exactly (not until the next epoch). The end time is known at the
@@ -21,6 +22,7 @@ import dataclasses
 
 import numpy as np
 
+from leolink.sim.candidates import Candidates
 from leolink.sim.policies import best_candidate, value_at  # noqa: F401  (re-exported)
 
 # Epoch times accumulate float rounding (k * 0.1 s); 1 ns is far below any epoch length.
@@ -142,9 +144,9 @@ def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
     return fire, np.where(fire, -1, pending), np.where(fire | (pending < 0), np.nan, since)
 
 
-def _events(t_s, kind_code, old, new, snr_db, n_beam, before_db):
+def _events(t_s, kind_code, old, new, new_db, n_beam, before_db):
     """Events of UTs with ``kind_code >= 0`` (at most one per UT per epoch);
-    ``before_db`` (n_ut,): the serving link's last SNR."""
+    ``new_db``, ``before_db`` (n_ut,): the new serving cell's SNR, the old link's last."""
     ut = np.flatnonzero(kind_code >= 0)
     from_sat, from_beam = _split(old[ut], n_beam)
     to_sat, to_beam = _split(new[ut], n_beam)
@@ -157,7 +159,7 @@ def _events(t_s, kind_code, old, new, snr_db, n_beam, before_db):
         "to_sat": to_sat,
         "to_beam": to_beam,
         "snr_before_db": np.where(old[ut] >= 0, before_db[ut], np.nan),
-        "snr_after_db": value_at(snr_db[ut], new[ut]),
+        "snr_after_db": new_db[ut],
     }
 
 
@@ -175,10 +177,9 @@ def _dwells(ut, cand, start_s, end_s, censored_start, censored_end, n_beam):
     }
 
 
-def _check_targets(policy, target, usable_db, needs, n_cand):
+def _check_targets(policy, target, usable_db, needs):
     """A policy must return a usable candidate wherever one is needed."""
-    ok = (target >= 0) & (target < n_cand)
-    ok[ok] = np.isfinite(value_at(usable_db[ok], target[ok]))
+    ok = np.isfinite(value_at(usable_db, target))
     bad = np.flatnonzero(needs & ~ok)
     if bad.size:
         raise ValueError(
@@ -195,7 +196,8 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
     Parameters
     ----------
     t_s : float [s], epoch time (the first call is the run start).
-    snr_db : ndarray (n_ut, n_cand) [dB], ``cand = sat * n_beam + beam``; NaN = no link.
+    snr_db : Candidates, or ndarray (n_ut, n_cand) [dB] whose column is the cell
+        ``sat * n_beam + beam``; NaN = no link.
     state : ControllerState
     policy : object following the policy protocol (module docstring).
     min_snr_db : float [dB], a candidate below it is unusable; a UT with no usable
@@ -205,7 +207,8 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
         controller does not re-decide for it (an outage still ends it). Leaving an outage
         and the first assignment have no execution time.
     n_beam : int, beams per satellite.
-    future_snr_db : ndarray (n_ut, n_cand) [dB] at ``t_s + policy.lookahead_s``, or None.
+    future_snr_db : Candidates (the same cells) or ndarray (n_ut, n_cand) [dB] at
+        ``t_s + policy.lookahead_s``, or None.
 
     Notes
     -----
@@ -215,19 +218,15 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
     ``snr_before_db`` of an event is the serving link's last finite SNR (this epoch's, or
     the last epoch's if its satellite has set), NaN only without a serving link.
     """
-    snr_db = np.asarray(snr_db, float)
-    with np.errstate(invalid="ignore"):
-        usable_db = np.where(snr_db >= min_snr_db, snr_db, np.nan)
-        future_db = None
-        if future_snr_db is not None:
-            future = np.asarray(future_snr_db, float)
-            future_db = np.where(future >= min_snr_db, future, np.nan)
+    snr_db = _as_table(snr_db)
+    usable_db = snr_db.masked(min_snr_db)
+    future_db = None if future_snr_db is None else _as_table(future_snr_db).masked(min_snr_db)
     target = np.asarray(policy.choose(t_s, usable_db, state, future_db), np.int64)
     old = state.serving
-    has_usable = np.isfinite(usable_db).any(axis=1)
+    has_usable = np.isfinite(usable_db.snr_db).any(axis=1)
     first = has_usable & (old < 0) & ~state.in_outage
     interrupted = (old >= 0) & (t_s < state.interrupted_until_s - TIME_TOL_S)
-    _check_targets(policy, target, usable_db, has_usable & ~interrupted, snr_db.shape[1])
+    _check_targets(policy, target, usable_db, has_usable & ~interrupted)
 
     immediate = ~np.isfinite(value_at(usable_db, old))
     wants = has_usable & (old >= 0) & ~interrupted & (target != old)
@@ -244,7 +243,8 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
     kind[outage_start] = 2
     kind[outage_end] = 3
     last_db = _last_serving_db(state, value_at(snr_db, old))
-    events = _events(t_s, kind, old, new, snr_db, n_beam, last_db)
+    new_db = value_at(snr_db, new)
+    events = _events(t_s, kind, old, new, new_db, n_beam, last_db)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
     dwells = _dwells(
         closing,
@@ -270,11 +270,16 @@ def step(t_s, snr_db, state, policy, min_snr_db, handover_time_s, n_beam, future
             first, True, np.where(adopt, False, state.dwell_censored_start)
         ),
         n_beam=int(n_beam),
-        serving_snr_db=_serving_db(old, new, value_at(snr_db, new), last_db),
+        serving_snr_db=_serving_db(old, new, new_db, last_db),
     )
     return StepResult(
         new_state, events, dwells, service_codes(t_s, new_state), *_split(new, n_beam)
     )
+
+
+def _as_table(snr_db):
+    """A :class:`Candidates` table (a dense matrix: the cells of its columns)."""
+    return snr_db if isinstance(snr_db, Candidates) else Candidates.dense(snr_db)
 
 
 def _last_serving_db(state, current_db):
@@ -303,8 +308,8 @@ def resumed_events(t_s, epoch_s, state, snr_db):
     """``service_resumed`` events of the UTs whose handover execution ends within
     ``(t_s, t_s + epoch_s]``, stamped with that exact time; sorted by time, then UT.
 
-    ``state`` is the state after :func:`step` at ``t_s``; ``snr_db`` that epoch's SNR
-    matrix (``snr_after_db`` is the serving link's SNR at ``t_s``).
+    ``state`` is the state after :func:`step` at ``t_s``; ``snr_db`` that epoch's
+    candidate table or SNR matrix (``snr_after_db`` is the serving link's SNR at ``t_s``).
     """
     until = state.interrupted_until_s
     due = (state.serving >= 0) & ~state.in_outage & (until > t_s + TIME_TOL_S)
@@ -322,7 +327,7 @@ def resumed_events(t_s, epoch_s, state, snr_db):
         "to_sat": to_sat,
         "to_beam": to_beam,
         "snr_before_db": np.full(ut.size, np.nan),
-        "snr_after_db": value_at(np.asarray(snr_db, float)[ut], state.serving[ut]),
+        "snr_after_db": value_at(_as_table(snr_db).rows(ut), state.serving[ut]),
     }
 
 

@@ -1,22 +1,29 @@
 """Beam-selection policies: a declared protocol, one registry, pure vectorized rules.
 
-Every epoch the controller (:func:`leolink.sim.controller.step`) hands a policy the SNR
-matrix ``snr_db`` of shape ``(n_ut, n_cand)`` over candidate cells (satellite, beam),
-flattened as ``cand = sat * n_beam + beam``, already masked: NaN marks every unusable
-candidate (no link, or SNR below the service threshold).
+Every epoch the controller (:func:`leolink.sim.controller.step`) hands a policy the
+candidate table of every UT (:class:`~leolink.sim.candidates.Candidates`): the cells
+``cell = sat_id * n_beam + beam_id`` a UT may be served by and their SNR, already masked:
+NaN marks every unusable candidate (no link, or SNR below the service threshold).
+:func:`best_candidate` and :func:`value_at` read a table (or a dense ``(n_ut, n_cand)``
+matrix whose column index is the cell, as in the unit tests).
 
 Policy protocol (:class:`Policy`)
 ---------------------------------
 - ``choose(t_s, snr_db, state, future_snr_db=None) -> target (n_ut,) int``: pure (it must
   not mutate ``state``, a :class:`~leolink.sim.controller.ControllerState`). ``target`` is
-  the candidate the UT should be served by now (``state.serving`` to stay). Wherever a UT
+  the cell the UT should be served by now (``state.serving`` to stay). Wherever a UT
   has a usable candidate, ``target`` must be usable (or equal to a still-usable serving
-  candidate).
+  cell).
 - ``lookahead_s`` [s]: 0, or the horizon at which the caller must evaluate
-  ``future_snr_db`` (same shape, same masking) from the known ephemeris.
+  ``future_snr_db`` (the same cells, the same masking) from the known ephemeris.
 - ``time_to_trigger_s`` [s]: the controller switches to a target other than the serving
-  candidate only after the policy asked for that same target on every epoch during this
-  long. A UT whose serving candidate is unusable switches at once.
+  cell only after the policy asked for that same target on every epoch during this
+  long. A UT whose serving cell is unusable switches at once.
+- ``neighbour_window_db`` [dB], optional (default ``inf``): the cells the decision can
+  depend on besides the serving cell: those within this much of the UT's best cell.
+  The simulator then evaluates only those (the table holds every cell within the
+  window, and the serving cell); ``inf`` asks for every cell above the minimum
+  elevation. A policy that looks only at its best and its serving cell declares 0.
 
 A new policy is one small class following this protocol, registered in :data:`POLICIES`
 with its parameter model (``[controller.<name>]`` in the config); see docs/extending.md.
@@ -32,6 +39,7 @@ import numpy as np
 from pydantic import Field
 
 from leolink.registry import Params, Registry
+from leolink.sim.candidates import Candidates
 
 __all__ = [
     "POLICIES",
@@ -40,6 +48,7 @@ __all__ = [
     "Policy",
     "Predictive",
     "best_candidate",
+    "neighbour_window_db",
     "predictive_score_db",
     "value_at",
 ]
@@ -79,12 +88,19 @@ class PredictiveConfig(Params):
     )
 
 
-def best_candidate(snr_db):
-    """Per-UT argmax over candidates ignoring NaN.
+def neighbour_window_db(policy):
+    """The policy's ``neighbour_window_db`` (module docstring), ``inf`` if it has none."""
+    return float(getattr(policy, "neighbour_window_db", np.inf))
 
-    Returns ``(index (n_ut,) int64, value (n_ut,) float)``; -1 and NaN where every
-    candidate is NaN. Ties go to the lowest index (``numpy.argmax``).
+
+def best_candidate(snr_db):
+    """Per-UT best cell ignoring NaN, of a :class:`Candidates` table or a dense matrix.
+
+    Returns ``(cell (n_ut,) int64, value (n_ut,) float)``; -1 and NaN where every
+    candidate is NaN. Ties go to the lowest cell (``numpy.argmax`` over a dense matrix).
     """
+    if isinstance(snr_db, Candidates):
+        return snr_db.best()
     snr_db = np.asarray(snr_db, float)
     if snr_db.shape[1] == 0:
         return np.full(snr_db.shape[0], -1, np.int64), np.full(snr_db.shape[0], np.nan)
@@ -96,7 +112,10 @@ def best_candidate(snr_db):
 
 
 def value_at(snr_db, cand):
-    """``snr_db[i, cand[i]]`` per UT, NaN where ``cand < 0``."""
+    """The SNR of cell ``cand[i]`` of UT ``i`` (a :class:`Candidates` table or a dense
+    matrix ``snr_db[i, cand[i]]``), NaN where ``cand < 0`` or the cell is absent."""
+    if isinstance(snr_db, Candidates):
+        return snr_db.value_at(cand)
     snr_db = np.asarray(snr_db, float)
     cand = np.asarray(cand, np.int64)
     if snr_db.shape[1] == 0:
@@ -105,6 +124,15 @@ def value_at(snr_db, cand):
     flat = np.ascontiguousarray(snr_db).reshape(-1)
     val = flat[np.arange(len(cand)) * snr_db.shape[1] + np.maximum(cand, 0)]
     return np.where(cand >= 0, val, np.nan)
+
+
+def _values(x):
+    """The SNR array of a table or a matrix."""
+    return x.snr_db if isinstance(x, Candidates) else np.asarray(x, float)
+
+
+def _table(x):
+    return x if isinstance(x, Candidates) else np.asarray(x, float)
 
 
 def _switch_or_stay(serving, score, margin_db):
@@ -122,6 +150,7 @@ class MaxSnr:
 
     lookahead_s = 0.0
     time_to_trigger_s = 0.0
+    neighbour_window_db = 0.0  # the best cell only
 
     def choose(self, t_s, snr_db, state, future_snr_db=None):
         return best_candidate(snr_db)[0]
@@ -140,13 +169,15 @@ class Hysteresis:
     """
 
     lookahead_s = 0.0
+    #: The decision compares the best cell with the serving one (always in the table).
+    neighbour_window_db = 0.0
 
     def __init__(self, margin_db=3.0, time_to_trigger_s=0.0):
         self.margin_db = float(margin_db)
         self.time_to_trigger_s = float(time_to_trigger_s)
 
     def choose(self, t_s, snr_db, state, future_snr_db=None):
-        return _switch_or_stay(state.serving, np.asarray(snr_db, float), self.margin_db)
+        return _switch_or_stay(state.serving, _table(snr_db), self.margin_db)
 
     def __repr__(self):
         return f"Hysteresis(margin_db={self.margin_db}, time_to_trigger_s={self.time_to_trigger_s})"
@@ -159,9 +190,9 @@ def predictive_score_db(snr_db, future_snr_db):
     large penalty, so it ranks below every candidate still usable then but is still
     chosen, by current SNR, when no candidate survives. NaN where unusable now.
     """
-    now = np.asarray(snr_db, float)
-    future = np.asarray(future_snr_db, float)
-    return np.where(np.isnan(future), now - _LOST_PENALTY_DB, np.minimum(now, future))
+    now, future = _values(snr_db), _values(future_snr_db)
+    score = np.where(np.isnan(future), now - _LOST_PENALTY_DB, np.minimum(now, future))
+    return snr_db.like(score) if isinstance(snr_db, Candidates) else score
 
 
 @POLICIES.register("predictive", config=PredictiveConfig)
@@ -174,6 +205,8 @@ class Predictive:
     """
 
     time_to_trigger_s = 0.0
+    #: The best score, min(now, future), may belong to a cell far below the best now.
+    neighbour_window_db = np.inf
 
     def __init__(self, lookahead_s=10.0, margin_db=0.0):
         self.lookahead_s = float(lookahead_s)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Literal, Protocol, runtime_checkable
+from typing import Annotated, Literal, Protocol, runtime_checkable
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -57,6 +57,19 @@ class PopulationContext:
     time_zero_utc: object = None  # aware datetime of simulation time 0 (run.start_utc), or None
 
 
+#: Bounds of a recorded or configured fix, by column: (low, high, meaning). Shared by
+#: ``[[population]] waypoints`` and the track files (:mod:`leolink.io.tracks`).
+FIX_LIMITS = {
+    "time_s": (-3.2e9, 3.2e9, "simulation time within +-100 years"),
+    "lat_deg": (-90.0, 90.0, "latitude"),
+    "lon_deg": (-180.0, 360.0, "longitude"),
+    "alt_m": (-11_000.0, 100_000.0, "height between the deepest ocean and 100 km"),
+}
+#: Largest |x|, |y| of a placement point in the ROI plane [m]: 2 R, 63 deg from the centre.
+MAX_ROI_POINT_M = 1.3e7
+_RoiCoordinate = Annotated[float, Field(ge=-MAX_ROI_POINT_M, le=MAX_ROI_POINT_M)]
+
+
 class PopulationParams(Params):
     """Keys every population has."""
 
@@ -75,8 +88,12 @@ class PlacedParams(PopulationParams):
     placement: Literal["center", "points", "random", "grid"] = Field(
         "center", description="where the UTs start"
     )
-    x_m: list[float] = Field(default_factory=list, description="placement points: ROI-plane x [m]")
-    y_m: list[float] = Field(default_factory=list, description="placement points: ROI-plane y [m]")
+    x_m: list[_RoiCoordinate] = Field(
+        default_factory=list, description="placement points: ROI-plane x [m]"
+    )
+    y_m: list[_RoiCoordinate] = Field(
+        default_factory=list, description="placement points: ROI-plane y [m]"
+    )
     alt_m: float = Field(
         0.0,
         ge=-500.0,
@@ -104,8 +121,12 @@ class MovingParams(PlacedParams):
         None, description="speed preset (m/s: " + ", ".join(
             f"{k} {v:g}" for k, v in SPEED_PRESETS_M_S.items()) + ")"
     )  # fmt: skip
-    heading_deg: float | Literal["random", "along_track", "against_track", "cross_track"] = Field(
-        "along_track", description="heading from north [deg], or relative to the ground track"
+    heading_deg: (
+        Annotated[float, Field(ge=-360.0, le=360.0)]
+        | Literal["random", "along_track", "against_track", "cross_track"]
+    ) = Field(
+        "along_track",
+        description="heading from north [deg] in [-360, 360], or relative to the ground track",
     )
 
     @model_validator(mode="after")
@@ -114,23 +135,38 @@ class MovingParams(PlacedParams):
             raise ValueError(
                 f"population '{self.name}': kind = 'constant_velocity' needs speed_m_s or speed"
             )
-        if isinstance(self.heading_deg, float) and not -360.0 <= self.heading_deg <= 360.0:
-            raise ValueError(
-                f"population '{self.name}': heading_deg = {self.heading_deg!r} is not allowed: "
-                "use [-360, 360] deg from north, or a relative heading name"
-            )
         return self
 
 
 class WaypointsParams(PopulationParams):
     waypoints: list[list[float]] = Field(
-        default_factory=list, description="rows [time_s, lat_deg, lon_deg, alt_m]"
+        default_factory=list,
+        description="rows [time_s, lat_deg, lon_deg, alt_m]; lat in [-90, 90], lon in "
+        "[-180, 360], alt in [-11000, 100000] m, times increasing",
     )
 
     @model_validator(mode="after")
     def _rows(self):
+        where = "waypoints"
         if len(self.waypoints) < 2:
-            raise ValueError(f"population '{self.name}': kind = 'waypoints' needs >= 2 rows")
+            raise ValueError(f"{where}: kind = 'waypoints' needs >= 2 rows")
+        for i, row in enumerate(self.waypoints):
+            if len(row) != len(FIX_LIMITS):
+                raise ValueError(
+                    f"{where} row {i} has {len(row)} values; use [time_s, lat_deg, lon_deg, alt_m]"
+                )
+            for col, value in zip(FIX_LIMITS, row, strict=True):
+                low, high, meaning = FIX_LIMITS[col]
+                if not low <= value <= high:
+                    raise ValueError(
+                        f"{where} row {i}, {col} = {value!r} is not allowed: use "
+                        f"[{low:g}, {high:g}] ({meaning})"
+                    )
+            if i and not row[0] > self.waypoints[i - 1][0]:
+                raise ValueError(
+                    f"{where} row {i}, time_s = {row[0]!r} is not after "
+                    f"{self.waypoints[i - 1][0]!r} (row {i - 1}); times must increase"
+                )
         return self
 
     @property

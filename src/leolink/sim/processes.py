@@ -5,11 +5,14 @@ processes start together and wait one epoch each, so the order holds):
 
 1. :func:`satellite_motion` moves all satellites (ephemeris evaluated in blocks of epochs);
 2. :func:`ut_motion`, one per mobility population, moves that population's UTs;
-3. :func:`beam_controller` evaluates the engine for every (UT, satellite, beam) and
-   re-picks the serving beam of every UT with the configured policy;
-4. :func:`link_monitor` computes the serving links and streams the epoch to the sinks.
+3. :func:`beam_controller` finds every UT's candidate cells and re-picks the serving
+   cell of every UT with the configured policy (:class:`leolink.sim.decide.Decider`);
+4. :func:`link_monitor` records the epoch; the serving links of a block of epochs are
+   evaluated at once and streamed to the sinks (:class:`leolink.sim.monitor.Monitor`).
 
-SimPy owns time only; all decisions are pure functions (``controller.step``).
+The motion of satellites and UTs is a pure function of time, evaluated per block of
+epochs (:mod:`leolink.sim.motion`), so that the engine works on whole blocks. SimPy owns
+time only; all decisions are pure functions (``controller.step``).
 """
 
 from __future__ import annotations
@@ -18,23 +21,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink.engine import Snapshot
-from leolink.geometry import enu_basis
-from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
-from leolink.rng import complex_normal
-from leolink.sim.controller import (
-    SERVICE_HANDOVER,
-    SERVICE_OUTAGE,
-    ControllerState,
-    StepResult,
-    close_dwells,
-    concat_events,
-    interruption_s,
-    resumed_events,
-    step,
-)
-from leolink.sim.policies import best_candidate
-from leolink.sim.streams import EpochFrame
+from leolink.sim.controller import ControllerState, StepResult, close_dwells
 
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
 #: no satellite above the minimum elevation; satellites above it but no beam above the
@@ -50,9 +37,6 @@ __all__ = [
     "satellite_motion",
     "ut_motion",
 ]
-
-#: Epochs of ephemeris computed in one vectorized call.
-EPHEMERIS_BLOCK = 512
 
 
 @dataclasses.dataclass
@@ -72,11 +56,11 @@ class SimState:
     sat_pos_m: np.ndarray | None = None  # (n_sat, 3)
     sat_vel_m_s: np.ndarray | None = None
     sat_acc_m_s2: np.ndarray | None = None
-    snapshot: Snapshot | None = None  # engine Snapshot of the candidate satellites
-    cand_sats: np.ndarray | None = None  # global ids of the snapshot's satellites
+    cand_sats: np.ndarray | None = None  # global ids of the cone-selected satellites
+    enu: np.ndarray | None = None  # (n_ut, 3, 3) the UTs' WGS 84 frames, None on the sphere
     decision: StepResult | None = None  # controller decision (ids global)
     best_snr_db: np.ndarray | None = None  # (n_ut,) the best candidate's SNR [dB], NaN if none
-    best_unserved: tuple | None = None  # (UTs without a serving link, their best candidate)
+    best_unserved: tuple | None = None  # (UTs without a serving link, their best cell)
     n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
 
     @property
@@ -88,26 +72,29 @@ class SimState:
         return self.k >= self.n_warmup
 
 
-def satellite_motion(env, state, ephemeris, epoch_s):
-    """Move every satellite once per epoch (the ephemeris is evaluated per block)."""
-    n = len(state.times_s)
-    for lo in range(0, n, EPHEMERIS_BLOCK):
-        pos, vel, acc = ephemeris(state.times_s[lo : lo + EPHEMERIS_BLOCK])
-        for i in range(pos.shape[0]):
-            state.sat_pos_m, state.sat_vel_m_s, state.sat_acc_m_s2 = pos[i], vel[i], acc[i]
-            yield env.timeout(epoch_s)
+def satellite_motion(env, state, motion, epoch_s):
+    """Move every satellite once per epoch (from the motion blocks: the ephemeris is
+    evaluated per block of epochs)."""
+    for k in range(len(state.times_s)):
+        b = motion.block_of(k)
+        i = k - b.k0
+        state.sat_pos_m, state.sat_vel_m_s = b.sat_pos_m[i], b.sat_vel_m_s[i]
+        state.sat_acc_m_s2 = b.sat_acc_m_s2[i]
+        yield env.timeout(epoch_s)
 
 
-def ut_motion(env, state, population, ut_slice, epoch_s):
-    """Move one mobility population (its UTs are ``ut_slice`` of the shared arrays)."""
-    for t in state.times_s:
-        s = population.state(float(t))
-        state.ut_pos_m[ut_slice] = s.pos_m
-        state.ut_vel_m_s[ut_slice] = s.vel_m_s
-        state.ut_acc_m_s2[ut_slice] = s.acc_m_s2
-        state.ut_lat_rad[ut_slice] = s.lat_rad
-        state.ut_lon_rad[ut_slice] = s.lon_rad
-        state.ut_alt_m[ut_slice] = s.alt_m
+def ut_motion(env, state, motion, ut_slice, epoch_s):
+    """Move one mobility population (its UTs are ``ut_slice`` of the shared arrays), from
+    the motion blocks (each population's state evaluated once per epoch)."""
+    for k in range(len(state.times_s)):
+        b = motion.block_of(k)
+        i = k - b.k0
+        state.ut_pos_m[ut_slice] = b.ut_pos_m[i, ut_slice]
+        state.ut_vel_m_s[ut_slice] = b.ut_vel_m_s[i, ut_slice]
+        state.ut_acc_m_s2[ut_slice] = b.ut_acc_m_s2[i, ut_slice]
+        state.ut_lat_rad[ut_slice] = b.ut_lat_rad[i, ut_slice]
+        state.ut_lon_rad[ut_slice] = b.ut_lon_rad[i, ut_slice]
+        state.ut_alt_m[ut_slice] = b.ut_alt_m[i, ut_slice]
         yield env.timeout(epoch_s)
 
 
@@ -136,213 +123,12 @@ def candidate_satellites(sat_pos_m, ut_pos_m, min_elevation_rad, serving_sats, r
     return np.flatnonzero(near)
 
 
-def _local(cand, n_beam, local_of_sat):
-    """Global candidate (sat * n_beam + beam) -> local, -1 if its satellite is absent."""
-    sat, beam = cand // n_beam, cand % n_beam
-    loc = np.where(cand >= 0, local_of_sat[np.maximum(sat, 0)], -1)
-    return np.where(loc >= 0, loc * n_beam + beam, -1)
-
-
-def _global(cand, n_beam, sats):
-    """Local candidate -> global; -1 stays -1 (``sats`` may be empty)."""
-    sats = np.append(sats, -1)  # index -1 // n_beam lands here when there is no candidate
-    return np.where(cand >= 0, sats[np.maximum(cand, 0) // n_beam] * n_beam + cand % n_beam, -1)
-
-
-class _Decider:
-    """Runs ``controller.step`` on the candidate satellites, translating ids.
-
-    ``ellipsoidal``: the UTs' latitudes are geodetic (WGS 84) and their local frame is the
-    ellipsoid's, handed to the engine; otherwise the engine takes the sphere's radial up.
-    """
-
-    def __init__(
-        self,
-        engine,
-        policy,
-        min_snr_db,
-        handover_time_s,
-        min_elevation_rad,
-        radius_m,
-        future_state,
-        epoch_s=1.0,
-        ellipsoidal=False,
-    ):
-        self.engine, self.policy = engine, policy
-        self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
-        # With interference from other satellites, every satellite above the horizon counts.
-        self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
-        self.radius_m = radius_m
-        self.future_state = future_state  # t -> (ut_pos, sat_pos, sat_vel), for prediction
-        self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
-
-    def __call__(self, state):
-        eng, nb = self.engine, self.engine.n_beam
-        c = state.controller
-        serving_sats = np.unique(c.serving[c.serving >= 0] // nb)
-        sats = candidate_satellites(
-            state.sat_pos_m, state.ut_pos_m, self.min_el, serving_sats, self.radius_m
-        )
-        enu = enu_basis(state.ut_lat_rad, state.ut_lon_rad) if self.ellipsoidal else None
-        snap = eng.evaluate(
-            state.ut_pos_m, state.sat_pos_m[sats], state.sat_vel_m_s[sats], ut_enu=enu
-        )
-        n_ut = len(state.ut_pos_m)
-        snr = snap.snr_db.reshape(n_ut, -1)
-        # The best candidate's SNR of every UT (also in outage); which candidate it is is
-        # needed only where no candidate serves (the geometry of outage rows).
-        with np.errstate(invalid="ignore"):
-            state.best_snr_db = (
-                np.fmax.reduce(snr, axis=1) if snr.shape[1] else np.full(n_ut, np.nan)
-            )
-        state.n_visible = snap.visible.sum(axis=1)
-        future = None
-        if self.policy.lookahead_s > 0.0:
-            ut_f, sat_pos_f, sat_vel_f = self.future_state(state.t_s + self.policy.lookahead_s)
-            # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
-            # for an aircraft over 10 s.
-            snap_f = eng.evaluate(ut_f, sat_pos_f[sats], sat_vel_f[sats], ut_enu=enu)
-            future = snap_f.snr_db.reshape(n_ut, -1)
-        whole = len(sats) == len(state.sat_pos_m)  # every satellite: ids need no translation
-        res = self._step(state, snr, future, None if whole else sats)
-        unserved = np.flatnonzero(res.local_sat < 0)
-        state.best_unserved = (unserved, best_candidate(snr[unserved])[0])
-        state.snapshot, state.cand_sats, state.decision = snap, sats, res
-        state.controller = res.state
-
-    def _step(self, state, snr, future, sats):
-        """``controller.step`` (on a subset of the satellites when ``sats`` is given, ids
-        translated both ways), with the ``service_resumed`` events of this epoch."""
-        c, nb = state.controller, self.engine.n_beam
-        if sats is not None:
-            local_of = np.full(len(state.sat_pos_m), -1)
-            local_of[sats] = np.arange(len(sats))
-            c = dataclasses.replace(
-                c, serving=_local(c.serving, nb, local_of), pending=_local(c.pending, nb, local_of)
-            )
-        t = state.t_s
-        res = step(t, snr, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
-        resumed = resumed_events(t, self.epoch_s, res.state, snr)
-        res.events = concat_events(res.events, resumed)
-        res.local_sat = res.sat_id.copy()  # index into the snapshot's satellites
-        if sats is None:
-            return res
-        res.state = dataclasses.replace(
-            res.state,
-            serving=_global(res.state.serving, nb, sats),
-            pending=_global(res.state.pending, nb, sats),
-        )
-        padded = np.append(sats, -1)  # safe lookup when no satellite is a candidate
-        for table, keys in ((res.events, ("from_sat", "to_sat")), (res.dwells, ("sat_id",))):
-            for key in keys:
-                table[key] = np.where(table[key] >= 0, padded[table[key]], -1)
-        res.sat_id = np.where(res.sat_id >= 0, padded[res.sat_id], -1)
-        return res
-
-
 def beam_controller(env, state, decide, epoch_s):
     """Re-pick the serving (satellite, beam) of every UT once per epoch."""
     for k in range(len(state.times_s)):
         state.k = k
         decide(state)
         yield env.timeout(epoch_s)
-
-
-class _Monitor:
-    """Serving links of every UT -> epoch frames for the sinks.
-
-    In outage rows where a satellite is above the minimum elevation, the geometry and
-    budget columns are those of the best candidate (``best_snr_db``); the link columns
-    (SNR, SINR, SE, throughput) are NaN. In a handover epoch SE and throughput are the
-    epoch's means: the link's, times the part of the epoch with service.
-    """
-
-    _LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps")
-
-    def __init__(self, engine, sink, fading_k=None, ut_keys=None, epoch_s=1.0, population=()):
-        self.engine, self.sink = engine, sink
-        self.fading_k, self.ut_keys = fading_k, ut_keys
-        self.epoch_s = float(epoch_s)
-        self.population = np.asarray(population, dtype=object)
-        self.ut_id = None
-
-    def _fading(self, state, snap):
-        res, sats = state.decision, state.cand_sats
-        if self.fading_k is None or not len(sats):
-            return None
-        s = np.maximum(res.local_sat, 0)
-        n_lin = 10.0 ** (snap.gain_rx_db[self.ut_id, s] / 10.0)
-        # Instantaneous over mean gain (mean 1); the mean receive gain stands in for the
-        # LoS gain N, which is off by 1/K = 0.1 in N = 576 for the paper's UPA.
-        g = complex_normal(self.ut_keys, state.k)
-        k = self.fading_k
-        return rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)
-
-    def _columns(self, state):
-        res, snap, nb = state.decision, state.snapshot, self.engine.n_beam
-        n_ut = len(state.ut_pos_m)
-        if self.ut_id is None:
-            self.ut_id = np.arange(n_ut, dtype=np.int64)
-        sats = state.cand_sats
-        geo_sat, geo_beam = res.local_sat.copy(), res.beam_id.copy()
-        unserved, best = state.best_unserved
-        if unserved.size:  # outage rows: the best candidate's geometry, where there is one
-            geo_sat[unserved] = np.where(best >= 0, best // nb, -1)
-            geo_beam[unserved] = np.where(best >= 0, best % nb, -1)
-        cols = self.engine.serve(
-            snap,
-            geo_sat,
-            geo_beam,
-            state.ut_vel_m_s,
-            state.ut_acc_m_s2,
-            state.sat_vel_m_s[sats],
-            state.sat_acc_m_s2[sats],
-            rx_fading_lin=self._fading(state, snap),
-        )
-        outage = res.service == SERVICE_OUTAGE
-        if outage.any():
-            for name in self._LINK:
-                cols[name] = np.where(outage, np.nan, cols[name])
-        gap_s = interruption_s(state.t_s, self.epoch_s, res.state)
-        handover = res.service == SERVICE_HANDOVER
-        if handover.any():  # the served part of the epoch only
-            served = 1.0 - gap_s / self.epoch_s
-            cols["se_bps_hz"] = np.where(handover, cols["se_bps_hz"] * served, cols["se_bps_hz"])
-            cols["throughput_bps"] = np.where(
-                handover, cols["throughput_bps"] * served, cols["throughput_bps"]
-            )
-        reason = res.service.astype(np.int8)  # served -> none, handover -> handover
-        reason[outage] = np.where(state.n_visible[outage] > 0, 3, 2)
-        cols.update(
-            time_s=np.full(n_ut, state.t_s),
-            ut_id=self.ut_id,
-            sat_id=res.sat_id,
-            beam_id=res.beam_id,
-            lat_deg=np.degrees(state.ut_lat_rad),
-            lon_deg=np.degrees(state.ut_lon_rad),
-            service=res.service,
-            outage_reason=reason,
-            n_visible=state.n_visible.astype(np.int64),
-            best_snr_db=state.best_snr_db,
-            alt_m=state.ut_alt_m.copy(),
-            population=self.population,
-            interruption_s=gap_s,
-        )
-        return cols
-
-    def __call__(self, state):
-        if not state.recording:
-            return
-        res = state.decision
-        start_s = state.times_s[state.n_warmup]
-        frame = EpochFrame(
-            state.k - state.n_warmup,
-            state.t_s,
-            self._columns(state),
-            res.events,
-            warmup_censored(res.dwells, start_s),
-        )
-        self.sink.epoch(frame)
 
 
 def link_monitor(env, state, monitor, epoch_s):

@@ -18,13 +18,14 @@ from leolink.engine import LinkEngine
 from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
 from leolink.sim.controller import ControllerState
+from leolink.sim.decide import Decider
 from leolink.sim.mobility import concat_states
+from leolink.sim.monitor import Monitor
+from leolink.sim.motion import MotionBlocks
 from leolink.sim.policies import Policy
 from leolink.sim.populations import MotionModel
 from leolink.sim.processes import (
     SimState,
-    _Decider,
-    _Monitor,
     beam_controller,
     final_dwells,
     link_monitor,
@@ -61,6 +62,9 @@ class Scenario:
     fading_k : float or None, Rician factor of random fading draws; None: mean gain.
     ellipsoidal : bool, UT latitudes are geodetic (WGS 84): the engine gets their
         ellipsoidal local frames (else the sphere's radial up).
+    prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
+        cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
+        evaluates every pair of the cone-selected satellites (the reference).
     """
 
     engine: LinkEngine
@@ -77,6 +81,7 @@ class Scenario:
     seed: int = 0
     fading_k: float | None = None
     ellipsoidal: bool = False
+    prune: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,12 +131,12 @@ def _initial_state(scen, pops):
     )
 
 
-def _processes(env, scen, state, decide, monitor):
+def _processes(env, scen, state, motion, decide, monitor):
     epoch = scen.epoch_s
-    env.process(satellite_motion(env, state, scen.ephemeris, epoch))
+    env.process(satellite_motion(env, state, motion, epoch))
     lo = 0
     for _, pop in scen.populations:
-        env.process(ut_motion(env, state, pop, slice(lo, lo + pop.n_ut), epoch))
+        env.process(ut_motion(env, state, motion, slice(lo, lo + pop.n_ut), epoch))
         lo += pop.n_ut
     env.process(beam_controller(env, state, decide, epoch))
     env.process(link_monitor(env, state, monitor, epoch))
@@ -166,7 +171,9 @@ def run_simulation(
         pos, vel, _ = scen.ephemeris(t)
         return ut.pos_m, pos[0], vel[0]
 
-    decide = _Decider(
+    times = scen.times_s
+    motion = MotionBlocks(scen.ephemeris, scen.populations, times, scen.ephemeris.n_sat, n_ut)
+    decide = Decider(
         scen.engine,
         scen.policy,
         scen.min_snr_db,
@@ -174,15 +181,16 @@ def run_simulation(
         scen.min_elevation_rad,
         scen.radius_m,
         future_state,
+        motion,
         epoch_s=scen.epoch_s,
         ellipsoidal=scen.ellipsoidal,
+        prune=scen.prune,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
-    monitor = _Monitor(scen.engine, sink, scen.fading_k, keys, scen.epoch_s, names)
-    times = scen.times_s
+    monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names)
     env = simpy.Environment(initial_time=float(times[0]))
-    _processes(env, scen, state, decide, monitor)
+    _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
         n_ut, scen.ephemeris.n_sat, scen.engine.n_beam, scen.epoch_s,
         float(times[scen.n_warmup]), len(times) - scen.n_warmup, names,

@@ -1,0 +1,172 @@
+"""What the command line wraps around every command: signals, library warnings, and the
+environment's errors turned into one line.
+
+- SIGINT and SIGTERM raise :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread,
+  once: the stream's sinks abort (:func:`leolink.sim.runner.run_simulation`), the atomic
+  writer removes its temporary files, the command adds a note saying where it stopped,
+  and a second signal during that cleanup is ignored so that the cleanup finishes.
+- Sweep workers (:func:`worker_init`) die with their parent: ``prctl(PR_SET_PDEATHSIG)``
+  on Linux (also after SIGKILL of the parent), and a watchdog thread on the parent's pid
+  elsewhere; they ignore SIGINT (the parent stops them with SIGTERM, so a Ctrl-C in a
+  terminal, sent to the whole process group, stops each point once, cleanly).
+- Library warnings are shown as one line each, once (:func:`quiet_warnings`), or silenced
+  where the reason is known (:data:`SILENCED`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import signal
+import sys
+import threading
+import warnings
+
+__all__ = [
+    "SILENCED",
+    "Stopped",
+    "environment_error",
+    "interruptible",
+    "quiet_warnings",
+    "worker_init",
+]
+
+_SIGNALS = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+_WATCHDOG_S = 0.5
+
+#: (message regex, category, module regex, why it is silenced).
+SILENCED = (
+    (
+        r".*non-interactive.*cannot be shown",
+        UserWarning,
+        r"matplotlib.*",
+        "leolink draws on the Agg canvas and writes files; it never shows a window",
+    ),
+    (
+        r".*Tight layout not applied.*",
+        UserWarning,
+        r"matplotlib.*",
+        "a figure too small for its labels is still drawn; the PNG stays readable",
+    ),
+    (
+        r".*",
+        DeprecationWarning,
+        r"",
+        "a library's deprecations (itur's use of numpy and scipy, ...) are for its "
+        "developers; a leolink user can do nothing about them",
+    ),
+    (r".*", PendingDeprecationWarning, r"", "as DeprecationWarning"),
+)
+
+
+class Stopped(KeyboardInterrupt):
+    """The command was stopped by a signal (``signal_name``: ``"SIGINT"``, ``"SIGTERM"``)."""
+
+    def __init__(self, signal_name: str):
+        super().__init__(signal_name)
+        self.signal_name = signal_name
+
+
+def _raise_stopped(signum, frame):
+    for sig in _SIGNALS:  # a second signal must not interrupt the cleanup
+        signal.signal(sig, signal.SIG_IGN)
+    raise Stopped(_SIGNALS.get(signum, str(signum)))
+
+
+@contextlib.contextmanager
+def interruptible():
+    """SIGINT and SIGTERM raise :class:`Stopped` inside the block (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.getsignal(sig) for sig in _SIGNALS}
+    for sig in _SIGNALS:
+        signal.signal(sig, _raise_stopped)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _show(message, category, filename, lineno, file=None, line=None):
+    text = str(message).strip().splitlines()[0] if str(message).strip() else ""
+    print(f"leolink: warning: {category.__name__}: {text}", file=sys.stderr)
+
+
+@contextlib.contextmanager
+def quiet_warnings():
+    """Each library warning as one line, once; the :data:`SILENCED` ones not at all."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("once")
+        for message, category, module, _why in SILENCED:
+            warnings.filterwarnings("ignore", message, category, module)
+        warnings.showwarning = _show
+        yield
+
+
+def environment_error(exc: OSError, out=None) -> str:
+    """One line for an error of the file system or the network: what, where."""
+    where = exc.filename or out or "the output"
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"no space left on the device writing {where} (free some space or use another --out)"
+    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return f"cannot write {where}: {exc.strerror} (choose a folder you can write)"
+    if exc.errno == errno.ENOTDIR:
+        return f"cannot use {where}: a part of the path is a file, not a folder"
+    if exc.errno == errno.EISDIR:
+        return f"cannot write {where}: it is a folder"
+    return f"{where}: {exc.strerror or type(exc).__name__}"
+
+
+def _parent_gone(parent_pid):
+    return os.getppid() != parent_pid
+
+
+def _watchdog(parent_pid):
+    """Stop this worker when its parent is gone (where prctl is not available)."""
+    event = threading.Event()
+    while not event.wait(_WATCHDOG_S):
+        if _parent_gone(parent_pid):
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+
+
+_busy = False  # a worker is running a point (SIGTERM raises) or idle (SIGTERM exits)
+
+
+def _worker_term(signum, frame):
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if not _busy:
+        os._exit(128 + signum)
+    raise Stopped("SIGTERM")
+
+
+def worker_init(parent_pid: int):
+    """Initializer of a sweep's worker process (``ProcessPoolExecutor(initializer=...)``)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _worker_term)
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    if _parent_gone(parent_pid):  # the parent died before prctl took effect
+        os._exit(128 + signal.SIGTERM)
+    threading.Thread(target=_watchdog, args=(parent_pid,), daemon=True).start()
+
+
+def in_worker(fn, *args):
+    """Run ``fn(*args)`` in a worker: SIGTERM now stops the point cleanly, then the worker
+    exits (a pool would otherwise hand it the next point)."""
+    global _busy
+    _busy = True
+    try:
+        return fn(*args)
+    except Stopped:
+        os._exit(128 + signal.SIGTERM)  # the point's sinks have aborted: nothing is left
+    finally:
+        _busy = False

@@ -1,0 +1,386 @@
+"""The link engine: vectorized link evaluation for all UTs, satellites and beams.
+
+:meth:`LinkEngine.evaluate_pairs` turns positions and velocities of ``m`` (UT, satellite)
+pairs into their geometry, path SNR and beam kernels (:class:`~leolink.engine.links.Links`);
+:meth:`LinkEngine.evaluate` does it for the full ``n_ut x n_sat`` grid (a
+:class:`~leolink.engine.links.Snapshot`, arrays ``(n_ut, n_sat, n_beam)``).
+:meth:`LinkEngine.serve_pairs` (and ``serve`` on a snapshot) then gives, per UT, everything
+about its serving link: gains, losses, SNR, SINR with the serving satellite's other beams
+as interference, spectral efficiency, throughput, Doppler and angular speed.
+
+Beam gains are kept beam-major, ``(n_beam, m)``, so every numpy loop runs over the long
+pair axis; a DFT beam's gain is a product of an along-track and a cross-track Dirichlet
+kernel (paper Sec. 3.2), so only ``n_x + n_y`` kernels are evaluated per direction, not
+``2 n_beam``. Every quantity of a pair is an element-wise function of that pair's inputs:
+a pair gives bit-for-bit the same numbers whichever other pairs share the call.
+No Python loop over UTs, satellites or beams.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from leolink.antenna.array import dirichlet_coefficients
+from leolink.antenna.panel import panel_basis, panel_direction_cosines
+from leolink.constants import SPEED_OF_LIGHT_M_S
+from leolink.engine import jit
+from leolink.engine.links import (
+    Links,
+    Snapshot,
+    azimuth_deg,
+    group_constants_db,
+    pair_geometry,
+    reuse_colors,
+    rows_gain_db,
+)
+from leolink.geometry import body_frame
+from leolink.kinematics import link_kinematics
+from leolink.link.budget import fspl_db, noise_power_dbw
+
+__all__ = ["SERVE_COLUMNS", "SERVE_GEOMETRY_COLUMNS", "LinkEngine", "LinkParams", "Links"]
+__all__ += ["Snapshot", "reuse_colors"]
+
+#: Columns of :meth:`LinkEngine.serve`, one value per UT.
+SERVE_COLUMNS = (
+    "elevation_deg",
+    "slant_range_m",
+    "gain_tx_db",
+    "gain_rx_db",
+    "fspl_db",
+    "atm_db",
+    "snr_db",
+    "sinr_db",
+    "se_bps_hz",
+    "throughput_bps",
+    "doppler_hz",
+    "doppler_sat_hz",
+    "doppler_ut_hz",
+    "doppler_rate_hz_s",
+    "angular_speed_deg_s",
+)
+#: Further per-UT columns of :meth:`LinkEngine.serve`: the satellite's azimuth from the
+#: UT, from north clockwise [deg], in the UT's local frame.
+SERVE_GEOMETRY_COLUMNS = ("azimuth_deg",)
+
+
+@dataclass(frozen=True)
+class LinkParams:
+    """Scalars of the link budget (paper's Table).
+
+    ``ptx_dbw`` is the power of one beam (one RF chain), as in the paper.
+    """
+
+    freq_hz: float
+    bandwidth_hz: float
+    ptx_dbw: float
+    cable_loss_db: float
+    noise_temp_dbk: float
+    min_elevation_rad: float
+
+
+class LinkEngine:
+    """Vectorized link evaluation for one codebook and one terminal antenna.
+
+    Parameters
+    ----------
+    codebook : leolink.antenna.codebook.Codebook
+        Beams (direction cosines in the satellite body frame); all active, each fed
+        ``params.ptx_dbw``.
+    terminal : leolink.antenna.terminal.TerminalAntenna
+        UT antenna, steered at the serving satellite (paper Sec. 4.1).
+    params : LinkParams
+    atmosphere : leolink.link.atmosphere.AtmosphereModel
+        ``atmosphere(elevation_rad) -> loss_db``, broadcasting.
+    colors : ndarray of int, shape (n_beam,), optional
+        Reuse colour per beam; only beams of the serving beam's colour interfere.
+    other_satellites : bool
+        Add the beams of every other satellite above the horizon as interference,
+        through ``terminal.pattern_lin`` (which must not be None).
+    """
+
+    def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False):
+        self.other_satellites = bool(other_satellites)
+        self.codebook, self.terminal = codebook, terminal
+        self.params, self.atmosphere = params, atmosphere
+        u = np.asarray(codebook.u_xy, dtype=float)
+        self.beam_ux, self.beam_ix = np.unique(u[:, 0], return_inverse=True)
+        self.beam_uy, self.beam_iy = np.unique(u[:, 1], return_inverse=True)
+        n_beam = len(u)
+        self.colors = np.zeros(n_beam, np.int64) if colors is None else np.asarray(colors)
+        self.n_colors = int(self.colors.max()) + 1
+        # Each colour has 1/n_colors of the band: less noise, less throughput.
+        self.bandwidth_hz = params.bandwidth_hz / self.n_colors
+        self.noise_dbw = float(noise_power_dbw(params.noise_temp_dbk, self.bandwidth_hz))
+        # SNR per unit TX gain = K / rho^2 x G_rx / L_atm (Eq. of RSS and FSPL, in watts).
+        k_db = params.ptx_dbw - params.cable_loss_db - self.noise_dbw
+        self._k_lin = (
+            10.0 ** (k_db / 10.0) / (4.0 * np.pi * params.freq_hz / SPEED_OF_LIGHT_M_S) ** 2
+        )
+        self._rx_const = self._rx_groups = None
+        if terminal.elevation_independent:
+            self._rx_const = float(terminal.gain_db(np.pi / 2))
+        elif getattr(terminal, "group", None) is not None:  # per-population antennas
+            self._rx_groups = group_constants_db(terminal)
+        self._atm_const = atmosphere.constant_db
+
+    @property
+    def n_beam(self) -> int:
+        return len(self.beam_ix)
+
+    @functools.cached_property
+    def kernel_coefficients(self):
+        """:func:`~leolink.antenna.array.dirichlet_coefficients` of the x and y beam cosines."""
+        cb = self.codebook
+        cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
+        return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)
+
+    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None):
+        """Geometry, gains and SNR for every (UT, satellite, beam).
+
+        Parameters
+        ----------
+        ut_pos_m : ndarray, shape (n_ut, 3)
+        sat_pos_m, sat_vel_m_s : ndarray, shape (n_sat, 3)
+            Same Earth-centred frame as ``ut_pos_m``.
+        ut_enu : ndarray, shape (n_ut, 3, 3), optional
+            Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
+            elevations, azimuths and panel frames use them. None: the sphere's radial up.
+
+        Returns
+        -------
+        Snapshot
+        """
+        n_ut, n_sat = len(ut_pos_m), len(sat_pos_m)
+        ut = np.tile(np.arange(n_ut), n_sat)  # satellite-major grid: p = s n_ut + u
+        sat = np.repeat(np.arange(n_sat), n_ut)
+        up = None if ut_enu is None else ut_enu[:, 2, :]
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up)
+        snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
+        if self.other_satellites:
+            # Any satellite above the horizon interferes, usable or not: its path without
+            # the UT gain, and its direction in the UT panel frame.
+            el, rel, rho = snap.elevation_rad, snap.rel_m, snap.slant_range_m
+            snap.path_no_rx_lin = np.where(
+                el > 0.0, snap.path_lin / 10.0 ** (snap.rx_db / 10.0), 0.0
+            )
+            basis = panel_basis(ut_pos_m) if ut_enu is None else ut_enu
+            snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
+        return snap
+
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None):
+        """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
+
+        Parameters
+        ----------
+        ut_pos_m : ndarray, shape (n_u, 3)
+        sat_pos_m, sat_vel_m_s : ndarray, shape (n_s, 3)
+            Same Earth-centred frame as ``ut_pos_m``.
+        ut, sat : ndarray of int, shape (m,)
+            Rows of the UT and satellite arrays of each pair.
+        ut_up : ndarray, shape (n_u, 3), optional
+            Each UT row's local up (the WGS 84 normal); None: the sphere's radial up.
+        ut_id : ndarray of int, shape (n_u,), optional
+            The UT of each UT row, for per-population terminals; None: row = UT.
+
+        Returns
+        -------
+        Links
+        """
+        if jit.use(ut.shape[0]):  # the same operations, fused (bit for bit the same)
+            axes = body_frame(sat_pos_m, sat_vel_m_s)
+            arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
+            rel, rho2, rho, elevation, visible, kx, ky = arrays
+        else:
+            rel, rho2, rho, elevation, visible, kx, ky = pair_geometry(
+                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up
+            )
+        rx_db = self._rx_const
+        if rx_db is None:
+            rows = ut if ut_id is None else ut_id[ut]
+            rx_db = rows_gain_db(self.terminal, elevation, rows, self._rx_groups)
+        atm_db = self._atm_const
+        if atm_db is None:
+            atm_db = self.atmosphere(np.maximum(elevation, 0.0))
+        path = self._k_lin / rho2 * 10.0 ** ((rx_db - atm_db) / 10.0)
+        return Links(ut, sat, rel, rho, elevation, visible, path, kx, ky, rx_db)
+
+    def serve(
+        self,
+        snap,
+        sat_idx,
+        beam_idx,
+        ut_vel_m_s,
+        ut_acc_m_s2,
+        sat_vel_m_s,
+        sat_acc_m_s2,
+        rx_fading_lin=None,
+    ):
+        """Per-UT link on its serving (satellite, beam) of a :class:`Snapshot`.
+
+        Parameters
+        ----------
+        snap : Snapshot
+        sat_idx, beam_idx : ndarray of int, shape (n_ut,)
+            Serving satellite (index into this epoch's satellites) and beam; -1 = none.
+        ut_vel_m_s, ut_acc_m_s2 : ndarray, shape (n_ut, 3)
+        sat_vel_m_s, sat_acc_m_s2 : ndarray, shape (n_sat, 3)
+        rx_fading_lin : ndarray, shape (n_ut,), optional
+            Multiplies the receive power (signal and interference alike): instantaneous
+            Rician draw over its mean. None = the paper's mean gain.
+
+        Returns
+        -------
+        dict of ndarray, shape (n_ut,)
+            :meth:`serve_pairs`; NaN where ``sat_idx < 0``.
+        """
+        n_ut, n_sat = snap.n_ut, snap.n_sat
+        if n_sat == 0:
+            return self.serve_pairs(None, np.full(n_ut, -1), beam_idx, ut_vel_m_s)
+        served = sat_idx >= 0
+        u = np.arange(n_ut)
+        s = np.where(served, sat_idx, 0)
+        b = np.where(served, beam_idx, 0)
+        i_other = None
+        if self.other_satellites and n_sat > 1:
+            i_other = self.other_satellites_interference(snap, s, b, u)
+        return self.serve_pairs(
+            snap.links,
+            np.where(served, s * n_ut + u, -1),
+            beam_idx,
+            ut_vel_m_s,
+            ut_acc_m_s2,
+            sat_vel_m_s[s],
+            sat_acc_m_s2[s],
+            rx_fading_lin=rx_fading_lin,
+            i_other=i_other,
+            ut_pos_m=snap.ut_pos_m,
+            ut_enu=snap.ut_enu,
+        )
+
+    def serve_pairs(
+        self,
+        links,
+        pair,
+        beam_idx,
+        ut_vel_m_s,
+        ut_acc_m_s2=None,
+        sat_vel_m_s=None,
+        sat_acc_m_s2=None,
+        rx_fading_lin=None,
+        i_other=None,
+        ut_pos_m=None,
+        ut_enu=None,
+    ):
+        """Link figures of ``n`` rows, row ``i`` served by pair ``pair[i]``, beam ``beam_idx[i]``.
+
+        Parameters
+        ----------
+        links : Links or None
+        pair : ndarray of int, shape (n,)
+            Pair of each row; -1 = no link (every column NaN).
+        beam_idx : ndarray of int, shape (n,)
+        ut_vel_m_s, ut_acc_m_s2 : ndarray, shape (n, 3)
+            Each row's UT velocity and acceleration.
+        sat_vel_m_s, sat_acc_m_s2 : ndarray, shape (n, 3)
+            Each row's satellite velocity and acceleration.
+        rx_fading_lin : ndarray, shape (n,), optional
+            Multiplies the receive power (signal and interference alike).
+        i_other : ndarray, shape (n,), optional
+            Interference from other satellites, over the noise (linear).
+        ut_pos_m, ut_enu : ndarray, shapes (n, 3) and (n, 3, 3)
+            Each row's UT position, and its local east, north, up rows (None: the
+            sphere's, from the position): the azimuth.
+
+        Returns
+        -------
+        dict of ndarray, shape (n,)
+            ``SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS`` (SI, dB; angular speed in deg/s).
+        """
+        n = pair.shape[0]
+        served = pair >= 0
+        if links is None or links.n_pair == 0:
+            return {name: np.full(n, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
+        pr = np.where(served, pair, 0)
+        b = np.where(served, beam_idx, 0)
+        if jit.use(n) and self._full_reuse_lattice:  # the same operations, fused
+            rows = dict(fading=rx_fading_lin, i_other=i_other, ut_vel=ut_vel_m_s,
+                        ut_acc=ut_acc_m_s2, sat_vel=sat_vel_m_s, sat_acc=sat_acc_m_s2,
+                        ut_pos=ut_pos_m, enu=ut_enu)  # fmt: skip
+            return jit.serve_pairs(self, links, pr, served, b, rows)
+        # Flat gathers: several times faster than fancy indexing with 3 index arrays.
+        kx, ky = links.kx[:, pr], links.ky[:, pr]
+        g_sig = kx[self.beam_ix[b], np.arange(n)] * ky[self.beam_iy[b], np.arange(n)]
+        g_int = self._same_colour_total(kx, ky, b) - g_sig
+        path = links.path_snr_lin[pr]
+        if rx_fading_lin is not None:
+            path = path * rx_fading_lin
+        snr = g_sig * path
+        # S / (I + N), Eqs. (18)-(19), over N
+        sinr = snr / (g_int * path + (0.0 if i_other is None else i_other) + 1.0)
+        se = np.log1p(sinr) / np.log(2.0)  # log2(1 + SINR), accurate at low SINR
+
+        rho, elevation = links.slant_range_m[pr], links.elevation_rad[pr]
+        los = -links.rel_m[pr]  # UT -> satellite
+        kin = link_kinematics(
+            los, sat_vel_m_s, ut_vel_m_s, sat_acc_m_s2 - ut_acc_m_s2, self.params.freq_hz
+        )
+        nan = 1.0 if served.all() else np.where(served, 1.0, np.nan)
+        rx_db = np.full(n, self._rx_const) if self._rx_const is not None else links.rx_db[pr]
+        if self._atm_const is not None:
+            atm_db = np.full(n, self._atm_const)
+        else:
+            atm_db = self.atmosphere(np.maximum(elevation, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return {
+                "elevation_deg": np.degrees(elevation) * nan,
+                "slant_range_m": rho * nan,
+                "gain_tx_db": 10.0 * np.log10(g_sig) * nan,
+                "gain_rx_db": rx_db * nan,
+                "fspl_db": fspl_db(rho, self.params.freq_hz) * nan,
+                "atm_db": atm_db * nan,
+                "snr_db": 10.0 * np.log10(snr) * nan,
+                "sinr_db": 10.0 * np.log10(sinr) * nan,
+                "se_bps_hz": se * nan,
+                "throughput_bps": se * (self.bandwidth_hz * nan),
+                "doppler_hz": kin["doppler_hz"] * nan,
+                "doppler_sat_hz": kin["doppler_sat_hz"] * nan,
+                "doppler_ut_hz": kin["doppler_ut_hz"] * nan,
+                "doppler_rate_hz_s": kin["doppler_rate_hz_s"] * nan,
+                "angular_speed_deg_s": np.degrees(kin["angular_speed_rad_s"]) * nan,
+                "azimuth_deg": azimuth_deg(los, ut_pos_m, ut_enu) * nan,
+            }
+
+    @property
+    def _full_reuse_lattice(self):
+        """Every beam of the lattice, one colour (the fused serving kernel's case)."""
+        return self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy)
+
+    def other_satellites_interference(self, snap, s, b, u):
+        """Interference over noise from the beams of the other satellites, per UT.
+
+        Their beams of the serving beam's colour, at full power, seen through the UT
+        antenna pointed at the serving satellite (``terminal.pattern_lin``); ``s``, ``b``:
+        each UT's serving satellite (index into the snapshot's) and beam.
+        """
+        bm = snap.gain_tx_bm  # (n_beam, n_sat, n_ut)
+        same = (self.colors[None, :] == self.colors[b][:, None]).astype(float)  # (n_ut, n_beam)
+        tx = np.einsum("bsu,ub->us", bm, same)  # same-colour TX gain of each satellite
+        du = snap.u_panel - snap.u_panel[u, s][:, None, :]
+        rx = self.terminal.pattern_lin(du[..., 0], du[..., 1])  # (n_ut, n_sat)
+        contrib = tx * rx * snap.path_no_rx_lin
+        contrib[u, s] = 0.0  # the serving satellite is counted by _same_colour_total
+        return contrib.sum(axis=1)
+
+    def _same_colour_total(self, kx, ky, b):
+        """Sum of the TX gains of the beams that share the serving beam's colour, per row
+        (``kx``, ``ky``: the rows' kernels, (n_k, n))."""
+        if self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy):
+            # Full lattice, full reuse: sum_ij kx_i ky_j = (sum_i kx_i)(sum_j ky_j).
+            return kx.sum(axis=0) * ky.sum(axis=0)
+        # (n, n_beam), C-ordered: the sum over beams then adds in one order for any caller.
+        g = np.ascontiguousarray((kx[self.beam_ix] * ky[self.beam_iy]).T)
+        same = self.colors[None, :] == self.colors[b][:, None]
+        return np.einsum("ub,ub->u", g, same)

@@ -1,0 +1,124 @@
+"""Compiled kernels (numba), optional: the same numbers as the numpy code they replace.
+
+numba is imported on first use only, and only for work large enough to repay its start-up
+(``JIT_MIN_PAIRS``); ``LEOLINK_JIT=0`` in the environment turns every kernel off (the
+numpy code then runs everywhere). Kernels compile once per machine (``cache=True``).
+
+The kernels (:mod:`leolink.engine.kernels`) repeat the numpy code's operations one for
+one: a pair gets the same bits from either (``tests/test_jit.py``). The screening kernel
+is the exception: it decides which pairs the engine evaluates, never a value that reaches
+an output, so it may (and does) round differently; both of its bounds are rigorous.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+
+import numpy as np
+
+__all__ = ["JIT_MIN_PAIRS", "enabled", "links_arrays", "screen_kernel", "serve_columns"]
+__all__ += ["serve_pairs", "use"]
+
+#: Smallest number of (UT, satellite) pairs per call worth a compiled kernel.
+JIT_MIN_PAIRS = 1_000
+
+
+@functools.cache
+def enabled():
+    """Whether numba is installed and not turned off (``LEOLINK_JIT=0``)."""
+    if os.environ.get("LEOLINK_JIT", "1").strip() in ("0", "false", "no", "off"):
+        return False
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def kernels():
+    """The compiled kernels (:mod:`leolink.engine.kernels`; compiled or loaded on first use)."""
+    from leolink.engine import kernels as k
+
+    return k
+
+
+def use(n):
+    """Whether a call over ``n`` pairs or rows runs a compiled kernel."""
+    return n >= JIT_MIN_PAIRS and enabled()
+
+
+def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
+    """The geometry and kernels of ``LinkEngine.evaluate_pairs`` by :func:`links_kernel`:
+    rel, rho2, rho, elevation, visible, kx, ky."""
+    m = ut.shape[0]
+    out = (np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m), np.empty(m, bool),
+           np.empty((len(engine.beam_ux), m)), np.empty((len(engine.beam_uy), m)))  # fmt: skip
+    sphere = ut_up is None
+    r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m)) if sphere else np.zeros(0)
+    cx, cy = engine.kernel_coefficients
+    kernels().links_kernel(
+        np.ascontiguousarray(ut_pos_m, float), np.zeros((0, 3)) if sphere else ut_up, sphere,
+        r_ut, np.ascontiguousarray(sat_pos_m, float), np.ascontiguousarray(axes[:, 0, :]),
+        np.ascontiguousarray(axes[:, 1, :]), ut, sat, engine.params.min_elevation_rad,
+        engine.beam_ux, cx, engine.codebook.n_sub_x, engine.beam_uy, cy,
+        engine.codebook.n_sub_y, *out,
+    )  # fmt: skip
+    return out
+
+
+def snr_db_bm(links, beam_ix, beam_iy):
+    """``Links.snr_db_bm`` by :func:`snr_kernel`."""
+    out = np.empty((len(beam_ix), links.n_pair))
+    kernels().snr_kernel(links.kx, links.ky, links.path_snr_lin, beam_ix, beam_iy, out)
+    return out
+
+
+def serve_columns(engine, links, pair, served, b, rows, rx, atm):
+    """``LinkEngine.serve_pairs`` by :func:`serve_kernel` -> (16, n) columns.
+
+    ``rows``: dict of the rows' arrays (fading, i_other, ut_vel, ut_acc, sat_vel,
+    sat_acc, ut_pos, enu or None).
+    """
+    n = pair.shape[0]
+    out = np.empty((16, n))
+    enu = rows["enu"]
+    kernels().serve_kernel(
+        links.kx, links.ky, links.path_snr_lin, links.rel_m, links.slant_range_m,
+        links.elevation_rad, pair, b, served, engine.beam_ix, engine.beam_iy,
+        rows["fading"], rows["i_other"], rows["ut_vel"], rows["ut_acc"], rows["sat_vel"],
+        rows["sat_acc"], rows["ut_pos"], np.zeros((0, 3, 3)) if enu is None else enu,
+        enu is not None, engine.params.freq_hz / 299_792_458.0, engine.params.freq_hz,
+        engine.bandwidth_hz, rx, atm, out,
+    )  # fmt: skip
+    return out
+
+
+def serve_pairs(engine, links, pr, served, b, rows):
+    """``LinkEngine.serve_pairs`` of a full lattice with one colour by :func:`serve_columns`
+    (``rows``: its per-row arguments by name, None where not given)."""
+    n = pr.shape[0]
+    rows = {key: (None if v is None else np.ascontiguousarray(v, float)) for key, v in rows.items()}
+    rows["fading"] = np.ones(n) if rows["fading"] is None else rows["fading"]
+    i_other = rows["i_other"]
+    rows["i_other"] = np.zeros(n) if i_other is None else np.broadcast_to(i_other, (n,))
+    if rows["ut_pos"] is None:
+        rows["ut_pos"] = np.zeros((n, 3))
+    if engine._rx_const is not None:
+        rx = np.full(n, engine._rx_const)
+    else:
+        rx = np.ascontiguousarray(np.broadcast_to(links.rx_db, links.ut.shape)[pr])
+    if engine._atm_const is not None:
+        atm = np.full(n, engine._atm_const)
+    else:
+        atm = engine.atmosphere(np.maximum(links.elevation_rad[pr], 0.0))
+    out = serve_columns(engine, links, pr, served, b, rows, rx, atm)
+    from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
+
+    return dict(zip(SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS, out, strict=True))
+
+
+@functools.cache
+def screen_kernel():
+    """The compiled screening loop (:func:`leolink.engine.kernels.screen_kernel`)."""
+    return kernels().screen_kernel

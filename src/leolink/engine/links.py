@@ -1,0 +1,302 @@
+"""What the engine computes for (UT, satellite) pairs, and the dense view of a full grid.
+
+:class:`Links` is the engine's unit of work: a flat list of ``m`` pairs ``(ut[p], sat[p])``
+with their geometry, path and beam kernels. The simulator evaluates only the pairs that
+can matter (:mod:`leolink.engine.screening`); :class:`Snapshot` is the full grid of
+``n_ut x n_sat`` pairs (satellite-major, ``p = s n_ut + u``) seen as the
+``(n_ut, n_sat[, n_beam])`` arrays of the public API. Both give the same numbers for the
+same pair: every quantity is an element-wise function of the pair's positions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from leolink.antenna.array import dirichlet_kernels
+from leolink.engine import jit
+from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
+
+__all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
+__all__ += ["reuse_colors", "rows_gain_db"]
+
+
+@dataclass
+class Links:
+    """Link quantities of ``m`` (UT, satellite) pairs.
+
+    Attributes
+    ----------
+    ut, sat : ndarray of int, shape (m,)
+        Rows of the UT and satellite arrays the pairs were evaluated from.
+    rel_m : ndarray, shape (m, 3)
+        Satellite -> UT vector [m].
+    slant_range_m, elevation_rad : ndarray, shape (m,)
+    visible : ndarray of bool, shape (m,)
+        Above the minimum elevation.
+    path_lin : ndarray, shape (m,)
+        SNR per unit transmit gain: ``K / rho^2 x G_rx / L_atm`` (also below the mask).
+    kx, ky : ndarray, shapes (n_kx, m) and (n_ky, m)
+        Along- and cross-track Dirichlet kernels of the distinct beam cosines.
+    rx_db : ndarray, shape (m,), or float
+        UT receive gain towards the satellite [dB].
+    """
+
+    ut: np.ndarray
+    sat: np.ndarray
+    rel_m: np.ndarray
+    slant_range_m: np.ndarray
+    elevation_rad: np.ndarray
+    visible: np.ndarray
+    path_lin: np.ndarray
+    kx: np.ndarray
+    ky: np.ndarray
+    rx_db: np.ndarray | float
+
+    @property
+    def n_pair(self) -> int:
+        return self.ut.shape[0]
+
+    def take(self, idx):
+        """The pairs ``idx`` (any order), as a new :class:`Links`."""
+        rx = self.rx_db if np.ndim(self.rx_db) == 0 else self.rx_db[idx]
+        return Links(
+            self.ut[idx], self.sat[idx], self.rel_m[idx], self.slant_range_m[idx],
+            self.elevation_rad[idx], self.visible[idx], self.path_lin[idx],
+            self.kx[:, idx], self.ky[:, idx], rx,
+        )  # fmt: skip
+
+    @classmethod
+    def concat(cls, parts):
+        """The pairs of ``parts`` one after the other (their ``ut``, ``sat`` rows must
+        index the same arrays)."""
+        parts = list(parts)
+        if len(parts) == 1:
+            return parts[0]
+        rx = [p.rx_db for p in parts]
+        if all(np.ndim(r) == 0 for r in rx) and len({float(r) for r in rx}) == 1:
+            rx_db = rx[0]
+        else:
+            rx_db = np.concatenate(
+                [np.broadcast_to(r, p.ut.shape) for r, p in zip(rx, parts, strict=True)]
+            )
+        return cls(
+            *(np.concatenate([getattr(p, f) for p in parts]) for f in _PAIR_FIELDS),
+            *(np.concatenate([getattr(p, f) for p in parts], axis=1) for f in ("kx", "ky")),
+            rx_db,
+        )
+
+    @cached_property
+    def path_snr_lin(self):
+        """SNR per unit transmit gain, NaN where not visible, shape (m,)."""
+        return np.where(self.visible, self.path_lin, np.nan)
+
+    def gain_tx_bm(self, beam_ix, beam_iy):
+        """Linear TX gain of every beam, beam-major, shape (n_beam, m)."""
+        return self.kx[beam_ix] * self.ky[beam_iy]
+
+    def snr_db_bm(self, beam_ix, beam_iy):
+        """SNR of every beam [dB], beam-major, shape (n_beam, m); NaN where not visible.
+
+        ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
+        ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products.
+        """
+        if jit.use(self.n_pair):  # the same operations, fused
+            return jit.snr_db_bm(self, beam_ix, beam_iy)
+        with np.errstate(divide="ignore"):
+            lx, ly = 10.0 * np.log10(self.kx), 10.0 * np.log10(self.ky)
+            path_db = 10.0 * np.log10(self.path_snr_lin)
+        return lx[beam_ix] + ly[beam_iy] + path_db
+
+
+_PAIR_FIELDS = ("ut", "sat", "rel_m", "slant_range_m", "elevation_rad", "visible", "path_lin")
+
+
+def _grid(a, n_sat, n_ut):
+    """A pair array (m, ...) of a satellite-major grid -> (n_ut, n_sat, ...), C-contiguous
+    (the layout of the per-UT arrays; reductions over it then add in the same order)."""
+    grid = a.reshape((n_sat, n_ut) + a.shape[1:])
+    return np.ascontiguousarray(np.swapaxes(grid, 0, 1))
+
+
+@dataclass
+class Snapshot:
+    """What :meth:`~leolink.engine.LinkEngine.evaluate` computed: every (UT, satellite) pair.
+
+    Attributes
+    ----------
+    engine : LinkEngine
+        The engine that computed it (beam lattice indices).
+    links : Links
+        The ``n_sat x n_ut`` pairs, satellite-major (``p = s n_ut + u``).
+    n_ut, n_sat : int
+    path_no_rx_lin, u_panel : ndarray or None
+        With other-satellite interference: the path without the UT gain, (n_ut, n_sat),
+        zero below the horizon; each satellite's direction in the UT panel's cosines,
+        (n_ut, n_sat, 2).
+    ut_pos_m : ndarray, shape (n_ut, 3)
+    ut_enu : ndarray, shape (n_ut, 3, 3), or None
+        The UTs' local east, north, up rows when given to ``evaluate`` (WGS 84); None:
+        the sphere's, from the positions.
+
+    The per-pair arrays are also seen per UT: ``rel_m (n_ut, n_sat, 3)``,
+    ``slant_range_m``, ``elevation_rad``, ``visible``, ``path_snr_lin`` (NaN where not
+    visible) ``(n_ut, n_sat)``; the kernels ``kx, ky`` as ``(n_k, n_sat, n_ut)``.
+    """
+
+    engine: object = field(repr=False)
+    links: Links = field(repr=False)
+    n_ut: int
+    n_sat: int
+    ut_pos_m: np.ndarray | None = None
+    ut_enu: np.ndarray | None = None
+    path_no_rx_lin: np.ndarray | None = None
+    u_panel: np.ndarray | None = None
+
+    @property
+    def kx(self):
+        return self.links.kx.reshape(-1, self.n_sat, self.n_ut)
+
+    @property
+    def ky(self):
+        return self.links.ky.reshape(-1, self.n_sat, self.n_ut)
+
+    @cached_property
+    def rel_m(self):
+        return _grid(self.links.rel_m, self.n_sat, self.n_ut)
+
+    @cached_property
+    def slant_range_m(self):
+        return _grid(self.links.slant_range_m, self.n_sat, self.n_ut)
+
+    @cached_property
+    def elevation_rad(self):
+        return _grid(self.links.elevation_rad, self.n_sat, self.n_ut)
+
+    @cached_property
+    def visible(self):
+        return _grid(self.links.visible, self.n_sat, self.n_ut)
+
+    @cached_property
+    def path_snr_lin(self):
+        return _grid(self.links.path_snr_lin, self.n_sat, self.n_ut)
+
+    @cached_property
+    def path_lin(self):
+        return _grid(self.links.path_lin, self.n_sat, self.n_ut)
+
+    @property
+    def rx_db(self):
+        rx = self.links.rx_db
+        return rx if np.ndim(rx) == 0 else _grid(rx, self.n_sat, self.n_ut)
+
+    @cached_property
+    def gain_tx_bm(self):
+        """Beam-major linear TX gains, shape (n_beam, n_sat, n_ut)."""
+        e = self.engine
+        return self.kx[e.beam_ix] * self.ky[e.beam_iy]
+
+    @property
+    def snr_lin_bm(self):
+        """Beam-major linear SNR, shape (n_beam, n_sat, n_ut); NaN where not visible."""
+        return self.gain_tx_bm * self.links.path_snr_lin.reshape(self.n_sat, self.n_ut)
+
+    @property
+    def gain_tx_lin(self):
+        """Linear TX gain of every beam, shape (n_ut, n_sat, n_beam)."""
+        return self.gain_tx_bm.transpose(2, 1, 0)
+
+    @cached_property
+    def snr_db(self):
+        """SNR of every beam [dB], shape (n_ut, n_sat, n_beam); NaN where not visible."""
+        e = self.engine
+        out = self.links.snr_db_bm(e.beam_ix, e.beam_iy)
+        return out.reshape(-1, self.n_sat, self.n_ut).transpose(2, 1, 0)
+
+    @property
+    def gain_rx_db(self):
+        return np.broadcast_to(self.rx_db, (self.n_ut, self.n_sat))
+
+
+def rows_gain_db(terminal, elevation_rad, ut_id, constants=None):
+    """``terminal.gain_db`` of pairs whose UTs are ``ut_id`` (a per-population
+    :class:`~leolink.antenna.terminal.TerminalGroups` answers per UT row).
+
+    ``constants``: :func:`group_constants_db` of the terminal, if already known.
+    """
+    groups = getattr(terminal, "group", None)
+    if groups is None:
+        return terminal.gain_db(elevation_rad)
+    constants = group_constants_db(terminal) if constants is None else constants
+    group = groups[ut_id]
+    out = np.empty(elevation_rad.shape)
+    for g, term in enumerate(terminal.terminals):
+        rows = group == g
+        if constants[g] is not None:
+            out[rows] = constants[g]
+        elif rows.any():
+            out[rows] = term.gain_db(elevation_rad[rows])
+    return out
+
+
+def group_constants_db(terminal):
+    """The gain [dB] of each elevation-independent member of a ``TerminalGroups``
+    (``gain_db(pi / 2)``, as it evaluates them), None for the others."""
+    return [
+        float(t.gain_db(np.pi / 2)) if t.elevation_independent else None for t in terminal.terminals
+    ]
+
+
+def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
+    """The numpy reference of ``LinkEngine.evaluate_pairs``'s geometry and beam kernels:
+    rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it)."""
+    u_pos = ut_pos_m[ut]
+    rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
+    rho2 = np.einsum("pk,pk->p", rel, rel)
+    rho = np.sqrt(rho2)
+    if ut_up is None:
+        r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))
+        sin_el = -np.einsum("pk,pk->p", rel, u_pos) / (rho * r_ut[ut])
+    else:
+        sin_el = -np.einsum("pk,pk->p", rel, ut_up[ut]) / rho
+    elevation = np.arcsin(np.clip(sin_el, -1.0, 1.0))
+    visible = elevation >= engine.params.min_elevation_rad
+
+    axes = body_frame(sat_pos_m, sat_vel_m_s)[sat]  # (m, 3, 3) rows u_x, u_y, u_z
+    inv_rho = 1.0 / rho
+    ux = np.einsum("pk,pk->p", rel, axes[:, 0, :]) * inv_rho
+    uy = np.einsum("pk,pk->p", rel, axes[:, 1, :]) * inv_rho
+    kx = dirichlet_kernels(ux, engine.beam_ux, engine.codebook.n_sub_x)
+    ky = dirichlet_kernels(uy, engine.beam_uy, engine.codebook.n_sub_y)
+    return rel, rho2, rho, elevation, visible, kx, ky
+
+
+def reuse_colors(lattice_ij, n_colors):
+    """Frequency-reuse colour of each beam from its lattice indices (i, j).
+
+    1 colour: full reuse (the paper). 4 colours: a 2 x 2 pattern, so that no two
+    neighbours along an axis share a carrier. 3 colours: (i + 2 j) mod 3, the classic
+    3-colour tiling of a lattice where no two edge neighbours share a colour.
+    Each colour gets ``1 / n_colors`` of the bandwidth.
+    """
+    i, j = np.asarray(lattice_ij).T
+    if n_colors == 1:
+        return np.zeros(i.shape, dtype=np.int64)
+    if n_colors == 4:
+        return (i % 2) * 2 + (j % 2)
+    if n_colors == 3:
+        return (i + 2 * j) % 3
+    raise ValueError(f"reuse_colors = {n_colors!r} is not allowed; use 1, 3 or 4")
+
+
+def azimuth_deg(los, ut_pos_m, ut_enu):
+    """Azimuth of each row's link ``los (n, 3)`` (UT -> satellite) [deg], [0, 360)."""
+    enu = ut_enu
+    if enu is None:
+        lat, lon, _ = ecef_to_geodetic(ut_pos_m)
+        enu = enu_basis(lat, lon)
+    east = np.einsum("uk,uk->u", los, enu[:, 0, :])
+    north = np.einsum("uk,uk->u", los, enu[:, 1, :])
+    return np.mod(np.degrees(np.arctan2(east, north)), 360.0)

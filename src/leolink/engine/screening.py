@@ -1,0 +1,187 @@
+"""Which (UT, satellite) pairs can matter: visibility and an upper bound of the best beam.
+
+Before the engine evaluates every beam of a pair, :func:`screen` classifies each pair of a
+UT x satellite grid from dot products alone (one matrix product per quantity, no
+per-pair trigonometry but one sine per axis):
+
+- visibility: ``sin(el) = (up . (sat - ut)) / rho`` against ``sin(min_elevation)``; pairs
+  within ``SIN_EL_BAND`` of the mask are *uncertain* and must be evaluated exactly (the
+  engine decides with ``arcsin``; the dot products differ from its value by ~1e-15);
+- an upper bound of the SNR of **every** beam of the pair (linear):
+  ``K / rho^2 x G_rx / L_atm x E_x(u_x) x E_y(u_y)``.
+
+The beams' gain is ``k_x(u_x - b_x) k_y(u_y - b_y)`` (two Dirichlet kernels, paper Sec.
+3.2), and a Dirichlet kernel of ``n`` elements is bounded by its envelope,
+
+    k(du, n) = sin^2(n pi du / 2) / (n sin^2(pi du / 2)) <= min(n, 1 / (n sin^2(pi d / 2))),
+
+with ``d`` the distance from ``du`` to the nearest multiple of 2 (the kernel has period 2).
+The envelope decreases in ``d`` on ``[0, 1]``, so the largest kernel over the codebook's
+distinct beam cosines is bounded by the envelope at the distance to the nearest one:
+``E(u) = env(min_b d(u - b))``. No beam of a pair can beat ``bound``; a pair whose bound is
+below the best SNR already found for its UT cannot hold the best beam.
+
+The bound uses the screening geometry, which differs from the engine's by rounding only
+(~1e-15 relative); ``BOUND_SLACK`` (1e-6, i.e. 4e-6 dB) covers it, and it covers the
+terminal gain and the atmospheric loss evaluated at the screening elevation provided they
+change by less than 1e-6 dB per 1e-12 rad (every registered model: they are smooth).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from leolink.engine.links import rows_gain_db
+
+__all__ = ["BOUND_SLACK", "SIN_EL_BAND", "UNCERTAIN", "VISIBLE", "envelope", "screen"]
+
+#: Relative margin of the SNR upper bound over rounding (and the gain models' smoothness).
+BOUND_SLACK = 1e-6
+#: Half-width of the band of ``sin(elevation)`` around the mask where visibility is decided
+#: by the engine's exact evaluation (the screening's error is ~1e-15).
+SIN_EL_BAND = 1e-9
+#: Pair classes of :func:`screen` (0: below the mask).
+UNCERTAIN, VISIBLE = 1, 2
+
+
+def envelope(u, beam_u, n):
+    """Upper bound of ``max_b dirichlet(u - b, n)`` over the beam cosines ``beam_u``.
+
+    Parameters
+    ----------
+    u : ndarray
+        Direction cosines [-], any shape.
+    beam_u : ndarray, shape (k,)
+        Distinct beam cosines, sorted.
+    n : int
+        Elements along the axis.
+
+    Returns
+    -------
+    ndarray, shape of ``u``
+        ``min(n, 1 / (n sin^2(pi d / 2)))``, ``d`` the distance to the nearest beam
+        modulo 2 (so the grating lobes at ``|u - b| = 2`` are counted), with the sine
+        replaced by a polynomial below it (the bound only grows).
+    """
+    d = np.abs(u - beam_u[0])
+    for b in beam_u[1:]:
+        np.minimum(d, np.abs(u - b), out=d)
+    # Modulo 2: the farthest beam is the nearest one through the grating lobe.
+    np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u), out=d)
+    x = (0.5 * np.pi) * np.clip(d, 0.0, 1.0)
+    # sin x from below, by its Taylor polynomial to x^7 (an alternating series: the partial
+    # sum after a negative term is below sin x on [0, pi]): the bound only grows.
+    x2 = x * x
+    s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0)))
+    with np.errstate(divide="ignore", over="ignore"):  # tiny s: 1 / (n s^2) -> inf -> n
+        return np.minimum(float(n), 1.0 / (n * s * s))
+
+
+def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None):
+    """Classify every pair of the UT x satellite grid and bound its best beam's SNR.
+
+    Parameters
+    ----------
+    engine : leolink.engine.LinkEngine
+    ut_pos_m : ndarray, shape (n_u, 3)
+    sat_pos_m : ndarray, shape (n_s, 3)
+    sat_axes : ndarray, shape (n_s, 3, 3)
+        Body frames of the satellites (:func:`leolink.geometry.body_frame`).
+    ut_up : ndarray, shape (n_u, 3), optional
+        Local up of each UT (WGS 84); None: the sphere's radial up.
+    ut_id : ndarray of int, shape (n_u,), optional
+        The UT of each row (per-population terminals); None: row = UT.
+
+    Returns
+    -------
+    code : ndarray of int8, shape (n_u, n_s)
+        0 below the mask, :data:`UNCERTAIN`, :data:`VISIBLE`.
+    bound : ndarray, shape (n_u, n_s)
+        Upper bound of every beam's linear SNR where ``code > 0``, -1 elsewhere.
+    """
+    from leolink.engine import jit
+
+    ut_id = np.arange(len(ut_pos_m)) if ut_id is None else ut_id
+    factor = _ut_factor(engine, ut_id)
+    known = np.where(np.isnan(factor), 1.0, factor)
+    if jit.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]):  # numba imported for large calls only
+        code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
+    else:
+        code, bound, sin_el = _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
+    rows = np.flatnonzero(np.isnan(factor))
+    if rows.size:  # UTs whose gain or loss depends on the elevation: per pair
+        r, s = np.nonzero(code[rows] > 0)
+        bound[rows[r], s] *= _pair_factor(engine, sin_el[rows[r], s], ut_id[rows[r]])
+    return code, bound
+
+
+def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
+    """:func:`screen` in numpy (matrix products): code, bound, sin(elevation)."""
+    cb = engine.codebook
+    r_ut2 = np.einsum("uk,uk->u", ut_pos_m, ut_pos_m)
+    g = ut_pos_m @ sat_pos_m.T
+    rho2 = (r_ut2[:, None] + np.einsum("sk,sk->s", sat_pos_m, sat_pos_m)[None, :]) - 2.0 * g
+    rho = np.sqrt(rho2)
+    if ut_up is None:
+        r_ut = np.sqrt(r_ut2)[:, None]
+        sin_el = (g / r_ut - r_ut) / rho
+    else:
+        up_ut = np.einsum("uk,uk->u", ut_up, ut_pos_m)
+        sin_el = (ut_up @ sat_pos_m.T - up_ut[:, None]) / rho
+    s_min = np.sin(engine.params.min_elevation_rad)
+    code = (sin_el >= s_min - SIN_EL_BAND).astype(np.int8)
+    code += sin_el >= s_min + SIN_EL_BAND
+    ax, ay = sat_axes[:, 0, :], sat_axes[:, 1, :]
+    ux = (ut_pos_m @ ax.T - np.einsum("sk,sk->s", sat_pos_m, ax)[None, :]) / rho
+    uy = (ut_pos_m @ ay.T - np.einsum("sk,sk->s", sat_pos_m, ay)[None, :]) / rho
+    bound = envelope(ux, engine.beam_ux, cb.n_sub_x)
+    bound *= envelope(uy, engine.beam_uy, cb.n_sub_y)
+    bound *= (engine._k_lin * (1.0 + BOUND_SLACK)) * ut_factor[:, None] / rho2
+    return code, np.where(code > 0, bound, -1.0), sin_el
+
+
+def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
+    """:func:`screen` by the compiled kernel (:func:`leolink.engine.jit.screen_kernel`)."""
+    from leolink.engine import jit
+
+    shape = (ut_pos_m.shape[0], sat_pos_m.shape[0])
+    code, bound, sin_el = np.empty(shape, np.int8), np.empty(shape), np.empty(shape)
+    up = np.zeros((0, 3)) if ut_up is None else np.ascontiguousarray(ut_up, float)
+    jit.screen_kernel()(
+        np.ascontiguousarray(ut_pos_m, float), up, ut_up is None,
+        np.ascontiguousarray(sat_pos_m, float),
+        np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
+        engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
+        engine._k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
+        np.ascontiguousarray(ut_factor, float), code, bound, sin_el,
+    )  # fmt: skip
+    return code, bound, sin_el
+
+
+_SLACK_DB = 10.0 * np.log10(1.0 + BOUND_SLACK)
+
+
+def _ut_factor(engine, ut_id):
+    """Each UT's bound of ``G_rx / L_atm`` (linear) where it does not depend on the
+    elevation, NaN where it does (shape (n_u,))."""
+    atm_db = engine._atm_const
+    if atm_db is None:
+        return np.full(ut_id.shape, np.nan)
+    if engine._rx_const is not None:
+        return np.full(ut_id.shape, 10.0 ** ((engine._rx_const - atm_db + _SLACK_DB) / 10.0))
+    out = np.full(ut_id.shape, np.nan)
+    for g, rx_db in enumerate(engine._rx_groups or ()):
+        if rx_db is not None:
+            out[engine.terminal.group[ut_id] == g] = 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)
+    return out
+
+
+def _pair_factor(engine, sin_el, ut_id):
+    """Bound of ``G_rx / L_atm`` (linear) at the screening elevations of pairs, (m,)."""
+    el = np.arcsin(np.clip(sin_el, -1.0, 1.0))
+    rx_db, atm_db = engine._rx_const, engine._atm_const
+    if rx_db is None:
+        rx_db = rows_gain_db(engine.terminal, el, ut_id, engine._rx_groups)
+    if atm_db is None:
+        atm_db = engine.atmosphere(np.maximum(el, 0.0))
+    return 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)

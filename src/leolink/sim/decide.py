@@ -1,0 +1,151 @@
+"""The controller's side of an epoch: candidate tables, then ``controller.step``.
+
+:class:`Decider` is what :func:`~leolink.sim.processes.beam_controller` calls once per
+epoch. When an epoch opens a new motion block (:mod:`leolink.sim.motion`) it finds the
+candidates of the whole block in a few vectorized engine calls
+(:class:`~leolink.sim.search.CandidateSearch`); every epoch it adds each UT's serving
+cell to its row (from the pairs already evaluated, or evaluated then), evaluates the
+table at ``t + lookahead`` if the policy asks, and runs the controller.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from leolink.geometry import enu_basis
+from leolink.sim.candidates import Candidates
+from leolink.sim.controller import concat_events, resumed_events, step
+from leolink.sim.policies import neighbour_window_db
+from leolink.sim.search import CandidateSearch
+
+__all__ = ["Decider"]
+
+
+class Decider:
+    """Finds every UT's candidate cells and runs ``controller.step`` on them.
+
+    Parameters
+    ----------
+    engine : leolink.engine.LinkEngine
+    policy : Policy
+    min_snr_db, handover_time_s : float
+        The controller's service threshold [dB] and handover execution time [s].
+    min_elevation_rad, radius_m : float
+        The mask [rad] and the Earth radius [m] (the satellite cone).
+    future_state : callable
+        ``t -> (ut_pos, sat_pos, sat_vel)`` of every UT and satellite (prediction).
+    motion : leolink.sim.motion.MotionBlocks
+    epoch_s : float
+    ellipsoidal : bool
+        The UTs' latitudes are geodetic (WGS 84) and their local frame is the ellipsoid's,
+        handed to the engine; otherwise the engine takes the sphere's radial up.
+    prune : bool
+        Screen the (UT, satellite) pairs before evaluating them (the same tables,
+        :mod:`leolink.sim.search`); False evaluates every pair (the reference).
+    """
+
+    def __init__(self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad,
+                 radius_m, future_state, motion, epoch_s=1.0, ellipsoidal=False,
+                 prune=True):  # fmt: skip
+        self.engine, self.policy = engine, policy
+        self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
+        # With interference from other satellites, every satellite above the horizon counts.
+        self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
+        self.radius_m = radius_m
+        self.future_state, self.motion = future_state, motion
+        self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
+        self.search = CandidateSearch(engine, neighbour_window_db(policy), prune)
+        self.block = self.mb = self.cones = self.enu = None
+
+    def _open(self, k):
+        """The candidates of the motion block of epoch ``k`` (computed once per block)."""
+        from leolink.sim.processes import candidate_satellites
+
+        mb = self.motion.block_of(k)
+        if self.block is not None and self.block.k0 == mb.k0:
+            return self.block
+        none = np.zeros(0, np.int64)
+        self.cones = [
+            candidate_satellites(mb.sat_pos_m[i], mb.ut_pos_m[i], self.min_el, none, self.radius_m)
+            for i in range(mb.n_k)
+        ]
+        self.enu = enu_basis(mb.ut_lat_rad, mb.ut_lon_rad) if self.ellipsoidal else None
+        up = None if self.enu is None else self.enu[..., 2, :]
+        n_ut = mb.ut_pos_m.shape[1]
+        self.mb = mb
+        self.block = self.search.block(
+            mb.k0, n_ut, mb.ut_pos_m, up, mb.sat_pos_m, mb.sat_vel_m_s, self.cones
+        )
+        return self.block
+
+    def __call__(self, state):
+        k, nb = state.k, self.engine.n_beam
+        blk = self._open(k)
+        c = state.controller
+        rows = blk.rows(k)
+        table = self._with_serving(blk.table.rows(rows), rows, c.serving)
+        state.best_snr_db, state.n_visible = blk.best_snr_db[rows], blk.n_visible[rows]
+        future = None
+        if self.policy.lookahead_s > 0.0:
+            # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
+            # for an aircraft over 10 s.
+            future = self._future(table, state.t_s + self.policy.lookahead_s, k)
+        t = state.t_s
+        res = step(t, table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
+        resumed = resumed_events(t, self.epoch_s, res.state, table)
+        res.events = concat_events(res.events, resumed)
+        unserved = np.flatnonzero(res.sat_id < 0)
+        state.best_unserved = (unserved, blk.best_cell[rows][unserved])
+        cone = self.cones[k - blk.k0]
+        if self.engine.other_satellites:  # the satellites of the interference sum
+            cone = np.union1d(cone, np.unique(c.serving[c.serving >= 0] // nb))
+        state.cand_sats, state.decision = cone, res
+        state.enu = None if self.enu is None else self.enu[k - blk.k0]
+        state.controller = res.state
+
+    def _with_serving(self, table, rows, serving):
+        """``table`` with each UT's serving cell added where it is missing and above the
+        mask (an extra column; -1/NaN elsewhere)."""
+        nb, blk = self.engine.n_beam, self.block
+        need = np.flatnonzero((serving >= 0) & (table.slot_of(serving) < 0))
+        if need.size == 0:
+            return table
+        r = rows.start + need
+        sat, beam = serving[need] // nb, serving[need] % nb
+        val, vis = np.full(need.size, np.nan), np.zeros(need.size, bool)
+        pair = blk.find_pairs(r, sat)
+        hit = pair >= 0
+        val[hit], vis[hit] = blk.snr_db_of(pair[hit], beam[hit])
+        miss = np.flatnonzero(~hit)
+        if miss.size:  # pairs the search left out: evaluated now
+            links = self.evaluate(r[miss], sat[miss])
+            snr = links.snr_db_bm(self.engine.beam_ix, self.engine.beam_iy)
+            val[miss], vis[miss] = snr[beam[miss], np.arange(miss.size)], links.visible
+        cell = np.full((table.n_ut, 1), -1, np.int64)
+        snr_db = np.full((table.n_ut, 1), np.nan)
+        cell[need[vis], 0], snr_db[need[vis], 0] = serving[need[vis]], val[vis]
+        return Candidates(np.hstack([table.cell, cell]), np.hstack([table.snr_db, snr_db]))
+
+    def evaluate(self, rows, sats):
+        """The engine's links of pairs (block rows, global satellite ids) of this block."""
+        mb = self.mb
+        up = None if self.enu is None else self.enu[..., 2, :].reshape(-1, 3)
+        n_ut = mb.ut_pos_m.shape[1]
+        pos = mb.ut_pos_m.reshape(-1, 3)
+        return self.search.evaluate(pos, up, mb.sat_pos_m, mb.sat_vel_m_s, n_ut, rows, sats)
+
+    def _future(self, table, t_s, k):
+        """The table's cells at ``t_s`` (the same cells; NaN where not visible then)."""
+        eng, nb = self.engine, self.engine.n_beam
+        ut_f, sat_pos_f, sat_vel_f = self.future_state(t_s)
+        up = None if self.enu is None else self.enu[k - self.block.k0][:, 2, :]
+        rows = np.broadcast_to(np.arange(table.n_ut)[:, None], table.shape)
+        valid = table.cell >= 0
+        key = rows[valid] * len(sat_pos_f) + table.cell[valid] // nb
+        pairs, inverse = np.unique(key, return_inverse=True)
+        ut, sat = np.divmod(pairs, len(sat_pos_f))
+        links = eng.evaluate_pairs(ut_f, sat_pos_f, sat_vel_f, ut, sat, ut_up=up)
+        snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, n_pair)
+        out = np.full(table.shape, np.nan)
+        out[valid] = snr[table.cell[valid] % nb, inverse.reshape(-1)]
+        return table.like(out)

@@ -1,0 +1,217 @@
+"""The monitor's side of an epoch: every UT's serving link, streamed as epoch frames.
+
+:class:`Monitor` is what :func:`~leolink.sim.processes.link_monitor` calls once per
+epoch. It keeps the epoch's decision and, at the end of each motion block
+(:mod:`leolink.sim.motion`), evaluates the links of all the block's recorded epochs in
+one engine call (the pairs the controller's search evaluated are reused) and hands the
+sinks one :class:`~leolink.sim.streams.EpochFrame` per epoch, in order. Sinks see the
+same frames as if each were sent at its epoch, up to one block later.
+
+In outage rows where a satellite is above the minimum elevation, the geometry and budget
+columns are those of the best candidate (``best_snr_db``); the link columns (SNR, SINR,
+SE, throughput) are NaN. In a handover epoch SE and throughput are the epoch's means:
+the link's, times the part of the epoch with service.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from leolink.engine.links import Links
+from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
+from leolink.rng import complex_normal
+from leolink.sim.controller import SERVICE_HANDOVER, SERVICE_OUTAGE, interruption_s
+from leolink.sim.streams import EpochFrame
+
+__all__ = ["Monitor"]
+
+_LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps")
+
+
+@dataclasses.dataclass
+class _Record:
+    """What the monitor keeps of one recorded epoch until its block is flushed."""
+
+    k: int
+    t_s: float
+    decision: object  # StepResult
+    geo_sat: np.ndarray  # (n_ut,) the link's satellite: serving, or best in outage (-1)
+    geo_beam: np.ndarray
+    gap_s: np.ndarray  # (n_ut,) interrupted part of the epoch [s]
+    n_visible: np.ndarray
+    best_snr_db: np.ndarray
+    cone: np.ndarray  # the satellites of the other-satellite interference
+
+
+class Monitor:
+    """Serving links of every UT -> epoch frames for the sinks (module docstring).
+
+    Parameters
+    ----------
+    engine : leolink.engine.LinkEngine
+    sink : Sink
+    decider : leolink.sim.decide.Decider
+        Whose block candidates (and evaluated pairs) the links are read from.
+    fading_k : float or None
+        Rician factor of random fading draws (None: the mean gain).
+    ut_keys : ndarray or None
+        Per-UT random keys of the fading draws.
+    epoch_s : float
+    population : sequence of str
+        The population name of every UT.
+    """
+
+    def __init__(self, engine, sink, decider, fading_k=None, ut_keys=None, epoch_s=1.0,
+                 population=()):  # fmt: skip
+        self.engine, self.sink, self.decider = engine, sink, decider
+        self.fading_k, self.ut_keys = fading_k, ut_keys
+        self.epoch_s = float(epoch_s)
+        self.population = np.asarray(population, dtype=object)
+        self.pending = []
+
+    def __call__(self, state):
+        if state.recording:
+            self.pending.append(self._record(state))
+        block = self.decider.mb
+        if state.k == block.k1 - 1 or state.k == len(state.times_s) - 1:
+            self.flush(state)
+
+    def _record(self, state):
+        res, nb = state.decision, self.engine.n_beam
+        geo_sat, geo_beam = res.sat_id.copy(), res.beam_id.copy()
+        unserved, best = state.best_unserved
+        if unserved.size:  # outage rows: the best candidate's geometry, where there is one
+            geo_sat[unserved] = np.where(best >= 0, best // nb, -1)
+            geo_beam[unserved] = np.where(best >= 0, best % nb, -1)
+        gap_s = interruption_s(state.t_s, self.epoch_s, res.state)
+        return _Record(state.k, state.t_s, res, geo_sat, geo_beam, gap_s, state.n_visible,
+                       state.best_snr_db, state.cand_sats)  # fmt: skip
+
+    def flush(self, state):
+        """Evaluate and send the kept epochs (all in the current motion block)."""
+        if not self.pending:
+            return
+        recs, self.pending = self.pending, []
+        cols = self._links(recs)
+        n_ut = len(recs[0].geo_sat)
+        start_s = state.times_s[state.n_warmup]
+        for i, rec in enumerate(recs):
+            part = {name: v[i * n_ut : (i + 1) * n_ut] for name, v in cols.items()}
+            frame_cols = self._columns(rec, part)
+            frame = EpochFrame(
+                rec.k - state.n_warmup,
+                rec.t_s,
+                frame_cols,
+                rec.decision.events,
+                _warmup_censored(rec.decision.dwells, start_s),
+            )
+            self.sink.epoch(frame)
+
+    def _links(self, recs):
+        """``serve_pairs`` of every UT of every kept epoch, in one call."""
+        eng, dec, mb = self.engine, self.decider, self.decider.mb
+        blk = dec.block
+        n_ut = len(recs[0].geo_sat)
+        rows = np.concatenate([(r.k - mb.k0) * n_ut + np.arange(n_ut) for r in recs])
+        geo_sat = np.concatenate([r.geo_sat for r in recs])
+        geo_beam = np.concatenate([r.geo_beam for r in recs])
+        served = geo_sat >= 0
+        if not served.any():
+            return eng.serve_pairs(None, np.full(rows.size, -1), geo_beam, None)
+        pair = np.where(served, blk.find_pairs(rows, geo_sat), -1)
+        links = blk.links
+        miss = np.flatnonzero(served & (pair < 0))
+        if miss.size:  # links the search did not evaluate (e.g. below the mask)
+            links = Links.concat([links, dec.evaluate(rows[miss], geo_sat[miss])])
+            pair[miss] = blk.links.n_pair + np.arange(miss.size)
+        epoch = rows // n_ut
+        s = np.where(served, geo_sat, 0)
+        up_enu = None if dec.enu is None else dec.enu.reshape(-1, 3, 3)[rows]
+        return eng.serve_pairs(
+            links,
+            pair,
+            geo_beam,
+            mb.ut_vel_m_s.reshape(-1, 3)[rows],
+            mb.ut_acc_m_s2.reshape(-1, 3)[rows],
+            mb.sat_vel_m_s[epoch, s],
+            mb.sat_acc_m_s2[epoch, s],
+            rx_fading_lin=self._fading(recs, links, pair),
+            i_other=self._other_satellites(recs, geo_sat, geo_beam),
+            ut_pos_m=mb.ut_pos_m.reshape(-1, 3)[rows],
+            ut_enu=up_enu,
+        )
+
+    def _fading(self, recs, links, pair):
+        if self.fading_k is None or not (pair >= 0).any():
+            return None
+        rx = np.broadcast_to(links.rx_db, links.ut.shape)[np.maximum(pair, 0)]
+        n_lin = 10.0 ** (rx / 10.0)
+        # Instantaneous over mean gain (mean 1); the mean receive gain stands in for the
+        # LoS gain N, which is off by 1/K = 0.1 in N = 576 for the paper's UPA.
+        g = np.concatenate([complex_normal(self.ut_keys, r.k) for r in recs])
+        k = self.fading_k
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)
+
+    def _other_satellites(self, recs, geo_sat, geo_beam):
+        """Interference of the other satellites above the horizon, per row (or None)."""
+        eng, mb = self.engine, self.decider.mb
+        if not eng.other_satellites:
+            return None
+        n_ut, out = len(recs[0].geo_sat), []
+        u = np.arange(n_ut)
+        for i, rec in enumerate(recs):  # one dense snapshot per epoch
+            cone, j = rec.cone, rec.k - mb.k0
+            sl = slice(i * n_ut, (i + 1) * n_ut)
+            if len(cone) <= 1:
+                out.append(np.zeros(n_ut))
+                continue
+            enu = None if self.decider.enu is None else self.decider.enu[j]
+            snap = eng.evaluate(mb.ut_pos_m[j], mb.sat_pos_m[j][cone], mb.sat_vel_m_s[j][cone],
+                                ut_enu=enu)  # fmt: skip
+            s = np.where(geo_sat[sl] >= 0, np.searchsorted(cone, geo_sat[sl]), 0)
+            b = np.where(geo_sat[sl] >= 0, geo_beam[sl], 0)
+            out.append(eng.other_satellites_interference(snap, s, b, u))
+        return np.concatenate(out)
+
+    def _columns(self, rec, cols):
+        """The trace columns of one epoch from its links ``cols`` (views, (n_ut,))."""
+        res, n_ut = rec.decision, len(rec.geo_sat)
+        outage = res.service == SERVICE_OUTAGE
+        if outage.any():
+            for name in _LINK:
+                cols[name] = np.where(outage, np.nan, cols[name])
+        handover = res.service == SERVICE_HANDOVER
+        if handover.any():  # the served part of the epoch only
+            served = 1.0 - rec.gap_s / self.epoch_s
+            for name in ("se_bps_hz", "throughput_bps"):
+                cols[name] = np.where(handover, cols[name] * served, cols[name])
+        reason = res.service.astype(np.int8)  # served -> none, handover -> handover
+        reason[outage] = np.where(rec.n_visible[outage] > 0, 3, 2)
+        mb, j = self.decider.mb, rec.k - self.decider.mb.k0
+        cols.update(
+            time_s=np.full(n_ut, rec.t_s),
+            ut_id=np.arange(n_ut, dtype=np.int64),
+            sat_id=res.sat_id,
+            beam_id=res.beam_id,
+            lat_deg=np.degrees(mb.ut_lat_rad[j]),
+            lon_deg=np.degrees(mb.ut_lon_rad[j]),
+            service=res.service,
+            outage_reason=reason,
+            n_visible=rec.n_visible.astype(np.int64),
+            best_snr_db=rec.best_snr_db,
+            alt_m=mb.ut_alt_m[j].copy(),
+            population=self.population,
+            interruption_s=rec.gap_s,
+        )
+        return cols
+
+
+def _warmup_censored(dwells, record_start_s):
+    """Dwells that began before recording (in the warm-up) are cut by the start: censored."""
+    return {
+        **dwells,
+        "censored_start": dwells["censored_start"] | (dwells["start_s"] < record_start_s),
+    }

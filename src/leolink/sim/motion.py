@@ -1,0 +1,98 @@
+"""Satellite and UT states of the run's epochs, computed in blocks of epochs.
+
+Satellites follow the ephemeris and UTs their mobility models, both pure functions of
+time (:class:`~leolink.sim.populations.MotionModel`), so the states of a whole block of
+epochs are known before the block starts: the SimPy processes move the shared state one
+epoch at a time from the block, and the controller and the monitor evaluate the engine
+over the whole block in one vectorized call (:mod:`leolink.sim.search`,
+:mod:`leolink.sim.monitor`). The block length keeps the arrays to a few tens of MiB.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from leolink.sim.mobility import concat_states
+
+__all__ = ["MAX_BLOCK_EPOCHS", "MotionBlock", "MotionBlocks"]
+
+#: Longest block [epochs].
+MAX_BLOCK_EPOCHS = 64
+#: Float values of one block's states (32 MiB): the block is shorter for many UTs.
+_BLOCK_VALUES = 1 << 22
+
+
+@dataclasses.dataclass
+class MotionBlock:
+    """States of epochs ``k0 .. k1 - 1`` (leading axis ``k - k0``).
+
+    Attributes
+    ----------
+    k0, k1 : int
+    sat_pos_m, sat_vel_m_s, sat_acc_m_s2 : ndarray, shape (n_k, n_sat, 3)
+    ut_pos_m, ut_vel_m_s, ut_acc_m_s2 : ndarray, shape (n_k, n_ut, 3)
+    ut_lat_rad, ut_lon_rad, ut_alt_m : ndarray, shape (n_k, n_ut)
+    """
+
+    k0: int
+    k1: int
+    sat_pos_m: np.ndarray
+    sat_vel_m_s: np.ndarray
+    sat_acc_m_s2: np.ndarray
+    ut_pos_m: np.ndarray
+    ut_vel_m_s: np.ndarray
+    ut_acc_m_s2: np.ndarray
+    ut_lat_rad: np.ndarray
+    ut_lon_rad: np.ndarray
+    ut_alt_m: np.ndarray
+
+    @property
+    def n_k(self) -> int:
+        return self.k1 - self.k0
+
+
+class MotionBlocks:
+    """The run's states, one block at a time (the current block is kept).
+
+    Parameters
+    ----------
+    ephemeris : callable
+        ``ephemeris(t_s (n_t,)) -> (pos, vel, acc)``, each (n_t, n_sat, 3).
+    populations : list of (name, motion model)
+        In UT order.
+    times_s : ndarray, shape (n_epoch,)
+    n_sat, n_ut : int
+    """
+
+    def __init__(self, ephemeris, populations, times_s, n_sat, n_ut):
+        self.ephemeris, self.populations = ephemeris, populations
+        self.times_s = np.asarray(times_s, float)
+        per_epoch = 9 * n_sat + 12 * n_ut
+        self.n_block = int(np.clip(_BLOCK_VALUES // max(per_epoch, 1), 1, MAX_BLOCK_EPOCHS))
+        self._block = None
+
+    def block_of(self, k):
+        """The block holding epoch ``k``."""
+        b = self._block
+        if b is None or not b.k0 <= k < b.k1:
+            k0 = (k // self.n_block) * self.n_block
+            self._block = b = self._compute(k0, min(k0 + self.n_block, len(self.times_s)))
+        return b
+
+    def _compute(self, k0, k1):
+        times = self.times_s[k0:k1]
+        pos, vel, acc = self.ephemeris(times)
+        uts = [concat_states([p.state(float(t)) for _, p in self.populations]) for t in times]
+        return MotionBlock(
+            k0,
+            k1,
+            pos,
+            vel,
+            acc,
+            *(np.stack([getattr(u, f) for u in uts]) for f in _UT_FIELDS),
+        )
+
+
+_UT_FIELDS = ("pos_m", "vel_m_s", "acc_m_s2", "lat_rad", "lon_rad", "alt_m")

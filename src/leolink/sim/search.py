@@ -1,0 +1,249 @@
+"""The candidate tables of a block of epochs: every cell a policy can need, evaluated exactly.
+
+:class:`CandidateSearch` turns the geometry of a block of epochs
+(:class:`~leolink.sim.motion.MotionBlock`) into one
+:class:`~leolink.sim.candidates.Candidates` row per UT and epoch, plus the trace's per-UT
+diagnostics (satellites above the mask, the best cell and its SNR). Rows are
+``r = (k - k0) n_ut + u``; every engine call covers many epochs at once.
+
+Pairs evaluated, per epoch, among the satellites of the epoch's cone
+(:func:`~leolink.sim.processes.candidate_satellites`):
+
+- few satellites (at most ``DENSE_CONE``), or ``prune=False`` (the reference): every pair;
+- otherwise (pruned): :func:`leolink.engine.screening.screen` classifies every pair
+  (visible, uncertain, below the mask) and bounds the SNR of every beam of the pair from
+  above. Each UT's pair with the largest bound, and every uncertain pair, are evaluated
+  first: their best beam gives ``L``, an SNR the UT certainly reaches. Then every pair
+  above the mask whose bound is at least ``L`` minus the policy's ``neighbour_window_db``.
+
+A pair left out has a bound below ``L - window``: none of its cells can be within the
+window of the best cell. So a row holds exactly the cells within the window of the UT's
+best cell, pruned or not; the serving cell is added at decision time
+(:meth:`BlockCandidates.with_serving`), from the evaluated pairs or evaluated then.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from leolink.engine.links import Links
+from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
+from leolink.geometry import body_frame
+from leolink.sim.candidates import Candidates
+
+__all__ = ["DENSE_CONE", "BlockCandidates", "CandidateSearch"]
+
+#: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each).
+SCREEN_PAIRS = 1 << 18
+#: Cones of at most this many satellites are evaluated whole (screening would not pay).
+DENSE_CONE = 2
+
+
+@dataclasses.dataclass
+class BlockCandidates:
+    """Candidates of the epochs ``k0 ..`` of a block (rows ``r = (k - k0) n_ut + u``).
+
+    Attributes
+    ----------
+    k0, n_ut, n_beam : int
+    table : Candidates
+        Cells within the window of each row's best cell (global ids), (n_rows, n_slot).
+    n_visible, best_cell, best_snr_db : ndarray, shape (n_rows,)
+        Satellites above the mask; the best cell (-1 for none) and its SNR (NaN).
+    links : Links
+        Every evaluated pair, sorted by (row, satellite); ``links.ut`` is the row,
+        ``links.sat`` the global satellite id.
+    """
+
+    k0: int
+    n_ut: int
+    n_beam: int
+    table: Candidates
+    n_visible: np.ndarray
+    best_cell: np.ndarray
+    best_snr_db: np.ndarray
+    links: Links
+
+    beam_ix: np.ndarray
+    beam_iy: np.ndarray
+
+    def __post_init__(self):
+        self._n_key = int(self.links.sat.max(initial=0)) + 1
+        self._pair_key = self.links.ut * self._n_key + self.links.sat  # sorted
+
+    def rows(self, k):
+        """Rows of epoch ``k``."""
+        lo = (k - self.k0) * self.n_ut
+        return slice(lo, lo + self.n_ut)
+
+    def find_pairs(self, rows, sats):
+        """Index into ``links`` of the pairs ``(rows[i], sats[i])``, -1 if not evaluated."""
+        n = self.links.n_pair
+        if n == 0:
+            return np.full(np.shape(rows), -1, np.int64)
+        ok = (sats >= 0) & (sats < self._n_key)
+        key = rows * self._n_key + np.where(ok, sats, 0)
+        i = np.minimum(np.searchsorted(self._pair_key, key), n - 1)
+        ok &= self._pair_key[i] == key
+        return np.where(ok, i, -1)
+
+    def snr_db_of(self, pair, beam):
+        """SNR [dB] of beam ``beam[i]`` of evaluated pair ``pair[i]``, and whether the
+        pair is above the mask."""
+        links = self.links.take(pair)
+        snr = links.snr_db_bm(self.beam_ix, self.beam_iy)
+        return snr[beam, np.arange(pair.size)], links.visible
+
+
+class CandidateSearch:
+    """Candidate tables of the blocks of a run (module docstring).
+
+    Parameters
+    ----------
+    engine : leolink.engine.LinkEngine
+    window_db : float
+        The policy's ``neighbour_window_db`` [dB] (``inf``: every cell above the mask).
+    prune : bool
+        Screen the pairs (default); False evaluates every pair (the reference).
+    """
+
+    def __init__(self, engine, window_db, prune=True):
+        self.engine, self.window_db, self.prune = engine, float(window_db), bool(prune)
+
+    def block(self, k0, n_ut, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones):
+        """The candidates of the epochs ``k0 .. k0 + n_k - 1``.
+
+        Parameters
+        ----------
+        k0 : int
+        n_ut : int
+        ut_pos_m : ndarray, shape (n_k, n_ut, 3)
+        ut_up : ndarray, shape (n_k, n_ut, 3), or None
+            Local up of each UT (WGS 84); None: the sphere's.
+        sat_pos_m, sat_vel_m_s : ndarray, shape (n_k, n_sat, 3)
+            Every satellite of the run.
+        cones : list of ndarray of int
+            Per epoch, the global ids (ascending) of the satellites that may be above the
+            mask for some UT.
+
+        Returns
+        -------
+        BlockCandidates
+        """
+        n_k = len(cones)
+        pos = ut_pos_m.reshape(-1, 3)
+        up = None if ut_up is None else ut_up.reshape(-1, 3)
+        widest = max((len(c) for c in cones), default=0)
+        step = int(np.clip(SCREEN_PAIRS // max(n_ut * widest, 1), 1, n_k))
+        parts = []
+        for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
+            ks = range(lo, min(lo + step, n_k))
+            parts.append(self._chunk(ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones))
+        links = Links.concat([p[0] for p in parts])
+        sure = np.concatenate([p[1] for p in parts])
+        order = np.lexsort((links.sat, links.ut))
+        return self._tables(k0, n_ut, n_k, links.take(order), sure)
+
+    def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones):
+        """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
+        global id) and the rows' visible satellites that were not evaluated."""
+        dense = not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks)
+        rows1, sats1, rows2, sats2, sure = [], [], [], [], np.zeros(len(ks) * n_ut, np.int64)
+        screened = []
+        for i, k in enumerate(ks):
+            rows = k * n_ut + np.arange(n_ut)
+            cone = cones[k]
+            if dense:
+                rows1.append(np.repeat(rows, len(cone)))
+                sats1.append(np.tile(cone, n_ut))
+                continue
+            code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone)
+            first = np.argmax(bound, axis=1)
+            chosen = code == UNCERTAIN
+            has = np.flatnonzero(bound[np.arange(n_ut), first] >= 0.0)
+            chosen[has, first[has]] = True
+            r, s = np.nonzero(chosen)
+            rows1.append(rows[r])
+            sats1.append(cone[s])
+            screened.append((i, rows, cone, code, bound, chosen))
+        links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1)
+        if dense:
+            return links1, sure
+        reach = np.zeros(pos.shape[0])
+        gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
+        lin = np.where(links1.visible, gain, 0.0)
+        np.maximum.at(reach, links1.ut, lin * links1.path_lin)
+        factor = 10.0 ** (-self.window_db / 10.0)
+        for i, rows, cone, code, bound, chosen in screened:
+            with np.errstate(invalid="ignore"):
+                more = (code > 0) & (bound >= (reach[rows] * factor)[:, None]) & ~chosen
+            r, s = np.nonzero(more)
+            rows2.append(rows[r])
+            sats2.append(cone[s])
+            sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
+        links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2)
+        return Links.concat([links1, links2]), sure
+
+    def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone):
+        """:func:`screen` of the UT rows ``rows`` against the cone, in blocks of UTs."""
+        eng = self.engine
+        axes = body_frame(sat_pos_m[cone], sat_vel_m_s[cone])
+        n_ut = len(rows)
+        ut_id = np.arange(n_ut)
+        n_part = -(-n_ut * len(cone) // SCREEN_PAIRS)
+        step = -(-n_ut // max(n_part, 1))
+        parts = [
+            screen(
+                eng,
+                pos[rows[lo : lo + step]],
+                sat_pos_m[cone],
+                axes,
+                None if up is None else up[rows[lo : lo + step]],
+                ut_id[lo : lo + step],
+            )  # fmt: skip
+            for lo in range(0, n_ut, step)
+        ]
+        return (np.concatenate([p[j] for p in parts]) for j in (0, 1))
+
+    def evaluate(self, pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats):
+        """The engine's links of the pairs ``(rows, global satellite ids)`` of a block, in
+        one call (``pos``, ``up``: (n_k n_ut, 3) rows; ``sat_*``: (n_k, n_sat, 3)); lists
+        of index arrays are joined."""
+        if isinstance(rows, list):
+            rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+            sats = np.concatenate(sats) if sats else np.zeros(0, np.int64)
+        n_sat = sat_pos_m.shape[1]
+        key, inverse = np.unique((rows // n_ut) * n_sat + sats, return_inverse=True)
+        flat_pos = sat_pos_m.reshape(-1, 3)[key]
+        flat_vel = sat_vel_m_s.reshape(-1, 3)[key]
+        ut_id = np.arange(pos.shape[0]) % n_ut
+        links = self.engine.evaluate_pairs(
+            pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id
+        )
+        links.sat = sats  # global ids from here on
+        return links
+
+    def _tables(self, k0, n_ut, n_k, links, sure):
+        """Window tables and diagnostics of the sorted evaluated pairs."""
+        eng, nb, n_rows = self.engine, self.engine.n_beam, n_k * n_ut
+        vis = links.visible
+        rows, sat = links.ut[vis], links.sat[vis]
+        snr = links.take(np.flatnonzero(vis)).snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (m, nb)
+        n_visible = sure + np.bincount(rows, minlength=n_rows)
+        best_db = np.full(n_rows, np.nan)
+        if rows.size:
+            start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+            with np.errstate(invalid="ignore"):
+                pair_best = np.fmax.reduce(snr, axis=1)
+                best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
+        cell = sat[:, None] * nb + np.arange(nb)[None, :]
+        with np.errstate(invalid="ignore"):
+            keep = snr >= (best_db - self.window_db)[rows][:, None]
+        r = np.broadcast_to(rows[:, None], cell.shape)
+        table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
+        best_cell, _ = table.best()
+        return BlockCandidates(
+            k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
+        )

@@ -1,0 +1,107 @@
+"""The compiled kernels (engine/kernels.py) against the numpy reference, bit for bit.
+
+The kernels repeat the numpy code's operations in the same order (engine/kernels.py
+docstring), so every value must be identical, not close: the inputs are a real
+constellation epoch (4,399 satellites, the config's 1,000 UTs) and the pairs include
+satellites below the horizon, beam peaks and the other degenerate cases a run meets.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from leolink.app.scenario import build_scenario  # noqa: E402
+from leolink.config import load_config  # noqa: E402
+from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS, jit  # noqa: E402
+from leolink.engine.links import pair_geometry  # noqa: E402
+from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis  # noqa: E402
+from leolink.sim.mobility import concat_states  # noqa: E402
+
+CONSTELLATION = "configs/constellation.toml"
+COLUMNS = SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS
+
+
+@pytest.fixture(scope="module")
+def epoch():
+    """Engine, UT states, satellite states of the constellation at t = 30 s, and pairs:
+    every UT with 40 random satellites (most below the horizon) and with the satellite
+    nearest its zenith (the links a run serves)."""
+    scen = build_scenario(load_config(CONSTELLATION))
+    pos, vel, acc = (a[0] for a in scen.ephemeris(np.array([30.0])))
+    uts = concat_states([p.state(30.0) for _, p in scen.populations])
+    rng = np.random.default_rng(13)
+    n_ut = uts.n_ut
+    up = uts.pos_m / np.linalg.norm(uts.pos_m, axis=1, keepdims=True)
+    zenith = np.argmax(up @ (pos / np.linalg.norm(pos, axis=1, keepdims=True)).T, axis=1)
+    ut = np.concatenate([np.repeat(np.arange(n_ut), 40), np.arange(n_ut)])
+    sat = np.concatenate([rng.integers(0, len(pos), 40 * n_ut), zenith])
+    return scen.engine, uts, pos, vel, acc, ut, sat, rng
+
+
+def _numpy(monkeypatch):
+    monkeypatch.setattr(jit, "use", lambda n: False)
+
+
+def _same(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
+
+
+@pytest.mark.parametrize("ellipsoid_up", [False, True])
+def test_pair_geometry_and_kernels_are_the_numpy_bits(epoch, ellipsoid_up):
+    eng, uts, pos, vel, _, ut, sat, _ = epoch
+    up = enu_basis(uts.lat_rad, uts.lon_rad)[:, 2, :] if ellipsoid_up else None
+    ref = pair_geometry(eng, uts.pos_m, pos, vel, ut, sat, up)
+    got = jit.links_arrays(eng, uts.pos_m, pos, body_frame(pos, vel), ut, sat, up)
+    names = ("rel", "rho2", "rho", "elevation", "visible", "kx", "ky")
+    assert [n for n, a, b in zip(names, ref, got, strict=True) if not _same(a, b)] == []
+    assert got[4].sum() > 900  # the zenith pairs are visible: the test sees real links
+
+
+def test_evaluate_pairs_and_snr_db_are_the_numpy_bits(epoch, monkeypatch):
+    eng, uts, pos, vel, _, ut, sat, _ = epoch
+    assert jit.use(ut.size)
+    links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
+    snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)
+    _numpy(monkeypatch)
+    ref = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
+    assert _same(links.path_lin, ref.path_lin) and _same(links.kx, ref.kx)
+    assert _same(snr, ref.snr_db_bm(eng.beam_ix, eng.beam_iy))
+    assert np.isfinite(snr).sum() > 15 * 900
+
+
+@pytest.mark.parametrize("extras", [False, True])
+def test_serving_columns_are_the_numpy_bits(epoch, monkeypatch, extras):
+    """Every serving column, with and without fading, other-satellite interference and
+    given local frames; rows without a link (pair -1) are NaN in both."""
+    eng, uts, pos, vel, acc, ut, sat, rng = epoch
+    links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
+    n = 30_000
+    pair = rng.integers(-1, links.n_pair, n)
+    beam = rng.integers(0, eng.n_beam, n)
+    p = np.maximum(pair, 0)
+    args = (uts.vel_m_s[ut[p]], uts.acc_m_s2[ut[p]], vel[sat[p]], acc[sat[p]])
+    kw = {"ut_pos_m": uts.pos_m[ut[p]]}
+    if extras:
+        lat, lon, _ = ecef_to_geodetic(kw["ut_pos_m"])
+        kw.update(rx_fading_lin=rng.uniform(0.2, 1.5, n), i_other=rng.uniform(0.0, 0.3, n),
+                  ut_enu=enu_basis(lat, lon))  # fmt: skip
+    got = eng.serve_pairs(links, pair, beam, *args, **kw)
+    _numpy(monkeypatch)
+    ref = eng.serve_pairs(links, pair, beam, *args, **kw)
+    assert [c for c in COLUMNS if not _same(got[c], ref[c])] == []
+    assert np.isfinite(got["snr_db"]).sum() > 100 and np.isnan(got["snr_db"][pair < 0]).all()
+
+
+def test_turned_off_by_the_environment(monkeypatch):
+    monkeypatch.setenv("LEOLINK_JIT", "0")
+    jit.enabled.cache_clear()
+    try:
+        assert not jit.use(10**9)
+    finally:
+        monkeypatch.delenv("LEOLINK_JIT")
+        jit.enabled.cache_clear()
+    assert jit.use(jit.JIT_MIN_PAIRS) and not jit.use(jit.JIT_MIN_PAIRS - 1)

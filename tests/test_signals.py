@@ -1,0 +1,155 @@
+"""Issue 19: SIGINT and SIGTERM stop a run or a sweep cleanly; sweep workers die with
+their parent, also after SIGKILL of the parent. Real subprocesses, real signals.
+
+Each case asserts the exit code (130 / 143), the one line saying where it stopped, and
+the files left: no ``*.partial``, no ``run.json`` of an unfinished run, finished point
+runs of a sweep intact.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from reliability_helpers import FAST, PAPER, ROOT, files_in
+
+pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="Linux signals and /proc")
+LONG_RUN = [*FAST, "run.duration_s=100000"]  # hours: always stopped by the test
+WAIT_S = 120.0
+
+
+def _start(*argv):
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    cmd = [sys.executable, "-m", "leolink.cli", *map(str, argv)]
+    return subprocess.Popen(
+        cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
+def _sets(overrides):
+    return [a for o in overrides for a in ("--set", o)]
+
+
+def _wait_for(predicate, what):
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def _partials(folder):
+    return [f for f in files_in(folder) if ".partial" in f]
+
+
+def _children(pid):
+    """Pids of the live (not zombie) children of ``pid``."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rpartition(")")[2].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _kill_left(pids):
+    """SIGKILL whichever of ``pids`` still runs (a failing test leaves no orphans)."""
+    for pid in pids:
+        if _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def _alive(pid):
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie is dead, only not reaped yet
+
+
+@pytest.mark.parametrize(("sig", "code", "name"), [(signal.SIGTERM, 143, "SIGTERM"),
+                                                   (signal.SIGINT, 130, "SIGINT")])  # fmt: skip
+def test_a_stopped_run_leaves_no_partial_file_and_says_where(tmp_path, sig, code, name):
+    out = tmp_path / "run"
+    proc = _start("run", PAPER, *_sets(LONG_RUN), "--out", out, "--quiet")
+    _wait_for(lambda: _partials(out), "the trace's temporary file")
+    time.sleep(0.5)  # some epochs recorded
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=WAIT_S)
+    assert proc.returncode == code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"leolink: stopped by {name}: the run stopped after t = ")
+    assert "epoch " in lines[0] and " of 100000)" in lines[0]
+    assert f"{out} has no run.json (not a finished run)" in lines[0]
+    assert files_in(out) == []  # the trace and events were not finished: nothing is left
+
+
+def _sweep(out, workers="2", points="15,14,13,12"):
+    return _start(
+        "sweep", PAPER, *_sets(LONG_RUN), "--param", f"link.ptx_dbw={points}",
+        "--workers", workers, "--out", out, "--quiet",
+    )  # fmt: skip
+
+
+def test_sigterm_stops_a_parallel_sweep_and_its_workers(tmp_path):
+    out = tmp_path / "sweep"
+    proc = _sweep(out)
+    _wait_for(lambda: len(_partials(out)) >= 2, "both workers writing")
+    workers = _children(proc.pid)
+    assert len(workers) >= 2
+    proc.send_signal(signal.SIGTERM)
+    try:
+        _, err = proc.communicate(timeout=WAIT_S)
+    finally:
+        _kill_left(workers)
+    assert proc.returncode == 143, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("leolink: stopped by SIGTERM: the sweep "), err
+    assert "stopped with 0 of 4 points finished" in lines[0] and "--resume" in lines[0]
+    _wait_for(lambda: not any(_alive(w) for w in workers), "the workers to exit")
+    assert _partials(out) == [] and "sweep.csv" not in files_in(out)
+
+
+def test_workers_die_after_sigkill_of_their_parent(tmp_path):
+    out = tmp_path / "sweep"
+    proc = _sweep(out)
+    _wait_for(lambda: len(_partials(out)) >= 2, "both workers writing")
+    workers = _children(proc.pid)
+    assert len(workers) >= 2
+    proc.kill()  # SIGKILL: no handler runs in the parent
+    try:
+        # prctl(PR_SET_PDEATHSIG) sends each worker SIGTERM: it aborts its point and exits
+        _wait_for(lambda: not any(_alive(w) for w in workers), "the orphaned workers to exit")
+    finally:
+        _kill_left(workers)
+    proc.communicate(timeout=WAIT_S)  # the pipes close once the workers are gone
+    assert _partials(out) == []
+
+
+def test_a_finished_point_survives_a_stopped_sweep(tmp_path):
+    """Serial sweep: the first point is short and finishes, the second runs for hours."""
+    out = tmp_path / "sweep"
+    proc = _start(
+        "sweep", PAPER, *_sets(FAST), "--param", "run.duration_s=2,100000",
+        "--out", out, "--quiet",
+    )  # fmt: skip
+    second = out / "runs" / "0001_run.duration_s=100000"
+    _wait_for(lambda: _partials(second), "the second point writing")
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=WAIT_S)
+    assert proc.returncode == 143
+    assert "stopped with 1 of 2 points finished (0000_run.duration_s=2)" in err
+    left = files_in(out)
+    assert "runs/0000_run.duration_s=2/run.json" in left
+    assert not [f for f in left if f.startswith("runs/0001")] and _partials(out) == []
