@@ -1,7 +1,12 @@
 """Run statistics streamed in bounded memory: the summary of ``summary.json``.
 
 :class:`SummaryAccumulator` is a sink (:class:`leolink.sim.streams.Sink`): fed every
-recorded epoch, it keeps per-UT counts, sums and the samples the percentiles need.
+recorded epoch, it keeps per-UT counts, sums and histograms, in memory that does not grow
+with the number of epochs (dwell records aside: one per serving change).
+
+Per-UT statistics of a run with more than :data:`PER_UT_IN_JSON_MAX` UTs stay out of
+``summary.json``: :meth:`SummaryAccumulator.per_ut_table` gives them as columns (written
+as ``per_ut.parquet`` by :mod:`leolink.app.run`).
 """
 
 from __future__ import annotations
@@ -9,30 +14,38 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.io.atomic import to_jsonable
+from leolink.io.summary_records import (
+    STAT_KEYS,
+    by_reason,
+    handover_counts,
+    nanmax,
+    per_ut_records,
+)
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
+from leolink.sim.kpi import GroupedPercentileHistogram, PercentileHistogram
 from leolink.sim.processes import OUTAGE_REASONS
 
-__all__ = ["SummaryAccumulator", "grouped_percentiles"]
+__all__ = [
+    "DB_RANGE",
+    "OVERALL_RESOLUTION_DB",
+    "PER_UT_IN_JSON_MAX",
+    "PER_UT_RESOLUTION_DB",
+    "SummaryAccumulator",
+    "grouped_percentiles",
+]
 
-
-class _Growable:
-    """Append-only 1-D array with amortized doubling."""
-
-    def __init__(self, dtype):
-        self._data, self._n = np.empty(1024, dtype), 0
-
-    def append(self, values):
-        values = np.asarray(values, self._data.dtype)
-        need = self._n + values.size
-        if need > self._data.size:
-            grown = np.empty(max(need, 2 * self._data.size), self._data.dtype)
-            grown[: self._n] = self._data[: self._n]
-            self._data = grown
-        self._data[self._n : need] = values
-        self._n = need
-
-    def view(self):
-        return self._data[: self._n]
+#: Runs with more UTs keep per-UT statistics out of summary.json (``per_ut.parquet``).
+PER_UT_IN_JSON_MAX = 1000
+#: SNR/SINR histogram range [dB]: values outside are counted as below / above it.
+DB_RANGE = (-200.0, 200.0)
+#: Bin of the pooled SNR/SINR percentiles [dB] (within half a bin of numpy.percentile).
+OVERALL_RESOLUTION_DB = 0.01
+#: Bin of the per-UT SNR/SINR percentiles [dB]: coarser, so that the per-UT histograms of
+#: a long run stay small (a UT's SNR spans a few hundred 0.1 dB bins).
+PER_UT_RESOLUTION_DB = 0.1
+# Trace rows buffered before they are folded into the statistics (~4 MiB): one set of
+# numpy calls per 64 Ki rows, not per epoch (the fixed cost of a small run's epoch).
+_POOL_BUFFER = 1 << 16
 
 
 def grouped_percentiles(group, values, n_group, q_percent):
@@ -71,6 +84,42 @@ def grouped_percentiles(group, values, n_group, q_percent):
     return out
 
 
+def _running_sum(total, group, values):
+    """``total`` plus the ``values`` of each group, added one by one in their order (the
+    same float rounding as adding them one call at a time)."""
+    n = total.size
+    return np.bincount(np.r_[np.arange(n), group], np.r_[total, values], minlength=n)
+
+
+class _DbStats:
+    """Streamed statistics of one dB column: per-UT count, sum and histogram, pooled
+    histogram (finite values only)."""
+
+    def __init__(self, n_ut):
+        self.count, self.sum = np.zeros(n_ut, np.int64), np.zeros(n_ut)
+        self.pooled = PercentileHistogram(*DB_RANGE, OVERALL_RESOLUTION_DB)
+        self.per_ut = GroupedPercentileHistogram(n_ut, *DB_RANGE, PER_UT_RESOLUTION_DB)
+
+    def add(self, ut, values):
+        ok = np.isfinite(values)
+        ut, values = ut[ok], values[ok]
+        self.count += np.bincount(ut, minlength=self.count.size)
+        self.sum[:] = _running_sum(self.sum, ut, values)
+        self.per_ut.add(ut, values)
+        self.pooled.add(values)
+
+    def per_ut_stats(self):
+        """(n_ut, 4): mean, p5, p50, p95 [dB]."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = self.sum / self.count
+        return np.column_stack([mean, self.per_ut.percentiles(_PERCENTILES)])
+
+    def overall(self):
+        n = int(self.count.sum())
+        pooled = self.pooled.percentiles(_PERCENTILES) if n else [None] * 3
+        return dict(zip(STAT_KEYS, [self.sum.sum() / n if n else None, *pooled], strict=True))
+
+
 def _codes(values, names):
     """Integer codes of a coded column given as codes or as names (-1: unknown)."""
     values = np.asarray(values)
@@ -92,13 +141,21 @@ _BELOW_THRESHOLD = OUTAGE_REASONS.index("below_threshold")
 
 _PERCENTILES = (5.0, 50.0, 95.0)
 
+_DB_COLUMNS = ("snr_db", "sinr_db")
+_BUFFERED = ("throughput_bps", "doppler_hz", "angular_speed_deg_s", *_DB_COLUMNS)
+_DWELL_KEYS = ("ut_id", "sat_id", "beam_id", "start_s", "end_s", "censored_start", "censored_end")
+
 
 class SummaryAccumulator:
     """Running per-UT statistics of a run in bounded memory.
 
     Feed it every epoch with :meth:`add_trace` (the trace columns), :meth:`add_events` and
-    :meth:`add_dwells`. SNR and SINR samples are kept per UT as float32 (percentiles exact
-    to float32 rounding, < 1e-5 dB at |x| < 100 dB); sums are float64.
+    :meth:`add_dwells`. Means and sums are exact (float64). SNR and SINR percentiles come
+    from fixed-bin histograms over :data:`DB_RANGE`: the pooled ones (``overall``) with
+    bins of :data:`OVERALL_RESOLUTION_DB` (0.01 dB), the per-UT ones with bins of
+    :data:`PER_UT_RESOLUTION_DB` (0.1 dB); each is within half its bin of
+    ``numpy.percentile`` (linear) on the same samples. Memory: ~0.6 MB + ``n_ut x`` the
+    0.1 dB bins each UT's values visit (12 B each), whatever the run length.
 
     Definitions: outage fraction = epochs with ``service == outage`` / epochs; SNR/SINR
     mean and percentiles over the epochs where the value is finite (mean of dB values);
@@ -149,45 +206,57 @@ class SummaryAccumulator:
         self.max_abs_doppler_hz = np.full(self.n_ut, np.nan)
         self.max_angular_speed_deg_s = np.full(self.n_ut, np.nan)
         self.event_counts = np.zeros((len(EVENT_KINDS), self.n_ut), np.int64)
-        self._samples = {
-            k: (_Growable(np.int32), _Growable(np.float32)) for k in ("snr_db", "sinr_db")
-        }
-        self._sums = {k: zeros(np.float64) for k in self._samples}
+        self._db = {k: _DbStats(self.n_ut) for k in _DB_COLUMNS}
         self._dwells = []
+        self._rows, self._n_rows = [], 0
 
     def add_trace(self, columns):
         """Add trace rows (dict of 1-D arrays; needs ``ut_id``, ``service``, ``snr_db``,
-        ``sinr_db``, ``throughput_bps``, ``doppler_hz``, ``angular_speed_deg_s``)."""
+        ``sinr_db``, ``throughput_bps``, ``doppler_hz``, ``angular_speed_deg_s``).
+
+        Rows are buffered and folded into the statistics every :data:`_POOL_BUFFER` rows
+        (a run's small epochs cost one append each, not ~20 numpy calls); a per-UT sum
+        still adds the rows in their order, so it is the same number either way.
+        """
         ut = np.asarray(columns["ut_id"], np.int64)
-        n = self.n_ut
-        self.n_epochs += np.bincount(ut, minlength=n)
         codes = _service_codes(columns["service"])
-        self.n_outage += np.bincount(ut, codes == SERVICE_OUTAGE, minlength=n).astype(np.int64)
-        handover = codes == SERVICE_HANDOVER
         # Rows without the interruption_s column (older traces): a whole epoch each.
         gap = columns.get("interruption_s")
-        gap = np.where(handover, self.epoch_s, 0.0) if gap is None else np.asarray(gap, float)
-        self.interrupted_s += np.bincount(ut, gap, minlength=n)
-        if "outage_reason" in columns:
-            reason = _codes(columns["outage_reason"], OUTAGE_REASONS)
-            for store, code in (
-                (self.n_no_satellite, _NO_SATELLITE),
-                (self.n_below_threshold, _BELOW_THRESHOLD),
-            ):
-                store += np.bincount(ut, reason == code, minlength=n).astype(np.int64)
-        tput = np.nan_to_num(np.asarray(columns["throughput_bps"], float), nan=0.0)
-        self.throughput_sum += np.bincount(ut, tput, minlength=n)
-        np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(columns["doppler_hz"], float)))
-        np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(columns["angular_speed_deg_s"]))
-        for key, (ut_store, val_store) in self._samples.items():
-            values = np.asarray(columns[key], float)
-            ok = np.isfinite(values)
-            ut_store.append(ut[ok])
-            val_store.append(values[ok])
-            self._sums[key] += np.bincount(ut[ok], values[ok], minlength=n)
+        if gap is None:
+            gap = np.where(codes == SERVICE_HANDOVER, self.epoch_s, 0.0)
+        reason = columns.get("outage_reason")
+        reason = np.full(ut.shape, -1) if reason is None else _codes(reason, OUTAGE_REASONS)
+        piece = {"ut": ut, "service": codes, "gap": gap, "reason": reason}
+        for key in _BUFFERED:
+            piece[key] = columns[key]
+        self._rows.append(piece)
+        self._n_rows += ut.size
+        if self._n_rows >= _POOL_BUFFER:
+            self._fold()
+
+    def _fold(self):
+        """Add the buffered rows to the statistics."""
+        if not self._rows:
+            return
+        c = {k: np.concatenate([np.asarray(r[k]) for r in self._rows]) for k in self._rows[0]}
+        self._rows, self._n_rows = [], 0
+        ut, n = c["ut"], self.n_ut
+        self.n_epochs += np.bincount(ut, minlength=n)
+        self.n_outage += np.bincount(ut[c["service"] == SERVICE_OUTAGE], minlength=n)
+        self.interrupted_s[:] = _running_sum(self.interrupted_s, ut, c["gap"])
+        self.n_no_satellite += np.bincount(ut[c["reason"] == _NO_SATELLITE], minlength=n)
+        self.n_below_threshold += np.bincount(ut[c["reason"] == _BELOW_THRESHOLD], minlength=n)
+        tput = np.nan_to_num(np.asarray(c["throughput_bps"], float), nan=0.0)
+        self.throughput_sum[:] = _running_sum(self.throughput_sum, ut, tput)
+        np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(c["doppler_hz"], float)))
+        np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(c["angular_speed_deg_s"], float))
+        for key, stats in self._db.items():
+            stats.add(ut, np.asarray(c[key], float))
 
     def add_events(self, events):
         """Count events by kind and UT (dict with ``ut_id`` and ``kind``)."""
+        if not len(events["ut_id"]):
+            return
         kind = np.asarray(events["kind"]).astype(str)
         ut = np.asarray(events["ut_id"], np.int64)
         for i, name in enumerate(EVENT_KINDS):
@@ -196,147 +265,113 @@ class SummaryAccumulator:
     def add_dwells(self, dwells):
         """Keep dwell records (dict of arrays, ``controller.DWELL_COLUMNS``)."""
         if len(dwells["ut_id"]):
-            self._dwells.append({k: np.asarray(v) for k, v in dwells.items()})
+            self._dwells.append({k: np.asarray(dwells[k]) for k in _DWELL_KEYS})
 
-    def _dwell_frame(self):
-        keys = ("ut_id", "sat_id", "beam_id", "start_s", "end_s", "censored_start", "censored_end")
+    def dwell_table(self):
+        """Every dwell, sorted by UT then start: ``DWELL_COLUMNS`` + ``duration_s``."""
         if not self._dwells:
-            return {k: np.zeros(0, bool if k.startswith("censored") else float) for k in keys}
-        d = {k: np.concatenate([x[k] for x in self._dwells]) for k in keys}
-        order = np.lexsort((d["start_s"], d["ut_id"]))
-        return {k: v[order] for k, v in d.items()}
+            d = {k: np.zeros(0, bool if k.startswith("censored") else float) for k in _DWELL_KEYS}
+        else:
+            d = {k: np.concatenate([x[k] for x in self._dwells]) for k in _DWELL_KEYS}
+            self._dwells = [d]  # one block from now on
+            order = np.lexsort((d["start_s"], d["ut_id"]))
+            d = {k: v[order] for k, v in d.items()}
+        d["duration_s"] = d["end_s"] - d["start_s"]
+        return d
 
-    def _stats(self, key):
-        ut, values = (s.view() for s in self._samples[key])
-        count = np.bincount(ut, minlength=self.n_ut)
+    def _dwell_stats(self, d):
+        """Per-UT columns of complete/censored dwells, and the complete mask."""
+        complete = ~(d["censored_start"].astype(bool) | d["censored_end"].astype(bool))
+        ut = d["ut_id"].astype(np.int64)
+        n_complete = np.bincount(ut[complete], minlength=self.n_ut)
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean = self._sums[key] / count
-        pct = grouped_percentiles(ut, values, self.n_ut, _PERCENTILES)
-        pooled = (
-            np.percentile(values.astype(np.float64), _PERCENTILES) if values.size else [None] * 3
-        )
-        overall_mean = self._sums[key].sum() / values.size if values.size else None
-        per_ut = [
-            dict(zip(("mean", "p5", "p50", "p95"), row, strict=True))
-            for row in np.column_stack([mean, pct]).tolist()
-        ]
-        overall = dict(zip(("mean", "p5", "p50", "p95"), [overall_mean, *pooled], strict=True))
-        return per_ut, overall
-
-    def _dwell_summary(self):
-        """Per-UT dwell dicts and the pooled one (complete dwells only in mean/median)."""
-        d = self._dwell_frame()
-        duration = d["end_s"] - d["start_s"]
-        complete = ~(d["censored_start"] | d["censored_end"])
-        ut_c = d["ut_id"][complete].astype(np.int64)
-        n_complete = np.bincount(ut_c, minlength=self.n_ut)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.bincount(ut_c, duration[complete], minlength=self.n_ut) / n_complete
-        median = grouped_percentiles(ut_c, duration[complete], self.n_ut, [50.0])[:, 0]
-        complete_lists = np.split(duration[complete], np.cumsum(n_complete)[:-1])
-        cens = ~complete
-        records = _records(d, duration, cens)
-        n_cens = np.bincount(d["ut_id"][cens].astype(np.int64), minlength=self.n_ut)
-        bounds = np.concatenate(([0], np.cumsum(n_cens)))
-        per_ut = [
-            {
-                "n_complete": n_complete[i],
-                "mean_s": mean[i],
-                "median_s": median[i],
-                "complete_s": complete_lists[i],
-                "censored": records[bounds[i] : bounds[i + 1]],
-            }
-            for i in range(self.n_ut)  # output formatting only; statistics are vectorized
-        ]
-        overall = {
-            "n_complete": int(complete.sum()),
-            "complete_s": duration[complete].tolist(),
-            "n_censored": int(cens.sum()),
-            "mean_s": duration[complete].mean() if complete.any() else None,
-            "median_s": np.median(duration[complete]) if complete.any() else None,
+            mean = np.bincount(ut[complete], d["duration_s"][complete], minlength=self.n_ut)
+            mean = mean / n_complete
+        median = grouped_percentiles(ut[complete], d["duration_s"][complete], self.n_ut, [50.0])
+        cols = {
+            "n_dwell_complete": n_complete,
+            "dwell_mean_s": mean,
+            "dwell_median_s": median[:, 0],
+            "n_dwell_censored": np.bincount(ut[~complete], minlength=self.n_ut),
         }
-        return per_ut, overall
+        return cols, complete
 
-    def summary(self):
-        """``{"overall": {...}, "per_ut": [{...}, ...]}``, JSON-ready (NaN -> None)."""
-        if self._final is not None:
-            return self._final
-        dwell_ut, dwell_all = self._dwell_summary()
+    def per_ut_table(self, dwells=None):
+        """Per-UT statistics as columns, one row per UT (``per_ut.parquet``).
+
+        Columns: ``ut_id, n_epochs``, ``n_<event kind>`` and ``n_handovers_total``,
+        ``n_dwell_complete, dwell_mean_s, dwell_median_s, n_dwell_censored``,
+        ``outage_fraction``, ``outage_fraction_no_satellite``,
+        ``outage_fraction_below_threshold``, ``handover_interruption_fraction``,
+        ``snr_mean_db, snr_p5_db, snr_p50_db, snr_p95_db`` and the same for ``sinr``,
+        ``mean_throughput_bps, max_abs_doppler_hz, max_angular_speed_deg_s``.
+        """
+        self._fold()
+        d = self.dwell_table() if dwells is None else dwells
         with np.errstate(invalid="ignore", divide="ignore"):
-            outage_fraction = self.n_outage / self.n_epochs
-            interrupted_fraction = self.interrupted_s / (self.n_epochs * self.epoch_s)
-            no_sat = self.n_no_satellite / self.n_epochs
-            below = self.n_below_threshold / self.n_epochs
-            tput_mean = self.throughput_sum / self.n_epochs
-        snr_ut, snr_all = self._stats("snr_db")
-        sinr_ut, sinr_all = self._stats("sinr_db")
-        counts = {k: self.event_counts[i] for i, k in enumerate(EVENT_KINDS)}
-        per_ut = []
-        for i in range(self.n_ut):  # output formatting only; all statistics are vectorized
-            per_ut.append(
-                {
-                    "ut_id": i,
-                    "n_epochs": self.n_epochs[i],
-                    "handovers": _handover_counts({k: c[i] for k, c in counts.items()}),
-                    "dwell": dwell_ut[i],
-                    "outage_fraction": outage_fraction[i],
-                    "outage_fraction_by_reason": _by_reason(
-                        no_sat[i], below[i], interrupted_fraction[i]
-                    ),
-                    "handover_interruption_fraction": interrupted_fraction[i],
-                    "snr_db": snr_ut[i],
-                    "sinr_db": sinr_ut[i],
-                    "mean_throughput_bps": tput_mean[i],
-                    "max_abs_doppler_hz": self.max_abs_doppler_hz[i],
-                    "max_angular_speed_deg_s": self.max_angular_speed_deg_s[i],
-                }
-            )
-        n_all = self.n_epochs.sum()
-        t_all = n_all * self.epoch_s
-        interrupted_all = self.interrupted_s.sum() / t_all if n_all else None
-        overall = {
+            epochs = self.n_epochs.astype(float)
+            table = {"ut_id": np.arange(self.n_ut), "n_epochs": self.n_epochs}
+            for i, kind in enumerate(EVENT_KINDS):
+                table[f"n_{kind}"] = self.event_counts[i]
+            table["n_handovers_total"] = self.event_counts[0] + self.event_counts[1]
+            table.update(self._dwell_stats(d)[0])
+            table["outage_fraction"] = self.n_outage / epochs
+            table["outage_fraction_no_satellite"] = self.n_no_satellite / epochs
+            table["outage_fraction_below_threshold"] = self.n_below_threshold / epochs
+            table["handover_interruption_fraction"] = self.interrupted_s / (epochs * self.epoch_s)
+            for key, stats in self._db.items():
+                name = key.removesuffix("_db")
+                for stat, col in zip(STAT_KEYS, stats.per_ut_stats().T, strict=True):
+                    table[f"{name}_{stat}_db"] = col
+            table["mean_throughput_bps"] = self.throughput_sum / epochs
+        table["max_abs_doppler_hz"] = self.max_abs_doppler_hz
+        table["max_angular_speed_deg_s"] = self.max_angular_speed_deg_s
+        return table
+
+    def _overall(self, d, complete, per_ut_in_json):
+        n_all = int(self.n_epochs.sum())
+        frac = (lambda x: x / n_all) if n_all else (lambda x: None)  # noqa: E731
+        interrupted_all = self.interrupted_s.sum() / (n_all * self.epoch_s) if n_all else None
+        done = d["duration_s"][complete]
+        dwell = {"n_complete": int(complete.sum())}
+        if per_ut_in_json:
+            dwell["complete_s"] = done.tolist()
+        dwell["n_censored"] = int((~complete).sum())
+        dwell["mean_s"] = done.mean() if done.size else None
+        dwell["median_s"] = np.median(done) if done.size else None
+        counts = {k: self.event_counts[i].sum() for i, k in enumerate(EVENT_KINDS)}
+        return {
             "n_ut": self.n_ut,
             "n_ut_epochs": n_all,
-            "handovers": _handover_counts({k: c.sum() for k, c in counts.items()}),
-            "dwell": dwell_all,
-            "outage_fraction": self.n_outage.sum() / n_all if n_all else None,
-            "outage_fraction_by_reason": _by_reason(
-                self.n_no_satellite.sum() / n_all if n_all else None,
-                self.n_below_threshold.sum() / n_all if n_all else None,
+            "handovers": handover_counts(counts),
+            "dwell": dwell,
+            "outage_fraction": frac(self.n_outage.sum()),
+            "outage_fraction_by_reason": by_reason(
+                frac(self.n_no_satellite.sum()),
+                frac(self.n_below_threshold.sum()),
                 interrupted_all,
-            ),
+            ),  # fmt: skip
             "handover_interruption_fraction": interrupted_all,
-            "snr_db": snr_all,
-            "sinr_db": sinr_all,
-            "mean_throughput_bps": self.throughput_sum.sum() / n_all if n_all else None,
-            "max_abs_doppler_hz": _nanmax(self.max_abs_doppler_hz),
-            "max_angular_speed_deg_s": _nanmax(self.max_angular_speed_deg_s),
+            "snr_db": self._db["snr_db"].overall(),
+            "sinr_db": self._db["sinr_db"].overall(),
+            "mean_throughput_bps": frac(self.throughput_sum.sum()),
+            "max_abs_doppler_hz": nanmax(self.max_abs_doppler_hz),
+            "max_angular_speed_deg_s": nanmax(self.max_angular_speed_deg_s),
         }
-        return to_jsonable({"overall": overall, "per_ut": per_ut})
 
+    def summary(self):
+        """``{"overall": {...}, "per_ut": [{...}, ...]}``, JSON-ready (NaN -> None).
 
-def _by_reason(no_satellite, below_threshold, handover):
-    return {
-        "no_satellite": no_satellite,
-        "below_threshold": below_threshold,
-        "handover": handover,
-    }
-
-
-def _nanmax(x):
-    return float(np.nanmax(x)) if np.isfinite(x).any() else None
-
-
-def _handover_counts(by_kind):
-    out = {k: int(v) for k, v in by_kind.items()}
-    out["handovers_total"] = out["beam_handover"] + out["sat_handover"]
-    return out
-
-
-def _records(d, duration, mask):
-    """Dwell records (list of dicts) of the rows in ``mask``."""
-    cols = {k: d[k][mask].tolist() for k in ("sat_id", "beam_id", "start_s", "end_s")}
-    cols["duration_s"] = duration[mask].tolist()
-    cols["censored_start"] = d["censored_start"][mask].tolist()
-    cols["censored_end"] = d["censored_end"][mask].tolist()
-    return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
+        With more than :data:`PER_UT_IN_JSON_MAX` UTs, ``per_ut`` and the overall list of
+        dwell durations are left out (see :meth:`per_ut_table`, :meth:`dwell_table`).
+        """
+        if self._final is not None:
+            return self._final
+        self._fold()
+        d = self.dwell_table()
+        in_json = self.n_ut <= PER_UT_IN_JSON_MAX
+        _, complete = self._dwell_stats(d)
+        out = {"overall": self._overall(d, complete, in_json)}
+        if in_json:
+            out["per_ut"] = per_ut_records(self.per_ut_table(d), d, complete)
+        return to_jsonable(out)
