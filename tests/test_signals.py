@@ -153,3 +153,43 @@ def test_a_finished_point_survives_a_stopped_sweep(tmp_path):
     left = files_in(out)
     assert "runs/0000_run.duration_s=2/run.json" in left
     assert not [f for f in left if f.startswith("runs/0001")] and _partials(out) == []
+
+
+def test_a_signal_while_a_later_sink_starts_leaves_no_partial_file(tmp_path, monkeypatch, capsys):
+    """The window that made the sweep tests flaky: SIGTERM arrives after the trace sink
+    opened ``trace.csv.<hex>.partial`` but while the events sink is still starting (its
+    lazy ``pyarrow.parquet`` import takes ~0.2 s). The earlier sinks must abort too."""
+    from leolink.io import tables
+    from reliability_helpers import cli
+
+    real_init = tables.EventLog.__init__
+
+    def signalled_init(self, *args, **kwargs):
+        assert _partials(tmp_path / "run")  # the trace's temporary file is open
+        os.kill(os.getpid(), signal.SIGTERM)  # handled at the next bytecode: raises here
+        real_init(self, *args, **kwargs)
+
+    monkeypatch.setattr(tables.EventLog, "__init__", signalled_init)
+    out = tmp_path / "run"
+    code, _, err = cli(capsys, "run", PAPER, *_sets([*FAST, "run.duration_s=3"]), "--out", out)
+    assert code == 143, err
+    assert "stopped by SIGTERM" in err and files_in(out) == []
+
+
+def test_a_signal_just_after_the_temporary_file_is_created(tmp_path, monkeypatch):
+    """``PendingFiles.open``: a handler raising right after ``os.open`` returned (before
+    the file object exists) still leaves a name that ``abort`` removes."""
+    from leolink.io import atomic
+
+    def interrupted(fd, mode):
+        os.close(fd)
+        raise KeyboardInterrupt
+
+    pending = atomic.PendingFiles()
+    monkeypatch.setattr(atomic.os, "fdopen", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        pending.open(tmp_path / "trace.csv")
+    monkeypatch.undo()
+    assert len(_partials(tmp_path)) == 1  # the file exists, its object does not
+    pending.abort()
+    assert files_in(tmp_path) == []

@@ -84,16 +84,6 @@ class Result(ResultViews):
         return self._written("events", "events")
 
 
-def _epoch_utc(cfg):
-    """UTC of time 0 for the report's exports, only when the report is on (the report
-    sink's module imports pandas: ~0.5-1.5 s of a small run's start-up)."""
-    if not cfg.output.report.enabled:
-        return None
-    from leolink.io.report_sink import epoch_utc_of
-
-    return epoch_utc_of(cfg)
-
-
 class _Position:
     """A sink that only remembers the last recorded epoch (where an interrupted run stopped)."""
 

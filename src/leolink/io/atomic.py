@@ -45,15 +45,25 @@ class PendingFiles:
     """
 
     def __init__(self):
-        self._items: list[tuple[Path, Path, BinaryIO]] = []
+        self._items: list[list] = []  # [temporary path, final path, file or None]
 
     def open(self, path) -> BinaryIO:
-        """A new binary file that becomes ``path`` on commit."""
+        """A new binary file that becomes ``path`` on commit.
+
+        The temporary name is registered before the file is created: a signal raised
+        just after ``os.open`` returns (Python runs handlers between bytecodes) still
+        leaves a name that :meth:`abort` removes.
+        """
         path = Path(path)
         tmp = path.with_name(f"{path.name}.{secrets.token_hex(4)}{PARTIAL_SUFFIX}")
-        handle = os.fdopen(os.open(tmp, _FLAGS, 0o644), "wb")
-        self._items.append((tmp, path, handle))
-        return handle
+        item = [tmp, path, None]
+        self._items.append(item)
+        try:
+            item[2] = os.fdopen(os.open(tmp, _FLAGS, 0o644), "wb")
+        except OSError:
+            self._items.remove(item)  # nothing was created (or not by us: O_EXCL)
+            raise
+        return item[2]
 
     @property
     def targets(self) -> list[Path]:
@@ -76,8 +86,9 @@ class PendingFiles:
     def abort(self) -> None:
         """Close and remove every temporary file (already renamed ones stay)."""
         for tmp, _, handle in self._items:
-            with contextlib.suppress(Exception):
-                handle.close()
+            if handle is not None:
+                with contextlib.suppress(Exception):
+                    handle.close()
             with contextlib.suppress(FileNotFoundError):
                 tmp.unlink()
         self._items = []

@@ -196,8 +196,8 @@ def run_simulation(
         float(times[scen.n_warmup]), len(times) - scen.n_warmup, names,
     )  # fmt: skip
     t_wall = time.perf_counter()
-    sink.start(info)
-    try:
+    try:  # start inside: a signal while the later sinks start aborts the earlier ones
+        sink.start(info)
         _advance(env, times, scen.epoch_s, progress)
         t_end = float(times[-1]) + scen.epoch_s
         sink.finish(FinalFrame(t_end, final_dwells(state, t_end, scen.engine.n_beam)))

@@ -53,6 +53,15 @@ class EpochFrame:
     events : dict of 1-D arrays, ``controller.EVENT_COLUMNS``, this epoch's events.
     dwells : dict of 1-D arrays, ``controller.DWELL_COLUMNS``, dwells closed this epoch
         (``censored_start`` also set for dwells that began in the warm-up).
+
+    Notes
+    -----
+    The arrays are handed over, read-only: the simulator never writes into an array
+    after the ``epoch`` call that carried it (each frame's arrays are new, or, like
+    ``population``, the same constant array every epoch), so a sink may keep references
+    instead of copying (the trace writer buffers them until a chunk is written, on a
+    background thread). A sink must not modify them: the other sinks see the same arrays.
+    A producer of frames that reuses buffers across epochs must copy before the call.
     """
 
     k: int
@@ -90,12 +99,18 @@ class SinkGroup:
 
     def __init__(self, sinks):
         self.sinks = list(sinks)
+        self._started: list = []
         for sink in self.sinks:
             if not isinstance(sink, Sink):
                 raise TypeError(f"{type(sink).__name__} does not follow the Sink protocol")
 
     def start(self, info):
+        """Start the sinks in order; a sink is counted started (``abort`` reaches it) as
+        soon as its ``start`` is entered, so a failure or a signal in the middle of a later
+        sink's start still lets the earlier ones remove the files they opened."""
+        self._started = []
         for sink in self.sinks:
+            self._started.append(sink)
             sink.start(info)
 
     def epoch(self, frame):
@@ -107,5 +122,6 @@ class SinkGroup:
             sink.finish(final)
 
     def abort(self):
-        for sink in self.sinks:
+        """Abort every sink whose ``start`` was entered (all of them after a full start)."""
+        for sink in self._started:
             sink.abort()
