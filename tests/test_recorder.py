@@ -15,6 +15,7 @@ from leolink.io.summary import (
     grouped_percentiles,
 )
 from leolink.io.tables import TRACE_COLUMNS, TRACE_FLOAT64_COLUMNS, EventLog, TraceWriter
+from leolink.link.modcod import modcod_table
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES, ControllerState, close_dwells, step
 from leolink.sim.policies import MaxSnr
 from leolink.sim.processes import OUTAGE_REASONS
@@ -22,6 +23,8 @@ from leolink.sim.processes import OUTAGE_REASONS
 # Percentiles from fixed-bin histograms: within half a bin of numpy (+ float rounding).
 PER_UT_DB = PER_UT_RESOLUTION_DB / 2 + 1e-9
 OVERALL_DB = OVERALL_RESOLUTION_DB / 2 + 1e-9
+#: The trace's MODCOD names by code; code -1 is written "none".
+MODCOD_NAMES = (*modcod_table().names, "none")
 
 
 def random_epoch(rng, t_s, n_ut):
@@ -44,6 +47,7 @@ def random_epoch(rng, t_s, n_ut):
     cols["outage_reason"] = np.where(service == 2, 3 - (cols["n_visible"] == 0), service)
     cols["population"] = np.asarray(["static", "car", "train"], dtype=object)[np.arange(n_ut) % 3]
     cols["interruption_s"] = np.where(service == 1, rng.uniform(0.0, 1.0, n_ut), 0.0)
+    cols["modcod"] = np.where(service == 2, -1, rng.integers(-1, len(MODCOD_NAMES) - 1, n_ut))
     return cols
 
 
@@ -56,6 +60,7 @@ def as_frame(epochs):
     df = pd.DataFrame({k: np.concatenate([e[k] for e in epochs]) for k in TRACE_COLUMNS})
     df["service"] = np.asarray(SERVICE_NAMES)[df["service"]]
     df["outage_reason"] = np.asarray(OUTAGE_REASONS)[df["outage_reason"]]
+    df["modcod"] = np.asarray(MODCOD_NAMES)[df["modcod"]]  # code -1: the last name, "none"
     return df
 
 

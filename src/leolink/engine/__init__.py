@@ -33,6 +33,7 @@ from leolink.engine.links import (
     azimuth_deg,
     group_constants_db,
     pair_geometry,
+    panel_elevation_of_pairs,
     reuse_colors,
     rows_gain_db,
 )
@@ -70,8 +71,8 @@ SERVE_GEOMETRY_COLUMNS = ("azimuth_deg",)
 class LinkParams:
     """Scalars of the link budget (paper's Table).
 
-    ``ptx_dbw`` is the power of one beam (one RF chain), as in the paper.
-    """
+    ``ptx_dbw``: power of one beam (one RF chain), as in the paper; ``other_loss_db``: the
+    losses besides FSPL and atmosphere (TR 38.821 Table 6.1.3.3-1)."""
 
     freq_hz: float
     bandwidth_hz: float
@@ -79,6 +80,7 @@ class LinkParams:
     cable_loss_db: float
     noise_temp_dbk: float
     min_elevation_rad: float
+    other_loss_db: float = 0.0
 
 
 class LinkEngine:
@@ -115,7 +117,7 @@ class LinkEngine:
         self.bandwidth_hz = params.bandwidth_hz / self.n_colors
         self.noise_dbw = float(noise_power_dbw(params.noise_temp_dbk, self.bandwidth_hz))
         # SNR per unit TX gain = K / rho^2 x G_rx / L_atm (Eq. of RSS and FSPL, in watts).
-        k_db = params.ptx_dbw - params.cable_loss_db - self.noise_dbw
+        k_db = params.ptx_dbw - params.cable_loss_db - params.other_loss_db - self.noise_dbw
         self._k_lin = (
             10.0 ** (k_db / 10.0) / (4.0 * np.pi * params.freq_hz / SPEED_OF_LIGHT_M_S) ** 2
         )
@@ -137,7 +139,7 @@ class LinkEngine:
         cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
         return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)
 
-    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None):
+    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None, ut_panel=None):
         """Geometry, gains and SNR for every (UT, satellite, beam).
 
         Parameters
@@ -148,6 +150,9 @@ class LinkEngine:
         ut_enu : ndarray, shape (n_ut, 3, 3), optional
             Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
             elevations, azimuths and panel frames use them. None: the sphere's radial up.
+        ut_panel : ndarray, shape (n_ut, 3, 3), optional
+            Turned or tilted panels (rows x, y, normal): terminal gains take the angle above
+            the panel plane, other satellites' cosines these rows. None: flat, x east.
 
         Returns
         -------
@@ -157,7 +162,8 @@ class LinkEngine:
         ut = np.tile(np.arange(n_ut), n_sat)  # satellite-major grid: p = s n_ut + u
         sat = np.repeat(np.arange(n_sat), n_ut)
         up = None if ut_enu is None else ut_enu[:, 2, :]
-        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up)
+        normal = None if ut_panel is None else ut_panel[:, 2, :]
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, None, normal)
         snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
@@ -167,10 +173,12 @@ class LinkEngine:
                 el > 0.0, snap.path_lin / 10.0 ** (snap.rx_db / 10.0), 0.0
             )
             basis = panel_basis(ut_pos_m) if ut_enu is None else ut_enu
+            basis = basis if ut_panel is None else ut_panel
             snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
         return snap
 
-    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None):
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
+                       ut_normal=None):  # fmt: skip
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -184,6 +192,9 @@ class LinkEngine:
             Each UT row's local up (the WGS 84 normal); None: the sphere's radial up.
         ut_id : ndarray of int, shape (n_u,), optional
             The UT of each UT row, for per-population terminals; None: row = UT.
+        ut_normal : ndarray, shape (n_u, 3), optional
+            Each UT row's panel normal: the terminal gain takes the angle above the panel
+            plane (visibility and atmosphere the elevation). None: panels lying flat.
 
         Returns
         -------
@@ -200,7 +211,10 @@ class LinkEngine:
         rx_db = self._rx_const
         if rx_db is None:
             rows = ut if ut_id is None else ut_id[ut]
-            rx_db = rows_gain_db(self.terminal, elevation, rows, self._rx_groups)
+            el_rx = elevation
+            if ut_normal is not None:  # tilted panels: the angle above the panel plane
+                el_rx = panel_elevation_of_pairs(rel, rho, ut_normal, ut)
+            rx_db = rows_gain_db(self.terminal, el_rx, rows, self._rx_groups)
         atm_db = self._atm_const
         if atm_db is None:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))

@@ -61,12 +61,14 @@ def decoded_array(codes, names):
 class Vocabulary:
     """The names of one string column and their int32 codes, stable over a writer's life.
 
-    A coded column's integer codes are its names' indices already. The codes of the
-    array last seen are kept: the runner hands the same ``population`` array every epoch.
+    A coded column's integer codes are its names' indices already (code -1: the last of
+    the names given, as a Python index). The codes of the array last seen are kept: the
+    runner hands the same ``population`` array every epoch.
     """
 
     def __init__(self, names=()):
         self.names = list(names)
+        self._n_coded = len(self.names)
         self._code = {n: i for i, n in enumerate(self.names)}
         self._last = (None, None)
 
@@ -75,6 +77,8 @@ class Vocabulary:
             return self._last[1]
         if values.dtype.kind in "iu" and self.names:
             codes = values.astype(np.int32)
+            if values.dtype.kind == "i" and codes.size and codes.min() < 0:
+                codes = np.where(codes < 0, codes + self._n_coded, codes).astype(np.int32)
         else:
             uniq, inverse = np.unique(values.astype(str), return_inverse=True)
             lut = np.array([self._add(u) for u in uniq.tolist()], np.int32)

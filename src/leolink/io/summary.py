@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.io.atomic import to_jsonable
+from leolink.io.link_summary import LinkStats
 from leolink.io.summary_records import (
     STAT_KEYS,
     by_reason,
@@ -168,6 +169,8 @@ class SummaryAccumulator:
     ``outage_fraction_by_reason``: ``no_satellite`` and ``below_threshold`` = epochs in
     outage for that reason / epochs (an outage lasts whole epochs; the two add up to
     ``outage_fraction``), ``handover`` = ``handover_interruption_fraction``.
+    The link figures (margin, MODCOD usage, ACM and Shannon throughput): ``link``,
+    :class:`leolink.io.link_summary.LinkStats`.
     """
 
     def __init__(self, n_ut=0, epoch_s=1.0):
@@ -209,6 +212,7 @@ class SummaryAccumulator:
         self._db = {k: _DbStats(self.n_ut) for k in _DB_COLUMNS}
         self._dwells = []
         self._rows, self._n_rows = [], 0
+        self._link = LinkStats(self.n_ut, _DbStats)  # margins in histograms too
 
     def add_trace(self, columns):
         """Add trace rows (dict of 1-D arrays; needs ``ut_id``, ``service``, ``snr_db``,
@@ -226,6 +230,7 @@ class SummaryAccumulator:
             gap = np.where(codes == SERVICE_HANDOVER, self.epoch_s, 0.0)
         reason = columns.get("outage_reason")
         reason = np.full(ut.shape, -1) if reason is None else _codes(reason, OUTAGE_REASONS)
+        self._link.add(columns, ut, codes)  # per call: it needs the frame-only columns
         piece = {"ut": ut, "service": codes, "gap": gap, "reason": reason}
         for key in _BUFFERED:
             piece[key] = columns[key]
@@ -328,7 +333,7 @@ class SummaryAccumulator:
         table["max_angular_speed_deg_s"] = self.max_angular_speed_deg_s
         return table
 
-    def _overall(self, d, complete, per_ut_in_json):
+    def _overall(self, d, complete, per_ut_in_json, link_all):
         n_all = int(self.n_epochs.sum())
         frac = (lambda x: x / n_all) if n_all else (lambda x: None)  # noqa: E731
         interrupted_all = self.interrupted_s.sum() / (n_all * self.epoch_s) if n_all else None
@@ -357,6 +362,7 @@ class SummaryAccumulator:
             "mean_throughput_bps": frac(self.throughput_sum.sum()),
             "max_abs_doppler_hz": nanmax(self.max_abs_doppler_hz),
             "max_angular_speed_deg_s": nanmax(self.max_angular_speed_deg_s),
+            "link": link_all,
         }
 
     def summary(self):
@@ -371,7 +377,8 @@ class SummaryAccumulator:
         d = self.dwell_table()
         in_json = self.n_ut <= PER_UT_IN_JSON_MAX
         _, complete = self._dwell_stats(d)
-        out = {"overall": self._overall(d, complete, in_json)}
+        link_all, link_ut = self._link.summary(self.n_epochs, per_ut=in_json)
+        out = {"overall": self._overall(d, complete, in_json, link_all)}
         if in_json:
-            out["per_ut"] = per_ut_records(self.per_ut_table(d), d, complete)
+            out["per_ut"] = per_ut_records(self.per_ut_table(d), d, complete, link_ut)
         return to_jsonable(out)

@@ -16,8 +16,9 @@ __all__ = ["STAT_KEYS", "by_reason", "handover_counts", "nanmax", "per_ut_record
 STAT_KEYS = ("mean", "p5", "p50", "p95")
 
 
-def per_ut_records(table, d, complete):
-    """The ``per_ut`` list of summary.json from :meth:`SummaryAccumulator.per_ut_table`."""
+def per_ut_records(table, d, complete, link=None):
+    """The ``per_ut`` list of summary.json from :meth:`SummaryAccumulator.per_ut_table`
+    (and each UT's ``link`` block, :class:`leolink.io.link_summary.LinkStats`)."""
     n_ut = table["ut_id"].size
     ut = d["ut_id"].astype(np.int64)
     n_complete = np.bincount(ut[complete], minlength=n_ut)
@@ -54,6 +55,8 @@ def per_ut_records(table, d, complete):
                 "max_angular_speed_deg_s": r["max_angular_speed_deg_s"],
             }
         )
+        if link is not None:
+            out[-1]["link"] = link[i]
     return out
 
 

@@ -18,7 +18,8 @@ an SNR, 0.03 Hz on a 300 kHz Doppler, 0.25 m on a 4,000 km range) except
 :data:`TRACE_FLOAT64_COLUMNS` (times and positions), which keep float64.
 The trace ``service`` column holds the names ``served``, ``handover``, ``outage``
 (``controller.SERVICE_NAMES``) and ``outage_reason`` the names ``none``, ``handover``,
-``no_satellite``, ``below_threshold`` (``processes.OUTAGE_REASONS``); integer codes given
+``no_satellite``, ``below_threshold`` (``processes.OUTAGE_REASONS``) and ``modcod`` the
+DVB-S2X MODCOD names (``leolink.link.modcod``, ``none`` for code -1); integer codes given
 to ``append`` are mapped to them.
 """
 
@@ -34,6 +35,8 @@ from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.errors import ConfigError, require_at_least
 from leolink.io.arrow import BackgroundWriter, Vocabulary, decoded_array, numeric_array
 from leolink.io.atomic import PendingFiles, atomic_file
+from leolink.link.acm import FIGURE_COLUMNS
+from leolink.link.modcod import modcod_table
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES
 from leolink.sim.processes import OUTAGE_REASONS
 
@@ -70,13 +73,20 @@ TRACE_COLUMNS = (
     "alt_m",  # UT height above the Earth model [m]
     "population",
     "interruption_s",  # part of the epoch without service: handover execution [s]
+    *FIGURE_COLUMNS,  # eirp_dbw, cn0_dbhz, esn0_db, margin_db, modcod (leolink.link.acm)
 )
 _INT_COLUMNS = {
     "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible"
 }  # fmt: skip
-_STRING_COLUMNS = {"service", "kind", "outage_reason", "population"}
-#: Columns given as integer codes and written as names.
-_CODED_COLUMNS = {"service": SERVICE_NAMES, "outage_reason": OUTAGE_REASONS}
+_STRING_COLUMNS = {"service", "kind", "outage_reason", "population", "modcod"}
+#: Name of MODCOD code -1 (no MODCOD closes the link, or no link).
+NO_MODCOD_NAME = "none"
+#: Columns given as integer codes and written as names (code -1: the last name).
+_CODED_COLUMNS = {
+    "service": SERVICE_NAMES,
+    "outage_reason": OUTAGE_REASONS,
+    "modcod": (*modcod_table().names, NO_MODCOD_NAME),
+}
 FORMATS = ("csv", "parquet")
 #: Float columns of ``trace.parquet`` that stay float64: epoch times (float32 would round
 #: 86,400 s to 8 ms) and positions (float32 would round a longitude to 1.7 m).
@@ -121,7 +131,8 @@ def _column_array(name, values, field):
     _check(name, values)
     if pa.types.is_string(field.type):
         if name in _CODED_COLUMNS and values.dtype.kind in "iu":
-            return decoded_array(values, _CODED_COLUMNS[name])
+            names = _CODED_COLUMNS[name]  # code -1: the last name
+            return decoded_array(np.where(values < 0, values + len(names), values), names)
         names, codes = np.unique(values.astype(str), return_inverse=True)
         return decoded_array(codes, names.tolist())
     return numeric_array(values, field.type)
