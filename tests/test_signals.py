@@ -82,8 +82,10 @@ def _alive(pid):
 def test_a_stopped_run_leaves_no_partial_file_and_says_where(tmp_path, sig, code, name):
     out = tmp_path / "run"
     proc = _start("run", PAPER, *_sets(LONG_RUN), "--out", out, "--quiet")
-    _wait_for(lambda: _partials(out), "the trace's temporary file")
-    time.sleep(0.5)  # some epochs recorded
+    # Every sink's temporary file (trace.csv, events.csv, events.parquet): the sinks have
+    # started (the events sink imports pyarrow.parquet first, seconds under load).
+    _wait_for(lambda: len(_partials(out)) >= 3, "every sink's temporary file")
+    time.sleep(1.5)  # some epochs recorded (the first block of epochs, under load too)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=WAIT_S)
     assert proc.returncode == code, err
