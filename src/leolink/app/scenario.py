@@ -17,6 +17,7 @@ import numpy as np
 from leolink.antenna.terminal import TerminalGroups
 from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
+from leolink.app.steering import steering_from_config
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES
@@ -85,9 +86,10 @@ def atmosphere_from(cfg):
     )
 
 
-def build_engine(cfg, codebook=None, terminal=None):
+def build_engine(cfg, codebook=None, terminal=None, ephemeris=None):
     """The :class:`~leolink.engine.LinkEngine` of the config (``terminal``: the UT
-    antennas, default ``[terminal]``; :func:`ut_terminals` gives the per-population ones)."""
+    antennas, default ``[terminal]``; :func:`ut_terminals` gives the per-population ones;
+    ``ephemeris``: the run's, for Earth-fixed beams' cells, built when needed if None)."""
     codebook = codebook_from_config(cfg) if codebook is None else codebook
     n_beam = len(codebook.u_xy)
     ptx = cfg.link.ptx_dbw
@@ -109,6 +111,7 @@ def build_engine(cfg, codebook=None, terminal=None):
         atmosphere_from(cfg),
         colors,
         other_satellites=cfg.link.interference == "all_satellites",
+        steering=steering_from_config(cfg, codebook, ephemeris),
     )
 
 
@@ -152,7 +155,7 @@ def build_scenario(cfg):
     times, n_warm = epoch_times(r.start_s, r.epoch_s, r.warmup_s, r.duration_s)
     populations = build_populations(cfg, heading, rng)
     return Scenario(
-        engine=build_engine(cfg, codebook, ut_terminals(cfg, populations)),
+        engine=build_engine(cfg, codebook, ut_terminals(cfg, populations), ephemeris),
         ephemeris=ephemeris,
         populations=populations,
         policy=cfg.controller.build(),

@@ -56,6 +56,10 @@ class ControllerBase(kinds.SelectorSection):
     )
 
 
+class SatelliteArrayBase(SatelliteArraySection, kinds.SelectorSection):
+    """``[satellite_array]``: the array, and the steering mode of its beams."""
+
+
 class ConfigBase(Section):
     """A whole run. Sections mirror the TOML tables; see :func:`config_model`."""
 
@@ -152,7 +156,9 @@ def _model(gen):
         "link": LinkSection,
         "atmosphere": sel("AtmosphereSection", REGISTRIES["atmosphere.model"], "model", "fixed",
                           doc="atmospheric loss model"),
-        "satellite_array": SatelliteArraySection,
+        "satellite_array": sel("SatelliteArraySection", REGISTRIES["satellite_array.steering"],
+                               "steering", "body_fixed", base=SatelliteArrayBase,
+                               doc="how the beams point"),
         "terminal": kinds.terminal_section(),
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),

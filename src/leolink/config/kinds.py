@@ -37,6 +37,7 @@ __all__ = [
 #: Modules that own a registry or register entries (imported before a schema is built).
 OWNERS = (
     "leolink.antenna.terminal",
+    "leolink.antenna.steering",
     "leolink.link.atmosphere",
     "leolink.sim.policies",
     "leolink.sim.populations",

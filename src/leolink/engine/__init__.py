@@ -99,9 +99,14 @@ class LinkEngine:
     other_satellites : bool
         Add the beams of every other satellite above the horizon as interference,
         through ``terminal.pattern_lin`` (which must not be None).
+    steering : leolink.antenna.steering.SteeringMode, optional
+        How the beams point; None (or ideal body-fixed beams): the codebook's lattice.
+        Beams that move or have quantized phases get one kernel row per beam
+        (:mod:`leolink.engine.steered`; no compiled kernels).
     """
 
-    def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False):
+    def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False,
+                 steering=None):  # fmt: skip
         self.other_satellites = bool(other_satellites)
         self.codebook, self.terminal = codebook, terminal
         self.params, self.atmosphere = params, atmosphere
@@ -109,6 +114,10 @@ class LinkEngine:
         self.beam_ux, self.beam_ix = np.unique(u[:, 0], return_inverse=True)
         self.beam_uy, self.beam_iy = np.unique(u[:, 1], return_inverse=True)
         n_beam = len(u)
+        moves = steering is not None and (steering.moves_beams or steering.phase_bits is not None)
+        self.steering = steering if moves else None
+        if self.steering is not None:  # kernel row b is beam b's
+            self.beam_ix = self.beam_iy = np.arange(n_beam)
         self.colors = np.zeros(n_beam, np.int64) if colors is None else np.asarray(colors)
         self.n_colors = int(self.colors.max()) + 1
         # Each colour has 1/n_colors of the band: less noise, less throughput.
@@ -137,7 +146,7 @@ class LinkEngine:
         cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
         return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)
 
-    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None):
+    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None, sat_id=None):
         """Geometry, gains and SNR for every (UT, satellite, beam).
 
         Parameters
@@ -148,6 +157,8 @@ class LinkEngine:
         ut_enu : ndarray, shape (n_ut, 3, 3), optional
             Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
             elevations, azimuths and panel frames use them. None: the sphere's radial up.
+        sat_id : ndarray of int, shape (n_sat,), optional
+            Global id of each satellite (re-steered beams' cells); None: row = id.
 
         Returns
         -------
@@ -157,7 +168,9 @@ class LinkEngine:
         ut = np.tile(np.arange(n_ut), n_sat)  # satellite-major grid: p = s n_ut + u
         sat = np.repeat(np.arange(n_sat), n_ut)
         up = None if ut_enu is None else ut_enu[:, 2, :]
-        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up)
+        links = self.evaluate_pairs(
+            ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up, sat_id=sat_id
+        )
         snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
@@ -170,7 +183,9 @@ class LinkEngine:
             snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
         return snap
 
-    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None):
+    def evaluate_pairs(
+        self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None, sat_id=None
+    ):
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -184,18 +199,21 @@ class LinkEngine:
             Each UT row's local up (the WGS 84 normal); None: the sphere's radial up.
         ut_id : ndarray of int, shape (n_u,), optional
             The UT of each UT row, for per-population terminals; None: row = UT.
+        sat_id : ndarray of int, shape (n_s,), optional
+            The global id of each satellite row (the cells of re-steered beams); None:
+            row = satellite.
 
         Returns
         -------
         Links
         """
-        if jit.use(ut.shape[0]):  # the same operations, fused (bit for bit the same)
+        if jit.use(ut.shape[0]) and self.steering is None:  # the same operations, fused (bit for bit the same)
             axes = body_frame(sat_pos_m, sat_vel_m_s)
             arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
             rel, rho2, rho, elevation, visible, kx, ky = arrays
         else:
             rel, rho2, rho, elevation, visible, kx, ky = pair_geometry(
-                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up
+                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id
             )
         rx_db = self._rx_const
         if rx_db is None:
@@ -356,7 +374,8 @@ class LinkEngine:
     @property
     def _full_reuse_lattice(self):
         """Every beam of the lattice, one colour (the fused serving kernel's case)."""
-        return self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy)
+        lattice = self.n_beam == len(self.beam_ux) * len(self.beam_uy)
+        return self.n_colors == 1 and lattice and self.steering is None
 
     def other_satellites_interference(self, snap, s, b, u):
         """Interference over noise from the beams of the other satellites, per UT.
@@ -377,7 +396,7 @@ class LinkEngine:
     def _same_colour_total(self, kx, ky, b):
         """Sum of the TX gains of the beams that share the serving beam's colour, per row
         (``kx``, ``ky``: the rows' kernels, (n_k, n))."""
-        if self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy):
+        if self._full_reuse_lattice:
             # Full lattice, full reuse: sum_ij kx_i ky_j = (sum_i kx_i)(sum_j ky_j).
             return kx.sum(axis=0) * ky.sum(axis=0)
         # (n, n_beam), C-ordered: the sum over beams then adds in one order for any caller.

@@ -17,6 +17,7 @@ import numpy as np
 
 from leolink.antenna.array import dirichlet_kernels
 from leolink.engine import jit
+from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
 
 __all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
@@ -249,9 +250,11 @@ def group_constants_db(terminal):
     ]
 
 
-def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
+def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id=None):
     """The numpy reference of ``LinkEngine.evaluate_pairs``'s geometry and beam kernels:
-    rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it)."""
+    rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it; re-steered
+    or quantized beams, :mod:`leolink.engine.steered`, have no compiled kernel).
+    ``sat_id``: the global satellite of each satellite row (None: row = satellite)."""
     u_pos = ut_pos_m[ut]
     rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
     rho2 = np.einsum("pk,pk->p", rel, rel)
@@ -268,6 +271,10 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
     inv_rho = 1.0 / rho
     ux = np.einsum("pk,pk->p", rel, axes[:, 0, :]) * inv_rho
     uy = np.einsum("pk,pk->p", rel, axes[:, 1, :]) * inv_rho
+    if engine.steering is not None:  # beams of their own per satellite row
+        v, on = beam_centres(engine, sat_pos_m, body_frame(sat_pos_m, sat_vel_m_s), sat_id)
+        kx, ky = steered_kernels(engine, ux, uy, sat, v, on)
+        return rel, rho2, rho, elevation, visible, kx, ky
     kx = dirichlet_kernels(ux, engine.beam_ux, engine.codebook.n_sub_x)
     ky = dirichlet_kernels(uy, engine.beam_uy, engine.codebook.n_sub_y)
     return rel, rho2, rho, elevation, visible, kx, ky

@@ -170,7 +170,7 @@ class Monitor:
                 continue
             enu = None if self.decider.enu is None else self.decider.enu[j]
             snap = eng.evaluate(mb.ut_pos_m[j], mb.sat_pos_m[j][cone], mb.sat_vel_m_s[j][cone],
-                                ut_enu=enu)  # fmt: skip
+                                ut_enu=enu, sat_id=cone)  # fmt: skip
             s = np.where(geo_sat[sl] >= 0, np.searchsorted(cone, geo_sat[sl]), 0)
             b = np.where(geo_sat[sl] >= 0, geo_beam[sl], 0)
             out.append(eng.other_satellites_interference(snap, s, b, u))

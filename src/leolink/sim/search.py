@@ -202,6 +202,7 @@ class CandidateSearch:
                 axes,
                 None if up is None else up[rows[lo : lo + step]],
                 ut_id[lo : lo + step],
+                cone,
             )  # fmt: skip
             for lo in range(0, n_ut, step)
         ]
@@ -220,8 +221,9 @@ class CandidateSearch:
         flat_vel = sat_vel_m_s.reshape(-1, 3)[key]
         ut_id = np.arange(pos.shape[0]) % n_ut
         links = self.engine.evaluate_pairs(
-            pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id
-        )
+            pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id,
+            sat_id=key % n_sat,
+        )  # fmt: skip
         links.sat = sats  # global ids from here on
         return links
 
