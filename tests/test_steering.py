@@ -181,8 +181,11 @@ def test_configured_cells_are_used_by_every_satellite():
     scen = build_scenario(
         load_config(
             PAPER,
-            [*EARTH_FIXED, f"satellite_array.earth_fixed.cell_lat_deg={lat}",
-             f"satellite_array.earth_fixed.cell_lon_deg={lon}"],
+            [
+                *EARTH_FIXED,
+                f"satellite_array.earth_fixed.cell_lat_deg={lat}",
+                f"satellite_array.earth_fixed.cell_lon_deg={lon}",
+            ],
         )  # fmt: skip
     )
     cells = scen.engine.steering.cells_m
@@ -197,16 +200,23 @@ def constellation_block():
     from leolink.sim.motion import MotionBlocks
     from leolink.sim.processes import candidate_satellites
 
-    over = [*EARTH_FIXED, "run.duration_s=10", "population.0.count=150", "population.1.count=50",
-            "population.2.count=50", "population.3.count=50"]
+    over = [
+        *EARTH_FIXED,
+        "run.duration_s=10",
+        "population.0.count=150",
+        "population.1.count=50",
+        "population.2.count=50",
+        "population.3.count=50",
+    ]
     scen = build_scenario(load_config("configs/constellation.toml", over))
     n_ut = sum(p.n_ut for _, p in scen.populations)
     mb = MotionBlocks(scen.ephemeris, scen.populations, scen.times_s[:2], scen.ephemeris.n_sat,
                       n_ut).block_of(0)  # fmt: skip
     none = np.zeros(0, np.int64)
     cones = [
-        candidate_satellites(mb.sat_pos_m[i], mb.ut_pos_m[i], scen.min_elevation_rad, none,
-                             scen.radius_m)  # fmt: skip
+        candidate_satellites(
+            mb.sat_pos_m[i], mb.ut_pos_m[i], scen.min_elevation_rad, none, scen.radius_m
+        )  # fmt: skip
         for i in range(2)
     ]
     return scen.engine, n_ut, mb, cones

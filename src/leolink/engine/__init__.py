@@ -184,8 +184,9 @@ class LinkEngine:
         return snap
 
     def evaluate_pairs(
-        self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None, sat_id=None
-    ):
+        self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None, sat_id=None,
+        steer=None,
+    ):  # fmt: skip
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -202,18 +203,22 @@ class LinkEngine:
         sat_id : ndarray of int, shape (n_s,), optional
             The global id of each satellite row (the cells of re-steered beams); None:
             row = satellite.
+        steer : (ndarray, ndarray), shapes (n_s, 3), optional
+            The positions and velocities the satellites steer re-steered beams by (an
+            estimated ephemeris, :mod:`leolink.ephemeris_error`); None: the true ones.
 
         Returns
         -------
         Links
         """
-        if jit.use(ut.shape[0]) and self.steering is None:  # the same operations, fused (bit for bit the same)
+        # The same operations, fused (bit for bit the same); re-steered beams: numpy only.
+        if jit.use(ut.shape[0]) and self.steering is None:
             axes = body_frame(sat_pos_m, sat_vel_m_s)
             arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
             rel, rho2, rho, elevation, visible, kx, ky = arrays
         else:
             rel, rho2, rho, elevation, visible, kx, ky = pair_geometry(
-                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id
+                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id, steer
             )
         rx_db = self._rx_const
         if rx_db is None:

@@ -250,11 +250,14 @@ def group_constants_db(terminal):
     ]
 
 
-def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id=None):
+def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id=None,
+                  steer=None):  # fmt: skip
     """The numpy reference of ``LinkEngine.evaluate_pairs``'s geometry and beam kernels:
     rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it; re-steered
     or quantized beams, :mod:`leolink.engine.steered`, have no compiled kernel).
-    ``sat_id``: the global satellite of each satellite row (None: row = satellite)."""
+    ``sat_id``: the global satellite of each satellite row (None: row = satellite);
+    ``steer``: ``(pos, vel)`` the satellites steer their beams by (an estimated ephemeris;
+    None: the true states)."""
     u_pos = ut_pos_m[ut]
     rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
     rho2 = np.einsum("pk,pk->p", rel, rel)
@@ -272,7 +275,8 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_
     ux = np.einsum("pk,pk->p", rel, axes[:, 0, :]) * inv_rho
     uy = np.einsum("pk,pk->p", rel, axes[:, 1, :]) * inv_rho
     if engine.steering is not None:  # beams of their own per satellite row
-        v, on = beam_centres(engine, sat_pos_m, body_frame(sat_pos_m, sat_vel_m_s), sat_id)
+        s_pos, s_vel = (sat_pos_m, sat_vel_m_s) if steer is None else steer
+        v, on = beam_centres(engine, s_pos, body_frame(s_pos, s_vel), sat_id)
         kx, ky = steered_kernels(engine, ux, uy, sat, v, on)
         return rel, rho2, rho, elevation, visible, kx, ky
     kx = dirichlet_kernels(ux, engine.beam_ux, engine.codebook.n_sub_x)
