@@ -36,6 +36,7 @@ from leolink.engine.links import (
     reuse_colors,
     rows_gain_db,
 )
+from leolink.engine.steered import kernel_rows, per_beam_steering
 from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
@@ -100,9 +101,8 @@ class LinkEngine:
         Add the beams of every other satellite above the horizon as interference,
         through ``terminal.pattern_lin`` (which must not be None).
     steering : leolink.antenna.steering.SteeringMode, optional
-        How the beams point; None (or ideal body-fixed beams): the codebook's lattice.
-        Beams that move or have quantized phases get one kernel row per beam
-        (:mod:`leolink.engine.steered`; no compiled kernels).
+        None (or ideal body-fixed beams): the codebook's lattice; beams that move or have
+        quantized phases: one kernel row per beam (:mod:`leolink.engine.steered`).
     """
 
     def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False,
@@ -114,10 +114,8 @@ class LinkEngine:
         self.beam_ux, self.beam_ix = np.unique(u[:, 0], return_inverse=True)
         self.beam_uy, self.beam_iy = np.unique(u[:, 1], return_inverse=True)
         n_beam = len(u)
-        moves = steering is not None and (steering.moves_beams or steering.phase_bits is not None)
-        self.steering = steering if moves else None
-        if self.steering is not None:  # kernel row b is beam b's
-            self.beam_ix = self.beam_iy = np.arange(n_beam)
+        self.steering = per_beam_steering(steering)
+        self.beam_ix, self.beam_iy = kernel_rows(self.steering, self.beam_ix, self.beam_iy)
         self.colors = np.zeros(n_beam, np.int64) if colors is None else np.asarray(colors)
         self.n_colors = int(self.colors.max()) + 1
         # Each colour has 1/n_colors of the band: less noise, less throughput.
@@ -158,7 +156,7 @@ class LinkEngine:
             Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
             elevations, azimuths and panel frames use them. None: the sphere's radial up.
         sat_id : ndarray of int, shape (n_sat,), optional
-            Global id of each satellite (re-steered beams' cells); None: row = id.
+            Global satellite ids (cells of re-steered beams); None: row = id.
 
         Returns
         -------
@@ -168,9 +166,7 @@ class LinkEngine:
         ut = np.tile(np.arange(n_ut), n_sat)  # satellite-major grid: p = s n_ut + u
         sat = np.repeat(np.arange(n_sat), n_ut)
         up = None if ut_enu is None else ut_enu[:, 2, :]
-        links = self.evaluate_pairs(
-            ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=up, sat_id=sat_id
-        )
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, sat_id=sat_id)
         snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
@@ -183,10 +179,8 @@ class LinkEngine:
             snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
         return snap
 
-    def evaluate_pairs(
-        self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None, sat_id=None,
-        steer=None,
-    ):  # fmt: skip
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
+                       sat_id=None, steer=None):  # fmt: skip
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -200,19 +194,15 @@ class LinkEngine:
             Each UT row's local up (the WGS 84 normal); None: the sphere's radial up.
         ut_id : ndarray of int, shape (n_u,), optional
             The UT of each UT row, for per-population terminals; None: row = UT.
-        sat_id : ndarray of int, shape (n_s,), optional
-            The global id of each satellite row (the cells of re-steered beams); None:
-            row = satellite.
-        steer : (ndarray, ndarray), shapes (n_s, 3), optional
-            The positions and velocities the satellites steer re-steered beams by (an
-            estimated ephemeris, :mod:`leolink.ephemeris_error`); None: the true ones.
+        sat_id, steer : ndarray of int (n_s,), and (pos, vel) each (n_s, 3), optional
+            Global satellite ids (None: row = id); the states re-steered beams are steered
+            by (None: the true ones).
 
         Returns
         -------
         Links
         """
-        # The same operations, fused (bit for bit the same); re-steered beams: numpy only.
-        if jit.use(ut.shape[0]) and self.steering is None:
+        if jit.use(ut.shape[0]) and self.steering is None:  # fused, bit for bit the same
             axes = body_frame(sat_pos_m, sat_vel_m_s)
             arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
             rel, rho2, rho, elevation, visible, kx, ky = arrays

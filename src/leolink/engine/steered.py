@@ -28,7 +28,29 @@ import numpy as np
 from leolink.antenna.array import ula_gain
 from leolink.antenna.steering import quantized_gain_lin
 
-__all__ = ["steered_bound_lin", "steered_kernels"]
+__all__ = [
+    "beam_centres",
+    "kernel_rows",
+    "per_beam_steering",
+    "steered_bound_lin",
+    "steered_kernels",
+]
+
+
+def per_beam_steering(steering):
+    """``steering`` if its beams need kernels of their own (they move, or have quantized
+    phases), else None (the codebook's lattice: ideal body-fixed beams)."""
+    if steering is None or not (steering.moves_beams or steering.phase_bits is not None):
+        return None
+    return steering
+
+
+def kernel_rows(steering, beam_ix, beam_iy):
+    """The engine's kernel row of each beam: the lattice's, or row b for beam b."""
+    if steering is None:
+        return beam_ix, beam_iy
+    rows = np.arange(len(beam_ix))
+    return rows, rows
 
 
 def beam_centres(engine, sat_pos_m, axes, sat_id):
