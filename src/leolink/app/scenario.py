@@ -19,6 +19,7 @@ from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
 from leolink.app.steering import steering_from_config
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
+from leolink.ephemeris_error import EstimatedEphemeris
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES
 from leolink.sim.mobility import OnWgs84
@@ -169,4 +170,18 @@ def build_scenario(cfg):
         seed=r.seed,
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
+        estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
     )
+
+
+def estimated_ephemeris(cfg, ephemeris):
+    """The ephemeris the controller believes (``[ephemeris_error]``), None without error."""
+    model = cfg.ephemeris_error.build(SimpleNamespace(seed=cfg.run.seed))
+    if model.is_zero:  # the error-free run, bit for bit
+        return None
+    if cfg.link.interference == "all_satellites":
+        raise ConfigError(
+            f"ephemeris_error.model = {cfg.ephemeris_error.model!r} with link.interference = "
+            "'all_satellites' is not supported yet; use 'serving_satellite'"
+        )
+    return EstimatedEphemeris(ephemeris, model)

@@ -160,6 +160,8 @@ def _model(gen):
                                "steering", "body_fixed", base=SatelliteArrayBase,
                                doc="how the beams point"),
         "terminal": kinds.terminal_section(),
+        "ephemeris_error": sel("EphemerisErrorSection", REGISTRIES["ephemeris_error.model"],
+                               "model", "none", doc="error of the ephemeris the controller uses"),
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),
         "output": kinds.output_section(REGISTRIES["output"]),

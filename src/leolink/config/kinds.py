@@ -38,6 +38,8 @@ __all__ = [
 OWNERS = (
     "leolink.antenna.terminal",
     "leolink.antenna.steering",
+    "leolink.ephemeris_error",
+    "leolink.io.ephemeris_sink",
     "leolink.link.atmosphere",
     "leolink.sim.policies",
     "leolink.sim.populations",

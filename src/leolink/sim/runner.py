@@ -19,6 +19,7 @@ from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
 from leolink.sim.controller import ControllerState
 from leolink.sim.decide import Decider
+from leolink.sim.ephemeris_monitor import TrueLinkMonitor
 from leolink.sim.mobility import concat_states
 from leolink.sim.monitor import Monitor
 from leolink.sim.motion import MotionBlocks
@@ -65,6 +66,9 @@ class Scenario:
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
         cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
+    estimated_ephemeris : callable or None, the ephemeris the controller believes
+        (:mod:`leolink.ephemeris_error`); the links are evaluated on ``ephemeris``
+        (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
     """
 
     engine: LinkEngine
@@ -82,6 +86,7 @@ class Scenario:
     fading_k: float | None = None
     ellipsoidal: bool = False
     prune: bool = True
+    estimated_ephemeris: Callable | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -166,13 +171,15 @@ def run_simulation(
     state = _initial_state(scen, scen.populations)
     n_ut = state.ut_pos_m.shape[0]
 
+    believed = scen.ephemeris if scen.estimated_ephemeris is None else scen.estimated_ephemeris
+
     def future_state(t):
         ut = concat_states([p.state(t) for _, p in scen.populations])
-        pos, vel, _ = scen.ephemeris(t)
+        pos, vel, _ = believed(t)
         return ut.pos_m, pos[0], vel[0]
 
     times = scen.times_s
-    motion = MotionBlocks(scen.ephemeris, scen.populations, times, scen.ephemeris.n_sat, n_ut)
+    motion = MotionBlocks(believed, scen.populations, times, scen.ephemeris.n_sat, n_ut)
     decide = Decider(
         scen.engine,
         scen.policy,
@@ -188,7 +195,11 @@ def run_simulation(
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
-    monitor = Monitor(scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names)
+    args = (scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names)
+    if scen.estimated_ephemeris is None:
+        monitor = Monitor(*args)
+    else:  # choices on the believed states, links on the true ones
+        monitor = TrueLinkMonitor(*args, true_ephemeris=scen.ephemeris)
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
