@@ -145,7 +145,7 @@ MISTAKES = [
     ),
     (
         ['terminal.kind="dish"'],
-        r"terminal\.kind = 'dish' is not allowed: .*'isotropic', 'upa', 'leaky_wave' or "
+        r"terminal\.kind = 'dish' is not allowed: .*'isotropic', 'fixed', 'upa', 'leaky_wave' or "
         r"'metasurface'",
     ),
     (

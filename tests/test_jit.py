@@ -13,9 +13,11 @@ import pytest
 
 pytest.importorskip("numba")
 
+from leolink.antenna.panel import oriented_panel_basis  # noqa: E402
+from leolink.antenna.terminal import UPATerminal  # noqa: E402
 from leolink.app.scenario import build_scenario  # noqa: E402
 from leolink.config import load_config  # noqa: E402
-from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS, jit  # noqa: E402
+from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS, LinkEngine, jit  # noqa: E402
 from leolink.engine.links import pair_geometry  # noqa: E402
 from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis  # noqa: E402
 from leolink.sim.mobility import concat_states  # noqa: E402
@@ -105,3 +107,23 @@ def test_turned_off_by_the_environment(monkeypatch):
         monkeypatch.delenv("LEOLINK_JIT")
         jit.enabled.cache_clear()
     assert jit.use(jit.JIT_MIN_PAIRS) and not jit.use(jit.JIT_MIN_PAIRS - 1)
+
+
+def test_tilted_panel_gains_are_the_numpy_bits(epoch, monkeypatch):
+    """A scan-loss terminal on tilted panels takes the angle above the panel plane: the
+    compiled geometry gives the numpy bits of it (and the tilt changes the gains)."""
+    eng, uts, pos, vel, _, ut, sat, rng = epoch
+    scan = LinkEngine(eng.codebook, UPATerminal(24, 24, 10.0, scan_loss=True), eng.params,
+                      eng.atmosphere, eng.colors)  # fmt: skip
+    enu = enu_basis(uts.lat_rad, uts.lon_rad)
+    n_ut = len(uts.pos_m)
+    normal = oriented_panel_basis(
+        enu, rng.uniform(0.0, 1.0, n_ut), rng.uniform(0.0, 2 * np.pi, n_ut)
+    )[:, 2, :]
+    got = scan.evaluate_pairs(uts.pos_m, pos, vel, ut, sat, ut_normal=normal)
+    flat = scan.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
+    _numpy(monkeypatch)
+    ref = scan.evaluate_pairs(uts.pos_m, pos, vel, ut, sat, ut_normal=normal)
+    assert _same(got.rx_db, ref.rx_db) and _same(got.path_lin, ref.path_lin)
+    vis = got.visible
+    assert np.abs(got.rx_db[vis] - flat.rx_db[vis]).max() > 1.0

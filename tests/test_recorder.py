@@ -10,9 +10,13 @@ import pytest
 from leolink.io.atomic import write_json_atomic, write_text_atomic
 from leolink.io.summary import SummaryAccumulator, grouped_percentiles
 from leolink.io.tables import TRACE_COLUMNS, EventLog, TraceWriter
+from leolink.link.modcod import modcod_table
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES, ControllerState, close_dwells, step
 from leolink.sim.policies import MaxSnr
 from leolink.sim.processes import OUTAGE_REASONS
+
+#: The trace's MODCOD names by code; code -1 is written "none".
+MODCOD_NAMES = (*modcod_table().names, "none")
 
 # float32 sample storage: relative rounding 6e-8, i.e. < 1e-5 dB for |SNR| < 100 dB.
 FLOAT32_DB = 1e-5
@@ -38,6 +42,7 @@ def random_epoch(rng, t_s, n_ut):
     cols["outage_reason"] = np.where(service == 2, 3 - (cols["n_visible"] == 0), service)
     cols["population"] = np.asarray(["static", "car", "train"], dtype=object)[np.arange(n_ut) % 3]
     cols["interruption_s"] = np.where(service == 1, rng.uniform(0.0, 1.0, n_ut), 0.0)
+    cols["modcod"] = np.where(service == 2, -1, rng.integers(-1, len(MODCOD_NAMES) - 1, n_ut))
     return cols
 
 
@@ -50,6 +55,7 @@ def as_frame(epochs):
     df = pd.DataFrame({k: np.concatenate([e[k] for e in epochs]) for k in TRACE_COLUMNS})
     df["service"] = np.asarray(SERVICE_NAMES)[df["service"]]
     df["outage_reason"] = np.asarray(OUTAGE_REASONS)[df["outage_reason"]]
+    df["modcod"] = np.asarray(MODCOD_NAMES)[df["modcod"]]  # code -1: the last name, "none"
     return df
 
 

@@ -15,11 +15,13 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from leolink.antenna.array import ula_gain
+from leolink.antenna.panel import oriented_panel_basis
+from leolink.antenna.terminal import UPATerminal
 from leolink.app.scenario import build_scenario
 from leolink.config import load_config
-from leolink.engine import screening
+from leolink.engine import LinkEngine, screening
 from leolink.engine.screening import UNCERTAIN, VISIBLE, envelope, screen
-from leolink.geometry import body_frame
+from leolink.geometry import body_frame, enu_basis
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.processes import candidate_satellites
 from leolink.sim.search import CandidateSearch
@@ -107,3 +109,54 @@ def test_a_bound_too_low_is_seen(block, monkeypatch):
     monkeypatch.undo()
     cells_ref, _, _ = _tables(eng, n_ut, mb, cones, 3.0, prune=False)
     assert cells.shape != cells_ref.shape or not np.array_equal(cells, cells_ref)
+
+
+@pytest.fixture(scope="module")
+def tilted(block):
+    """The constellation's engine with a scan-loss UPA (its gain depends on the angle above
+    the panel), and panels tilted up to 60 deg towards random azimuths."""
+    eng, n_ut, mb, cones = block
+    scan = LinkEngine(eng.codebook, UPATerminal(24, 24, 10.0, scan_loss=True), eng.params,
+                      eng.atmosphere, eng.colors)  # fmt: skip
+    rng = np.random.default_rng(5)
+    tilt, az = rng.uniform(0.0, np.radians(60.0), n_ut), rng.uniform(0.0, 2 * np.pi, n_ut)
+    normal = np.stack(
+        [oriented_panel_basis(enu_basis(mb.ut_lat_rad[i], mb.ut_lon_rad[i]), tilt, az)[:, 2]
+         for i in range(N_EPOCH)]
+    )  # fmt: skip
+    return scan, normal
+
+
+def test_screening_bound_holds_for_tilted_panels(block, tilted):
+    """The bound takes the gain at the angle above the panel plane: above every beam of the
+    tilted panels, while the flat panels' bound falls below some of them."""
+    _, n_ut, mb, cones = block
+    scan, normal = tilted
+    cone = cones[0]
+    sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
+    axes = body_frame(sat_pos, sat_vel)
+    code, bound = screen(scan, mb.ut_pos_m[0], sat_pos, axes, ut_normal=normal[0])
+    _, flat = screen(scan, mb.ut_pos_m[0], sat_pos, axes)
+    ut, sat = np.nonzero(np.ones(code.shape, bool))
+    links = scan.evaluate_pairs(mb.ut_pos_m[0], sat_pos, sat_vel, ut, sat, ut_normal=normal[0])
+    best = links.gain_tx_bm(scan.beam_ix, scan.beam_iy).max(axis=0) * links.path_snr_lin
+    vis = links.visible
+    assert (bound.reshape(-1)[vis] >= best[vis]).all()
+    assert (flat.reshape(-1)[vis] < best[vis]).sum() > 100
+
+
+def test_pruned_tables_of_tilted_panels_are_the_exhaustive_tables(block, tilted):
+    _, n_ut, mb, cones = block
+    scan, normal = tilted
+    out = []
+    for prune in (True, False):
+        blk = CandidateSearch(scan, 3.0, prune).block(
+            0, n_ut, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones, normal
+        )
+        t = blk.table
+        r, s = np.nonzero(t.cell >= 0)
+        order = np.lexsort((t.cell[r, s], r))
+        out.append((r[order], t.cell[r, s][order], t.snr_db[r, s][order], blk.best_snr_db))
+    (r, c, v, b), (r0, c0, v0, b0) = out
+    assert np.array_equal(r, r0) and np.array_equal(c, c0) and np.array_equal(v, v0)
+    assert np.array_equal(b, b0, equal_nan=True)

@@ -147,6 +147,149 @@ MUTATIONS = (
 )
 
 
+#: Issue 15/16 (link figures, scan loss, panel orientation, the 3GPP budgets): each killed
+#: by the tests named (checked when they were written).
+MUTATIONS += (
+    Mutation(
+        "scan_exponent_halved",
+        "src/leolink/antenna/terminal.py",
+        "0.5 * np.pi - np.asarray(elevation_rad, float), panel.element_exponent\n",
+        "0.5 * np.pi - np.asarray(elevation_rad, float), panel.element_exponent / 2\n",
+        ("tests/test_terminal_scan_loss.py",),
+    ),
+    Mutation(
+        "scan_angle_is_elevation",
+        "src/leolink/antenna/terminal.py",
+        "0.5 * np.pi - np.asarray(elevation_rad, float), panel.element_exponent\n",
+        "np.asarray(elevation_rad, float), panel.element_exponent\n",
+        ("tests/test_terminal_scan_loss.py",),
+    ),
+    Mutation(
+        "element_on_diffuse_too",
+        "src/leolink/antenna/terminal.py",
+        "return los + 1.0 / self.rician_k\n\n"
+        '    def pattern_lin(self, du_x, du_y):\n        """Linear gain towards a direction '
+        "``(du_x, du_y)`` off the beam, in",
+        "return (los + 1.0 / self.rician_k) * _element_lin(self, elevation_rad)\n\n"
+        '    def pattern_lin(self, du_x, du_y):\n        """Linear gain towards a direction '
+        "``(du_x, du_y)`` off the beam, in",
+        ("tests/test_terminal_scan_loss.py",),
+    ),
+    Mutation(
+        "tilt_away_from_x",
+        "src/leolink/antenna/panel.py",
+        "n = np.sin(tilt) * h + np.cos(tilt) * up",
+        "n = -np.sin(tilt) * h + np.cos(tilt) * up",
+        ("tests/test_terminal_scan_loss.py",),
+    ),
+    Mutation(
+        "motion_heading_swapped",
+        "src/leolink/antenna/panel.py",
+        "np.arctan2(east, north), fallback_rad",
+        "np.arctan2(north, east), fallback_rad",
+        ("tests/test_terminal_scan_loss.py",),
+    ),
+    Mutation(
+        "esn0_without_rolloff",
+        "src/leolink/link/acm.py",
+        "esn0 = ratio_db + 10.0 * np.log10(1.0 + p.rolloff)",
+        "esn0 = ratio_db",
+        ("tests/test_link_figures_in_run.py",),
+    ),
+    Mutation(
+        "margin_sign",
+        "src/leolink/link/acm.py",
+        '"margin_db": esn0 - p.threshold_db',
+        '"margin_db": p.threshold_db - esn0',
+        ("tests/test_link_figures_in_run.py",),
+    ),
+    Mutation(
+        "cn0_bandwidth_twice",
+        "src/leolink/link/acm.py",
+        '"cn0_dbhz": snr_db + 10.0 * np.log10(p.bandwidth_hz)',
+        '"cn0_dbhz": snr_db + 10.0 * np.log10(2 * p.bandwidth_hz)',
+        ("tests/test_link_figures_in_run.py",),
+    ),
+    Mutation(
+        "modcod_ignores_margin",
+        "src/leolink/link/acm.py",
+        "modcod = select_modcod(esn0, p.implementation_margin_db)",
+        "modcod = select_modcod(esn0, 0.0)",
+        ("tests/test_link_figures_in_run.py",),
+    ),
+    Mutation(
+        "modcod_strict_threshold",
+        "src/leolink/link/modcod.py",
+        'x, side="right") - 1',
+        'x, side="left") - 1',
+        ("tests/test_link_figures_in_run.py",),
+    ),
+    Mutation(
+        "acm_not_scaled_in_handover",
+        "src/leolink/link/acm.py",
+        "eta * p.symbol_rate_baud * served_fraction",
+        "eta * p.symbol_rate_baud",
+        ("tests/test_link_figures_in_run.py",),
+    ),
+    Mutation(
+        "sinr_service_ignored",
+        "src/leolink/sim/service_link.py",
+        "        if self.sinr_threshold_db is None:\n            return codes",
+        "        if True:\n            return codes",
+        ("tests/test_link_figures_in_run.py",),
+    ),
+    Mutation(
+        "budget_other_losses_dropped",
+        "src/leolink/link/budget.py",
+        "atm_db + other_loss_db, loss_fs_db",
+        "atm_db, loss_fs_db",
+        ("tests/test_3gpp_budgets.py",),
+    ),
+    Mutation(
+        "noise_figure_at_antenna_temp",
+        "src/leolink/link/figures.py",
+        "return np.asarray(antenna_temp_k, dtype=float) + reference_temp_k * (f_lin - 1.0)",
+        "return np.asarray(antenna_temp_k, dtype=float) * f_lin",
+        ("tests/test_3gpp_budgets.py",),
+    ),
+    Mutation(
+        "density_without_peak_gain",
+        "src/leolink/app/scenario.py",
+        "return eirp - peak_gain_dbi + link.cable_loss_db",
+        "return eirp + link.cable_loss_db",
+        ("tests/test_3gpp_budgets.py",),
+    ),
+    Mutation(
+        "aperture_radius_for_diameter_unused_gain",
+        "src/leolink/app/reports.py",
+        '"gain_tx_db": gain_tx,',
+        '"gain_tx_db": gain_tx - 0.2,',
+        ("tests/test_3gpp_budgets.py",),
+    ),
+    Mutation(
+        "engine_other_loss_ignored",
+        "src/leolink/engine/__init__.py",
+        "k_db = params.ptx_dbw - params.cable_loss_db - params.other_loss_db - self.noise_dbw",
+        "k_db = params.ptx_dbw - params.cable_loss_db - self.noise_dbw",
+        ("tests/test_3gpp_budgets.py", "tests/test_link_figures_in_run.py"),
+    ),
+    Mutation(
+        "panel_normal_ignored_in_engine",
+        "src/leolink/engine/__init__.py",
+        "rx_db = rows_gain_db(self.terminal, el_rx, rows, self._rx_groups)",
+        "rx_db = rows_gain_db(self.terminal, elevation, rows, self._rx_groups)",
+        ("tests/test_terminal_scan_loss.py", "tests/test_jit.py"),
+    ),
+    Mutation(
+        "screening_ignores_panel_normal",
+        "src/leolink/engine/screening.py",
+        "        if ut_normal is not None:  # the gain sees",
+        "        if ut_normal is None:  # the gain sees",
+        ("tests/test_search.py",),
+    ),
+)
+
+
 def _copy_tree(dest: Path) -> None:
     for name in COPIED:
         src = ROOT / name

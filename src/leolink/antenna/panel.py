@@ -6,13 +6,27 @@ direction ``v`` (unit vector) has panel direction cosines ``(v.x, v.y)``; a term
 steered at direction ``b`` has gain ``pattern(v - b)`` towards ``v`` (offsets in these
 cosines), which is how the engine weighs other satellites' beams and how pointing errors
 are applied.
+
+A population may turn and tilt its panels (:class:`PanelOrientation`,
+:func:`oriented_panel_basis`): the x axis at an azimuth, or along the UT's motion, and the
+normal tilted towards it; terminals then see the satellite at its angle above the panel
+plane (:func:`panel_elevation_rad`) instead of its elevation.
 """
 
 import numpy as np
 
 from leolink.geometry import ecef_to_geodetic, enu_basis
 
-__all__ = ["panel_basis", "panel_direction_cosines", "pointing_offsets", "sky_direction"]
+__all__ = [
+    "PanelOrientation",
+    "motion_azimuth_rad",
+    "oriented_panel_basis",
+    "panel_basis",
+    "panel_direction_cosines",
+    "panel_elevation_rad",
+    "pointing_offsets",
+    "sky_direction",
+]
 
 
 def panel_basis(ut_pos_m, radius_m=None):
@@ -96,3 +110,82 @@ def pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad, azimut
     du_x = (c - 1.0) * v[0] + s * (np.cos(psi) * e_el[0] + np.sin(psi) * e_left[0])
     du_y = (c - 1.0) * v[1] + s * (np.cos(psi) * e_el[1] + np.sin(psi) * e_left[1])
     return du_x, du_y
+
+
+def oriented_panel_basis(enu, tilt_rad, x_azimuth_rad):
+    """Panel rows ``x``, ``y``, normal of panels turned and tilted in the local frame.
+
+    The panel's ``x`` axis points at azimuth ``x_azimuth_rad`` (from north, clockwise;
+    pi/2 = east, the frame of :func:`panel_basis`), and the normal tilts from local up by
+    ``tilt_rad`` towards ``+x``: ``x' = cos(t) h - sin(t) up``, ``n' = sin(t) h + cos(t) up``,
+    ``y' = n' x x'`` (right-handed; ``t = 0``, azimuth pi/2 gives east, north, up).
+
+    Parameters
+    ----------
+    enu : ndarray, shape (n_ut, 3, 3)
+        Local east, north, up rows.
+    tilt_rad, x_azimuth_rad : array_like, shape (n_ut,) or scalar
+        Tilt of the normal [rad] and azimuth of the panel x axis [rad].
+
+    Returns
+    -------
+    ndarray, shape (n_ut, 3, 3)
+    """
+    tilt = np.asarray(tilt_rad, float)[..., None]
+    az = np.asarray(x_azimuth_rad, float)[..., None]
+    east, north, up = enu[:, 0, :], enu[:, 1, :], enu[:, 2, :]
+    h = np.sin(az) * east + np.cos(az) * north
+    x = np.cos(tilt) * h - np.sin(tilt) * up
+    n = np.sin(tilt) * h + np.cos(tilt) * up
+    return np.stack([x, np.cross(n, x), n], axis=1)
+
+
+def motion_azimuth_rad(enu, vel_m_s, fallback_rad):
+    """Azimuth of the horizontal velocity [rad] (from north, clockwise); ``fallback_rad``
+    where the UT does not move horizontally (a static UT keeps its configured panel)."""
+    east = np.einsum("uk,uk->u", vel_m_s, enu[:, 0, :])
+    north = np.einsum("uk,uk->u", vel_m_s, enu[:, 1, :])
+    moving = np.hypot(east, north) > 1e-9
+    return np.where(moving, np.arctan2(east, north), fallback_rad)
+
+
+def panel_elevation_rad(basis, unit_vec):
+    """Angle above the panel plane ``arcsin(v . n)`` of unit vectors UT -> satellite.
+
+    Parameters
+    ----------
+    basis : ndarray, shape (n_ut, 3, 3)
+    unit_vec : ndarray, shape (n_ut, n_sat, 3)
+
+    Returns
+    -------
+    ndarray, shape (n_ut, n_sat) [rad]; the elevation itself for a panel lying flat.
+    """
+    s = np.einsum("usk,uk->us", unit_vec, basis[:, 2, :])
+    return np.arcsin(np.clip(s, -1.0, 1.0))
+
+
+class PanelOrientation:
+    """Each UT's panel: tilt and x-axis azimuth, or the azimuth of its motion.
+
+    Parameters
+    ----------
+    tilt_rad : array_like, shape (n_ut,)
+    x_azimuth_rad : array_like, shape (n_ut,)
+        Fixed azimuth of the panel x axis [rad]; also the fallback of a UT that follows
+        its motion but stands still.
+    follow_motion : array_like of bool, shape (n_ut,)
+        The x axis follows the horizontal velocity (cars, trains, ships, aircraft).
+    """
+
+    def __init__(self, tilt_rad, x_azimuth_rad, follow_motion):
+        self.tilt_rad = np.asarray(tilt_rad, float)
+        self.x_azimuth_rad = np.asarray(x_azimuth_rad, float)
+        self.follow_motion = np.asarray(follow_motion, bool)
+
+    def basis(self, enu, vel_m_s):
+        """Panel rows (n_ut, 3, 3) of UTs with local frames ``enu`` moving at ``vel_m_s``."""
+        az = self.x_azimuth_rad
+        if self.follow_motion.any():
+            az = np.where(self.follow_motion, motion_azimuth_rad(enu, vel_m_s, az), az)
+        return oriented_panel_basis(enu, self.tilt_rad, az)

@@ -1,4 +1,4 @@
-"""User-terminal antennas (Sec. 2.1 and 4.1 of [1]): one interface, four models.
+"""User-terminal antennas (Sec. 2.1 and 4.1 of [1]): one interface, five models.
 
 Every model has ``gain_db(elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0)``
 (broadcasting). ``off_boresight_rad`` is the pointing error of the terminal beam
@@ -31,11 +31,13 @@ import numpy as np
 from pydantic import Field
 
 from leolink.antenna.array import ula_gain, upa_gain
+from leolink.antenna.element import DEFAULT_SCAN_EXPONENT, element_factor_lin
 from leolink.antenna.panel import pointing_offsets
 from leolink.registry import Params, Registry
 
 __all__ = [
     "TERMINALS",
+    "FixedGain",
     "Isotropic",
     "LeakyWave",
     "Metasurface",
@@ -58,7 +60,8 @@ class TerminalAntenna(Protocol):
     without a pattern (it cannot weigh other satellites' beams).
     """
 
-    elevation_independent: bool
+    @property
+    def elevation_independent(self) -> bool: ...  # an attribute, or a property
 
     @property
     def pattern_lin(self) -> Callable[..., np.ndarray] | None: ...  # a method, or None
@@ -74,15 +77,46 @@ def _panel_field(doc):
     return Field(24, ge=1, le=4096, description=doc)
 
 
+def _scan_fields():
+    return {
+        "scan_loss": Field(
+            False,
+            description="weigh the panel's gain by the element factor cos(theta)^q of the angle "
+            "off the panel normal (flat-panel scan loss); false: the paper's constant gain",
+        ),
+        "element_exponent": Field(
+            DEFAULT_SCAN_EXPONENT,
+            ge=0.0,
+            le=20.0,
+            description="q of the element factor cos^q (1.2: the Kymeta roll-off the paper "
+            "quotes, Sec. 2.1; 1: the projected aperture)",
+        ),
+    }
+
+
 class UpaConfig(Params):
     n_x: int = _panel_field("elements along x")
     n_y: int = _panel_field("elements along y")
+    scan_loss: bool = _scan_fields()["scan_loss"]
+    element_exponent: float = _scan_fields()["element_exponent"]
 
 
 class LeakyWaveConfig(Params):
     n_x: int = _panel_field("elements along x")
     n_y: int = _panel_field("elements along y")
     leakage: float = Field(0.05, gt=0.0, le=10.0, description="amplitude decay per element [Np]")
+    scan_loss: bool = _scan_fields()["scan_loss"]
+    element_exponent: float = _scan_fields()["element_exponent"]
+
+
+def _element_lin(panel, elevation_rad):
+    """Element factor of a flat panel towards a satellite at ``elevation_rad`` (1 without
+    scan loss): ``cos(90 deg - el)^q`` = ``sin(el)^q``, 0 below the panel plane."""
+    if not panel.scan_loss:
+        return 1.0
+    return element_factor_lin(
+        0.5 * np.pi - np.asarray(elevation_rad, float), panel.element_exponent
+    )
 
 
 class MetasurfaceConfig(Params):
@@ -148,10 +182,40 @@ class Isotropic:
         return np.ones(np.broadcast_shapes(np.shape(du_x), np.shape(du_y)))
 
 
+class FixedGainConfig(Params):
+    gain_dbi: float = Field(
+        0.0,
+        ge=-20.0,
+        le=80.0,
+        description="gain towards the serving satellite at every elevation [dBi] (TR 38.821 "
+        "Table 6.1.1.1-3: 39.7 dBi VSAT in Ka band, 0 dBi handheld in S band)",
+    )
+
+
+@TERMINALS.register("fixed", config=FixedGainConfig)
+@dataclass(frozen=True)
+class FixedGain:
+    """A terminal specified by its gain only (with ``[link]`` antenna temperature and noise
+    figure: by its G/T, as TR 38.821 Table 6.1.1.1-3 specifies UEs): ``gain_dbi`` towards
+    the serving satellite, whatever the elevation; no pattern (pointing errors ignored, it
+    cannot weigh other satellites' beams)."""
+
+    gain_dbi: float = 0.0
+    elevation_independent = True
+    pattern_lin = None
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        """Gain [dB] = ``gain_dbi``, broadcast shape of the inputs."""
+        shape = np.broadcast_shapes(*(np.shape(a) for a in (elevation_rad, off_boresight_rad)))
+        return np.full(shape, float(self.gain_dbi))
+
+
 @TERMINALS.register(
     "upa",
     config=UpaConfig,
-    build=lambda p, ctx: UPATerminal(p.n_x, p.n_y, getattr(ctx, "rician_k", np.inf)),
+    build=lambda p, ctx: UPATerminal(
+        p.n_x, p.n_y, getattr(ctx, "rician_k", np.inf), p.scan_loss, p.element_exponent
+    ),
 )
 @dataclass(frozen=True)
 class UPATerminal:
@@ -160,20 +224,32 @@ class UPATerminal:
     Average gain with Rician factor K (Sec. 4.1): ``E[max_w |<a_u(v), w>|^2/||w||^2] + 1/K
     = N + 1/K`` (24 x 24, K = 10: 27.60 dB). With a pointing error the LoS term becomes
     the UPA Dirichlet gain off the beam; the diffuse term ``1/K`` (Sigma = I) stays.
+
+    ``scan_loss``: the LoS term is weighed by the element factor ``cos(theta)^q`` of the
+    satellite's angle off the panel normal (:mod:`leolink.antenna.element`; a panel lying
+    flat: ``theta = 90 deg - el``), so ``N sin(el)^q + 1/K`` on the beam. The diffuse term
+    arrives from all directions and keeps ``1/K``. ``pattern_lin`` stays the array factor
+    relative to the beam (other satellites' beams are weighed without the element factor,
+    see docs/errata.md).
     """
 
     n_x: int
     n_y: int
     rician_k: float = np.inf
-    #: Steered at the satellite: without a pointing error the gain does not depend on
-    #: the elevation (a flat panel's element pattern is not modelled).
-    elevation_independent = True
+    scan_loss: bool = False
+    element_exponent: float = DEFAULT_SCAN_EXPONENT
+
+    @property
+    def elevation_independent(self):
+        """Steered at the satellite: without scan loss (the paper) and without a pointing
+        error the gain does not depend on the elevation."""
+        return not self.scan_loss
 
     def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
-        """Linear average gain ``G_LoS(du) + 1/K`` (Eq. (17) of the paper)."""
-        return self.pattern_lin(
-            *pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
-        )
+        """Linear average gain ``G_LoS(du) g_e(theta) + 1/K`` (Eq. (17) of the paper)."""
+        du = pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
+        los = upa_gain(du[0], du[1], self.n_x, self.n_y) * _element_lin(self, elevation_rad)
+        return los + 1.0 / self.rician_k
 
     def pattern_lin(self, du_x, du_y):
         """Linear gain towards a direction ``(du_x, du_y)`` off the beam, in the panel's
@@ -193,25 +269,36 @@ class LeakyWave:
     ``leakage`` is the amplitude decay per element (leolink's convention; the paper's weight
     formula would give ``leakage / 2`` per half-wavelength element, see docs/errata.md).
     The gain never exceeds the threshold ``coth(leakage / 2)^2`` however large the panel.
-    ``rician_k`` adds the diffuse term ``1/K`` as for the UPA (default: none).
+    ``rician_k`` adds the diffuse term ``1/K`` as for the UPA (default: none);
+    ``scan_loss`` the element factor ``cos(theta)^q`` as for the UPA.
     """
 
     n_x: int
     n_y: int
     leakage: float
     rician_k: float = np.inf
-    elevation_independent = True  # steered at the satellite, as the UPA
+    scan_loss: bool = False
+    element_exponent: float = DEFAULT_SCAN_EXPONENT
+
+    @property
+    def elevation_independent(self):
+        """Steered at the satellite, as the UPA: constant gain without scan loss."""
+        return not self.scan_loss
 
     def gain_lin(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
-        """Linear gain, product of the two tapered line kernels plus ``1/K``."""
-        return self.pattern_lin(
-            *pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
-        )
+        """Linear gain, product of the two tapered line kernels (times the element
+        factor with scan loss) plus ``1/K``."""
+        du = pointing_offsets(elevation_rad, off_boresight_rad, error_azimuth_rad)
+        los = self._array_lin(*du) * _element_lin(self, elevation_rad)
+        return los + 1.0 / self.rician_k
+
+    def _array_lin(self, du_x, du_y):
+        gx = leaky_wave_gain_lin(du_x, self.n_x, self.leakage)
+        return gx * leaky_wave_gain_lin(du_y, self.n_y, self.leakage)
 
     def pattern_lin(self, du_x, du_y):
         """Linear gain towards a direction ``(du_x, du_y)`` off the beam (panel frame)."""
-        gx = leaky_wave_gain_lin(du_x, self.n_x, self.leakage)
-        return gx * leaky_wave_gain_lin(du_y, self.n_y, self.leakage) + 1.0 / self.rician_k
+        return self._array_lin(du_x, du_y) + 1.0 / self.rician_k
 
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
         """Gain [dB], broadcast shape of the inputs."""

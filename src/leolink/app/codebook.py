@@ -117,8 +117,13 @@ def codebook_design_from_config(cfg):
     ConfigError
         More beams than RF chains, no beam in the ROI, or holes (``O < 1`` or a point of
         the ROI more than ``HOLE_LOSS_DB`` below the beam peak) without
-        ``satellite_array.allow_holes = true``.
+        ``satellite_array.allow_holes = true``; or an antenna without a codebook.
     """
+    if cfg.satellite_array.antenna != "hybrid_upa":
+        raise ConfigError(
+            f"satellite_array.antenna = {cfg.satellite_array.antenna!r} is for leolink budget "
+            "only: runs, coverage maps and codebooks drive the hybrid UPA ('hybrid_upa')"
+        )
     sub, geometry = _geometry(cfg)
     o = cfg.satellite_array.oversampling
     return _auto(cfg, sub, geometry) if o == "auto" else _fixed(cfg, o, sub, geometry)

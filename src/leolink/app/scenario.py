@@ -14,6 +14,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from leolink.antenna.panel import PanelOrientation
 from leolink.antenna.terminal import TerminalGroups
 from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
@@ -21,18 +22,24 @@ from leolink.app.steering import steering_from_config
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.ephemeris_error import EstimatedEphemeris
 from leolink.errors import ConfigError
+from leolink.link.acm import LinkFigureParams
+from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
 from leolink.sim.mobility import OnWgs84
 from leolink.sim.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
+from leolink.sim.service_link import ServiceLink
 
 __all__ = [
     "build_engine",
     "build_populations",
     "build_scenario",
+    "ptx_per_beam_dbw",
+    "service_link",
     "codebook_from_config",
     "ephemeris_from_config",
     "overhead_satellite",
+    "panel_orientation",
     "track_heading_rad",
     "ut_terminals",
 ]
@@ -87,22 +94,51 @@ def atmosphere_from(cfg):
     )
 
 
+def ptx_per_beam_dbw(link, n_beam, peak_gain_dbi):
+    """Power per beam [dBW] of ``[link]``: ``ptx_dbw`` (split over the beams with
+    ``power_mode = "split_total"``), or from the EIRP density at the beam peak,
+    ``density + 10 log10(B / 1 MHz) - G_peak + L_cable`` (TR 38.821 Table 6.1.1.1-1)."""
+    if link.eirp_density_dbw_mhz is not None:
+        eirp = float(eirp_from_density_dbw(link.eirp_density_dbw_mhz, link.bandwidth_hz))
+        return eirp - peak_gain_dbi + link.cable_loss_db
+    if link.power_mode == "split_total":
+        return link.ptx_dbw - 10.0 * math.log10(n_beam)
+    return link.ptx_dbw
+
+
+def service_link(cfg, engine):
+    """The monitor's :class:`~leolink.sim.service_link.ServiceLink` of ``[modcod]`` and
+    ``controller.service_metric``."""
+    m, p = cfg.modcod, engine.params
+    figures = LinkFigureParams(
+        ptx_dbw=p.ptx_dbw,
+        cable_loss_db=p.cable_loss_db,
+        bandwidth_hz=engine.bandwidth_hz,
+        rolloff=m.rolloff,
+        implementation_margin_db=m.implementation_margin_db,
+        required_esn0_db=m.required_esn0_db,
+        metric=m.metric,
+        throughput_model=m.throughput_model,
+    )
+    sinr = cfg.controller.service_metric == "sinr"
+    return ServiceLink(figures, cfg.controller.min_snr_db if sinr else None)
+
+
 def build_engine(cfg, codebook=None, terminal=None, ephemeris=None):
     """The :class:`~leolink.engine.LinkEngine` of the config (``terminal``: the UT
     antennas, default ``[terminal]``; :func:`ut_terminals` gives the per-population ones;
     ``ephemeris``: the run's, for Earth-fixed beams' cells, built when needed if None)."""
     codebook = codebook_from_config(cfg) if codebook is None else codebook
     n_beam = len(codebook.u_xy)
-    ptx = cfg.link.ptx_dbw
-    if cfg.link.power_mode == "split_total":
-        ptx -= 10.0 * math.log10(n_beam)
+    peak_dbi = 10.0 * math.log10(codebook.n_sub_x * codebook.n_sub_y)
     params = LinkParams(
         freq_hz=cfg.link.freq_hz,
         bandwidth_hz=cfg.link.bandwidth_hz,
-        ptx_dbw=ptx,
+        ptx_dbw=ptx_per_beam_dbw(cfg.link, n_beam, peak_dbi),
         cable_loss_db=cfg.link.cable_loss_db,
-        noise_temp_dbk=cfg.link.noise_temp_dbk,
+        noise_temp_dbk=cfg.link.system_noise_temp_dbk,
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
+        other_loss_db=cfg.link.other_loss_db,
     )
     colors = reuse_colors(codebook.lattice_index, cfg.link.reuse_colors)
     return LinkEngine(
@@ -146,6 +182,25 @@ def build_populations(cfg, heading_rad, rng):
     return pops
 
 
+def panel_orientation(cfg, populations):
+    """The UTs' :class:`~leolink.antenna.panel.PanelOrientation` from each population's
+    ``panel_tilt_deg`` and ``panel_azimuth_deg``; None when every panel lies flat with x
+    east (the default frame: the engine's path of today)."""
+    counts = [model.n_ut for _, model in populations]
+    motion = [p.panel_azimuth_deg == "motion" for p in cfg.population]
+    az_deg = [
+        90.0 if m else p.panel_azimuth_deg for p, m in zip(cfg.population, motion, strict=True)
+    ]
+    tilt_deg = [p.panel_tilt_deg for p in cfg.population]
+    if not any(motion) and all(t == 0.0 for t in tilt_deg) and all(a == 90.0 for a in az_deg):
+        return None
+    return PanelOrientation(
+        np.repeat(np.radians(tilt_deg), counts),
+        np.repeat(np.radians(az_deg), counts),
+        np.repeat(motion, counts),
+    )
+
+
 def build_scenario(cfg):
     """The :class:`~leolink.sim.runner.Scenario` of a validated config."""
     codebook = codebook_from_config(cfg)
@@ -155,8 +210,9 @@ def build_scenario(cfg):
     r = cfg.run
     times, n_warm = epoch_times(r.start_s, r.epoch_s, r.warmup_s, r.duration_s)
     populations = build_populations(cfg, heading, rng)
+    engine = build_engine(cfg, codebook, ut_terminals(cfg, populations), ephemeris)
     return Scenario(
-        engine=build_engine(cfg, codebook, ut_terminals(cfg, populations), ephemeris),
+        engine=engine,
         ephemeris=ephemeris,
         populations=populations,
         policy=cfg.controller.build(),
@@ -170,6 +226,8 @@ def build_scenario(cfg):
         seed=r.seed,
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
+        link=service_link(cfg, engine),
+        panels=panel_orientation(cfg, populations),
         estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
     )
 

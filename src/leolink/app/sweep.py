@@ -124,35 +124,33 @@ def _overrides(point):
 
 # --------------------------------------------------------------------------- the table
 def flatten_summary(overall):
-    """One flat row of ``summary["overall"]``.
+    """One flat row (dict of str to int or float) of ``summary["overall"]`` (``overall``,
+    or the same read back from ``summary.json``).
 
-    Nested sections are joined with ``_`` (``snr_db.p5`` -> ``snr_db_p5``,
-    ``dwell.mean_s`` -> ``dwell_mean_s``); handover counts become plural
-    (``handovers.beam_handover`` -> ``beam_handovers``, ``handovers_total`` kept).
-    ``None`` (a statistic of nothing, e.g. the mean dwell without a complete dwell)
-    becomes NaN.
-
-    Parameters
-    ----------
-    overall : dict
-        ``Result.summary["overall"]`` (or the same read back from ``summary.json``).
-
-    Returns
-    -------
-    dict of str to int or float
+    Nested sections are joined with ``_`` at every level (``snr_db.p5`` -> ``snr_db_p5``,
+    ``link.margin_db.p5`` -> ``link_margin_db_p5``; ``link.modcod_usage`` is left out);
+    handover counts become plural (``handovers.beam_handover`` -> ``beam_handovers``,
+    ``handovers_total`` kept). ``None`` (a statistic of nothing, e.g. the mean dwell
+    without a complete dwell) becomes NaN.
     """
     row = {}
     for key, value in overall.items():
         if key == "handovers":
             for kind, count in value.items():
                 row[kind if kind.endswith(("s", "total")) else f"{kind}s"] = count
-        elif isinstance(value, dict):
-            for sub, item in value.items():
-                if not isinstance(item, list):  # lists (all dwell times) stay in summary.json
-                    row[f"{key}_{sub}"] = item
         else:
-            row[key] = value
+            _flatten_into(row, key, value)
     return {k: math.nan if v is None else _plain(v) for k, v in row.items()}
+
+
+def _flatten_into(row, prefix, value):
+    # Lists (all dwell times) and the MODCOD usage (keys vary by run) stay in summary.json.
+    if isinstance(value, dict):
+        for sub, item in value.items():
+            if sub != "modcod_usage":
+                _flatten_into(row, f"{prefix}_{sub}", item)
+    elif not isinstance(value, list):
+        row[prefix] = value
 
 
 def _plain(value):

@@ -14,7 +14,7 @@ import functools
 import math
 import tomllib
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import tomli_w
 from pydantic import Field, ValidationError, create_model, model_validator
@@ -26,6 +26,7 @@ from leolink.config.schema import (
     ConstellationSection,
     EarthSection,
     LinkSection,
+    ModcodSection,
     RoiSection,
     RunSection,
     SatelliteArraySection,
@@ -53,6 +54,12 @@ class ControllerBase(kinds.SelectorSection):
     )
     min_snr_db: float = Field(
         -10.0, ge=-100.0, le=100.0, description="below this SNR the UT is in outage [dB]"
+    )
+    service_metric: Literal["snr", "sinr"] = Field(
+        "snr",
+        description="what min_snr_db is compared with: the SNR (the paper; beams and events) "
+        "or also the serving link's SINR (a served epoch below it counts as outage, "
+        "below_threshold; beams and events stay on SNR)",
     )
 
 
@@ -154,6 +161,7 @@ def _model(gen):
         "constellation": ConstellationSection,
         "roi": RoiSection,
         "link": LinkSection,
+        "modcod": ModcodSection,
         "atmosphere": sel("AtmosphereSection", REGISTRIES["atmosphere.model"], "model", "fixed",
                           doc="atmospheric loss model"),
         "satellite_array": sel("SatelliteArraySection", REGISTRIES["satellite_array.steering"],

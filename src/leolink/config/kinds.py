@@ -156,6 +156,25 @@ def _population_models(gen):
                     "(none: the [terminal] section)",
                 ),
             ),
+            panel_tilt_deg=(
+                float,
+                Field(
+                    0.0,
+                    ge=0.0,
+                    le=90.0,
+                    description="tilt of the UT panels' normal from local up, towards the "
+                    "panel x axis [deg] (0: lying flat)",
+                ),
+            ),
+            panel_azimuth_deg=(
+                Annotated[float, Field(ge=-360.0, le=360.0)] | Literal["motion"],
+                Field(
+                    90.0,
+                    description="azimuth of the panel x axis from north, clockwise [deg] (90: "
+                    "east, the default frame), or 'motion': along the UT's horizontal "
+                    "velocity (vehicles; a UT standing still keeps 90)",
+                ),
+            ),
         )
         models.append(Annotated[model, Tag(name)])
     return tuple(models)

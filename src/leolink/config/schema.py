@@ -6,11 +6,14 @@ populations, outputs) are built from the registries in :mod:`leolink.config.kind
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2
+from leolink.link.acm import ROLLOFFS
+from leolink.link.figures import system_noise_temp_k
 
 _ISO_EXAMPLE = "e.g. 2019-12-09T16:37:29.363Z"
 
@@ -33,6 +36,7 @@ __all__ = [
     "ConstellationSection",
     "EarthSection",
     "LinkSection",
+    "ModcodSection",
     "RoiSection",
     "RunSection",
     "SatelliteArraySection",
@@ -222,6 +226,99 @@ class LinkSection(Section):
     interference: Literal["serving_satellite", "all_satellites"] = _f(
         "serving_satellite", doc="whose other beams interfere (the paper: the serving satellite's)"
     )
+    eirp_density_dbw_mhz: float | None = _f(
+        None,
+        ge=-100.0,
+        le=100.0,
+        doc="satellite EIRP density at a beam's peak [dBW/MHz] (TR 38.821 Table 6.1.1.1-1); "
+        "when given it sets the power per beam (ptx_dbw = density + 10 log10(B / 1 MHz) - "
+        "peak gain + cable loss; power_mode and ptx_dbw are then ignored)",
+    )
+    antenna_temp_k: float | None = _f(
+        None,
+        gt=0,
+        le=1e6,
+        doc="UT antenna temperature [K]; with noise_figure_db it sets the system noise "
+        "temperature T_a + 290 (10^(NF/10) - 1) (TR 38.821 Table 6.1.1.1-3); noise_temp_dbk "
+        "is then ignored",
+    )
+    noise_figure_db: float | None = _f(None, ge=0, le=50.0, doc="UT receiver noise figure [dB]")
+    scintillation_loss_db: float = _f(
+        0.0, ge=0, le=100.0, doc="scintillation loss [dB] (TR 38.811 6.6.6)"
+    )
+    shadow_margin_db: float = _f(
+        0.0, ge=0, le=100.0, doc="shadowing margin [dB] (TR 38.821 6.1.3.2)"
+    )
+    polarization_loss_db: float = _f(0.0, ge=0, le=100.0, doc="polarization mismatch loss [dB]")
+    additional_loss_db: float = _f(0.0, ge=0, le=100.0, doc="any further loss of the budget [dB]")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if (self.antenna_temp_k is None) != (self.noise_figure_db is None):
+            raise ValueError(
+                "link.antenna_temp_k and link.noise_figure_db go together: give both (the "
+                "system noise temperature from them) or neither (link.noise_temp_dbk)"
+            )
+        return self
+
+    @property
+    def other_loss_db(self) -> float:
+        """Scintillation + shadowing margin + polarization + additional losses [dB]."""
+        return (
+            self.scintillation_loss_db
+            + self.shadow_margin_db
+            + self.polarization_loss_db
+            + self.additional_loss_db
+        )
+
+    @property
+    def system_noise_temp_dbk(self) -> float:
+        """The receiver's noise temperature [dBK]: noise_temp_dbk, or from T_a and NF."""
+        if self.antenna_temp_k is None:
+            return self.noise_temp_dbk
+        t_k = system_noise_temp_k(self.antenna_temp_k, self.noise_figure_db)
+        return 10.0 * math.log10(float(t_k))
+
+
+class ModcodSection(Section):
+    rolloff: float = _f(
+        0.2,
+        ge=0.05,
+        le=0.35,
+        doc="root-raised-cosine roll-off alpha, one of DVB-S2X's 0.05, 0.1, 0.15, 0.2, 0.25, "
+        "0.35: symbol rate B / (1 + alpha)",
+    )
+    implementation_margin_db: float = _f(
+        0.0,
+        ge=0.0,
+        le=20.0,
+        doc="added to every MODCOD's ideal Es/N0 (EN 302 307 Table 13 / 20a are ideal, AWGN) [dB]",
+    )
+    required_esn0_db: float | None = _f(
+        None,
+        ge=-30.0,
+        le=60.0,
+        doc="Es/N0 the link margin is counted from [dB]; none: the most robust MODCOD's "
+        "threshold plus the implementation margin",
+    )
+    metric: Literal["sinr", "snr"] = _f(
+        "sinr",
+        doc="Es/N0 of the MODCOD and margin from the SINR (interference as noise) or the SNR",
+    )
+    throughput_model: Literal["shannon", "dvbs2x"] = _f(
+        "shannon",
+        doc="what throughput_bps and se_bps_hz hold: B log2(1 + SINR) (the paper) or the ACM "
+        "MODCOD's eta B / (1 + alpha); the summary gives both",
+    )
+
+    @model_validator(mode="after")
+    def _check(self):
+        if not any(math.isclose(self.rolloff, r) for r in ROLLOFFS):
+            raise ValueError(
+                f"modcod.rolloff = {self.rolloff!r} is not allowed: use one of "
+                f"{', '.join(map(str, ROLLOFFS))} (EN 302 307-1/-2 clause 5.6)"
+            )
+        return self
 
 
 class SatelliteArraySection(Section):
@@ -233,6 +330,17 @@ class SatelliteArraySection(Section):
         1.2,
         doc="DFT oversampling factor O in (0, 100], or 'auto' (the most beams the RF chains "
         "can drive)",
+    )
+    antenna: Literal["hybrid_upa", "circular_aperture"] = _f(
+        "hybrid_upa",
+        doc="the paper's hybrid UPA and DFT codebook, or the TR 38.811 Sec. 6.4.1 circular "
+        "aperture (one beam on the UT; leolink budget only)",
+    )
+    aperture_diameter_m: float = _f(
+        0.5, gt=0.0, le=100.0, doc="antenna = 'circular_aperture': diameter D = 2a [m]"
+    )
+    aperture_gain_dbi: float = _f(
+        38.5, ge=0.0, le=80.0, doc="antenna = 'circular_aperture': boresight gain G_max [dBi]"
     )
     allow_holes: bool = _f(
         False,

@@ -19,7 +19,6 @@ No Python loop over UTs, satellites or beams.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,11 +27,13 @@ from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
 from leolink.engine import jit
 from leolink.engine.links import (
+    LinkParams,
     Links,
     Snapshot,
     azimuth_deg,
     group_constants_db,
     pair_geometry,
+    panel_elevation_of_pairs,
     reuse_colors,
     rows_gain_db,
 )
@@ -65,21 +66,6 @@ SERVE_COLUMNS = (
 #: Further per-UT columns of :meth:`LinkEngine.serve`: the satellite's azimuth from the
 #: UT, from north clockwise [deg], in the UT's local frame.
 SERVE_GEOMETRY_COLUMNS = ("azimuth_deg",)
-
-
-@dataclass(frozen=True)
-class LinkParams:
-    """Scalars of the link budget (paper's Table).
-
-    ``ptx_dbw`` is the power of one beam (one RF chain), as in the paper.
-    """
-
-    freq_hz: float
-    bandwidth_hz: float
-    ptx_dbw: float
-    cable_loss_db: float
-    noise_temp_dbk: float
-    min_elevation_rad: float
 
 
 class LinkEngine:
@@ -122,7 +108,7 @@ class LinkEngine:
         self.bandwidth_hz = params.bandwidth_hz / self.n_colors
         self.noise_dbw = float(noise_power_dbw(params.noise_temp_dbk, self.bandwidth_hz))
         # SNR per unit TX gain = K / rho^2 x G_rx / L_atm (Eq. of RSS and FSPL, in watts).
-        k_db = params.ptx_dbw - params.cable_loss_db - self.noise_dbw
+        k_db = params.ptx_dbw - params.cable_loss_db - params.other_loss_db - self.noise_dbw
         self._k_lin = (
             10.0 ** (k_db / 10.0) / (4.0 * np.pi * params.freq_hz / SPEED_OF_LIGHT_M_S) ** 2
         )
@@ -144,7 +130,8 @@ class LinkEngine:
         cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
         return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)
 
-    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None, sat_id=None):
+    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None, ut_panel=None,
+                 sat_id=None):  # fmt: skip
         """Geometry, gains and SNR for every (UT, satellite, beam).
 
         Parameters
@@ -157,6 +144,9 @@ class LinkEngine:
             elevations, azimuths and panel frames use them. None: the sphere's radial up.
         sat_id : ndarray of int, shape (n_sat,), optional
             Global satellite ids (cells of re-steered beams); None: row = id.
+        ut_panel : ndarray, shape (n_ut, 3, 3), optional
+            Turned or tilted panels (rows x, y, normal): terminal gains take the angle above
+            the panel plane, other satellites' cosines these rows. None: flat, x east.
 
         Returns
         -------
@@ -166,7 +156,9 @@ class LinkEngine:
         ut = np.tile(np.arange(n_ut), n_sat)  # satellite-major grid: p = s n_ut + u
         sat = np.repeat(np.arange(n_sat), n_ut)
         up = None if ut_enu is None else ut_enu[:, 2, :]
-        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, sat_id=sat_id)
+        normal = None if ut_panel is None else ut_panel[:, 2, :]
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, None, normal,
+                                    sat_id=sat_id)  # fmt: skip
         snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
@@ -176,11 +168,12 @@ class LinkEngine:
                 el > 0.0, snap.path_lin / 10.0 ** (snap.rx_db / 10.0), 0.0
             )
             basis = panel_basis(ut_pos_m) if ut_enu is None else ut_enu
+            basis = basis if ut_panel is None else ut_panel
             snap.u_panel = panel_direction_cosines(basis, -rel / rho[..., None])
         return snap
 
     def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
-                       sat_id=None, steer=None):  # fmt: skip
+                       ut_normal=None, sat_id=None, steer=None):  # fmt: skip
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -194,6 +187,9 @@ class LinkEngine:
             Each UT row's local up (the WGS 84 normal); None: the sphere's radial up.
         ut_id : ndarray of int, shape (n_u,), optional
             The UT of each UT row, for per-population terminals; None: row = UT.
+        ut_normal : ndarray, shape (n_u, 3), optional
+            Each UT row's panel normal: the terminal gain takes the angle above the panel
+            plane (visibility and atmosphere the elevation). None: panels lying flat.
         sat_id, steer : ndarray of int (n_s,), and (pos, vel) each (n_s, 3), optional
             Global satellite ids (None: row = id); the states re-steered beams are steered
             by (None: the true ones).
@@ -213,7 +209,10 @@ class LinkEngine:
         rx_db = self._rx_const
         if rx_db is None:
             rows = ut if ut_id is None else ut_id[ut]
-            rx_db = rows_gain_db(self.terminal, elevation, rows, self._rx_groups)
+            el_rx = elevation
+            if ut_normal is not None:  # tilted panels: the angle above the panel plane
+                el_rx = panel_elevation_of_pairs(rel, rho, ut_normal, ut)
+            rx_db = rows_gain_db(self.terminal, el_rx, rows, self._rx_groups)
         atm_db = self._atm_const
         if atm_db is None:
             atm_db = self.atmosphere(np.maximum(elevation, 0.0))

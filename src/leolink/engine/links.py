@@ -21,7 +21,23 @@ from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
 
 __all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
-__all__ += ["reuse_colors", "rows_gain_db"]
+__all__ += ["panel_elevation_of_pairs", "reuse_colors", "rows_gain_db"]
+
+
+@dataclass(frozen=True)
+class LinkParams:
+    """Scalars of the link budget (paper's Table).
+
+    ``ptx_dbw``: power of one beam (one RF chain), as in the paper; ``other_loss_db``: the
+    losses besides FSPL and atmosphere (TR 38.821 Table 6.1.3.3-1)."""
+
+    freq_hz: float
+    bandwidth_hz: float
+    ptx_dbw: float
+    cable_loss_db: float
+    noise_temp_dbk: float
+    min_elevation_rad: float
+    other_loss_db: float = 0.0
 
 
 @dataclass
@@ -282,6 +298,20 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_
     kx = dirichlet_kernels(ux, engine.beam_ux, engine.codebook.n_sub_x)
     ky = dirichlet_kernels(uy, engine.beam_uy, engine.codebook.n_sub_y)
     return rel, rho2, rho, elevation, visible, kx, ky
+
+
+def panel_elevation_of_pairs(rel_m, slant_range_m, ut_normal, ut):
+    """Angle above the panel plane ``arcsin(v . n)`` of each pair [rad], shape (m,).
+
+    ``v = -rel / rho`` is the unit vector UT -> satellite (``rel_m (m, 3)``, satellite ->
+    UT, and ``slant_range_m (m,)`` as :func:`pair_geometry` gives them), ``n`` the panel
+    normal of the pair's UT row (``ut_normal[ut]``, ``(n_u, 3)``): the elevation itself for
+    a panel lying flat. The same numpy operations after the numpy and the compiled geometry
+    (which give the same ``rel`` and ``rho`` bits), so both paths agree bit for bit.
+    """
+    v = -rel_m / slant_range_m[:, None]
+    s = np.einsum("pk,pk->p", v, ut_normal[ut])
+    return np.arcsin(np.clip(s, -1.0, 1.0))
 
 
 def reuse_colors(lattice_ij, n_colors):

@@ -78,7 +78,8 @@ def envelope(u, beam_u, n):
         return np.minimum(float(n), 1.0 / (n * s * s))
 
 
-def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, sat_id=None):
+def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_normal=None,
+           sat_id=None):  # fmt: skip
     """Classify every pair of the UT x satellite grid and bound its best beam's SNR.
 
     Parameters
@@ -92,6 +93,9 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, sat_id
         Local up of each UT (WGS 84); None: the sphere's radial up.
     ut_id : ndarray of int, shape (n_u,), optional
         The UT of each row (per-population terminals); None: row = UT.
+    ut_normal : ndarray, shape (n_u, 3), optional
+        Panel normal of each row (tilted panels): an elevation-dependent terminal gain is
+        bounded at the screening angle above the panel plane, as the engine evaluates it.
     sat_id : ndarray of int, shape (n_s,), optional
         Global id of each satellite (re-steered beams, :mod:`leolink.engine.steered`,
         whose bound is per satellite); None: row = id.
@@ -118,7 +122,11 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, sat_id
     rows = np.flatnonzero(np.isnan(factor))
     if rows.size:  # UTs whose gain or loss depends on the elevation: per pair
         r, s = np.nonzero(code[rows] > 0)
-        bound[rows[r], s] *= _pair_factor(engine, sin_el[rows[r], s], ut_id[rows[r]])
+        sin_rx = None
+        if ut_normal is not None:  # the gain sees the angle above the panel plane
+            d = sat_pos_m[s] - ut_pos_m[rows[r]]
+            sin_rx = np.einsum("pk,pk->p", d, ut_normal[rows[r]]) / np.linalg.norm(d, axis=1)
+        bound[rows[r], s] *= _pair_factor(engine, sin_el[rows[r], s], ut_id[rows[r]], sin_rx)
     return code, bound
 
 
@@ -186,12 +194,14 @@ def _ut_factor(engine, ut_id):
     return out
 
 
-def _pair_factor(engine, sin_el, ut_id):
-    """Bound of ``G_rx / L_atm`` (linear) at the screening elevations of pairs, (m,)."""
+def _pair_factor(engine, sin_el, ut_id, sin_rx=None):
+    """Bound of ``G_rx / L_atm`` (linear) at the screening elevations of pairs, (m,)
+    (``sin_rx``: the sine of the angle the terminal gain takes, if not the elevation's)."""
     el = np.arcsin(np.clip(sin_el, -1.0, 1.0))
     rx_db, atm_db = engine._rx_const, engine._atm_const
     if rx_db is None:
-        rx_db = rows_gain_db(engine.terminal, el, ut_id, engine._rx_groups)
+        el_rx = el if sin_rx is None else np.arcsin(np.clip(sin_rx, -1.0, 1.0))
+        rx_db = rows_gain_db(engine.terminal, el_rx, ut_id, engine._rx_groups)
     if atm_db is None:
         atm_db = engine.atmosphere(np.maximum(el, 0.0))
     return 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)

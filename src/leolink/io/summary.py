@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.io.atomic import to_jsonable
+from leolink.io.link_summary import LinkStats
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
 from leolink.sim.processes import OUTAGE_REASONS
 
@@ -111,6 +112,8 @@ class SummaryAccumulator:
     ``outage_fraction_by_reason``: ``no_satellite`` and ``below_threshold`` = epochs in
     outage for that reason / epochs (an outage lasts whole epochs; the two add up to
     ``outage_fraction``), ``handover`` = ``handover_interruption_fraction``.
+    The link figures (margin, MODCOD usage, ACM and Shannon throughput): ``link``,
+    :class:`leolink.io.link_summary.LinkStats`.
     """
 
     def __init__(self, n_ut=0, epoch_s=1.0):
@@ -154,6 +157,7 @@ class SummaryAccumulator:
         }
         self._sums = {k: zeros(np.float64) for k in self._samples}
         self._dwells = []
+        self._link = LinkStats(self.n_ut, _Growable)
 
     def add_trace(self, columns):
         """Add trace rows (dict of 1-D arrays; needs ``ut_id``, ``service``, ``snr_db``,
@@ -168,6 +172,7 @@ class SummaryAccumulator:
         gap = columns.get("interruption_s")
         gap = np.where(handover, self.epoch_s, 0.0) if gap is None else np.asarray(gap, float)
         self.interrupted_s += np.bincount(ut, gap, minlength=n)
+        self._link.add(columns, ut, codes)
         if "outage_reason" in columns:
             reason = _codes(columns["outage_reason"], OUTAGE_REASONS)
             for store, code in (
@@ -271,6 +276,9 @@ class SummaryAccumulator:
         snr_ut, snr_all = self._stats("snr_db")
         sinr_ut, sinr_all = self._stats("sinr_db")
         counts = {k: self.event_counts[i] for i, k in enumerate(EVENT_KINDS)}
+        link_all, link_ut = self._link.summary(
+            self.n_epochs, lambda g, v, n: grouped_percentiles(g, v, n, _PERCENTILES)
+        )
         per_ut = []
         for i in range(self.n_ut):  # output formatting only; all statistics are vectorized
             per_ut.append(
@@ -289,6 +297,7 @@ class SummaryAccumulator:
                     "mean_throughput_bps": tput_mean[i],
                     "max_abs_doppler_hz": self.max_abs_doppler_hz[i],
                     "max_angular_speed_deg_s": self.max_angular_speed_deg_s[i],
+                    "link": link_ut[i],
                 }
             )
         n_all = self.n_epochs.sum()
@@ -311,6 +320,7 @@ class SummaryAccumulator:
             "mean_throughput_bps": self.throughput_sum.sum() / n_all if n_all else None,
             "max_abs_doppler_hz": _nanmax(self.max_abs_doppler_hz),
             "max_angular_speed_deg_s": _nanmax(self.max_angular_speed_deg_s),
+            "link": link_all,
         }
         return to_jsonable({"overall": overall, "per_ut": per_ut})
 

@@ -10,7 +10,8 @@ CSV: a plain header line, then pyarrow's ``CSVWriter`` (shortest round-trip floa
 ``nan`` for NaN, strings unquoted). Parquet: one row group per chunk.
 The trace ``service`` column holds the names ``served``, ``handover``, ``outage``
 (``controller.SERVICE_NAMES``) and ``outage_reason`` the names ``none``, ``handover``,
-``no_satellite``, ``below_threshold`` (``processes.OUTAGE_REASONS``); integer codes given
+``no_satellite``, ``below_threshold`` (``processes.OUTAGE_REASONS``) and ``modcod`` the
+DVB-S2X MODCOD names (``leolink.link.modcod``, ``none`` for code -1); integer codes given
 to ``append`` are mapped to them.
 """
 
@@ -27,6 +28,8 @@ import pyarrow.parquet as pq
 from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.errors import ConfigError, require_at_least
 from leolink.io.atomic import PendingFiles
+from leolink.link.acm import FIGURE_COLUMNS
+from leolink.link.modcod import modcod_table
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES
 from leolink.sim.processes import OUTAGE_REASONS
 
@@ -59,13 +62,20 @@ TRACE_COLUMNS = (
     "alt_m",  # UT height above the Earth model [m]
     "population",
     "interruption_s",  # part of the epoch without service: handover execution [s]
+    *FIGURE_COLUMNS,  # eirp_dbw, cn0_dbhz, esn0_db, margin_db, modcod (leolink.link.acm)
 )
 _INT_COLUMNS = {
     "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible"
 }  # fmt: skip
-_STRING_COLUMNS = {"service", "kind", "outage_reason", "population"}
-#: Columns given as integer codes and written as names.
-_CODED_COLUMNS = {"service": SERVICE_NAMES, "outage_reason": OUTAGE_REASONS}
+_STRING_COLUMNS = {"service", "kind", "outage_reason", "population", "modcod"}
+#: Name of MODCOD code -1 (no MODCOD closes the link, or no link).
+NO_MODCOD_NAME = "none"
+#: Columns given as integer codes and written as names (code -1: the last name).
+_CODED_COLUMNS = {
+    "service": SERVICE_NAMES,
+    "outage_reason": OUTAGE_REASONS,
+    "modcod": (*modcod_table().names, NO_MODCOD_NAME),
+}
 FORMATS = ("csv", "parquet")
 
 
@@ -93,8 +103,9 @@ def _column_array(name, values, field):
         raise ValueError(f"column {name!r} must be 1-D, got shape {values.shape}")
     if name in _CODED_COLUMNS and values.dtype.kind in "iu":
         # Decode the codes in Arrow (vectorized C++), not through a numpy string array.
-        codes = pa.array(values.astype(np.int8))
-        return pa.DictionaryArray.from_arrays(codes, _CODED_COLUMNS[name]).cast(pa.string())
+        names = _CODED_COLUMNS[name]
+        codes = pa.array(np.where(values < 0, values + len(names), values).astype(np.int8))
+        return pa.DictionaryArray.from_arrays(codes, names).cast(pa.string())
     if pa.types.is_string(field.type):
         return pa.array(values if values.dtype == object else values.astype(str), pa.string())
     if pa.types.is_integer(field.type):

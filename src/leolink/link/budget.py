@@ -163,13 +163,16 @@ class LinkBudget:
     """One downlink budget, term by term (used by ``leolink budget``).
 
     All scalars: angles in degrees (CLI edge), powers in dBW, losses and gains in dB.
-    ``eirp_dbw = ptx_dbw - cable_db + gain_tx_db`` (per beam).
+    ``eirp_dbw = ptx_dbw - cable_db + gain_tx_db`` (per beam); ``other_loss_db``: the
+    constant losses besides FSPL and atmosphere (scintillation, shadowing margin,
+    polarization, additional: TR 38.821 Table 6.1.3.3-1), subtracted from the RSS.
     """
 
     elevation_deg: float
     slant_range_m: float
     fspl_db: float
     atm_db: float
+    other_loss_db: float
     cable_db: float
     gain_tx_db: float
     gain_rx_db: float
@@ -193,16 +196,20 @@ class LinkBudget:
         bandwidth_hz,
         atm_db=0.0,
         cable_db=0.0,
+        other_loss_db=0.0,
     ):
         """Build the budget from the link parameters (scalars) with this module's formulas."""
         loss_fs_db = float(fspl_db(slant_range_m, freq_hz))
-        rss = float(rss_dbw(ptx_dbw, cable_db, gain_tx_db, atm_db, loss_fs_db, gain_rx_db))
+        rss = float(
+            rss_dbw(ptx_dbw, cable_db, gain_tx_db, atm_db + other_loss_db, loss_fs_db, gain_rx_db)
+        )
         noise = float(noise_power_dbw(noise_temp_dbk, bandwidth_hz))
         return cls(
             elevation_deg=float(elevation_deg),
             slant_range_m=float(slant_range_m),
             fspl_db=loss_fs_db,
             atm_db=float(atm_db),
+            other_loss_db=float(other_loss_db),
             cable_db=float(cable_db),
             gain_tx_db=float(gain_tx_db),
             gain_rx_db=float(gain_rx_db),

@@ -42,11 +42,14 @@ class Decider:
     prune : bool
         Screen the (UT, satellite) pairs before evaluating them (the same tables,
         :mod:`leolink.sim.search`); False evaluates every pair (the reference).
+    panels : leolink.antenna.panel.PanelOrientation or None
+        The UTs' turned or tilted panels (None: lying flat, x east): their rows per epoch
+        of the block are ``panel`` (n_k, n_ut, 3, 3), handed to the engine.
     """
 
     def __init__(self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad,
                  radius_m, future_state, motion, epoch_s=1.0, ellipsoidal=False,
-                 prune=True):  # fmt: skip
+                 prune=True, panels=None):  # fmt: skip
         self.engine, self.policy = engine, policy
         self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
@@ -55,7 +58,8 @@ class Decider:
         self.future_state, self.motion = future_state, motion
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
         self.search = CandidateSearch(engine, neighbour_window_db(policy), prune)
-        self.block = self.mb = self.cones = self.enu = None
+        self.panels = panels
+        self.block = self.mb = self.cones = self.enu = self.panel = None
 
     def _open(self, k):
         """The candidates of the motion block of epoch ``k`` (computed once per block)."""
@@ -71,12 +75,22 @@ class Decider:
         ]
         self.enu = enu_basis(mb.ut_lat_rad, mb.ut_lon_rad) if self.ellipsoidal else None
         up = None if self.enu is None else self.enu[..., 2, :]
+        self.panel = self._panels(mb)
+        normal = None if self.panel is None else self.panel[..., 2, :]
         n_ut = mb.ut_pos_m.shape[1]
         self.mb = mb
         self.block = self.search.block(
-            mb.k0, n_ut, mb.ut_pos_m, up, mb.sat_pos_m, mb.sat_vel_m_s, self.cones
+            mb.k0, n_ut, mb.ut_pos_m, up, mb.sat_pos_m, mb.sat_vel_m_s, self.cones, normal
         )
         return self.block
+
+    def _panels(self, mb):
+        """Panel rows of the block's epochs (n_k, n_ut, 3, 3), or None (flat panels). On
+        the sphere the local frame is the ENU of the geocentric latitude (radial up)."""
+        if self.panels is None:
+            return None
+        enu = self.enu if self.enu is not None else enu_basis(mb.ut_lat_rad, mb.ut_lon_rad)
+        return np.stack([self.panels.basis(enu[i], mb.ut_vel_m_s[i]) for i in range(mb.n_k)])
 
     def __call__(self, state):
         k, nb = state.k, self.engine.n_beam
@@ -130,21 +144,24 @@ class Decider:
         """The engine's links of pairs (block rows, global satellite ids) of this block."""
         mb = self.mb
         up = None if self.enu is None else self.enu[..., 2, :].reshape(-1, 3)
+        nrm = None if self.panel is None else self.panel[..., 2, :].reshape(-1, 3)
         n_ut = mb.ut_pos_m.shape[1]
         pos = mb.ut_pos_m.reshape(-1, 3)
-        return self.search.evaluate(pos, up, mb.sat_pos_m, mb.sat_vel_m_s, n_ut, rows, sats)
+        return self.search.evaluate(pos, up, mb.sat_pos_m, mb.sat_vel_m_s, n_ut, rows, sats, nrm)
 
     def _future(self, table, t_s, k):
         """The table's cells at ``t_s`` (the same cells; NaN where not visible then)."""
         eng, nb = self.engine, self.engine.n_beam
         ut_f, sat_pos_f, sat_vel_f = self.future_state(t_s)
-        up = None if self.enu is None else self.enu[k - self.block.k0][:, 2, :]
+        j = k - self.block.k0
+        up = None if self.enu is None else self.enu[j][:, 2, :]
+        nrm = None if self.panel is None else self.panel[j][:, 2, :]
         rows = np.broadcast_to(np.arange(table.n_ut)[:, None], table.shape)
         valid = table.cell >= 0
         key = rows[valid] * len(sat_pos_f) + table.cell[valid] // nb
         pairs, inverse = np.unique(key, return_inverse=True)
         ut, sat = np.divmod(pairs, len(sat_pos_f))
-        links = eng.evaluate_pairs(ut_f, sat_pos_f, sat_vel_f, ut, sat, ut_up=up)
+        links = eng.evaluate_pairs(ut_f, sat_pos_f, sat_vel_f, ut, sat, ut_up=up, ut_normal=nrm)
         snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, n_pair)
         out = np.full(table.shape, np.nan)
         out[valid] = snr[table.cell[valid] % nb, inverse.reshape(-1)]

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink.engine.links import panel_elevation_of_pairs
 from leolink.sim.monitor import Monitor
 
 __all__ = ["EPHEMERIS_COLUMNS", "TrueLinkMonitor", "pointing_error"]
@@ -116,13 +117,16 @@ class TrueLinkMonitor(Monitor):
         up = pos / np.linalg.norm(pos, axis=-1, keepdims=True) if enu is None else enu[:, 2]
         est_pos, est_vel = mb.sat_pos_m[epoch, s], mb.sat_vel_m_s[epoch, s]
         n = rows.size
+        normal = None if dec.panel is None else dec.panel.reshape(-1, 3, 3)[rows][:, 2]
         links = eng.evaluate_pairs(
             pos, t_pos[epoch, s], t_vel[epoch, s], np.arange(n), np.arange(n),
-            ut_up=None if enu is None else up, ut_id=rows % n_ut, sat_id=s,
+            ut_up=None if enu is None else up, ut_id=rows % n_ut, ut_normal=normal, sat_id=s,
             steer=(est_pos, est_vel),
         )  # fmt: skip
         off, psi = pointing_error(pos, up, t_pos[epoch, s], est_pos)
-        el = links.elevation_rad
+        el = links.elevation_rad  # the terminal's angle: above the panel plane if tilted
+        if normal is not None:
+            el = panel_elevation_of_pairs(links.rel_m, links.slant_range_m, normal, np.arange(n))
         with np.errstate(invalid="ignore", divide="ignore"):
             g0 = _terminal_gain_db(eng.terminal, el, np.zeros(n), np.zeros(n), rows % n_ut)
             loss_db = g0 - _terminal_gain_db(eng.terminal, el, off, psi, rows % n_ut)

@@ -11,6 +11,10 @@ In outage rows where a satellite is above the minimum elevation, the geometry an
 columns are those of the best candidate (``best_snr_db``); the link columns (SNR, SINR,
 SE, throughput) are NaN. In a handover epoch SE and throughput are the epoch's means:
 the link's, times the part of the epoch with service.
+
+Beyond the engine's columns (:class:`~leolink.sim.service_link.ServiceLink`): the link
+figures (EIRP, C/N0, Es/N0, margin, MODCOD, ACM throughput), and with a SINR service
+threshold the served rows below it turned to outage (``below_threshold``, no interruption).
 """
 
 from __future__ import annotations
@@ -20,9 +24,11 @@ import dataclasses
 import numpy as np
 
 from leolink.engine.links import Links
+from leolink.link.acm import LinkFigureParams
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
 from leolink.sim.controller import SERVICE_HANDOVER, SERVICE_OUTAGE, interruption_s
+from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import EpochFrame
 
 __all__ = ["Monitor"]
@@ -61,15 +67,22 @@ class Monitor:
     epoch_s : float
     population : sequence of str
         The population name of every UT.
+    link : ServiceLink or None
+        The link figures and the SINR service threshold (None: the default figures of the
+        engine's power and bandwidth, service as the controller judged it).
     """
 
     def __init__(self, engine, sink, decider, fading_k=None, ut_keys=None, epoch_s=1.0,
-                 population=()):  # fmt: skip
+                 population=(), link=None):  # fmt: skip
         self.engine, self.sink, self.decider = engine, sink, decider
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.epoch_s = float(epoch_s)
         self.population = np.asarray(population, dtype=object)
         self.pending = []
+        if link is None:
+            p = engine.params
+            link = ServiceLink(LinkFigureParams(p.ptx_dbw, p.cable_loss_db, engine.bandwidth_hz))
+        self.link = link
 
     def __call__(self, state):
         if state.recording:
@@ -169,8 +182,9 @@ class Monitor:
                 out.append(np.zeros(n_ut))
                 continue
             enu = None if self.decider.enu is None else self.decider.enu[j]
+            panel = None if self.decider.panel is None else self.decider.panel[j]
             snap = eng.evaluate(mb.ut_pos_m[j], mb.sat_pos_m[j][cone], mb.sat_vel_m_s[j][cone],
-                                ut_enu=enu, sat_id=cone)  # fmt: skip
+                                ut_enu=enu, ut_panel=panel, sat_id=cone)  # fmt: skip
             s = np.where(geo_sat[sl] >= 0, np.searchsorted(cone, geo_sat[sl]), 0)
             b = np.where(geo_sat[sl] >= 0, geo_beam[sl], 0)
             out.append(eng.other_satellites_interference(snap, s, b, u))
@@ -179,16 +193,21 @@ class Monitor:
     def _columns(self, rec, cols):
         """The trace columns of one epoch from its links ``cols`` (views, (n_ut,))."""
         res, n_ut = rec.decision, len(rec.geo_sat)
-        outage = res.service == SERVICE_OUTAGE
+        service = self.link.service(res.service, cols["sinr_db"])
+        gap_s = rec.gap_s
+        if service is not res.service:  # rows turned to outage (low SINR) lose no time
+            gap_s = np.where(service != res.service, 0.0, gap_s)
+        outage = service == SERVICE_OUTAGE
         if outage.any():
             for name in _LINK:
                 cols[name] = np.where(outage, np.nan, cols[name])
-        handover = res.service == SERVICE_HANDOVER
+        handover = service == SERVICE_HANDOVER
+        served = 1.0 - gap_s / self.epoch_s
         if handover.any():  # the served part of the epoch only
-            served = 1.0 - rec.gap_s / self.epoch_s
             for name in ("se_bps_hz", "throughput_bps"):
                 cols[name] = np.where(handover, cols[name] * served, cols[name])
-        reason = res.service.astype(np.int8)  # served -> none, handover -> handover
+        self.link.add_figures(cols, served)
+        reason = service.astype(np.int8)  # served -> none, handover -> handover
         reason[outage] = np.where(rec.n_visible[outage] > 0, 3, 2)
         mb, j = self.decider.mb, rec.k - self.decider.mb.k0
         cols.update(
@@ -198,13 +217,13 @@ class Monitor:
             beam_id=res.beam_id,
             lat_deg=np.degrees(mb.ut_lat_rad[j]),
             lon_deg=np.degrees(mb.ut_lon_rad[j]),
-            service=res.service,
+            service=service,
             outage_reason=reason,
             n_visible=rec.n_visible.astype(np.int64),
             best_snr_db=rec.best_snr_db,
             alt_m=mb.ut_alt_m[j].copy(),
             population=self.population,
-            interruption_s=rec.gap_s,
+            interruption_s=gap_s,
         )
         return cols
 

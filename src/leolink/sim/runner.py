@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import simpy
 
+from leolink.antenna.panel import PanelOrientation
 from leolink.engine import LinkEngine
 from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
@@ -33,6 +34,7 @@ from leolink.sim.processes import (
     satellite_motion,
     ut_motion,
 )
+from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import FinalFrame, RunInfo, SinkGroup
 
 __all__ = ["RunStats", "Scenario", "epoch_times", "run_simulation"]
@@ -66,6 +68,9 @@ class Scenario:
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
         cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
+    link : ServiceLink or None, the link figures and the SINR service threshold (None:
+        default figures, service on SNR).
+    panels : PanelOrientation or None, the UTs' turned or tilted panels (None: flat).
     estimated_ephemeris : callable or None, the ephemeris the controller believes
         (:mod:`leolink.ephemeris_error`); the links are evaluated on ``ephemeris``
         (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
@@ -86,6 +91,8 @@ class Scenario:
     fading_k: float | None = None
     ellipsoidal: bool = False
     prune: bool = True
+    link: ServiceLink | None = None
+    panels: PanelOrientation | None = None
     estimated_ephemeris: Callable | None = None
 
 
@@ -192,10 +199,11 @@ def run_simulation(
         epoch_s=scen.epoch_s,
         ellipsoidal=scen.ellipsoidal,
         prune=scen.prune,
+        panels=scen.panels,
     )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
-    args = (scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names)
+    args = (scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link)
     if scen.estimated_ephemeris is None:
         monitor = Monitor(*args)
     else:  # choices on the believed states, links on the true ones

@@ -112,7 +112,7 @@ class CandidateSearch:
     def __init__(self, engine, window_db, prune=True):
         self.engine, self.window_db, self.prune = engine, float(window_db), bool(prune)
 
-    def block(self, k0, n_ut, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones):
+    def block(self, k0, n_ut, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones, normal=None):
         """The candidates of the epochs ``k0 .. k0 + n_k - 1``.
 
         Parameters
@@ -127,6 +127,8 @@ class CandidateSearch:
         cones : list of ndarray of int
             Per epoch, the global ids (ascending) of the satellites that may be above the
             mask for some UT.
+        normal : ndarray, shape (n_k, n_ut, 3), optional
+            Panel normal of each UT (tilted panels, ``LinkEngine.evaluate_pairs``).
 
         Returns
         -------
@@ -135,18 +137,19 @@ class CandidateSearch:
         n_k = len(cones)
         pos = ut_pos_m.reshape(-1, 3)
         up = None if ut_up is None else ut_up.reshape(-1, 3)
+        nrm = None if normal is None else normal.reshape(-1, 3)
         widest = max((len(c) for c in cones), default=0)
         step = int(np.clip(SCREEN_PAIRS // max(n_ut * widest, 1), 1, n_k))
         parts = []
         for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
             ks = range(lo, min(lo + step, n_k))
-            parts.append(self._chunk(ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones))
+            parts.append(self._chunk(ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm))
         links = Links.concat([p[0] for p in parts])
         sure = np.concatenate([p[1] for p in parts])
         order = np.lexsort((links.sat, links.ut))
         return self._tables(k0, n_ut, n_k, links.take(order), sure)
 
-    def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones):
+    def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm=None):
         """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
         global id) and the rows' visible satellites that were not evaluated."""
         dense = not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks)
@@ -159,7 +162,7 @@ class CandidateSearch:
                 rows1.append(np.repeat(rows, len(cone)))
                 sats1.append(np.tile(cone, n_ut))
                 continue
-            code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone)
+            code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone, nrm)
             first = np.argmax(bound, axis=1)
             chosen = code == UNCERTAIN
             has = np.flatnonzero(bound[np.arange(n_ut), first] >= 0.0)
@@ -168,7 +171,7 @@ class CandidateSearch:
             rows1.append(rows[r])
             sats1.append(cone[s])
             screened.append((i, rows, cone, code, bound, chosen))
-        links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1)
+        links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1, nrm)
         if dense:
             return links1, sure
         reach = np.zeros(pos.shape[0])
@@ -183,10 +186,10 @@ class CandidateSearch:
             rows2.append(rows[r])
             sats2.append(cone[s])
             sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
-        links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2)
+        links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2, nrm)
         return Links.concat([links1, links2]), sure
 
-    def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone):
+    def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone, nrm=None):
         """:func:`screen` of the UT rows ``rows`` against the cone, in blocks of UTs."""
         eng = self.engine
         axes = body_frame(sat_pos_m[cone], sat_vel_m_s[cone])
@@ -202,16 +205,17 @@ class CandidateSearch:
                 axes,
                 None if up is None else up[rows[lo : lo + step]],
                 ut_id[lo : lo + step],
+                None if nrm is None else nrm[rows[lo : lo + step]],
                 cone,
             )  # fmt: skip
             for lo in range(0, n_ut, step)
         ]
         return (np.concatenate([p[j] for p in parts]) for j in (0, 1))
 
-    def evaluate(self, pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats):
+    def evaluate(self, pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm=None):
         """The engine's links of the pairs ``(rows, global satellite ids)`` of a block, in
-        one call (``pos``, ``up``: (n_k n_ut, 3) rows; ``sat_*``: (n_k, n_sat, 3)); lists
-        of index arrays are joined."""
+        one call (``pos``, ``up``, ``nrm`` (panel normals or None): (n_k n_ut, 3) rows;
+        ``sat_*``: (n_k, n_sat, 3)); lists of index arrays are joined."""
         if isinstance(rows, list):
             rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
             sats = np.concatenate(sats) if sats else np.zeros(0, np.int64)
@@ -222,7 +226,7 @@ class CandidateSearch:
         ut_id = np.arange(pos.shape[0]) % n_ut
         links = self.engine.evaluate_pairs(
             pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id,
-            sat_id=key % n_sat,
+            ut_normal=nrm, sat_id=key % n_sat,
         )  # fmt: skip
         links.sat = sats  # global ids from here on
         return links
