@@ -25,6 +25,7 @@ from leolink.errors import ConfigError
 from leolink.link.acm import LinkFigureParams
 from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
+from leolink.sim.environment import environment_models
 from leolink.sim.mobility import OnWgs84
 from leolink.sim.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
@@ -226,6 +227,7 @@ def build_scenario(cfg):
         seed=r.seed,
         fading_k=cfg.link.rician_k if cfg.link.fading == "rician" else None,
         ellipsoidal=cfg.earth.model == "wgs84",
+        environments=_environments(cfg),
         link=service_link(cfg, engine),
         panels=panel_orientation(cfg, populations),
         estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
@@ -243,3 +245,14 @@ def estimated_ephemeris(cfg, ephemeris):
             "'all_satellites' is not supported yet; use 'serving_satellite'"
         )
     return EstimatedEphemeris(ephemeris, model)
+
+
+def _environments(cfg):
+    """The populations' TR 38.811 environments (None: all open country)."""
+    models = environment_models(cfg.population, cfg.link.freq_hz)
+    if models and cfg.atmosphere.model == "itu_p618" and any(m.scintillation for m in models):
+        raise ConfigError(
+            "population.channel.scintillation = true is not allowed with atmosphere.model = "
+            "'itu_p618' (it contains scintillation already); use one of the two"
+        )
+    return models

@@ -20,7 +20,14 @@ import pandas as pd
 import pyarrow as pa
 from pydantic import Field
 
-from leolink.io.tables import EVENT_SCHEMA, TRACE_SCHEMA, EventLog, TraceWriter, to_table
+from leolink.io.tables import (
+    EVENT_SCHEMA,
+    TRACE_SCHEMA,
+    EventLog,
+    TraceWriter,
+    to_table,
+    trace_schema,
+)
 from leolink.registry import Params, Registry
 from leolink.sim.streams import Sink
 
@@ -44,8 +51,8 @@ class SinkParams(Params):
     enabled: bool = Field(False, description="write this output")
 
 
-def _trace_columns(columns):
-    return {name: columns[name] for name in TRACE_SCHEMA.names}
+def _trace_columns(columns, schema=TRACE_SCHEMA):
+    return {name: columns[name] for name in schema.names}
 
 
 class TraceSink:
@@ -56,10 +63,12 @@ class TraceSink:
         self.writer, self.files = None, []
 
     def start(self, info):
-        self.writer = TraceWriter(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows)
+        self.schema = trace_schema(info)
+        self.writer = TraceWriter(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows,
+                                  columns=tuple(self.schema.names))  # fmt: skip
 
     def epoch(self, frame):
-        self.writer.append(_trace_columns(frame.columns))
+        self.writer.append(_trace_columns(frame.columns, self.schema))
 
     def finish(self, final):
         self.files = list(self.writer.close().values())
@@ -97,12 +106,14 @@ class MemorySink:
 
     def __init__(self):
         self._trace, self._events = [], []
+        self.schema = TRACE_SCHEMA
 
     def start(self, info):
         self._trace, self._events = [], []
+        self.schema = trace_schema(info)
 
     def epoch(self, frame):
-        self._trace.append(to_table(_trace_columns(frame.columns), TRACE_SCHEMA))
+        self._trace.append(to_table(_trace_columns(frame.columns, self.schema), self.schema))
         if len(frame.events["ut_id"]):
             self._events.append(to_table(frame.events, EVENT_SCHEMA))
 
@@ -114,7 +125,7 @@ class MemorySink:
 
     def trace(self) -> pd.DataFrame:
         if not self._trace:
-            return TRACE_SCHEMA.empty_table().to_pandas()
+            return self.schema.empty_table().to_pandas()
         return pa.concat_tables(self._trace).to_pandas()
 
     def events(self) -> pd.DataFrame:

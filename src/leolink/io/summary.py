@@ -10,6 +10,7 @@ import numpy as np
 
 from leolink.io.atomic import to_jsonable
 from leolink.io.link_summary import LinkStats
+from leolink.io.summary_environment import by_environment
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
 from leolink.sim.processes import OUTAGE_REASONS
 
@@ -89,6 +90,7 @@ def _service_codes(service):
 
 _NO_SATELLITE = OUTAGE_REASONS.index("no_satellite")
 _BELOW_THRESHOLD = OUTAGE_REASONS.index("below_threshold")
+_BLOCKED = OUTAGE_REASONS.index("blocked")
 
 
 _PERCENTILES = (5.0, 50.0, 95.0)
@@ -116,15 +118,17 @@ class SummaryAccumulator:
     :class:`leolink.io.link_summary.LinkStats`.
     """
 
-    def __init__(self, n_ut=0, epoch_s=1.0):
+    def __init__(self, n_ut=0, epoch_s=1.0, environment=()):
         self.epoch_s = float(epoch_s)
         self._reset(n_ut)
+        self.environment = tuple(environment)  # per UT; empty: open country, no env block
 
     # -- the Sink protocol -------------------------------------------------------------
     def start(self, info):
         """Start a run of ``info.n_ut`` UTs (statistics reset)."""
         self.epoch_s = float(info.epoch_s)
         self._reset(info.n_ut)
+        self.environment = tuple(getattr(info, "environment", ()))
 
     def epoch(self, frame):
         """Add one recorded epoch: its trace columns, events and closed dwells."""
@@ -148,6 +152,7 @@ class SummaryAccumulator:
         self.n_epochs, self.n_outage = zeros(), zeros()
         self.interrupted_s = zeros(np.float64)
         self.n_no_satellite, self.n_below_threshold = zeros(), zeros()
+        self.n_blocked, self.n_los, self.n_link = zeros(), zeros(), zeros()
         self.throughput_sum = zeros(np.float64)
         self.max_abs_doppler_hz = np.full(self.n_ut, np.nan)
         self.max_angular_speed_deg_s = np.full(self.n_ut, np.nan)
@@ -178,8 +183,13 @@ class SummaryAccumulator:
             for store, code in (
                 (self.n_no_satellite, _NO_SATELLITE),
                 (self.n_below_threshold, _BELOW_THRESHOLD),
+                (self.n_blocked, _BLOCKED),
             ):
                 store += np.bincount(ut, reason == code, minlength=n).astype(np.int64)
+        if "los" in columns:
+            los = np.asarray(columns["los"], float)
+            self.n_los += np.bincount(ut, los == 1.0, minlength=n).astype(np.int64)
+            self.n_link += np.bincount(ut, np.isfinite(los), minlength=n).astype(np.int64)
         tput = np.nan_to_num(np.asarray(columns["throughput_bps"], float), nan=0.0)
         self.throughput_sum += np.bincount(ut, tput, minlength=n)
         np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(columns["doppler_hz"], float)))
@@ -322,7 +332,23 @@ class SummaryAccumulator:
             "max_angular_speed_deg_s": _nanmax(self.max_angular_speed_deg_s),
             "link": link_all,
         }
-        return to_jsonable({"overall": overall, "per_ut": per_ut})
+        return to_jsonable(self._with_environment({"overall": overall, "per_ut": per_ut}, counts))
+
+    def _with_environment(self, out, counts):
+        """``out`` with the ``blocked`` outage fractions and ``by_environment`` of a run with
+        TR 38.811 environments (else as it was)."""
+        if not self.environment:
+            return out
+        overall, per_ut = out["overall"], out["per_ut"]
+        n_all = self.n_epochs.sum()
+        reasons = overall["outage_fraction_by_reason"]
+        reasons["blocked"] = self.n_blocked.sum() / n_all if n_all else None
+        with np.errstate(invalid="ignore", divide="ignore"):
+            blocked = self.n_blocked / self.n_epochs
+        for i, row in enumerate(per_ut):
+            row["outage_fraction_by_reason"]["blocked"] = blocked[i]
+        overall["by_environment"] = by_environment(self.environment, self, counts)
+        return out
 
 
 def _by_reason(no_satellite, below_threshold, handover):

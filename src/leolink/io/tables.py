@@ -34,6 +34,7 @@ from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES
 from leolink.sim.processes import OUTAGE_REASONS
 
 __all__ = [
+    "ENVIRONMENT_COLUMNS",
     "EVENT_SCHEMA",
     "FORMATS",
     "TRACE_COLUMNS",
@@ -42,6 +43,7 @@ __all__ = [
     "TableWriter",
     "TraceWriter",
     "schema_for",
+    "trace_schema",
     "to_table",
 ]
 
@@ -64,6 +66,10 @@ TRACE_COLUMNS = (
     "interruption_s",  # part of the epoch without service: handover execution [s]
     *FIGURE_COLUMNS,  # eirp_dbw, cn0_dbhz, esn0_db, margin_db, modcod (leolink.link.acm)
 )
+#: Columns of a run that models UT environments (``RunInfo.environment``), after
+#: ``TRACE_COLUMNS``: the serving path's LoS state (1 / 0, NaN without a link) and its
+#: shadowing, clutter and scintillation losses [dB] (:mod:`leolink.sim.environment`).
+ENVIRONMENT_COLUMNS = ("los", "shadow_db", "clutter_db", "scintillation_db")
 _INT_COLUMNS = {
     "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible"
 }  # fmt: skip
@@ -93,6 +99,15 @@ def schema_for(columns):
 
 
 TRACE_SCHEMA = schema_for(TRACE_COLUMNS)
+TRACE_ENVIRONMENT_SCHEMA = schema_for(TRACE_COLUMNS + ENVIRONMENT_COLUMNS)
+
+
+def trace_schema(info):
+    """The trace schema of a run (:class:`~leolink.sim.streams.RunInfo`): with the
+    ``ENVIRONMENT_COLUMNS`` when it models environments."""
+    return TRACE_ENVIRONMENT_SCHEMA if getattr(info, "environment", ()) else TRACE_SCHEMA
+
+
 EVENT_SCHEMA = schema_for(EVENT_COLUMNS)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from leolink.geometry import enu_basis
 from leolink.sim.candidates import Candidates
 from leolink.sim.controller import concat_events, resumed_events, step
+from leolink.sim.environment import candidate_margin_db
 from leolink.sim.policies import neighbour_window_db
 from leolink.sim.search import CandidateSearch
 
@@ -57,9 +58,18 @@ class Decider:
         self.radius_m = radius_m
         self.future_state, self.motion = future_state, motion
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
-        self.search = CandidateSearch(engine, neighbour_window_db(policy), prune)
+        self.window_db, self.prune = neighbour_window_db(policy), prune
+        self.search = CandidateSearch(engine, self.window_db, prune)
         self.panels = panels
         self.block = self.mb = self.cones = self.enu = self.panel = None
+        self.channel = None  # ChannelTracker of the UTs' environments (None: open country)
+
+    def with_channel(self, tracker):
+        """Decide on SNRs with each path's environment loss (:mod:`leolink.sim.environment`);
+        the search window widens by what the environment can reorder."""
+        self.channel = tracker
+        margin_db = candidate_margin_db(tracker.models)
+        self.search = CandidateSearch(self.engine, self.window_db + margin_db, self.prune)
 
     def _open(self, k):
         """The candidates of the motion block of epoch ``k`` (computed once per block)."""
@@ -99,23 +109,41 @@ class Decider:
         rows = blk.rows(k)
         table = self._with_serving(blk.table.rows(rows), rows, c.serving)
         state.best_snr_db, state.n_visible = blk.best_snr_db[rows], blk.n_visible[rows]
+        best_cell = blk.best_cell[rows]
         future = None
         if self.policy.lookahead_s > 0.0:
             # The UTs' frames of now: over a lookahead they turn by (distance / R), 0.02 deg
             # for an aircraft over 10 s.
             future = self._future(table, state.t_s + self.policy.lookahead_s, k)
+        if self.channel is not None:
+            table, future, best_cell = self._environment(state, table, future)
         t = state.t_s
         res = step(t, table, c, self.policy, self.min_snr_db, self.handover_time_s, nb, future)
         resumed = resumed_events(t, self.epoch_s, res.state, table)
         res.events = concat_events(res.events, resumed)
         unserved = np.flatnonzero(res.sat_id < 0)
-        state.best_unserved = (unserved, blk.best_cell[rows][unserved])
+        state.best_unserved = (unserved, best_cell[unserved])
         cone = self.cones[k - blk.k0]
         if self.engine.other_satellites:  # the satellites of the interference sum
             cone = np.union1d(cone, np.unique(c.serving[c.serving >= 0] // nb))
         state.cand_sats, state.decision = cone, res
         state.enu = None if self.enu is None else self.enu[k - blk.k0]
         state.controller = res.state
+
+    def _environment(self, state, table, future):
+        """Each cell's SNR with its path's environment loss (now and, persisting, at the
+        lookahead); the best cell and its SNR then; which UTs are served in open country."""
+        j = state.k - self.block.k0
+        mb = self.mb
+        enu = self.enu[j] if self.enu is not None else enu_basis(mb.ut_lat_rad[j], mb.ut_lon_rad[j])
+        ch = self.channel.step(state.k, mb.ut_pos_m[j], enu, mb.sat_pos_m[j], self.cones[j])
+        nb = self.engine.n_beam
+        state.channel = ch
+        state.open_snr_db = state.best_snr_db  # the best cell without the environment
+        table = ch.apply(table, nb)
+        future = None if future is None else ch.apply(future, nb)
+        best_cell, state.best_snr_db = table.best()
+        return table, future, best_cell
 
     def _with_serving(self, table, rows, serving):
         """``table`` with each UT's serving cell added where it is missing and above the

@@ -49,6 +49,9 @@ class _Record:
     n_visible: np.ndarray
     best_snr_db: np.ndarray
     cone: np.ndarray  # the satellites of the other-satellite interference
+    channel: object = None  # EpochChannel of the UTs' environments (None: open country)
+    env_cols: dict | None = None  # the environment columns of each UT's link (geo_sat)
+    open_snr_db: np.ndarray | None = None  # best SNR without the environment [dB]
 
 
 class Monitor:
@@ -99,8 +102,12 @@ class Monitor:
             geo_sat[unserved] = np.where(best >= 0, best // nb, -1)
             geo_beam[unserved] = np.where(best >= 0, best % nb, -1)
         gap_s = interruption_s(state.t_s, self.epoch_s, res.state)
-        return _Record(state.k, state.t_s, res, geo_sat, geo_beam, gap_s, state.n_visible,
-                       state.best_snr_db, state.cand_sats)  # fmt: skip
+        rec = _Record(state.k, state.t_s, res, geo_sat, geo_beam, gap_s, state.n_visible,
+                      state.best_snr_db, state.cand_sats)  # fmt: skip
+        if state.channel is not None:
+            rec.channel, rec.open_snr_db = state.channel, state.open_snr_db
+            rec.env_cols = state.channel.columns(geo_sat)
+        return rec
 
     def flush(self, state):
         """Evaluate and send the kept epochs (all in the current motion block)."""
@@ -150,11 +157,20 @@ class Monitor:
             mb.ut_acc_m_s2.reshape(-1, 3)[rows],
             mb.sat_vel_m_s[epoch, s],
             mb.sat_acc_m_s2[epoch, s],
-            rx_fading_lin=self._fading(recs, links, pair),
+            rx_fading_lin=self._rx_factor(recs, links, pair),
             i_other=self._other_satellites(recs, geo_sat, geo_beam),
             ut_pos_m=mb.ut_pos_m.reshape(-1, 3)[rows],
             ut_enu=up_enu,
         )
+
+    def _rx_factor(self, recs, links, pair):
+        """Receive-power factor of each row's path: fading and the environment's loss."""
+        fading = self._fading(recs, links, pair)
+        if recs[0].env_cols is None:
+            return fading
+        loss_db = np.concatenate([r.env_cols["extra_loss_db"] for r in recs])
+        env_lin = 10.0 ** (-loss_db / 10.0)
+        return env_lin if fading is None else fading * env_lin
 
     def _fading(self, recs, links, pair):
         if self.fading_k is None or not (pair >= 0).any():
@@ -187,6 +203,9 @@ class Monitor:
                                 ut_enu=enu, ut_panel=panel, sat_id=cone)  # fmt: skip
             s = np.where(geo_sat[sl] >= 0, np.searchsorted(cone, geo_sat[sl]), 0)
             b = np.where(geo_sat[sl] >= 0, geo_beam[sl], 0)
+            if rec.channel is not None:  # each interfering path with its own state
+                loss_db = rec.channel.loss_db(np.broadcast_to(cone, (n_ut, len(cone))))
+                snap.path_no_rx_lin = snap.path_no_rx_lin * 10.0 ** (-loss_db / 10.0)
             out.append(eng.other_satellites_interference(snap, s, b, u))
         return np.concatenate(out)
 
@@ -209,6 +228,12 @@ class Monitor:
         self.link.add_figures(cols, served)
         reason = service.astype(np.int8)  # served -> none, handover -> handover
         reason[outage] = np.where(rec.n_visible[outage] > 0, 3, 2)
+        if rec.env_cols is not None:
+            cols.update({k: v for k, v in rec.env_cols.items() if k != "extra_loss_db"})
+            # In open country the best beam would have served: the environment blocked it.
+            open_ok = rec.open_snr_db >= self.decider.min_snr_db
+            blocked = (res.service == SERVICE_OUTAGE) & open_ok
+            reason[blocked] = 4
         mb, j = self.decider.mb, rec.k - self.decider.mb.k0
         cols.update(
             time_s=np.full(n_ut, rec.t_s),

@@ -20,6 +20,7 @@ from pydantic import Field, model_validator
 
 from leolink.placement import grid_points, place_random, roi_points_to_geodetic
 from leolink.registry import Params, Registry
+from leolink.sim.environment import ChannelParams
 from leolink.sim.mobility import SPEED_PRESETS_M_S, ConstantVelocity, Static, Track, Waypoints
 
 __all__ = [
@@ -74,6 +75,14 @@ class PopulationParams(Params):
     """Keys every population has."""
 
     name: str = Field("ut", min_length=1, max_length=64, description="label of the population")
+    environment: Literal["open", "rural", "suburban", "urban", "dense_urban"] = Field(
+        "open",
+        description="3GPP TR 38.811 environment of the UTs: LoS state, shadowing, clutter "
+        "('open': the paper's line-of-sight link)",
+    )
+    channel: ChannelParams | None = Field(
+        None, description="the environment's channel settings (none: TR 38.811 defaults)"
+    )
 
     @property
     def n_ut(self) -> int:

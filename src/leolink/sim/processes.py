@@ -25,8 +25,9 @@ from leolink.sim.controller import ControllerState, StepResult, close_dwells
 
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
 #: no satellite above the minimum elevation; satellites above it but no beam above the
-#: service threshold.
-OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold")
+#: service threshold; the environment (blockage, shadowing, clutter: ``leolink.sim.environment``)
+#: took every beam below the threshold that the best beam reaches in open country.
+OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold", "blocked")
 
 __all__ = [
     "OUTAGE_REASONS",
@@ -62,6 +63,8 @@ class SimState:
     best_snr_db: np.ndarray | None = None  # (n_ut,) the best candidate's SNR [dB], NaN if none
     best_unserved: tuple | None = None  # (UTs without a serving link, their best cell)
     n_visible: np.ndarray | None = None  # (n_ut,) satellites above the minimum elevation
+    channel: object = None  # EpochChannel of the UTs' environments, None in open country
+    open_snr_db: np.ndarray | None = None  # (n_ut,) best SNR without the environment [dB]
 
     @property
     def t_s(self) -> float:

@@ -20,6 +20,7 @@ from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
 from leolink.sim.controller import ControllerState
 from leolink.sim.decide import Decider
+from leolink.sim.environment import ChannelTracker
 from leolink.sim.ephemeris_monitor import TrueLinkMonitor
 from leolink.sim.mobility import concat_states
 from leolink.sim.monitor import Monitor
@@ -71,6 +72,9 @@ class Scenario:
     link : ServiceLink or None, the link figures and the SINR service threshold (None:
         default figures, service on SNR).
     panels : PanelOrientation or None, the UTs' turned or tilted panels (None: flat).
+    environments : list of EnvironmentModel or None, one per population
+        (:func:`leolink.sim.environment.environment_models`); None: every UT in open
+        country, the paper's link.
     estimated_ephemeris : callable or None, the ephemeris the controller believes
         (:mod:`leolink.ephemeris_error`); the links are evaluated on ``ephemeris``
         (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
@@ -93,6 +97,7 @@ class Scenario:
     prune: bool = True
     link: ServiceLink | None = None
     panels: PanelOrientation | None = None
+    environments: list | None = None
     estimated_ephemeris: Callable | None = None
 
 
@@ -201,8 +206,13 @@ def run_simulation(
         prune=scen.prune,
         panels=scen.panels,
     )
-    keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None else None
+    keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None or scen.environments else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
+    environment = ()
+    if scen.environments:
+        counts = [pop.n_ut for _, pop in scen.populations]
+        decide.with_channel(ChannelTracker(scen.environments, counts, keys, decide.min_el))
+        environment = decide.channel.environment
     args = (scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link)
     if scen.estimated_ephemeris is None:
         monitor = Monitor(*args)
@@ -212,7 +222,7 @@ def run_simulation(
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
         n_ut, scen.ephemeris.n_sat, scen.engine.n_beam, scen.epoch_s,
-        float(times[scen.n_warmup]), len(times) - scen.n_warmup, names,
+        float(times[scen.n_warmup]), len(times) - scen.n_warmup, names, environment,
     )  # fmt: skip
     t_wall = time.perf_counter()
     sink.start(info)

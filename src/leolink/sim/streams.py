@@ -29,6 +29,9 @@ class RunInfo:
     start_s : float [s], first recorded epoch (after the warm-up).
     n_epochs : int, recorded epochs.
     population : tuple of str, the population name of every UT (``n_ut``).
+    environment : tuple of str, the TR 38.811 environment of every UT when the run models
+        environments (the trace then has ``leolink.io.tables.ENVIRONMENT_COLUMNS``);
+        empty for the paper's open-country link.
     """
 
     n_ut: int
@@ -38,6 +41,7 @@ class RunInfo:
     start_s: float
     n_epochs: int
     population: tuple[str, ...]
+    environment: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)

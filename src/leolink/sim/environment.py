@@ -1,0 +1,250 @@
+"""UT environments in a run: each (UT, satellite) path's LoS state, shadowing, clutter.
+
+Every ``[[population]]`` names an ``environment`` (:data:`ENVIRONMENTS`, default
+``"open"``: the paper's line-of-sight link, nothing added) and may carry a ``channel``
+table (:class:`ChannelParams`). :class:`ChannelTracker` owns the per-pair states of
+:mod:`leolink.link.channel_state` for the whole run: once per epoch, in epoch order
+(warm-up included), it advances every pair of a UT and a satellite above the mask and
+gives the environment's extra loss of each path (:class:`EpochChannel`). The loss enters
+
+- the candidate table the controller decides on (:meth:`EpochChannel.apply`): blockage
+  moves handovers and causes outages, with reason ``blocked``;
+- the trace: the serving path's ``los``, ``shadow_db``, ``clutter_db`` and
+  ``scintillation_db`` columns and its SNR and SINR, the serving satellite's other beams
+  sharing the path's state and each interfering satellite's path having its own.
+
+Which pairs have a state: at epoch ``k``, those of UT ``u`` and every satellite above
+the mask for ``u`` (0 degrees with other-satellite interference). That set is a function
+of the UT's own geometry, not of the other UTs (the epoch's satellite cone holds every
+such satellite), so with the per-UT keys of :func:`leolink.rng.ut_keys` a UT has the same
+states in any run that holds it, and any motion-block length gives the same states.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from leolink.errors import ConfigError
+from leolink.link import channel_state as cs
+from leolink.link.environment import (
+    ENVIRONMENTS,
+    clutter_loss_db,
+    scintillation_db,
+    shadow_sigma_db,
+)
+from leolink.registry import Params
+
+__all__ = ["ENVIRONMENTS", "ChannelParams", "ChannelTracker", "EpochChannel"]
+__all__ += ["candidate_margin_db", "environment_models"]
+
+#: Shadowing draws further than this many standard deviations from the mean are rarer
+#: than 1e-9 per sample: the candidate margin of :func:`candidate_margin_db` covers them.
+SHADOW_Z_MAX = 6.0
+
+
+class ChannelParams(Params):
+    """``[population.channel]``: the TR 38.811 channel of a non-open environment."""
+
+    band: Literal["s", "ka"] | None = Field(
+        None,
+        description="table band 's' or 'ka' (none: from the carrier, Ka from 6.32 GHz up, "
+        "so 11.45 GHz uses Ka; leolink.link.environment.band_for_frequency)",
+    )
+    scintillation: bool = Field(
+        False, description="add the TR 38.811 clause 6.6.6 scintillation margin"
+    )
+    geomagnetic_latitude_deg: float | None = Field(
+        None, ge=-90.0, le=90.0, description="needed with scintillation below 6 GHz [deg]"
+    )
+    los_corr_distance_m: float | None = Field(
+        None, gt=0.0, le=1e5, description="LoS-state correlation distance (none: 50 m, rural 60)"
+    )
+    sf_corr_distance_los_m: float | None = Field(
+        None, gt=0.0, le=1e5, description="LoS shadowing correlation distance (none: 37 m)"
+    )
+    sf_corr_distance_nlos_m: float | None = Field(
+        None, gt=0.0, le=1e5, description="NLoS shadowing correlation distance (none: 50 m, "
+        "rural 120)",
+    )  # fmt: skip
+    clutter_height_m: float | None = Field(
+        None, ge=0.0, le=500.0, description="obstacle height above the UT antenna (none: "
+        "dense urban 20 m, urban 15, suburban 8, rural 3.5)",
+    )  # fmt: skip
+
+
+def environment_models(populations, freq_hz):
+    """The :class:`~leolink.link.channel_state.EnvironmentModel` of every population.
+
+    Parameters
+    ----------
+    populations : sequence of population parameter models (``environment``, ``channel``)
+    freq_hz : float
+        Carrier frequency [Hz] (chooses the table band unless ``channel.band`` does).
+
+    Returns
+    -------
+    list of EnvironmentModel, or None when every population is ``open`` without
+    scintillation (the run is then the paper's: no state, no extra column).
+    """
+    models = []
+    for i, p in enumerate(populations):
+        ch = p.channel if p.channel is not None else ChannelParams()
+        try:
+            models.append(cs.environment_model(p.environment, freq_hz, **ch.model_dump()))
+        except ConfigError as exc:
+            raise ConfigError(f"population.{i}.channel: {exc}") from None
+    if all(m.environment == "open" and not m.scintillation for m in models):
+        return None
+    return models
+
+
+def candidate_margin_db(models):
+    """How much the environment can reorder two paths' SNRs [dB], at most (in practice).
+
+    A path loses at most the clutter loss plus ``SHADOW_Z_MAX`` shadowing deviations and
+    the scintillation margin, and gains at most ``SHADOW_Z_MAX`` deviations: a cell whose
+    free-space SNR is more than the policy's window plus this margin below the best is
+    outside the window after the environment too. The candidate search widens its window
+    by it (:class:`~leolink.sim.decide.Decider`).
+    """
+    el_deg = np.arange(0.0, 91.0)
+    margin = 0.0
+    for m in models:
+        if m.environment == "open":
+            sigma, clutter = 0.0, 0.0
+        else:
+            sigma = max(
+                float(shadow_sigma_db(el_deg, m.environment, m.band, los).max())
+                for los in (True, False)
+            )
+            clutter = float(clutter_loss_db(el_deg, m.environment, m.band).max())
+        scint = 0.0
+        if m.scintillation:
+            lat_deg = m.geomagnetic_latitude_deg
+            scint = float(np.max(scintillation_db(el_deg, m.freq_hz, lat_deg)))
+        margin = max(margin, clutter + scint + 2.0 * SHADOW_Z_MAX * sigma)
+    return margin
+
+
+@dataclasses.dataclass(frozen=True)
+class EpochChannel:
+    """The environment of every path of one epoch.
+
+    Attributes (shape (n_ut, n_slot); slot ``j`` is satellite ``cone[j]``, the same for
+    every UT; ``sat_id[u, j] = -1`` where that satellite is below the mask for ``u``):
+    ``sat_id``; ``terms``, the :class:`~leolink.link.channel_state.LinkTerms`.
+    """
+
+    cone: np.ndarray
+    sat_id: np.ndarray
+    terms: cs.LinkTerms
+
+    def _slots(self, sat):
+        """Slot of satellite ``sat[u, ...]`` in row ``u``, and whether the pair has a state."""
+        sat = np.asarray(sat, np.int64)
+        if self.cone.size == 0:
+            return np.zeros(sat.shape, np.int64), np.zeros(sat.shape, bool)
+        slot = np.clip(np.searchsorted(self.cone, sat), 0, self.cone.size - 1)
+        rows = np.arange(sat.shape[0]).reshape((-1,) + (1,) * (sat.ndim - 1))
+        return slot, (self.sat_id[rows, slot] == sat) & (sat >= 0)
+
+    def loss_db(self, sat):
+        """Extra loss [dB] of the paths to satellites ``sat (n_ut, m)``; 0 without a state."""
+        slot, ok = self._slots(sat)
+        rows = np.arange(ok.shape[0])[:, None]
+        return np.where(ok, self.terms.extra_loss_db[rows, slot], 0.0)
+
+    def apply(self, table, n_beam):
+        """The candidate table with each cell's SNR lowered by its path's extra loss."""
+        sat = np.where(table.cell >= 0, table.cell // n_beam, -1)
+        return table.like(table.snr_db - self.loss_db(sat))
+
+    def columns(self, sat):
+        """Trace columns of the path of each UT to satellite ``sat (n_ut,)``.
+
+        ``los`` 1.0 / 0.0 (NaN without a path), ``shadow_db``, ``clutter_db``,
+        ``scintillation_db``; and ``extra_loss_db`` (0 without a path).
+        """
+        slot, ok = self._slots(sat)
+        u = np.arange(slot.shape[0])
+        t = self.terms
+        out = {"los": np.where(ok, t.los[u, slot].astype(float), np.nan)}
+        for name in ("shadow_db", "clutter_db", "scintillation_db"):
+            out[name] = np.where(ok, getattr(t, name)[u, slot], np.nan)
+        out["extra_loss_db"] = np.where(ok, t.extra_loss_db[u, slot], 0.0)
+        return out
+
+
+class ChannelTracker:
+    """Channel states of every (UT, satellite above the mask) pair, epoch after epoch.
+
+    Parameters
+    ----------
+    models : sequence of EnvironmentModel
+        One per population, in UT order.
+    counts : sequence of int
+        UTs of each population.
+    ut_keys : ndarray of uint64, shape (n_ut,)
+        :func:`leolink.rng.ut_keys` of the run's seed.
+    min_elevation_rad : float
+        Mask of the pairs that get a state [rad].
+    """
+
+    def __init__(self, models, counts, ut_keys, min_elevation_rad):
+        self.models = list(models)
+        bounds = np.concatenate(([0], np.cumsum(counts))).astype(int)
+        self.slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        self.keys = np.asarray(ut_keys, np.uint64)
+        self.min_el = float(min_elevation_rad)
+        self.states = [cs.empty_state(s.stop - s.start) for s in self.slices]
+        self.prev_pos_m = None
+        self.k = -1
+        sizes = [s.stop - s.start for s in self.slices]
+        #: The environment of every UT (``RunInfo.environment``).
+        self.environment = tuple(
+            m.environment for m, n in zip(self.models, sizes, strict=True) for _ in range(n)
+        )
+
+    def step(self, k, ut_pos_m, ut_enu, sat_pos_m, cone):
+        """Advance every pair to epoch ``k`` (called once per epoch, in order).
+
+        Parameters
+        ----------
+        k : int
+            Epoch index (warm-up included).
+        ut_pos_m : ndarray, shape (n_ut, 3)
+        ut_enu : ndarray, shape (n_ut, 3, 3)
+            Each UT's east, north, up rows.
+        sat_pos_m : ndarray, shape (n_sat, 3)
+            Every satellite (global ids).
+        cone : ndarray of int, sorted
+            The epoch's candidate satellites: every satellite above the mask for some UT.
+
+        Returns
+        -------
+        EpochChannel
+        """
+        if k <= self.k:
+            raise ValueError(f"epoch {k} after epoch {self.k}: the channel moves forward only")
+        cone = np.asarray(cone, np.int64)
+        los = sat_pos_m[cone][None, :, :] - ut_pos_m[:, None, :]  # UT -> satellite
+        east, north, up = (np.einsum("usk,uk->us", los, ut_enu[:, i, :]) for i in range(3))
+        elevation = np.arcsin(np.clip(up / np.linalg.norm(los, axis=-1), -1.0, 1.0))
+        azimuth = np.arctan2(east, north)
+        sat_id = np.where(elevation >= self.min_el, cone[None, :], -1)
+        step_m = np.zeros((len(ut_pos_m), 2))
+        if self.prev_pos_m is not None:
+            moved = ut_pos_m - self.prev_pos_m
+            step_m = np.stack([np.einsum("uk,uk->u", moved, ut_enu[:, i, :]) for i in (0, 1)], -1)
+        self.prev_pos_m, self.k = ut_pos_m.copy(), k
+        parts = []
+        for i, (model, sl) in enumerate(zip(self.models, self.slices, strict=True)):
+            self.states[i] = cs.advance(self.states[i], model, self.keys[sl], sat_id[sl],
+                                        elevation[sl], azimuth[sl], step_m[sl], k)  # fmt: skip
+            parts.append(cs.link_terms(self.states[i], model))
+        terms = cs.LinkTerms(*(np.concatenate(f, axis=0) for f in zip(*parts, strict=True)))
+        return EpochChannel(cone, sat_id, terms)
