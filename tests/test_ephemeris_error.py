@@ -216,10 +216,25 @@ def test_the_wired_precoder_sees_the_believed_and_the_true_satellite(monkeypatch
     assert len(seen) == times.size
     for t, (sat_id, served, inp) in zip(times, seen, strict=True):
         true, _, _ = scen.ephemeris(np.array([t]))
-        est, _, _ = scen.estimated_ephemeris(np.array([t]))
+        est, est_vel, _ = scen.estimated_ephemeris(np.array([t]))
         s = sat_id[served]
         assert s.size > 0
         np.testing.assert_allclose(inp["sat_pos_m"][served], true[0, s], rtol=0, atol=1e-6)
         np.testing.assert_allclose(inp["sat_pos_est_m"][served], est[0, s], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(inp["sat_vel_est_m"][served], est_vel[0, s], atol=1e-9)
         off = np.linalg.norm(inp["sat_pos_est_m"][served] - inp["sat_pos_m"][served], axis=1)
         np.testing.assert_allclose(off, math.hypot(20e3, 3e3), rtol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("sets", "what"),
+    [(["satellite_array.steering=earth_fixed"], "steering = 'earth_fixed'"),
+     (["satellite_array.phase_bits=3"], "phase_bits")],
+)  # fmt: skip
+def test_a_precoder_with_re_steered_or_quantized_beams_is_refused(sets, what):
+    from leolink.errors import ConfigError
+
+    over = [*sets, "scheduler.kind=round_robin", "link.precoder=mmse"]
+    with pytest.raises(ConfigError, match=f"link.precoder = 'mmse' is not allowed with "
+                                          f"satellite_array.{what}"):  # fmt: skip
+        load_config(PAPER, over)

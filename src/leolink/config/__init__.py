@@ -112,6 +112,15 @@ class ConfigBase(Section):
                 "'none': a precoder serves one UT per lit beam per slot; use scheduler.kind "
                 "= 'round_robin' or 'proportional_fair'"
             )
+        a = self.satellite_array
+        if self.link.precoder != "none" and (a.steering != "body_fixed" or a.phase_bits):
+            what = f"steering = {a.steering!r}" if a.phase_bits is None else "phase_bits"
+            raise ValueError(
+                f"link.precoder = {self.link.precoder!r} is not allowed with satellite_array."
+                f"{what}: the precoded channel uses the codebook's ideal body-fixed beams; "
+                "use link.precoder = 'none' or satellite_array.steering = 'body_fixed' "
+                "without phase_bits"
+            )
         if c.tle_epoch_utc and self.run.start_utc:
             raise ValueError(
                 f"constellation.tle_epoch_utc = {c.tle_epoch_utc!r} is not allowed together with "

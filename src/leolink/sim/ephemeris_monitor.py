@@ -128,7 +128,7 @@ class TrueLinkMonitor(Monitor):
         extra = dict(served=served, off=off, loss_db=loss_db, dpos=est_pos - t_pos[epoch, s])
         return PairLinks(links, pair, t_pos[epoch, s], t_vel[epoch, s], t_acc[epoch, s],
                          rx_lin=10.0 ** (-loss_db / 10.0), sat_pos_est_m=est_pos,
-                         extra=extra)  # fmt: skip
+                         sat_vel_est_m=est_vel, extra=extra)  # fmt: skip
 
     def _finish(self, cols, geo_beam, pair_links=None):
         if pair_links is None:

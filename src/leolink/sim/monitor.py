@@ -51,7 +51,8 @@ class PairLinks:
     sat_vel_m_s: np.ndarray
     sat_acc_m_s2: np.ndarray
     rx_lin: np.ndarray | None = None  # a receive-power factor of each row (None: 1)
-    sat_pos_est_m: np.ndarray | None = None  # the position the satellite believes
+    sat_pos_est_m: np.ndarray | None = None  # the state the satellite believes
+    sat_vel_est_m: np.ndarray | None = None
     extra: dict = dataclasses.field(default_factory=dict)  # for :meth:`Monitor._finish`
 
 
@@ -207,7 +208,8 @@ class Monitor:
             path = pl.links.path_snr_lin[np.maximum(pl.pair, 0)] * (1.0 if rx is None else rx)
             inputs = dict(ut_pos_m=ut_pos, sat_pos_m=pl.sat_pos_m, sat_vel_m_s=pl.sat_vel_m_s,
                           path_snr_lin=path, i_other=i_other,
-                          sat_pos_est_m=pl.sat_pos_est_m)  # fmt: skip
+                          sat_pos_est_m=pl.sat_pos_est_m,
+                          sat_vel_est_m=pl.sat_vel_est_m)  # fmt: skip
             self._share(recs, cols, inputs)
         return self._finish(cols, geo_beam, pl)
 
