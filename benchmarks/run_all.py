@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
 import json
 import os
 import platform
@@ -51,7 +52,10 @@ def run_modules(quick):
             print(f"[{name}: not in this tree, skipped]\n")
             continue
         t0 = time.perf_counter()
-        figures = mod.main(quick=quick, argv=[]) or {}
+        if "quick" in inspect.signature(mod.main).parameters:
+            figures = mod.main(quick=quick, argv=[]) or {}
+        else:  # main(argv) modules (bench_memory, bench_visibility) take --quick
+            figures = mod.main(["--quick"] if quick else []) or {}
         print(f"  ({name}: {time.perf_counter() - t0:.1f} s)\n")
         out[name.removeprefix("bench_")] = figures
     return out

@@ -315,3 +315,23 @@ def test_compiled_kernels_give_the_same_bits_with_environments(tmp_path, monkeyp
     assert np.isfinite(fused.shadow_db).all()
     for c in ("snr_db", "sinr_db", "se_bps_hz", "los", "shadow_db", "clutter_db"):
         np.testing.assert_array_equal(fused[c].to_numpy(), plain[c].to_numpy(), err_msg=c)
+
+
+def test_a_run_over_1000_uts_keeps_blocked_outages_per_ut_and_by_environment(tmp_path):
+    """Beyond PER_UT_IN_JSON_MAX UTs summary.json has no per-UT list: the blocked outage
+    fractions go to the per-UT table (``per_ut.parquet``), checked against the trace, and
+    ``by_environment`` stays in the overall block."""
+    from leolink.io.summary import PER_UT_IN_JSON_MAX
+
+    assert PER_UT_IN_JSON_MAX == 1000
+    pops = _crowd(1000) + _crowd(1, "open").replace('name = "crowd"', 'name = "twin"')
+    res = run(_config(tmp_path, pops, ["run.duration_s=2", "run.start_s=-150"]))
+    assert "per_ut" not in res.summary
+    by_env = res.summary["overall"]["by_environment"]
+    assert {k: v["n_ut"] for k, v in by_env.items()} == {"urban": 1000, "open": 1}
+    t = res.trace
+    blocked = t.outage_reason.eq("blocked").groupby(t.ut_id).mean()
+    assert blocked.max() > 0
+    np.testing.assert_allclose(res.per_ut.outage_fraction_blocked, blocked, atol=1e-15)
+    urban = by_env["urban"]["outage_fraction_by_reason"]["blocked"]
+    assert urban == pytest.approx(blocked[:1000].mean(), abs=1e-15)

@@ -8,6 +8,7 @@ import pytest
 
 from leolink.sim.kpi import (
     PERCENTILES,
+    GroupedPercentileHistogram,
     PercentileHistogram,
     StateTime,
     handover_rates,
@@ -207,3 +208,36 @@ def test_summary_block_names_and_values():
     assert kpi["ping_pong_fraction"] == pytest.approx(0.5)
     assert kpi["rlf_count"] == 1
     assert kpi["mean_time_of_stay_s"] == {"beam": 2.5, "satellite": 2.5}
+
+
+def test_grouped_histogram_percentiles_match_numpy_per_group_within_half_a_bin():
+    """Per-UT percentiles (summary.json / per_ut.parquet): streamed in epochs of every
+    group, compacted several times, against numpy.percentile on each group's samples."""
+    rng = np.random.default_rng(8)
+    n_group, res = 300, 0.1
+    acc = GroupedPercentileHistogram(n_group, -200.0, 200.0, res)
+    acc.MIN_PENDING = 1000  # compact often: the merge of sorted tables is what is tested
+    samples = [[] for _ in range(n_group)]
+    centre = rng.uniform(-20, 30, n_group)
+    for _ in range(40):  # epochs: every group, plus a few groups twice
+        g = np.r_[np.arange(n_group), rng.integers(0, n_group, 50)]
+        v = centre[g] + rng.normal(0, 3, g.size)
+        acc.add(g, v)
+        for gi, vi in zip(g, v, strict=True):
+            samples[gi].append(vi)
+    acc.add(np.array([5]), np.array([250.0]))  # above the range: counted as +inf
+    samples[5].append(np.inf)
+    got = acc.percentiles([0, 5, 50, 95])
+    expected = np.array([np.percentile(s, [0, 5, 50, 95]) for s in samples])
+    np.testing.assert_allclose(got[:, :3], expected[:, :3], rtol=0, atol=res / 2 + 1e-9)
+    finite = np.arange(n_group) != 5
+    np.testing.assert_allclose(got[finite, 3], expected[finite, 3], rtol=0, atol=res / 2 + 1e-9)
+    np.testing.assert_array_equal(acc.counts(), [len(s) for s in samples])
+
+
+def test_grouped_histogram_empty_groups_are_nan():
+    acc = GroupedPercentileHistogram(4, -10.0, 10.0, 0.1)
+    acc.add(np.array([1, 1, 3]), np.array([0.0, 1.0, 2.0]))
+    got = acc.percentiles([50])
+    assert np.isnan(got[0, 0]) and np.isnan(got[2, 0])
+    assert got[1, 0] == pytest.approx(0.5, abs=0.05 + 1e-9)

@@ -13,7 +13,9 @@ from leolink.io.maps import (
     beam_colour,
     break_at_antimeridian,
     coastlines,
+    draw_footprints,
     map_extent,
+    new_figure,
     plot_map,
 )
 from leolink.io.report import run_map_figure
@@ -124,3 +126,28 @@ def test_run_map_draws_15_cells_and_colours_uts_by_their_trace_beam(paper_stats)
 def test_plot_map_without_inputs_is_a_world_map():
     fig = plot_map()
     assert fig.axes[0].get_xlim() == (-180.0, 180.0)
+
+
+def test_footprints_keep_order_skip_short_rings_and_stay_whole_across_180():
+    """Cells in the order given; a ring across the antimeridian is unwrapped (181, not
+    -179), a NaN point is left out of its ring, a ring with 2 finite points is dropped;
+    colours and labels follow each drawn cell's beam (hand-made rings, known vertices)."""
+    nan = np.nan
+    lon = np.array([[179.0, -179.0, -179.0, 179.0], [10.0, 12.0, nan, 10.0],
+                    [0.0, nan, nan, 1.0], [-20.0, -18.0, -18.0, -20.0]])  # fmt: skip
+    lat = np.array([[1.0, 1.0, 3.0, 3.0], [5.0, 5.0, 7.0, 7.0],
+                    [0.0, 0.0, 1.0, 1.0], [-1.0, -1.0, 1.0, 1.0]])  # fmt: skip
+    fp = {"beam_id": np.array([4, 7, 9, 2]), "lat_deg": lat, "lon_deg": lon}
+    fig, ax = new_figure((-30.0, 190.0, -10.0, 10.0))
+    coll = draw_footprints(ax, fp, label_beams=True)
+    rings = [[(179, 1), (181, 1), (181, 3), (179, 3)], [(10, 5), (12, 5), (10, 7)],
+             [(-20, -1), (-18, -1), (-18, 1), (-20, 1)]]  # fmt: skip
+    paths = coll.get_paths()
+    assert len(paths) == 3
+    for path, ring in zip(paths, rings, strict=True):
+        np.testing.assert_allclose(path.vertices[: len(ring)], ring, atol=1e-12)
+    np.testing.assert_array_equal(coll.get_edgecolors(), beam_colour([4, 7, 2]))
+    labels = [(t.get_text(), t.get_position()) for t in ax.texts]
+    assert labels == [("4", (180.0, 2.0)), ("7", (32 / 3, 17 / 3)), ("2", (-19.0, 0.0))]
+    assert draw_footprints(ax, {**fp, "beam_id": fp["beam_id"][:0], "lat_deg": lat[:0],
+                                "lon_deg": lon[:0]}) is None  # fmt: skip

@@ -65,5 +65,9 @@ def test_leolink_run_into_a_pipe_prints_few_progress_lines(tmp_path):
          "--set", "output.report.enabled=false", "--set", "output.plots.enabled=false"],
         capture_output=True, text=True, cwd=REPO, check=True,
     )  # fmt: skip
-    assert "\r" not in done.stderr and len(done.stderr.splitlines()) <= len(LOG_FRACTIONS)
+    # Only the progress lines count: the run's notes (codebook, ROI frame) follow them, and
+    # whether progress shows at all depends on the machine's load (SHOW_AFTER_S).
+    progress = [ln for ln in done.stderr.splitlines() if ln.startswith("leolink run:")]
+    assert "\r" not in done.stderr and len(progress) <= len(LOG_FRACTIONS)
+    assert all(ln.startswith(("leolink run:", "note: ")) for ln in done.stderr.splitlines())
     assert done.stdout.startswith(f"wrote {tmp_path}: 7 UTs, 120 epochs")

@@ -7,6 +7,8 @@ to change.
 
 from __future__ import annotations
 
+import functools
+
 from leolink.antenna.codebook_design import (
     HOLE_LOSS_DB,
     auto_design,
@@ -65,9 +67,15 @@ def _fix_text(sub, geometry):
     )
 
 
+@functools.lru_cache(maxsize=8)
+def _auto_design(sub, geometry, allow_holes):
+    # A run asks twice (scenario, notes); the search costs ~0.3 s of a small run's start.
+    return auto_design(*sub, *geometry, allow_holes=allow_holes)
+
+
 def _auto(cfg, sub, geometry):
     allow = cfg.satellite_array.allow_holes
-    best, largest = auto_design(*sub, *geometry, allow_holes=allow)
+    best, largest = _auto_design(sub, geometry, bool(allow))
     if best is not None:
         return best
     raise ConfigError(

@@ -5,7 +5,9 @@ sinks (trace and event files, plots, the report) when there is an output folder;
 one the trace and events are kept in memory (and the report's statistics, for the
 notebook views). An output folder holding another run's files is refused unless
 ``overwrite`` (:func:`leolink.io.run_dir.claim_out_dir`); ``summary.json`` and
-``config.resolved.toml`` are written after the stream, then the report page, and the
+``config.resolved.toml`` are written after the stream (with more than
+``PER_UT_IN_JSON_MAX`` UTs the per-UT statistics and the dwells go to ``per_ut.parquet``
+and ``dwells.parquet`` instead of ``summary.json``), then the report page, and the
 manifest ``run.json`` last: a folder without it is not a finished run.
 """
 
@@ -15,8 +17,7 @@ import dataclasses
 from datetime import UTC
 from pathlib import Path
 from types import SimpleNamespace
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 import leolink
 from leolink.app.codebook import codebook_design_from_config
@@ -30,7 +31,11 @@ from leolink.io.notebook import ResultViews
 from leolink.io.run_dir import claim_out_dir, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary import SummaryAccumulator
+from leolink.io.tables import write_parquet_atomic
 from leolink.sim.runner import run_simulation
+
+if TYPE_CHECKING:  # pandas is imported when a table is asked for (~0.5 s of start-up)
+    import pandas as pd
 
 __all__ = ["Result", "run", "run_notes"]
 
@@ -47,8 +52,18 @@ class Result(ResultViews):
     files: list[Path] = dataclasses.field(default_factory=list)
     _memory: MemorySink | None = None
     report_stats: object = None  # ReportStats of the report sink, when it ran
+    _per_ut: dict | None = None
+
+    @property
+    def per_ut(self) -> pd.DataFrame:
+        """Per-UT statistics, one row per UT (``SummaryAccumulator.per_ut_table``)."""
+        import pandas as pd
+
+        return pd.DataFrame(self._per_ut)
 
     def _written(self, stem, what):
+        import pandas as pd
+
         names = {p.name: p for p in self.files}
         if f"{stem}.parquet" in names:  # Parquet first: faster to read
             return pd.read_parquet(names[f"{stem}.parquet"])
@@ -201,13 +216,20 @@ def _run_and_write(cfg, scen, out_dir, summary, sinks, progress):
     sinks = sinks[:-1]  # without the position
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
     report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
+    per_ut = summary.per_ut_table()
     if out_dir is None:
-        return Result(result_summary, None, [], sinks[1], report)
+        return Result(result_summary, None, [], sinks[1], report, per_ut)
     files = [p for s in sinks for p in getattr(s, "files", [])]
+    if "per_ut" not in result_summary:  # a large run: the tables beside summary.json
+        files.append(write_parquet_atomic(per_ut, out_dir / "per_ut.parquet"))
+        files.append(write_parquet_atomic(summary.dwell_table(), out_dir / "dwells.parquet"))
+        result_summary["per_ut_file"], result_summary["dwells_file"] = (
+            "per_ut.parquet", "dwells.parquet"
+        )  # fmt: skip
     config_text = dump_toml(cfg)
     files.append(write_json_atomic(out_dir / "summary.json", result_summary))
     files.append(write_text_atomic(out_dir / "config.resolved.toml", config_text))
     for sink in sinks:
         files += sink.after_run(result_summary, config_text) if hasattr(sink, "after_run") else []
     files.append(write_manifest(out_dir, files, "run", config_text, version=leolink.__version__))
-    return Result(result_summary, out_dir, files, None, report)
+    return Result(result_summary, out_dir, files, None, report, per_ut)

@@ -19,7 +19,9 @@ from leolink.antenna.panel import PanelOrientation
 from leolink.antenna.terminal import TerminalGroups
 from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
+from leolink.app.steering import steering_from_config
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
+from leolink.ephemeris_error import EstimatedEphemeris
 from leolink.errors import ConfigError
 from leolink.link.acm import LinkFigureParams
 from leolink.link.figures import eirp_from_density_dbw
@@ -127,9 +129,10 @@ def service_link(cfg, engine):
     return ServiceLink(figures, cfg.controller.min_snr_db if sinr else None)
 
 
-def build_engine(cfg, codebook=None, terminal=None):
+def build_engine(cfg, codebook=None, terminal=None, ephemeris=None):
     """The :class:`~leolink.engine.LinkEngine` of the config (``terminal``: the UT
-    antennas, default ``[terminal]``; :func:`ut_terminals` gives the per-population ones)."""
+    antennas, default ``[terminal]``; :func:`ut_terminals` gives the per-population ones;
+    ``ephemeris``: the run's, for Earth-fixed beams' cells, built when needed if None)."""
     codebook = codebook_from_config(cfg) if codebook is None else codebook
     n_beam = len(codebook.u_xy)
     peak_dbi = 10.0 * math.log10(codebook.n_sub_x * codebook.n_sub_y)
@@ -150,6 +153,7 @@ def build_engine(cfg, codebook=None, terminal=None):
         atmosphere_from(cfg),
         colors,
         other_satellites=cfg.link.interference == "all_satellites",
+        steering=steering_from_config(cfg, codebook, ephemeris),
     )
 
 
@@ -226,7 +230,7 @@ def build_scenario(cfg):
     r = cfg.run
     times, n_warm = epoch_times(r.start_s, r.epoch_s, r.warmup_s, r.duration_s)
     populations = build_populations(cfg, heading, rng)
-    engine = build_engine(cfg, codebook, ut_terminals(cfg, populations))
+    engine = build_engine(cfg, codebook, ut_terminals(cfg, populations), ephemeris)
     selector, service = beams_from(cfg, engine)
     return Scenario(
         engine=engine,
@@ -249,7 +253,21 @@ def build_scenario(cfg):
         service=service,
         link=service_link(cfg, engine),
         panels=panel_orientation(cfg, populations),
+        estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
     )
+
+
+def estimated_ephemeris(cfg, ephemeris):
+    """The ephemeris the controller believes (``[ephemeris_error]``), None without error."""
+    model = cfg.ephemeris_error.build(SimpleNamespace(seed=cfg.run.seed))
+    if model.is_zero:  # the error-free run, bit for bit
+        return None
+    if cfg.link.interference == "all_satellites":
+        raise ConfigError(
+            f"ephemeris_error.model = {cfg.ephemeris_error.model!r} with link.interference = "
+            "'all_satellites' is not supported yet; use 'serving_satellite'"
+        )
+    return EstimatedEphemeris(ephemeris, model)
 
 
 def _environments(cfg):

@@ -77,7 +77,8 @@ class LinkBase(LinkSection, kinds.SelectorSection):
 
 
 class SatelliteArrayBase(SatelliteArraySection, kinds.SelectorSection):
-    """``[satellite_array]``: the array; ``active_beams`` chooses the beam selector."""
+    """``[satellite_array]``: the array; ``active_beams`` chooses the beam selector,
+    ``steering`` how the beams point."""
 
 
 class ConfigBase(Section):
@@ -110,6 +111,15 @@ class ConfigBase(Section):
                 f"link.precoder = {self.link.precoder!r} is not allowed with scheduler.kind = "
                 "'none': a precoder serves one UT per lit beam per slot; use scheduler.kind "
                 "= 'round_robin' or 'proportional_fair'"
+            )
+        a = self.satellite_array
+        if self.link.precoder != "none" and (a.steering != "body_fixed" or a.phase_bits):
+            what = f"steering = {a.steering!r}" if a.phase_bits is None else "phase_bits"
+            raise ValueError(
+                f"link.precoder = {self.link.precoder!r} is not allowed with satellite_array."
+                f"{what}: the precoded channel uses the codebook's ideal body-fixed beams; "
+                "use link.precoder = 'none' or satellite_array.steering = 'body_fixed' "
+                "without phase_bits"
             )
         if c.tle_epoch_utc and self.run.start_utc:
             raise ValueError(
@@ -165,8 +175,8 @@ class ConfigBase(Section):
         for name in type(self).model_fields:
             section = getattr(self, name)
             if isinstance(section, kinds.SelectorSection):
-                for entry in section.registry.names():
-                    if entry != section.chosen and entry not in section.model_fields_set:
+                for entry in section.unchosen():
+                    if entry not in section.model_fields_set:
                         data[name].pop(entry, None)
         return data
 
@@ -188,11 +198,16 @@ def _model(gen):
                           doc="atmospheric loss model"),
         "satellite_array": sel("SatelliteArraySection",
                                REGISTRIES["satellite_array.active_beams"], "active_beams",
-                               "all", base=SatelliteArrayBase,
+                               "all", base=sel("SatelliteArraySteering",
+                                               REGISTRIES["satellite_array.steering"],
+                                               "steering", "body_fixed",
+                                               base=SatelliteArrayBase, doc="how the beams point"),
                                doc="which beams each satellite lights each epoch"),
         "scheduler": sel("SchedulerSection", REGISTRIES["scheduler.kind"], "kind", "none",
                          doc="how the UTs of one beam share its time"),
         "terminal": kinds.terminal_section(),
+        "ephemeris_error": sel("EphemerisErrorSection", REGISTRIES["ephemeris_error.model"],
+                               "model", "none", doc="error of the ephemeris the controller uses"),
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),
         "output": kinds.output_section(REGISTRIES["output"]),

@@ -37,6 +37,9 @@ __all__ = [
 #: Modules that own a registry or register entries (imported before a schema is built).
 OWNERS = (
     "leolink.antenna.terminal",
+    "leolink.antenna.steering",
+    "leolink.ephemeris_error",
+    "leolink.io.ephemeris_sink",
     "leolink.link.atmosphere",
     "leolink.sim.policies",
     "leolink.sim.trigger_policies",
@@ -60,6 +63,9 @@ class SelectorSection(Section):
 
     selector: ClassVar[str]
     registry: ClassVar[Registry]
+    #: Every selector of the section and its registry (a section may have more than one,
+    #: e.g. ``[satellite_array]``: ``active_beams`` and ``steering``); ``selector`` is the last.
+    registries: ClassVar[dict[str, Registry]] = {}
 
     @property
     def chosen(self) -> str:
@@ -74,6 +80,16 @@ class SelectorSection(Section):
     def build(self, context: Any = None):
         """Build the chosen entry."""
         return self.registry.build(self.chosen, self.params, context)
+
+    def build_kind(self, selector: str, context: Any = None):
+        """Build the entry chosen by the key ``selector`` (a section with several)."""
+        name = getattr(self, selector)
+        return self.registries[selector].build(name, getattr(self, name), context)
+
+    def unchosen(self) -> list[str]:
+        """The per-entry tables of every selector's registry that are not chosen."""
+        chosen = {getattr(self, key) for key in self.registries}
+        return [n for reg in self.registries.values() for n in reg.names() if n not in chosen]
 
 
 class OutputSection(Section):
@@ -109,6 +125,7 @@ def selector_section(title, registry, selector, default, base=SelectorSection, d
         **_tables(registry, reserved),
     )
     model.selector, model.registry = selector, registry
+    model.registries = {**base.registries, selector: registry}
     return model
 
 

@@ -82,12 +82,13 @@ def _rows(model, skip=()):
 
 def _section(name, model):
     if isinstance(model, type) and issubclass(model, SelectorSection):
-        reg = model.registry
         lines = [f"## `[{name}]`", "", *_rows(model)]
-        for entry in reg.names():
-            lines += [f"### `[{name}.{entry}]`: {reg[entry].doc}", ""]
-            cfg = reg[entry].config
-            lines += _rows(cfg) if cfg.model_fields else ["(no keys)", ""]
+        for key, reg in model.registries.items():
+            for entry in reg.names():
+                which = f" ({key} = '{entry}')" if len(model.registries) > 1 else ""
+                lines += [f"### `[{name}.{entry}]`{which}: {reg[entry].doc}", ""]
+                cfg = reg[entry].config
+                lines += _rows(cfg) if cfg.model_fields else ["(no keys)", ""]
         return lines
     if isinstance(model, type) and issubclass(model, OutputSection):
         lines = [f"## `[{name}]`", "", "One table per output; each has `enabled`.", ""]

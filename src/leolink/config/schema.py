@@ -347,6 +347,10 @@ class SatelliteArraySection(Section):
         doc="accept a codebook with holes: O < 1, or a point of the ROI more than 13.26 dB "
         "(a first sidelobe) below every beam's peak",
     )
+    phase_bits: Annotated[int, Field(ge=1, le=16)] | None = _f(
+        None,
+        doc="phase-shifter resolution of the beam weights [bit] (none: ideal phases, the paper)",
+    )
 
     @model_validator(mode="after")
     def _check(self):

@@ -19,7 +19,6 @@ No Python loop over UTs, satellites or beams.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,6 +27,7 @@ from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
 from leolink.engine import interference, jit
 from leolink.engine.links import (
+    LinkParams,
     Links,
     Snapshot,
     azimuth_deg,
@@ -37,6 +37,7 @@ from leolink.engine.links import (
     reuse_colors,
     rows_gain_db,
 )
+from leolink.engine.steered import kernel_rows, per_beam_steering
 from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw
@@ -67,22 +68,6 @@ SERVE_COLUMNS = (
 SERVE_GEOMETRY_COLUMNS = ("azimuth_deg",)
 
 
-@dataclass(frozen=True)
-class LinkParams:
-    """Scalars of the link budget (paper's Table).
-
-    ``ptx_dbw``: power of one beam (one RF chain), as in the paper; ``other_loss_db``: the
-    losses besides FSPL and atmosphere (TR 38.821 Table 6.1.3.3-1)."""
-
-    freq_hz: float
-    bandwidth_hz: float
-    ptx_dbw: float
-    cable_loss_db: float
-    noise_temp_dbk: float
-    min_elevation_rad: float
-    other_loss_db: float = 0.0
-
-
 class LinkEngine:
     """Vectorized link evaluation for one codebook and one terminal antenna.
 
@@ -101,9 +86,13 @@ class LinkEngine:
     other_satellites : bool
         Add the beams of every other satellite above the horizon as interference,
         through ``terminal.pattern_lin`` (which must not be None).
+    steering : leolink.antenna.steering.SteeringMode, optional
+        None (or ideal body-fixed beams): the codebook's lattice; beams that move or have
+        quantized phases: one kernel row per beam (:mod:`leolink.engine.steered`).
     """
 
-    def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False):
+    def __init__(self, codebook, terminal, params, atmosphere, colors=None, other_satellites=False,
+                 steering=None):  # fmt: skip
         self.other_satellites = bool(other_satellites)
         self.codebook, self.terminal = codebook, terminal
         self.params, self.atmosphere = params, atmosphere
@@ -111,6 +100,8 @@ class LinkEngine:
         self.beam_ux, self.beam_ix = np.unique(u[:, 0], return_inverse=True)
         self.beam_uy, self.beam_iy = np.unique(u[:, 1], return_inverse=True)
         n_beam = len(u)
+        self.steering = per_beam_steering(steering)
+        self.beam_ix, self.beam_iy = kernel_rows(self.steering, self.beam_ix, self.beam_iy)
         self.colors = np.zeros(n_beam, np.int64) if colors is None else np.asarray(colors)
         self.n_colors = int(self.colors.max()) + 1
         # Each colour has 1/n_colors of the band: less noise, less throughput.
@@ -139,7 +130,8 @@ class LinkEngine:
         cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
         return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)
 
-    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None, ut_panel=None):
+    def evaluate(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_enu=None, ut_panel=None,
+                 sat_id=None):  # fmt: skip
         """Geometry, gains and SNR for every (UT, satellite, beam).
 
         Parameters
@@ -150,6 +142,8 @@ class LinkEngine:
         ut_enu : ndarray, shape (n_ut, 3, 3), optional
             Each UT's local east, north, up rows (the WGS 84 frame of geodetic UTs):
             elevations, azimuths and panel frames use them. None: the sphere's radial up.
+        sat_id : ndarray of int, shape (n_sat,), optional
+            Global satellite ids (cells of re-steered beams); None: row = id.
         ut_panel : ndarray, shape (n_ut, 3, 3), optional
             Turned or tilted panels (rows x, y, normal): terminal gains take the angle above
             the panel plane, other satellites' cosines these rows. None: flat, x east.
@@ -163,7 +157,8 @@ class LinkEngine:
         sat = np.repeat(np.arange(n_sat), n_ut)
         up = None if ut_enu is None else ut_enu[:, 2, :]
         normal = None if ut_panel is None else ut_panel[:, 2, :]
-        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, None, normal)
+        links = self.evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, up, None, normal,
+                                    sat_id=sat_id)  # fmt: skip
         snap = Snapshot(self, links, n_ut, n_sat, ut_pos_m, ut_enu)
         if self.other_satellites:
             # Any satellite above the horizon interferes, usable or not: its path without
@@ -178,7 +173,7 @@ class LinkEngine:
         return snap
 
     def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
-                       ut_normal=None):  # fmt: skip
+                       ut_normal=None, sat_id=None, steer=None):  # fmt: skip
         """Geometry, path SNR and beam kernels of the pairs ``(ut[p], sat[p])``.
 
         Parameters
@@ -195,18 +190,21 @@ class LinkEngine:
         ut_normal : ndarray, shape (n_u, 3), optional
             Each UT row's panel normal: the terminal gain takes the angle above the panel
             plane (visibility and atmosphere the elevation). None: panels lying flat.
+        sat_id, steer : ndarray of int (n_s,), and (pos, vel) each (n_s, 3), optional
+            Global satellite ids (None: row = id); the states re-steered beams are steered
+            by (None: the true ones).
 
         Returns
         -------
         Links
         """
-        if jit.use(ut.shape[0]):  # the same operations, fused (bit for bit the same)
+        if jit.use(ut.shape[0]) and self.steering is None:  # fused, bit for bit the same
             axes = body_frame(sat_pos_m, sat_vel_m_s)
             arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
             rel, rho2, rho, elevation, visible, kx, ky = arrays
         else:
             rel, rho2, rho, elevation, visible, kx, ky = pair_geometry(
-                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up
+                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id, steer
             )
         rx_db = self._rx_const
         if rx_db is None:
@@ -374,7 +372,8 @@ class LinkEngine:
     @property
     def _full_reuse_lattice(self):
         """Every beam of the lattice, one colour (the fused serving kernel's case)."""
-        return self.n_colors == 1 and self.n_beam == len(self.beam_ux) * len(self.beam_uy)
+        lattice = self.n_beam == len(self.beam_ux) * len(self.beam_uy)
+        return self.n_colors == 1 and lattice and self.steering is None
 
     def other_satellites_interference(self, snap, s, b, u, lit=None):
         """:func:`leolink.engine.interference.other_satellites` of this engine."""

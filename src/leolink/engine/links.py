@@ -17,10 +17,27 @@ import numpy as np
 
 from leolink.antenna.array import dirichlet_kernels
 from leolink.engine import jit
+from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
 
 __all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
 __all__ += ["panel_elevation_of_pairs", "reuse_colors", "rows_gain_db"]
+
+
+@dataclass(frozen=True)
+class LinkParams:
+    """Scalars of the link budget (paper's Table).
+
+    ``ptx_dbw``: power of one beam (one RF chain), as in the paper; ``other_loss_db``: the
+    losses besides FSPL and atmosphere (TR 38.821 Table 6.1.3.3-1)."""
+
+    freq_hz: float
+    bandwidth_hz: float
+    ptx_dbw: float
+    cable_loss_db: float
+    noise_temp_dbk: float
+    min_elevation_rad: float
+    other_loss_db: float = 0.0
 
 
 @dataclass
@@ -249,9 +266,14 @@ def group_constants_db(terminal):
     ]
 
 
-def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
+def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id=None,
+                  steer=None):  # fmt: skip
     """The numpy reference of ``LinkEngine.evaluate_pairs``'s geometry and beam kernels:
-    rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it)."""
+    rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it; re-steered
+    or quantized beams, :mod:`leolink.engine.steered`, have no compiled kernel).
+    ``sat_id``: the global satellite of each satellite row (None: row = satellite);
+    ``steer``: ``(pos, vel)`` the satellites steer their beams by (an estimated ephemeris;
+    None: the true states)."""
     u_pos = ut_pos_m[ut]
     rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
     rho2 = np.einsum("pk,pk->p", rel, rel)
@@ -268,6 +290,11 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
     inv_rho = 1.0 / rho
     ux = np.einsum("pk,pk->p", rel, axes[:, 0, :]) * inv_rho
     uy = np.einsum("pk,pk->p", rel, axes[:, 1, :]) * inv_rho
+    if engine.steering is not None:  # beams of their own per satellite row
+        s_pos, s_vel = (sat_pos_m, sat_vel_m_s) if steer is None else steer
+        v, on = beam_centres(engine, s_pos, body_frame(s_pos, s_vel), sat_id)
+        kx, ky = steered_kernels(engine, ux, uy, sat, v, on)
+        return rel, rho2, rho, elevation, visible, kx, ky
     kx = dirichlet_kernels(ux, engine.beam_ux, engine.codebook.n_sub_x)
     ky = dirichlet_kernels(uy, engine.beam_uy, engine.codebook.n_sub_y)
     return rel, rho2, rho, elevation, visible, kx, ky

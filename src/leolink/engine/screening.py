@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.engine.links import rows_gain_db
+from leolink.engine.steered import steered_bound_lin
 
 __all__ = ["BOUND_SLACK", "SIN_EL_BAND", "UNCERTAIN", "VISIBLE", "envelope", "screen"]
 
@@ -77,7 +78,8 @@ def envelope(u, beam_u, n):
         return np.minimum(float(n), 1.0 / (n * s * s))
 
 
-def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_normal=None):
+def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_normal=None,
+           sat_id=None):  # fmt: skip
     """Classify every pair of the UT x satellite grid and bound its best beam's SNR.
 
     Parameters
@@ -94,6 +96,9 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     ut_normal : ndarray, shape (n_u, 3), optional
         Panel normal of each row (tilted panels): an elevation-dependent terminal gain is
         bounded at the screening angle above the panel plane, as the engine evaluates it.
+    sat_id : ndarray of int, shape (n_s,), optional
+        Global id of each satellite (re-steered beams, :mod:`leolink.engine.steered`,
+        whose bound is per satellite); None: row = id.
 
     Returns
     -------
@@ -107,10 +112,13 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     ut_id = np.arange(len(ut_pos_m)) if ut_id is None else ut_id
     factor = _ut_factor(engine, ut_id)
     known = np.where(np.isnan(factor), 1.0, factor)
-    if jit.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]):  # numba imported for large calls only
+    big = jit.use(ut_pos_m.shape[0] * sat_pos_m.shape[0])  # numba imported for large calls only
+    if big and engine.steering is None:
         code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
     else:
-        code, bound, sin_el = _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
+        code, bound, sin_el = _screen_numpy(
+            engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known, sat_id
+        )
     rows = np.flatnonzero(np.isnan(factor))
     if rows.size:  # UTs whose gain or loss depends on the elevation: per pair
         r, s = np.nonzero(code[rows] > 0)
@@ -122,7 +130,7 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     return code, bound
 
 
-def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
+def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_id=None):
     """:func:`screen` in numpy (matrix products): code, bound, sin(elevation)."""
     cb = engine.codebook
     r_ut2 = np.einsum("uk,uk->u", ut_pos_m, ut_pos_m)
@@ -141,8 +149,11 @@ def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
     ax, ay = sat_axes[:, 0, :], sat_axes[:, 1, :]
     ux = (ut_pos_m @ ax.T - np.einsum("sk,sk->s", sat_pos_m, ax)[None, :]) / rho
     uy = (ut_pos_m @ ay.T - np.einsum("sk,sk->s", sat_pos_m, ay)[None, :]) / rho
-    bound = envelope(ux, engine.beam_ux, cb.n_sub_x)
-    bound *= envelope(uy, engine.beam_uy, cb.n_sub_y)
+    if engine.steering is not None:  # each satellite's own beam centres
+        bound = steered_bound_lin(engine, ux, uy, sat_pos_m, sat_axes, sat_id)
+    else:
+        bound = envelope(ux, engine.beam_ux, cb.n_sub_x)
+        bound *= envelope(uy, engine.beam_uy, cb.n_sub_y)
     bound *= (engine._k_lin * (1.0 + BOUND_SLACK)) * ut_factor[:, None] / rho2
     return code, np.where(code > 0, bound, -1.0), sin_el
 

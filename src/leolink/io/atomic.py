@@ -132,8 +132,21 @@ def to_jsonable(obj):
 
 
 def write_json_atomic(path, obj):
-    """Write ``obj`` as indented JSON (NaN -> null) atomically; return the path."""
-    return write_text_atomic(path, json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
+    """Write ``obj`` as indented JSON (NaN -> null) atomically; return the path.
+
+    Encoded piece by piece into 1 MiB writes: a large summary is never held as one string
+    (the same text as ``json.dumps(..., indent=2)`` plus a newline).
+    """
+    pieces, size = [], 0
+    with atomic_file(path) as f:
+        for piece in json.JSONEncoder(indent=2, allow_nan=False).iterencode(to_jsonable(obj)):
+            pieces.append(piece)
+            size += len(piece)
+            if size >= 1 << 20:
+                f.write("".join(pieces).encode("utf-8"))
+                pieces, size = [], 0
+        f.write(("".join(pieces) + "\n").encode("utf-8"))
+    return Path(path)
 
 
 def write_csv_atomic(df, path):

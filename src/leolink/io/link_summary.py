@@ -38,14 +38,18 @@ def _modcod_codes(values, names):
 
 
 class LinkStats:
-    """Streamed link-figure statistics of ``n_ut`` UTs (bounded memory but the margins)."""
+    """Streamed link-figure statistics of ``n_ut`` UTs, in bounded memory.
 
-    def __init__(self, n_ut, growable):
+    ``db_stats(n_ut)`` keeps the margins (finite values only): per-UT count, sum and
+    histogram, and a pooled histogram (``leolink.io.summary_stats.DbStats``: the margin
+    percentiles have the SNR percentiles' resolution, 0.01 dB pooled, 0.1 dB per UT).
+    """
+
+    def __init__(self, n_ut, db_stats):
         self.n_ut = int(n_ut)
         self.names = (*modcod_table().names, NO_MODCOD_NAME)
         self.modcod_counts = np.zeros((self.n_ut, len(self.names)), np.int64)
-        self.margin = (growable(np.int32), growable(np.float32))
-        self.margin_sum = np.zeros(self.n_ut)
+        self.margin = db_stats(self.n_ut)
         self.n_negative = np.zeros(self.n_ut, np.int64)
         self.tput_sum = {k: np.zeros(self.n_ut) for k in _MODELS}
         self.tput_seen = dict.fromkeys(_MODELS, False)
@@ -56,9 +60,7 @@ class LinkStats:
         if "margin_db" in columns:
             m = np.asarray(columns["margin_db"], float)
             ok = np.isfinite(m)
-            self.margin[0].append(ut[ok])
-            self.margin[1].append(m[ok])
-            self.margin_sum += np.bincount(ut[ok], m[ok], minlength=n)
+            self.margin.add(ut, m)
             self.n_negative += np.bincount(ut[ok], m[ok] < 0.0, minlength=n).astype(np.int64)
         if "modcod" in columns:
             code = _modcod_codes(columns["modcod"], self.names)
@@ -79,22 +81,18 @@ class LinkStats:
             return {}
         return {self.names[i]: counts[i] / total for i in np.flatnonzero(counts)}
 
-    def summary(self, n_epochs, percentiles):
-        """``(overall, per_ut)`` link blocks; ``percentiles(ut, values, n) -> (n, 3)``."""
-        ut, values = (s.view() for s in self.margin)
-        count = np.bincount(ut, minlength=self.n_ut)
+    def summary(self, n_epochs, per_ut=True):
+        """``(overall, per_ut)`` link blocks (``per_ut`` None unless asked for)."""
+        count = self.margin.count
+        n_margin = int(count.sum())
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean = self.margin_sum / count
             neg = self.n_negative / count
             tput = {
                 k: v / n_epochs if self.tput_seen[k] else None for k, v in self.tput_sum.items()
             }
-        pct = percentiles(ut, values, self.n_ut)
-        pooled = percentiles(np.zeros(values.size, np.int64), values, 1)[0]
         n_all = int(n_epochs.sum())
 
-        def block(m, p, f, usage, t):
-            margin = dict(zip(("mean", "p5", "p50", "p95"), [m, *p], strict=True))
+        def block(margin, f, usage, t):
             return {
                 "margin_db": {**margin, "fraction_negative": f},
                 "modcod_usage": usage,
@@ -102,23 +100,25 @@ class LinkStats:
             }
 
         overall = block(
-            self.margin_sum.sum() / values.size if values.size else None,
-            pooled.tolist(),
-            self.n_negative.sum() / values.size if values.size else None,
+            self.margin.overall(),
+            self.n_negative.sum() / n_margin if n_margin else None,
             self._usage(self.modcod_counts.sum(axis=0)),
             {
                 k: (v.sum() / n_all if n_all else None) if self.tput_seen[k] else None
                 for k, v in self.tput_sum.items()
             },
         )
-        per_ut = [
+        if not per_ut:
+            return overall, None
+        stats = self.margin.per_ut_stats().tolist()  # (n_ut, 4): mean, p5, p50, p95
+        keys = ("mean", "p5", "p50", "p95")
+        per_ut_blocks = [
             block(
-                mean[i],
-                pct[i].tolist(),
+                dict(zip(keys, stats[i], strict=True)),
                 neg[i],
                 self._usage(self.modcod_counts[i]),
                 {k: (None if v is None else v[i]) for k, v in tput.items()},
             )
             for i in range(self.n_ut)  # output formatting only
         ]
-        return overall, per_ut
+        return overall, per_ut_blocks

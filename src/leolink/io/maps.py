@@ -55,17 +55,25 @@ def beam_colour(beam_id):
     -------
     ndarray, shape (..., 4)
     """
-    from matplotlib import colormaps
-
-    tab20 = np.delete(np.asarray(colormaps["tab20"].colors, float), [14, 15], axis=0)
-    # Dark colours first, then their light partners: the first 9 beams get distinct hues.
-    palette = np.concatenate([tab20[0::2], tab20[1::2]])
+    palette = _palette()
     beam = np.asarray(beam_id, int)
     rgba = np.empty(beam.shape + (4,))
     rgba[..., :3] = palette[np.mod(beam, palette.shape[0])]
     rgba[..., 3] = 1.0
     rgba[beam < 0] = OUTAGE_COLOUR
     return rgba
+
+
+@lru_cache(maxsize=1)
+def _palette():
+    """The beam colours (18, 3): tab20 without its greys, dark colours first, then their
+    light partners, so that the first 9 beams get distinct hues."""
+    from matplotlib import colormaps
+
+    tab20 = np.delete(np.asarray(colormaps["tab20"].colors, float), [14, 15], axis=0)
+    palette = np.concatenate([tab20[0::2], tab20[1::2]])
+    palette.flags.writeable = False  # shared by every call
+    return palette
 
 
 @lru_cache(maxsize=1)
@@ -162,42 +170,45 @@ def draw_footprints(ax, footprints, *, fill_alpha=0.18, label_beams=True):
     """Beam cells as outlined, lightly filled polygons in the beam's colour.
 
     ``footprints``: ``beam_id (k,)`` and ``lat_deg, lon_deg (k, n_points)``; rings with a
-    NaN point are drawn through the finite points only.
+    NaN point are drawn through the finite points only, rings with fewer than 3 not at all.
     """
     from matplotlib.collections import PolyCollection
 
     beam = np.asarray(footprints["beam_id"], int)
     lat, lon = np.asarray(footprints["lat_deg"], float), np.asarray(footprints["lon_deg"], float)
-    rings, colours, centres = [], [], []
-    for k in range(beam.size):  # one polygon per beam cell (tens, not per UT)
-        ok = np.isfinite(lat[k]) & np.isfinite(lon[k])
-        if ok.sum() < 3:
-            continue
-        ring_lon = _unwrap_deg(lon[k, ok])
-        rings.append(np.column_stack([ring_lon, lat[k, ok]]))
-        colours.append(beam_colour(beam[k]))
-        centres.append((beam[k], ring_lon.mean(), lat[k, ok].mean()))
+    if beam.size == 0:
+        return None
+    rows, rings = _rings(lon.reshape(beam.size, -1), lat.reshape(beam.size, -1))
     if not rings:
         return None
-    colours = np.asarray(colours)
+    colours = beam_colour(beam[rows])
     face = colours.copy()
     face[:, 3] = fill_alpha
     coll = PolyCollection(rings, facecolors=face, edgecolors=colours, linewidths=1.0, zorder=2)
     ax.add_collection(coll)
     if label_beams:
-        for b, x, y in centres:
-            ax.text(
-                x,
-                y,
-                str(b),
-                ha="center",
-                va="center",
-                fontsize=6,
-                zorder=3,
-                color="0.15",
-                clip_on=True,
-            )
+        for b, ring in zip(beam[rows].tolist(), rings, strict=True):
+            x, y = ring[:, 0].mean(), ring[:, 1].mean()
+            ax.text(x, y, str(b), ha="center", va="center", fontsize=6, zorder=3,
+                    color="0.15", clip_on=True)  # fmt: skip
     return coll
+
+
+def _rings(lon, lat):
+    """The rows with at least 3 finite points and their rings ``(n_i, 2)`` (lon, lat) of
+    the finite points, longitudes unwrapped; whole rings in one vectorized pass (a
+    constellation's animation draws ~250 cells a frame)."""
+    ok = np.isfinite(lat) & np.isfinite(lon)
+    rows = np.flatnonzero(ok.sum(axis=1) >= 3)
+    whole = ok[rows].all(axis=1)
+    rings = list(np.stack([_unwrap_deg(lon[rows[whole]]), lat[rows[whole]]], axis=-1))
+    if whole.all():
+        return rows, rings
+    out, it = [], iter(rings)
+    for r, is_whole in zip(rows.tolist(), whole.tolist(), strict=True):
+        m = ok[r]
+        out.append(next(it) if is_whole else np.column_stack([_unwrap_deg(lon[r, m]), lat[r, m]]))
+    return rows, out
 
 
 def draw_ut_points(ax, lon_deg, lat_deg, beam_id, *, size=30.0, zorder=5, linewidths=0.6):
@@ -214,8 +225,9 @@ def draw_ut_points(ax, lon_deg, lat_deg, beam_id, *, size=30.0, zorder=5, linewi
 
 
 def _unwrap_deg(lon_deg):
-    """Longitudes made continuous (no +-360 jump) so a ring across 180 deg stays whole."""
-    return np.degrees(np.unwrap(np.radians(lon_deg)))
+    """Longitudes made continuous (no +-360 jump) along the last axis, so that a ring
+    across 180 deg stays whole."""
+    return np.degrees(np.unwrap(np.radians(lon_deg), axis=-1))
 
 
 def plot_map(

@@ -16,8 +16,8 @@ import html
 
 import numpy as np
 
-from leolink.io import figures as F
-from leolink.io.report_stats import ReportStats
+# figures (matplotlib, pandas) and ReportStats (pandas) are imported when a view is drawn:
+# importing them here cost every run ~1.5 s of start-up.
 
 __all__ = ["ResultViews", "dense", "stats_from_frames"]
 
@@ -25,6 +25,8 @@ __all__ = ["ResultViews", "dense", "stats_from_frames"]
 def stats_from_frames(trace, events, summary, series_ut, satellites=None, codebook=None):
     """A :class:`ReportStats` from in-memory tables (``satellites``: DataFrame ``time_s,
     sat_id, x_m .. vz_m_s``; ``codebook``: ``leolink codebook --json`` dict)."""
+    from leolink.io.report_stats import ReportStats
+
     run = summary["run"]
     stats = ReportStats(run["n_ut"], run["start_s"], run["end_s"], run["epoch_s"], series_ut)
     stats.add_trace({c: trace[c].to_numpy() for c in trace.columns})
@@ -46,6 +48,12 @@ def stats_from_frames(trace, events, summary, series_ut, satellites=None, codebo
             codebook["n_sub_y"],
         )
     return stats
+
+
+def _figures():
+    from leolink.io import figures
+
+    return figures
 
 
 def dense(trace, column):
@@ -90,35 +98,35 @@ class ResultViews:
     def plot_sinr(self, ut_ids=(0,)):
         """SNR/SINR vs time of ``ut_ids`` with handovers and outages marked (Figure)."""
         s = self._stats(ut_ids)
-        return F.fig_snr_time(s.series(), s.events(), ut_ids)
+        return _figures().fig_snr_time(s.series(), s.events(), ut_ids)
 
     def plot_doppler(self, ut_ids=(0,)):
         """Doppler and Doppler rate vs time (Figure)."""
-        return F.fig_doppler(self._stats(ut_ids).series(), ut_ids)
+        return _figures().fig_doppler(self._stats(ut_ids).series(), ut_ids)
 
     def plot_angular_speed(self, ut_ids=(0,)):
         """Angular speed of the serving satellite vs time (Figure)."""
-        return F.fig_angular_speed(self._stats(ut_ids).series(), ut_ids)
+        return _figures().fig_angular_speed(self._stats(ut_ids).series(), ut_ids)
 
     def plot_timeline(self, ut_ids=(0,)):
         """Serving beam per UT over time with handovers (Figure)."""
         s = self._stats(ut_ids)
-        return F.fig_handover_timeline(s.series(), s.events(), ut_ids)
+        return _figures().fig_handover_timeline(s.series(), s.events(), ut_ids)
 
     def plot_dwell(self):
         """Dwell histograms, complete and censored apart (Figure)."""
         s = self._stats()
-        return F.fig_dwell(s.dwell_edges_s, s.dwell_complete, s.dwell_censored)
+        return _figures().fig_dwell(s.dwell_edges_s, s.dwell_complete, s.dwell_censored)
 
     def plot_cdfs(self):
         """SNR, SINR and throughput CDFs over all UT-epochs (Figure)."""
         s = self._stats()
-        return F.fig_cdfs({k: s.cdf(k) for k in ("snr_db", "sinr_db", "throughput_bps")})
+        return _figures().fig_cdfs({k: s.cdf(k) for k in ("snr_db", "sinr_db", "throughput_bps")})
 
     def plot_outage(self):
         """Outage UT-epochs by reason (Figure)."""
         s = self._stats()
-        return F.fig_outage_reasons(s.outage_reason_counts, sum(s.service_counts.values()))
+        return _figures().fig_outage_reasons(s.outage_reason_counts, sum(s.service_counts.values()))
 
     def plot_map(self):
         """Ground tracks, serving beam cells and UT tracks (Figure)."""

@@ -160,23 +160,36 @@ def _doppler_time(trace, uts):
     return fig
 
 
-def _dwell_durations(summary):
-    """Complete and censored dwell durations [s] of a summary (``summary.json`` layout)."""
+#: Most bins of the dwell histogram ("auto" gives thousands for a long run's many dwells,
+#: each a matplotlib patch: tens of MB that grew with the run length).
+MAX_DWELL_BINS = 100
+
+
+def _dwell_durations(summary, dwells=None):
+    """Complete and censored dwell durations [s]: of the dwell table (``dwells.parquet``
+    columns) if given, else of a summary (``summary.json`` layout)."""
+    if dwells is not None:
+        duration = np.asarray(dwells["end_s"], float) - np.asarray(dwells["start_s"], float)
+        cut = np.asarray(dwells["censored_start"], bool) | np.asarray(dwells["censored_end"], bool)
+        return duration[~cut], duration[cut]
     complete = summary["overall"]["dwell"]["complete_s"]
     censored = [r["duration_s"] for u in summary["per_ut"] for r in u["dwell"]["censored"]]
     return np.asarray(complete, dtype=float), np.asarray(censored, dtype=float)
 
 
-def _dwell_hist(summary):
+def _dwell_hist(summary, dwells=None):
     """Complete dwells, and apart from them the dwells cut by the run's start or end."""
-    complete_s, censored_s = _dwell_durations(summary)
+    complete_s, censored_s = _dwell_durations(summary, dwells)
     fig, axes = _figure(figsize=(7.0, 4.5))
     ax = axes[0, 0]
     if complete_s.size == 0:
         ax.text(0.5, 0.5, "no complete dwell", transform=ax.transAxes, ha="center",
                 va="center", fontsize=14)  # fmt: skip
     else:
-        edges = np.histogram_bin_edges(np.concatenate([complete_s, censored_s]), bins="auto")
+        every = np.concatenate([complete_s, censored_s])
+        edges = np.histogram_bin_edges(every, bins="auto")
+        if edges.size > MAX_DWELL_BINS + 1:  # one drawn patch per bin: bounded memory
+            edges = np.histogram_bin_edges(every, bins=MAX_DWELL_BINS)
         ax.hist(complete_s, bins=edges, color="tab:blue", edgecolor="white", label="complete")
         ax.axvline(np.mean(complete_s), color="black", linestyle="--",
                    label=f"mean {np.mean(complete_s):.1f} s")  # fmt: skip
@@ -193,13 +206,22 @@ def _dwell_hist(summary):
     return fig
 
 
-def _handovers(duration_s, summary):
+def _handover_counts(summary, per_ut_table=None):
+    """UT ids and handover counts by kind: of the per-UT table if given, else the summary."""
+    if per_ut_table is not None:
+        ids = np.asarray(per_ut_table["ut_id"], int)
+        return ids, {k: np.asarray(per_ut_table[f"n_{k}"], float) for k in HANDOVER_KINDS}
     per_ut = summary.get("per_ut", [])
     ut_ids = np.array([u["ut_id"] for u in per_ut], dtype=int)
     counts = {
         k: np.array([u.get("handovers", {}).get(k, 0) for u in per_ut], dtype=float)
         for k in HANDOVER_KINDS
     }
+    return ut_ids, counts
+
+
+def _handovers(duration_s, summary, per_ut_table=None):
+    ut_ids, counts = _handover_counts(summary, per_ut_table)
     fig, axes = _figure(figsize=(8.0, 4.5))
     ax = axes[0, 0]
     if ut_ids.size > MAX_BARS_UT and duration_s > 0:
@@ -226,7 +248,9 @@ def _handovers(duration_s, summary):
     return fig
 
 
-def plot_run(trace, events, summary, out_dir, ut_ids=(0,), duration_s=None):
+def plot_run(
+    trace, events, summary, out_dir, ut_ids=(0,), duration_s=None, per_ut=None, dwells=None
+):
     """Time series and statistics of a ``leolink run``.
 
     Parameters
@@ -246,6 +270,9 @@ def plot_run(trace, events, summary, out_dir, ut_ids=(0,), duration_s=None):
         UTs shown in the time plots; ids absent from the trace are skipped.
     duration_s : float, optional
         Recorded time span of the run [s] (handover rates); default from ``trace``.
+    per_ut, dwells : dict of columns, optional
+        ``SummaryAccumulator.per_ut_table()`` and ``.dwell_table()``: used instead of
+        ``summary["per_ut"]`` (absent from the summary of a run with many UTs).
 
     Returns
     -------
@@ -256,10 +283,10 @@ def plot_run(trace, events, summary, out_dir, ut_ids=(0,), duration_s=None):
     with _AtomicPngs(out_dir) as out:
         out.save(_snr_time(trace, events, uts), "snr_time.png")
         out.save(_doppler_time(trace, uts), "doppler_time.png")
-        out.save(_dwell_hist(summary), "dwell_hist.png")
+        out.save(_dwell_hist(summary, dwells), "dwell_hist.png")
         if duration_s is None:
             duration_s = float(np.ptp(trace["time_s"].to_numpy(float))) if len(trace) else 0.0
-        out.save(_handovers(duration_s, summary), "handovers.png")
+        out.save(_handovers(duration_s, summary, per_ut), "handovers.png")
     return out.written
 
 

@@ -122,30 +122,56 @@ def kpi_rows(summary):
     return rows
 
 
-def _per_ut_table(summary, first_uts):
-    per_ut = summary.get("per_ut", [])
-    order = [u for u in first_uts if 0 <= u < len(per_ut)]
-    order += [i for i in range(len(per_ut)) if i not in set(order)][: PER_UT_ROWS - len(order)]
-    cols = (
-        "handovers.beam_handover",
-        "handovers.sat_handover",
-        "dwell.n_complete",
-        "dwell.mean_s",
-        "outage_fraction",
-        "snr_db.mean",
-        "sinr_db.mean",
-        "mean_throughput_bps",
-        "max_abs_doppler_hz",
+#: Columns of the per-UT table: summary.json's record keys, and per_ut.parquet's names.
+PER_UT_COLUMNS = {
+    "handovers.beam_handover": "n_beam_handover",
+    "handovers.sat_handover": "n_sat_handover",
+    "dwell.n_complete": "n_dwell_complete",
+    "dwell.mean_s": "dwell_mean_s",
+    "outage_fraction": "outage_fraction",
+    "snr_db.mean": "snr_mean_db",
+    "sinr_db.mean": "sinr_mean_db",
+    "mean_throughput_bps": "mean_throughput_bps",
+    "max_abs_doppler_hz": "max_abs_doppler_hz",
+}
+
+
+def _shown(n_ut, first_uts):
+    order = [u for u in first_uts if 0 <= u < n_ut]
+    return (
+        order
+        + [i for i in range(min(n_ut, PER_UT_ROWS + len(order))) if i not in order][
+            : PER_UT_ROWS - len(order)
+        ]
     )
-    rows = []
-    for i in order:  # at most PER_UT_ROWS rows: formatting only
-        flat = dict(_flatten(per_ut[i]))
-        rows.append([per_ut[i].get("ut_id", i), *(flat.get(c) for c in cols)])
-    note = (
-        f"<p>{len(order)} of {len(per_ut):,} UTs shown (the chosen UTs first); all are in "
-        "summary.json.</p>"
-    )
-    return '<div class="wide">' + _table(["ut_id", *cols], rows) + "</div>" + note
+
+
+def _per_ut_rows(summary, first_uts, folder):
+    """``(rows, n_ut, where)``: the shown UTs' values, from ``summary["per_ut"]`` or, for a
+    run with many UTs, from ``per_ut.parquet`` beside the page (only the shown rows)."""
+    per_ut = summary.get("per_ut")
+    if per_ut is not None or "per_ut_file" not in summary:
+        per_ut = per_ut or []
+        order = _shown(len(per_ut), first_uts)
+        flat = [dict(_flatten(per_ut[i])) for i in order]
+        rows = [[per_ut[i].get("ut_id", i), *(f.get(c) for c in PER_UT_COLUMNS)]
+                for i, f in zip(order, flat, strict=True)]  # fmt: skip
+        return rows, len(per_ut), "summary.json"
+    import pyarrow.parquet as pq
+
+    name = summary["per_ut_file"]
+    table = pq.read_table(Path(folder) / name, columns=["ut_id", *PER_UT_COLUMNS.values()])
+    order = _shown(table.num_rows, first_uts)
+    cols = {k: table.column(k).take(order).to_pylist() for k in table.column_names}
+    nan_none = lambda v: None if isinstance(v, float) and v != v else v  # noqa: E731
+    rows = [[nan_none(v) for v in r] for r in zip(*cols.values(), strict=True)]
+    return rows, table.num_rows, name
+
+
+def _per_ut_table(summary, first_uts, folder="."):
+    rows, n_ut, where = _per_ut_rows(summary, first_uts, folder)
+    note = f"<p>{len(rows)} of {n_ut:,} UTs shown (the chosen UTs first); all are in {where}.</p>"
+    return '<div class="wide">' + _table(["ut_id", *PER_UT_COLUMNS], rows) + "</div>" + note
 
 
 def run_map_figure(stats):
@@ -294,7 +320,7 @@ def build_run_report(
             ("Animation", _animation_html(animation_path, path.parent, embed_max_bytes))
         )
     sections += figures[1:]
-    sections.append(("Per UT", _per_ut_table(summary, stats.series_ut.tolist())))
+    sections.append(("Per UT", _per_ut_table(summary, stats.series_ut.tolist(), path.parent)))
     sections.append(("Summary, all UTs", _table(["quantity", "value"], _flatten(overall))))
     sections.append(("Resolved config", f"<pre>{html.escape(config_text)}</pre>"))
     return write_text_atomic(path, _page(title, sections))

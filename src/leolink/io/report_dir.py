@@ -73,7 +73,11 @@ def stats_from_dir(out_dir, series_ut=None, n_sample_ut=500, max_frames=120, chu
         stats.add_trace(chunk)
     if (out_dir / "events.csv").exists():
         stats.add_events(pd.read_csv(out_dir / "events.csv"))
-    stats.add_dwells_from_summary(summary)
+    if "dwells_file" in summary:  # a run with many UTs: the dwells beside summary.json
+        d = pd.read_parquet(out_dir / summary["dwells_file"])
+        stats.add_dwells(d["end_s"] - d["start_s"], d["censored_start"] | d["censored_end"])
+    else:
+        stats.add_dwells_from_summary(summary)
     if (out_dir / "satellites.csv").exists():
         sats = pd.read_csv(out_dir / "satellites.csv")
         for t_s, rows in sats.groupby("time_s", sort=True):  # per epoch, as a sink feeds it

@@ -48,6 +48,8 @@ KNOWN_NAMES = frozenset(
         "events.csv",
         "events.parquet",
         "summary.json",
+        "per_ut.parquet",
+        "dwells.parquet",
         "config.resolved.toml",
         "report.html",
         "report_stats.npz",

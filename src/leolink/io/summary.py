@@ -1,7 +1,13 @@
 """Run statistics streamed in bounded memory: the summary of ``summary.json``.
 
 :class:`SummaryAccumulator` is a sink (:class:`leolink.sim.streams.Sink`): fed every
-recorded epoch, it keeps per-UT counts, sums and the samples the percentiles need.
+recorded epoch, it keeps per-UT counts, sums and histograms, in memory that does not grow
+with the number of epochs (dwell records and the handover KPIs' serving-change events
+aside: one per serving change).
+
+Per-UT statistics of a run with more than :data:`PER_UT_IN_JSON_MAX` UTs stay out of
+``summary.json``: :meth:`SummaryAccumulator.per_ut_table` gives them as columns (written
+as ``per_ut.parquet`` by :mod:`leolink.app.run`).
 """
 
 from __future__ import annotations
@@ -12,66 +18,41 @@ from leolink.io.atomic import to_jsonable
 from leolink.io.kpi_summary import KpiAccumulator
 from leolink.io.link_summary import LinkStats
 from leolink.io.summary_environment import with_environment
+from leolink.io.summary_records import (
+    STAT_KEYS,
+    by_reason,
+    handover_counts,
+    nanmax,
+    per_ut_records,
+)
+from leolink.io.summary_stats import (
+    DB_RANGE,
+    OVERALL_RESOLUTION_DB,
+    PER_UT_RESOLUTION_DB,
+    DbStats,
+    grouped_percentiles,
+    running_sum,
+)
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
 from leolink.sim.processes import OUTAGE_REASONS
 
-__all__ = ["SummaryAccumulator", "grouped_percentiles"]
+__all__ = [
+    "DB_RANGE",
+    "KPI_COLUMNS",
+    "OVERALL_RESOLUTION_DB",
+    "PER_UT_IN_JSON_MAX",
+    "PER_UT_RESOLUTION_DB",
+    "SummaryAccumulator",
+    "grouped_percentiles",
+]
 
-
-class _Growable:
-    """Append-only 1-D array with amortized doubling."""
-
-    def __init__(self, dtype):
-        self._data, self._n = np.empty(1024, dtype), 0
-
-    def append(self, values):
-        values = np.asarray(values, self._data.dtype)
-        need = self._n + values.size
-        if need > self._data.size:
-            grown = np.empty(max(need, 2 * self._data.size), self._data.dtype)
-            grown[: self._n] = self._data[: self._n]
-            self._data = grown
-        self._data[self._n : need] = values
-        self._n = need
-
-    def view(self):
-        return self._data[: self._n]
-
-
-def grouped_percentiles(group, values, n_group, q_percent):
-    """Per-group percentiles, linear interpolation (numpy's default method).
-
-    Parameters
-    ----------
-    group : int array (n,), group index in ``[0, n_group)``.
-    values : float array (n,), finite.
-    q_percent : sequence of percentiles in [0, 100].
-
-    Returns
-    -------
-    ndarray (n_group, len(q_percent)), NaN for empty groups.
-    """
-    q = np.asarray(q_percent, float) / 100.0
-    out = np.full((n_group, q.size), np.nan)
-    if len(values) == 0:
-        return out
-    group = np.asarray(group, np.int64)
-    # Sort by value, then stably by group: the group sort is a radix sort on small ints,
-    # ~3x faster than np.lexsort on millions of samples.
-    by_value = np.argsort(values)
-    small = np.int16 if n_group < 2**15 else np.int64
-    order = by_value[np.argsort(group[by_value].astype(small), kind="stable")]
-    v = np.asarray(values, np.float64)[order]
-    counts = np.bincount(group, minlength=n_group)
-    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
-    pos = q[None, :] * np.maximum(counts - 1, 0)[:, None]
-    lo = np.floor(pos).astype(np.int64)
-    hi = np.minimum(lo + 1, np.maximum(counts - 1, 0)[:, None])
-    idx_lo = np.minimum(starts[:, None] + lo, v.size - 1)
-    idx_hi = np.minimum(starts[:, None] + hi, v.size - 1)
-    interp = v[idx_lo] + (pos - lo) * (v[idx_hi] - v[idx_lo])
-    out[counts > 0] = interp[counts > 0]
-    return out
+#: Runs with more UTs keep per-UT statistics out of summary.json (``per_ut.parquet``).
+PER_UT_IN_JSON_MAX = 1000
+#: The per-UT handover KPIs (each UT's ``kpi`` block), also columns of ``per_ut.parquet``.
+KPI_COLUMNS = ("handover_rate_per_ut_min", "ping_pong_count", "rlf_count")
+# Trace rows buffered before they are folded into the statistics (~4 MiB): one set of
+# numpy calls per 64 Ki rows, not per epoch (the fixed cost of a small run's epoch).
+_POOL_BUFFER = 1 << 16
 
 
 def _codes(values, names):
@@ -89,21 +70,28 @@ def _service_codes(service):
     return _codes(service, SERVICE_NAMES)
 
 
-_NO_SATELLITE = OUTAGE_REASONS.index("no_satellite")
-_BELOW_THRESHOLD = OUTAGE_REASONS.index("below_threshold")
-_BLOCKED = OUTAGE_REASONS.index("blocked")
-_RLF = OUTAGE_REASONS.index("rlf")
-
-
-_PERCENTILES = (5.0, 50.0, 95.0)
+#: Per-UT epoch counters of the outage reasons they count.
+_REASON_COUNTERS = {
+    "n_no_satellite": OUTAGE_REASONS.index("no_satellite"),
+    "n_below_threshold": OUTAGE_REASONS.index("below_threshold"),
+    "n_blocked": OUTAGE_REASONS.index("blocked"),
+    "n_rlf": OUTAGE_REASONS.index("rlf"),
+}
+_DB_COLUMNS = ("snr_db", "sinr_db")
+_BUFFERED = ("throughput_bps", "doppler_hz", "angular_speed_deg_s", *_DB_COLUMNS)
+_DWELL_KEYS = ("ut_id", "sat_id", "beam_id", "start_s", "end_s", "censored_start", "censored_end")
 
 
 class SummaryAccumulator:
     """Running per-UT statistics of a run in bounded memory.
 
     Feed it every epoch with :meth:`add_trace` (the trace columns), :meth:`add_events` and
-    :meth:`add_dwells`. SNR and SINR samples are kept per UT as float32 (percentiles exact
-    to float32 rounding, < 1e-5 dB at |x| < 100 dB); sums are float64.
+    :meth:`add_dwells`. Means and sums are exact (float64). SNR and SINR percentiles come
+    from fixed-bin histograms over :data:`DB_RANGE`: the pooled ones (``overall``) with
+    bins of :data:`OVERALL_RESOLUTION_DB` (0.01 dB), the per-UT ones with bins of
+    :data:`PER_UT_RESOLUTION_DB` (0.1 dB); each is within half its bin of
+    ``numpy.percentile`` (linear) on the same samples. Memory: ~0.6 MB + ``n_ut x`` the
+    0.1 dB bins each UT's values visit (12 B each), whatever the run length.
 
     Definitions: outage fraction = epochs with ``service == outage`` / epochs; SNR/SINR
     mean and percentiles over the epochs where the value is finite (mean of dB values);
@@ -116,7 +104,9 @@ class SummaryAccumulator:
     ``outage_fraction_by_reason``: ``no_satellite`` and ``below_threshold`` = epochs in
     outage for that reason / epochs (an outage lasts whole epochs; the two add up to
     ``outage_fraction``), ``handover`` = ``handover_interruption_fraction``, ``rlf`` =
-    epochs re-establishing after a radio link failure / epochs.
+    epochs re-establishing after a radio link failure / epochs; ``blocked`` and
+    ``by_environment`` for a run with UT environments
+    (:mod:`leolink.io.summary_environment`).
 
     Handover KPIs (``overall.kpi``, each UT's ``kpi``): :mod:`leolink.io.kpi_summary`,
     with ``ping_pong_s`` [s] (``[kpi]``). The link figures (margin, MODCOD usage, ACM and
@@ -151,66 +141,82 @@ class SummaryAccumulator:
 
     # -- statistics ----------------------------------------------------------------------
     def _reset(self, n_ut):
-        self._final = None
+        self._final = self._kpi_result = None
         self.n_ut = int(n_ut)
         zeros = lambda dtype=np.int64: np.zeros(self.n_ut, dtype)  # noqa: E731
         self.n_epochs, self.n_outage = zeros(), zeros()
         self.interrupted_s = zeros(np.float64)
-        self.n_no_satellite, self.n_below_threshold, self.n_rlf = zeros(), zeros(), zeros()
-        self.n_blocked, self.n_los, self.n_link = zeros(), zeros(), zeros()
+        for name in _REASON_COUNTERS:
+            setattr(self, name, zeros())
+        self.n_los, self.n_link = zeros(), zeros()  # LoS epochs / epochs with a link
         self.kpi = KpiAccumulator(self.n_ut, self.ping_pong_s)
         self.throughput_sum = zeros(np.float64)
         self.max_abs_doppler_hz = np.full(self.n_ut, np.nan)
         self.max_angular_speed_deg_s = np.full(self.n_ut, np.nan)
         self.event_counts = np.zeros((len(EVENT_KINDS), self.n_ut), np.int64)
-        self._samples = {
-            k: (_Growable(np.int32), _Growable(np.float32)) for k in ("snr_db", "sinr_db")
-        }
-        self._sums = {k: zeros(np.float64) for k in self._samples}
+        self._db = {k: DbStats(self.n_ut) for k in _DB_COLUMNS}
         self._dwells = []
-        self._link = LinkStats(self.n_ut, _Growable)
+        self._rows, self._n_rows = [], 0
+        self._link = LinkStats(self.n_ut, DbStats)  # margins in histograms too
 
     def add_trace(self, columns):
         """Add trace rows (dict of 1-D arrays; needs ``ut_id``, ``service``, ``snr_db``,
-        ``sinr_db``, ``throughput_bps``, ``doppler_hz``, ``angular_speed_deg_s``)."""
+        ``sinr_db``, ``throughput_bps``, ``doppler_hz``, ``angular_speed_deg_s``; uses
+        ``interruption_s``, ``outage_reason``, ``los`` and the link figures if given).
+
+        Rows are buffered and folded into the statistics every :data:`_POOL_BUFFER` rows
+        (a run's small epochs cost one append each, not ~20 numpy calls); a per-UT sum
+        still adds the rows in their order, so it is the same number either way.
+        """
+        self._kpi_result = None
         ut = np.asarray(columns["ut_id"], np.int64)
-        n = self.n_ut
-        self.n_epochs += np.bincount(ut, minlength=n)
         codes = _service_codes(columns["service"])
-        self.n_outage += np.bincount(ut, codes == SERVICE_OUTAGE, minlength=n).astype(np.int64)
-        handover = codes == SERVICE_HANDOVER
         # Rows without the interruption_s column (older traces): a whole epoch each.
         gap = columns.get("interruption_s")
-        gap = np.where(handover, self.epoch_s, 0.0) if gap is None else np.asarray(gap, float)
-        self.interrupted_s += np.bincount(ut, gap, minlength=n)
-        self._link.add(columns, ut, codes)
-        if "outage_reason" in columns:
-            reason = _codes(columns["outage_reason"], OUTAGE_REASONS)
-            for store, code in (
-                (self.n_no_satellite, _NO_SATELLITE),
-                (self.n_below_threshold, _BELOW_THRESHOLD),
-                (self.n_blocked, _BLOCKED),
-                (self.n_rlf, _RLF),
-            ):
-                store += np.bincount(ut, reason == code, minlength=n).astype(np.int64)
-        if "los" in columns:
-            los = np.asarray(columns["los"], float)
-            self.n_los += np.bincount(ut, los == 1.0, minlength=n).astype(np.int64)
-            self.n_link += np.bincount(ut, np.isfinite(los), minlength=n).astype(np.int64)
-        self.kpi.add_trace(columns)
-        tput = np.nan_to_num(np.asarray(columns["throughput_bps"], float), nan=0.0)
-        self.throughput_sum += np.bincount(ut, tput, minlength=n)
-        np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(columns["doppler_hz"], float)))
-        np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(columns["angular_speed_deg_s"]))
-        for key, (ut_store, val_store) in self._samples.items():
-            values = np.asarray(columns[key], float)
-            ok = np.isfinite(values)
-            ut_store.append(ut[ok])
-            val_store.append(values[ok])
-            self._sums[key] += np.bincount(ut[ok], values[ok], minlength=n)
+        if gap is None:
+            gap = np.where(codes == SERVICE_HANDOVER, self.epoch_s, 0.0)
+        reason = columns.get("outage_reason")
+        reason = np.full(ut.shape, -1) if reason is None else _codes(reason, OUTAGE_REASONS)
+        los = columns.get("los")  # a run with environments only: NaN counts nowhere
+        los = np.full(ut.shape, np.nan) if los is None else los
+        self._link.add(columns, ut, codes)  # per call: it needs the frame-only columns
+        piece = {"ut": ut, "service": codes, "gap": gap, "reason": reason, "los": los}
+        for key in _BUFFERED:
+            piece[key] = columns[key]
+        self._rows.append(piece)
+        self._n_rows += ut.size
+        if self._n_rows >= _POOL_BUFFER:
+            self._fold()
+
+    def _fold(self):
+        """Add the buffered rows to the statistics."""
+        if not self._rows:
+            return
+        c = {k: np.concatenate([np.asarray(r[k]) for r in self._rows]) for k in self._rows[0]}
+        self._rows, self._n_rows = [], 0
+        ut, n = c["ut"], self.n_ut
+        self.n_epochs += np.bincount(ut, minlength=n)
+        self.n_outage += np.bincount(ut[c["service"] == SERVICE_OUTAGE], minlength=n)
+        self.interrupted_s[:] = running_sum(self.interrupted_s, ut, c["gap"])
+        for name, code in _REASON_COUNTERS.items():
+            counter = getattr(self, name)
+            counter += np.bincount(ut[c["reason"] == code], minlength=n)
+        los = np.asarray(c["los"], float)
+        self.n_los += np.bincount(ut[los == 1.0], minlength=n)
+        self.n_link += np.bincount(ut[np.isfinite(los)], minlength=n)
+        self.kpi.add_trace(c)  # histograms of sinr_db and throughput_bps: order-free
+        tput = np.nan_to_num(np.asarray(c["throughput_bps"], float), nan=0.0)
+        self.throughput_sum[:] = running_sum(self.throughput_sum, ut, tput)
+        np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(c["doppler_hz"], float)))
+        np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(c["angular_speed_deg_s"], float))
+        for key, stats in self._db.items():
+            stats.add(ut, np.asarray(c[key], float))
 
     def add_events(self, events):
         """Count events by kind and UT (dict with ``ut_id`` and ``kind``)."""
+        if not len(events["ut_id"]):
+            return
+        self._kpi_result = None
         kind = np.asarray(events["kind"]).astype(str)
         ut = np.asarray(events["ut_id"], np.int64)
         for i, name in enumerate(EVENT_KINDS):
@@ -220,172 +226,141 @@ class SummaryAccumulator:
     def add_dwells(self, dwells):
         """Keep dwell records (dict of arrays, ``controller.DWELL_COLUMNS``)."""
         if len(dwells["ut_id"]):
-            self._dwells.append({k: np.asarray(v) for k, v in dwells.items()})
+            self._kpi_result = None
+            self._dwells.append({k: np.asarray(dwells[k]) for k in _DWELL_KEYS})
 
-    def _dwell_frame(self):
-        keys = ("ut_id", "sat_id", "beam_id", "start_s", "end_s", "censored_start", "censored_end")
+    def dwell_table(self):
+        """Every dwell, sorted by UT then start: ``DWELL_COLUMNS`` + ``duration_s``."""
         if not self._dwells:
-            return {k: np.zeros(0, bool if k.startswith("censored") else float) for k in keys}
-        d = {k: np.concatenate([x[k] for x in self._dwells]) for k in keys}
-        order = np.lexsort((d["start_s"], d["ut_id"]))
-        return {k: v[order] for k, v in d.items()}
+            d = {k: np.zeros(0, bool if k.startswith("censored") else float) for k in _DWELL_KEYS}
+        else:
+            d = {k: np.concatenate([x[k] for x in self._dwells]) for k in _DWELL_KEYS}
+            self._dwells = [d]  # one block from now on
+            order = np.lexsort((d["start_s"], d["ut_id"]))
+            d = {k: v[order] for k, v in d.items()}
+        d["duration_s"] = d["end_s"] - d["start_s"]
+        return d
 
-    def _stats(self, key):
-        ut, values = (s.view() for s in self._samples[key])
-        count = np.bincount(ut, minlength=self.n_ut)
+    def _dwell_stats(self, d):
+        """Per-UT columns of complete/censored dwells, and the complete mask."""
+        complete = ~(d["censored_start"].astype(bool) | d["censored_end"].astype(bool))
+        ut = d["ut_id"].astype(np.int64)
+        n_complete = np.bincount(ut[complete], minlength=self.n_ut)
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean = self._sums[key] / count
-        pct = grouped_percentiles(ut, values, self.n_ut, _PERCENTILES)
-        pooled = (
-            np.percentile(values.astype(np.float64), _PERCENTILES) if values.size else [None] * 3
-        )
-        overall_mean = self._sums[key].sum() / values.size if values.size else None
-        per_ut = [
-            dict(zip(("mean", "p5", "p50", "p95"), row, strict=True))
-            for row in np.column_stack([mean, pct]).tolist()
-        ]
-        overall = dict(zip(("mean", "p5", "p50", "p95"), [overall_mean, *pooled], strict=True))
-        return per_ut, overall
-
-    def _dwell_summary(self):
-        """Per-UT dwell dicts and the pooled one (complete dwells only in mean/median)."""
-        d = self._dwell_frame()
-        duration = d["end_s"] - d["start_s"]
-        complete = ~(d["censored_start"] | d["censored_end"])
-        ut_c = d["ut_id"][complete].astype(np.int64)
-        n_complete = np.bincount(ut_c, minlength=self.n_ut)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.bincount(ut_c, duration[complete], minlength=self.n_ut) / n_complete
-        median = grouped_percentiles(ut_c, duration[complete], self.n_ut, [50.0])[:, 0]
-        complete_lists = np.split(duration[complete], np.cumsum(n_complete)[:-1])
-        cens = ~complete
-        records = _records(d, duration, cens)
-        n_cens = np.bincount(d["ut_id"][cens].astype(np.int64), minlength=self.n_ut)
-        bounds = np.concatenate(([0], np.cumsum(n_cens)))
-        per_ut = [
-            {
-                "n_complete": n_complete[i],
-                "mean_s": mean[i],
-                "median_s": median[i],
-                "complete_s": complete_lists[i],
-                "censored": records[bounds[i] : bounds[i + 1]],
-            }
-            for i in range(self.n_ut)  # output formatting only; statistics are vectorized
-        ]
-        overall = {
-            "n_complete": int(complete.sum()),
-            "complete_s": duration[complete].tolist(),
-            "n_censored": int(cens.sum()),
-            "mean_s": duration[complete].mean() if complete.any() else None,
-            "median_s": np.median(duration[complete]) if complete.any() else None,
+            mean = np.bincount(ut[complete], d["duration_s"][complete], minlength=self.n_ut)
+            mean = mean / n_complete
+        median = grouped_percentiles(ut[complete], d["duration_s"][complete], self.n_ut, [50.0])
+        cols = {
+            "n_dwell_complete": n_complete,
+            "dwell_mean_s": mean,
+            "dwell_median_s": median[:, 0],
+            "n_dwell_censored": np.bincount(ut[~complete], minlength=self.n_ut),
         }
-        return per_ut, overall
+        return cols, complete
 
-    def summary(self):
-        """``{"overall": {...}, "per_ut": [{...}, ...]}``, JSON-ready (NaN -> None)."""
-        if self._final is not None:
-            return self._final
-        dwell_ut, dwell_all = self._dwell_summary()
+    def _kpi(self, d):
+        """``overall.kpi`` and the per-UT KPI dicts (:mod:`leolink.io.kpi_summary`), kept
+        until rows, events or dwells are added."""
+        if self._kpi_result is None:
+            n_rlf = int(self.n_rlf.sum())
+            interruption = {
+                "handover": float(self.interrupted_s.sum()),
+                "rlf": n_rlf * self.epoch_s,
+                "outage": (int(self.n_outage.sum()) - n_rlf) * self.epoch_s,
+            }
+            observed = self.n_epochs * self.epoch_s
+            self._kpi_result = self.kpi.summary(d, observed, interruption)
+        return self._kpi_result
+
+    def per_ut_table(self, dwells=None):
+        """Per-UT statistics as columns, one row per UT (``per_ut.parquet``).
+
+        Columns: ``ut_id, n_epochs``, ``n_<event kind>`` and ``n_handovers_total``,
+        ``n_dwell_complete, dwell_mean_s, dwell_median_s, n_dwell_censored``,
+        ``outage_fraction``, ``outage_fraction_<reason>`` for ``no_satellite``,
+        ``below_threshold``, ``rlf`` (and ``blocked`` in a run with UT environments),
+        ``handover_interruption_fraction``, ``snr_mean_db, snr_p5_db, snr_p50_db,
+        snr_p95_db`` and the same for ``sinr``, ``mean_throughput_bps,
+        max_abs_doppler_hz, max_angular_speed_deg_s`` and the KPIs :data:`KPI_COLUMNS`
+        (when every UT was recorded: the ``kpi`` blocks are empty otherwise).
+        """
+        self._fold()
+        d = self.dwell_table() if dwells is None else dwells
         with np.errstate(invalid="ignore", divide="ignore"):
-            outage_fraction = self.n_outage / self.n_epochs
-            interrupted_fraction = self.interrupted_s / (self.n_epochs * self.epoch_s)
-            no_sat = self.n_no_satellite / self.n_epochs
-            below = self.n_below_threshold / self.n_epochs
-            rlf = self.n_rlf / self.n_epochs
-            tput_mean = self.throughput_sum / self.n_epochs
-        snr_ut, snr_all = self._stats("snr_db")
-        sinr_ut, sinr_all = self._stats("sinr_db")
-        counts = {k: self.event_counts[i] for i, k in enumerate(EVENT_KINDS)}
-        link_all, link_ut = self._link.summary(
-            self.n_epochs, lambda g, v, n: grouped_percentiles(g, v, n, _PERCENTILES)
-        )
-        kpi_all, kpi_ut = self._kpi()
-        per_ut = []
-        for i in range(self.n_ut):  # output formatting only; all statistics are vectorized
-            per_ut.append(
-                {
-                    "ut_id": i,
-                    "n_epochs": self.n_epochs[i],
-                    "handovers": _handover_counts({k: c[i] for k, c in counts.items()}),
-                    "dwell": dwell_ut[i],
-                    "outage_fraction": outage_fraction[i],
-                    "outage_fraction_by_reason": _by_reason(
-                        no_sat[i], below[i], interrupted_fraction[i], rlf[i]
-                    ),
-                    "handover_interruption_fraction": interrupted_fraction[i],
-                    "snr_db": snr_ut[i],
-                    "sinr_db": sinr_ut[i],
-                    "mean_throughput_bps": tput_mean[i],
-                    "max_abs_doppler_hz": self.max_abs_doppler_hz[i],
-                    "max_angular_speed_deg_s": self.max_angular_speed_deg_s[i],
-                    "link": link_ut[i],
-                    "kpi": kpi_ut[i],
-                }
-            )
-        n_all = self.n_epochs.sum()
-        t_all = n_all * self.epoch_s
-        interrupted_all = self.interrupted_s.sum() / t_all if n_all else None
-        overall = {
+            epochs = self.n_epochs.astype(float)
+            table = {"ut_id": np.arange(self.n_ut), "n_epochs": self.n_epochs}
+            for i, kind in enumerate(EVENT_KINDS):
+                table[f"n_{kind}"] = self.event_counts[i]
+            table["n_handovers_total"] = self.event_counts[0] + self.event_counts[1]
+            table.update(self._dwell_stats(d)[0])
+            table["outage_fraction"] = self.n_outage / epochs
+            for name in _REASON_COUNTERS:
+                if name != "n_blocked" or self.environment:
+                    table[f"outage_fraction_{name[2:]}"] = getattr(self, name) / epochs
+            table["handover_interruption_fraction"] = self.interrupted_s / (epochs * self.epoch_s)
+            for key, stats in self._db.items():
+                name = key.removesuffix("_db")
+                for stat, col in zip(STAT_KEYS, stats.per_ut_stats().T, strict=True):
+                    table[f"{name}_{stat}_db"] = col
+            table["mean_throughput_bps"] = self.throughput_sum / epochs
+        table["max_abs_doppler_hz"] = self.max_abs_doppler_hz
+        table["max_angular_speed_deg_s"] = self.max_angular_speed_deg_s
+        kpi_ut = self._kpi(d)[1]
+        if self.n_ut and kpi_ut[0]:
+            for key in KPI_COLUMNS:
+                table[key] = np.array([k[key] for k in kpi_ut])
+        return table
+
+    def _overall(self, d, complete, per_ut_in_json, link_all):
+        n_all = int(self.n_epochs.sum())
+        frac = (lambda x: x / n_all) if n_all else (lambda x: None)  # noqa: E731
+        interrupted_all = self.interrupted_s.sum() / (n_all * self.epoch_s) if n_all else None
+        done = d["duration_s"][complete]
+        dwell = {"n_complete": int(complete.sum())}
+        if per_ut_in_json:
+            dwell["complete_s"] = done.tolist()
+        dwell["n_censored"] = int((~complete).sum())
+        dwell["mean_s"] = done.mean() if done.size else None
+        dwell["median_s"] = np.median(done) if done.size else None
+        counts = {k: self.event_counts[i].sum() for i, k in enumerate(EVENT_KINDS)}
+        return {
             "n_ut": self.n_ut,
             "n_ut_epochs": n_all,
-            "handovers": _handover_counts({k: c.sum() for k, c in counts.items()}),
-            "dwell": dwell_all,
-            "outage_fraction": self.n_outage.sum() / n_all if n_all else None,
-            "outage_fraction_by_reason": self._overall_by_reason(n_all, interrupted_all),
+            "handovers": handover_counts(counts),
+            "dwell": dwell,
+            "outage_fraction": frac(self.n_outage.sum()),
+            "outage_fraction_by_reason": by_reason(
+                frac(self.n_no_satellite.sum()),
+                frac(self.n_below_threshold.sum()),
+                interrupted_all,
+                frac(self.n_rlf.sum()),
+            ),  # fmt: skip
             "handover_interruption_fraction": interrupted_all,
-            "snr_db": snr_all,
-            "sinr_db": sinr_all,
-            "mean_throughput_bps": self.throughput_sum.sum() / n_all if n_all else None,
-            "max_abs_doppler_hz": _nanmax(self.max_abs_doppler_hz),
-            "max_angular_speed_deg_s": _nanmax(self.max_angular_speed_deg_s),
+            "snr_db": self._db["snr_db"].overall(),
+            "sinr_db": self._db["sinr_db"].overall(),
+            "mean_throughput_bps": frac(self.throughput_sum.sum()),
+            "max_abs_doppler_hz": nanmax(self.max_abs_doppler_hz),
+            "max_angular_speed_deg_s": nanmax(self.max_angular_speed_deg_s),
             "link": link_all,
-            "kpi": kpi_all,
+            "kpi": self._kpi(d)[0],
         }
-        return to_jsonable(with_environment(self, {"overall": overall, "per_ut": per_ut}, counts))
 
-    def _overall_by_reason(self, n_all, interrupted_all):
-        def share(count):
-            return count.sum() / n_all if n_all else None
+    def summary(self):
+        """``{"overall": {...}, "per_ut": [{...}, ...]}``, JSON-ready (NaN -> None).
 
-        below = self.n_below_threshold
-        return _by_reason(share(self.n_no_satellite), share(below), interrupted_all,
-                          share(self.n_rlf))  # fmt: skip
-
-    def _kpi(self):
-        """``overall.kpi`` and the per-UT KPI dicts (:mod:`leolink.io.kpi_summary`)."""
-        n_rlf = int(self.n_rlf.sum())
-        interruption = {
-            "handover": float(self.interrupted_s.sum()),
-            "rlf": n_rlf * self.epoch_s,
-            "outage": (int(self.n_outage.sum()) - n_rlf) * self.epoch_s,
-        }
-        observed = self.n_epochs * self.epoch_s
-        return self.kpi.summary(self._dwell_frame(), observed, interruption)
-
-
-def _by_reason(no_satellite, below_threshold, handover, rlf):
-    return {
-        "no_satellite": no_satellite,
-        "below_threshold": below_threshold,
-        "handover": handover,
-        "rlf": rlf,
-    }
-
-
-def _nanmax(x):
-    return float(np.nanmax(x)) if np.isfinite(x).any() else None
-
-
-def _handover_counts(by_kind):
-    out = {k: int(v) for k, v in by_kind.items()}
-    out["handovers_total"] = out["beam_handover"] + out["sat_handover"]
-    return out
-
-
-def _records(d, duration, mask):
-    """Dwell records (list of dicts) of the rows in ``mask``."""
-    cols = {k: d[k][mask].tolist() for k in ("sat_id", "beam_id", "start_s", "end_s")}
-    cols["duration_s"] = duration[mask].tolist()
-    cols["censored_start"] = d["censored_start"][mask].tolist()
-    cols["censored_end"] = d["censored_end"][mask].tolist()
-    return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
+        With more than :data:`PER_UT_IN_JSON_MAX` UTs, ``per_ut`` and the overall list of
+        dwell durations are left out (see :meth:`per_ut_table`, :meth:`dwell_table`).
+        """
+        if self._final is not None:
+            return self._final
+        self._fold()
+        d = self.dwell_table()
+        in_json = self.n_ut <= PER_UT_IN_JSON_MAX
+        _, complete = self._dwell_stats(d)
+        link_all, link_ut = self._link.summary(self.n_epochs, per_ut=in_json)
+        out = {"overall": self._overall(d, complete, in_json, link_all)}
+        if in_json:
+            kpi_ut = self._kpi(d)[1]
+            out["per_ut"] = per_ut_records(self.per_ut_table(d), d, complete, link_ut, kpi_ut)
+        counts = {k: self.event_counts[i] for i, k in enumerate(EVENT_KINDS)}
+        return to_jsonable(with_environment(self, out, counts))

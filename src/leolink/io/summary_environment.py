@@ -67,7 +67,7 @@ def with_environment(acc, out, counts):
     environments (else as it was)."""
     if not acc.environment:
         return out
-    overall, per_ut = out["overall"], out["per_ut"]
+    overall, per_ut = out["overall"], out.get("per_ut", [])  # none beyond 1,000 UTs
     n_all = acc.n_epochs.sum()
     reasons = overall["outage_fraction_by_reason"]
     reasons["blocked"] = acc.n_blocked.sum() / n_all if n_all else None

@@ -50,7 +50,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.special import ndtri
 
 from leolink import rng as lrng
 from leolink.errors import ConfigError
@@ -384,10 +383,11 @@ def link_terms(state, model):
     name, band = model.environment, model.band
     if name == "open":
         los = np.ones(el_deg.shape, dtype=bool)
-        shadow_db = np.zeros(el_deg.shape)
-        clutter_db = np.zeros(el_deg.shape)
+        shadow_db, clutter_db = np.zeros(el_deg.shape), np.zeros(el_deg.shape)
     else:
-        # Compare in the Gaussian domain: Phi(z) < p  <=>  z < Phi^-1(p) (exact, no erf).
+        from scipy.special import ndtri  # here, not at import: scipy costs ~0.3 s of start-up
+
+        # Compare in the Gaussian domain (exact, no erf): Phi(z) < p  <=>  z < Phi^-1(p).
         los = state.z_los < ndtri(env.los_probability(el_deg, name))
         z_sf = np.where(los, state.z_sf_los, state.z_sf_nlos)
         shadow_db = env.shadow_sigma_db(el_deg, name, band, los) * z_sf

@@ -61,7 +61,7 @@ class BeamService:
         rows : callable or None
             ``rows() -> dict`` of the per-UT inputs of the precoder (``ut_pos_m``,
             ``sat_pos_m``, ``sat_vel_m_s``, ``path_snr_lin``, ``i_other``, and
-            optionally ``sat_pos_est_m``: the satellite position the satellite believes,
+            optionally ``sat_pos_est_m`` and ``sat_vel_est_m``: the satellite state it believes,
             from which the precoder's channel is computed while the signal goes through
             the true one — the seam of the ephemeris-error model, issue 15); None without.
 
@@ -117,7 +117,9 @@ class BeamService:
         i_other = 0.0 if inp["i_other"] is None else inp["i_other"][m]
         h_est = None
         if inp.get("sat_pos_est_m") is not None:  # seam of the ephemeris-error model
-            u_est = direction_cosines(inp["sat_pos_est_m"][m], inp["sat_vel_m_s"][m],
+            vel_est = inp.get("sat_vel_est_m")
+            vel_est = inp["sat_vel_m_s"] if vel_est is None else vel_est
+            u_est = direction_cosines(inp["sat_pos_est_m"][m], vel_est[m],
                                       inp["ut_pos_m"][m])  # fmt: skip
             h_est = precoded.channel(u_est, path, beam_u, np.where(ok, chain, -1),
                                      eng.colors[b], ok, self.array)  # fmt: skip

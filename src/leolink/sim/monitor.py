@@ -42,6 +42,21 @@ _LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps")
 
 
 @dataclasses.dataclass
+class PairLinks:
+    """The links of the monitored rows, and their satellites' states (each (n, 3))."""
+
+    links: Links
+    pair: np.ndarray  # (n,) each row's pair in ``links``, -1 without a link
+    sat_pos_m: np.ndarray
+    sat_vel_m_s: np.ndarray
+    sat_acc_m_s2: np.ndarray
+    rx_lin: np.ndarray | None = None  # a receive-power factor of each row (None: 1)
+    sat_pos_est_m: np.ndarray | None = None  # the state the satellite believes
+    sat_vel_est_m: np.ndarray | None = None
+    extra: dict = dataclasses.field(default_factory=dict)  # for :meth:`Monitor._finish`
+
+
+@dataclasses.dataclass
 class _Record:
     """What the monitor keeps of one recorded epoch until its block is flushed."""
 
@@ -155,52 +170,73 @@ class Monitor:
     def _links(self, recs):
         """``serve_pairs`` of every UT of every kept epoch, in one call."""
         eng, dec, mb = self.engine, self.decider, self.decider.mb
-        blk = dec.block
         n_ut = len(recs[0].geo_sat)
         rows = np.concatenate([(r.k - mb.k0) * n_ut + np.arange(n_ut) for r in recs])
         geo_sat = np.concatenate([r.geo_sat for r in recs])
         geo_beam = np.concatenate([r.geo_beam for r in recs])
         served = geo_sat >= 0
         if not served.any():
-            return eng.serve_pairs(None, np.full(rows.size, -1), geo_beam, None)
-        pair = np.where(served, blk.find_pairs(rows, geo_sat), -1)
-        links = blk.links
-        miss = np.flatnonzero(served & (pair < 0))
-        if miss.size:  # links the search did not evaluate (e.g. below the mask)
-            links = Links.concat([links, dec.evaluate(rows[miss], geo_sat[miss])])
-            pair[miss] = blk.links.n_pair + np.arange(miss.size)
-        epoch = rows // n_ut
-        s = np.where(served, geo_sat, 0)
+            none = eng.serve_pairs(None, np.full(rows.size, -1), geo_beam, None)
+            return self._finish(none, geo_beam)
+        pl = self._pair_links(rows, geo_sat, served, n_ut)
         up_enu = None if dec.enu is None else dec.enu.reshape(-1, 3, 3)[rows]
         lit = None
         if recs[0].lit is not None:  # active beams: the lit beams of each row's satellite
             lit = np.concatenate([r.lit[np.maximum(r.geo_sat, 0)] for r in recs])
             # an outage row's geometry beam (its best, maybe dark) counts as its signal
             lit[np.arange(rows.size), np.maximum(geo_beam, 0)] = True
-        fading = self._rx_factor(recs, links, pair)  # with the environment's loss
+        rx = self._rx_factor(recs, pl.links, pl.pair)  # fading, the environment's loss
+        if pl.rx_lin is not None:
+            rx = pl.rx_lin if rx is None else rx * pl.rx_lin
         i_other = self._other_satellites(recs, geo_sat, geo_beam)
         ut_pos = mb.ut_pos_m.reshape(-1, 3)[rows]
         cols = eng.serve_pairs(
-            links,
-            pair,
+            pl.links,
+            pl.pair,
             geo_beam,
             mb.ut_vel_m_s.reshape(-1, 3)[rows],
             mb.ut_acc_m_s2.reshape(-1, 3)[rows],
-            mb.sat_vel_m_s[epoch, s],
-            mb.sat_acc_m_s2[epoch, s],
-            rx_fading_lin=fading,
+            pl.sat_vel_m_s,
+            pl.sat_acc_m_s2,
+            rx_fading_lin=rx,
             i_other=i_other,
             ut_pos_m=ut_pos,
             ut_enu=up_enu,
             lit=lit,
         )
         if self.service is not None:
-            path = links.path_snr_lin[np.maximum(pair, 0)] * (1.0 if fading is None else fading)
-            inputs = dict(ut_pos_m=ut_pos, sat_pos_m=mb.sat_pos_m[epoch, s],
-                          sat_vel_m_s=mb.sat_vel_m_s[epoch, s], path_snr_lin=path,
-                          i_other=i_other)  # fmt: skip
+            path = pl.links.path_snr_lin[np.maximum(pl.pair, 0)] * (1.0 if rx is None else rx)
+            inputs = dict(ut_pos_m=ut_pos, sat_pos_m=pl.sat_pos_m, sat_vel_m_s=pl.sat_vel_m_s,
+                          path_snr_lin=path, i_other=i_other,
+                          sat_pos_est_m=pl.sat_pos_est_m,
+                          sat_vel_est_m=pl.sat_vel_est_m)  # fmt: skip
             self._share(recs, cols, inputs)
+        return self._finish(cols, geo_beam, pl)
+
+    def _pair_links(self, rows, geo_sat, served, n_ut):
+        """The links of the rows' (UT, satellite) pairs: those the controller's search
+        evaluated, and the rest (e.g. below the mask) evaluated now."""
+        dec, mb = self.decider, self.decider.mb
+        blk = dec.block
+        pair = np.where(served, blk.find_pairs(rows, geo_sat), -1)
+        links = blk.links
+        miss = np.flatnonzero(served & (pair < 0))
+        if miss.size:
+            links = Links.concat([links, dec.evaluate(rows[miss], geo_sat[miss])])
+            pair[miss] = blk.links.n_pair + np.arange(miss.size)
+        epoch, s = rows // n_ut, np.where(served, geo_sat, 0)
+        return PairLinks(links, pair, mb.sat_pos_m[epoch, s], mb.sat_vel_m_s[epoch, s],
+                         mb.sat_acc_m_s2[epoch, s])  # fmt: skip
+
+    def _finish(self, cols, geo_beam, pair_links=None):
+        """The columns of the rows (``pair_links`` None: no row has a link)."""
+        del geo_beam, pair_links
         return cols
+
+    def _interferer_states(self, j):
+        """Position and velocity of every satellite at the block's epoch ``j``."""
+        mb = self.decider.mb
+        return mb.sat_pos_m[j], mb.sat_vel_m_s[j]
 
     def _share(self, recs, cols, inputs):
         """Beam sharing and precoding, epoch by epoch (:mod:`leolink.sim.beam_service`)."""
@@ -253,8 +289,9 @@ class Monitor:
                 continue
             enu = None if self.decider.enu is None else self.decider.enu[j]
             panel = None if self.decider.panel is None else self.decider.panel[j]
-            snap = eng.evaluate(mb.ut_pos_m[j], mb.sat_pos_m[j][cone], mb.sat_vel_m_s[j][cone],
-                                ut_enu=enu, ut_panel=panel)  # fmt: skip
+            pos, vel = self._interferer_states(j)
+            snap = eng.evaluate(mb.ut_pos_m[j], pos[cone], vel[cone], ut_enu=enu,
+                                ut_panel=panel, sat_id=cone)  # fmt: skip
             s = np.where(geo_sat[sl] >= 0, np.searchsorted(cone, geo_sat[sl]), 0)
             b = np.where(geo_sat[sl] >= 0, geo_beam[sl], 0)
             if rec.channel is not None:  # each interfering path with its own state

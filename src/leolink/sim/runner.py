@@ -23,6 +23,7 @@ from leolink.sim.beam_service import BeamService
 from leolink.sim.controller import ControllerState
 from leolink.sim.decide import Decider
 from leolink.sim.environment import ChannelTracker
+from leolink.sim.ephemeris_monitor import TrueLinkMonitor
 from leolink.sim.mobility import concat_states
 from leolink.sim.monitor import Monitor
 from leolink.sim.motion import MotionBlocks
@@ -84,6 +85,9 @@ class Scenario:
         None: every beam lit.
     service : BeamService or None, beam sharing and precoding
         (:mod:`leolink.sim.beam_service`; adds the ``n_sharing`` trace column); None: none.
+    estimated_ephemeris : callable or None, the ephemeris the controller believes
+        (:mod:`leolink.ephemeris_error`); the links are evaluated on ``ephemeris``
+        (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
     """
 
     engine: LinkEngine
@@ -107,6 +111,7 @@ class Scenario:
     rlf: object | None = None
     selector: BeamSelector | None = None
     service: BeamService | None = None
+    estimated_ephemeris: Callable | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,6 +172,14 @@ def _processes(env, scen, state, motion, decide, monitor):
     env.process(link_monitor(env, state, monitor, epoch))
 
 
+def _monitor(scen, sink, decide, keys, names, rlf):
+    """The run's monitor; with an ephemeris error, the links on the true states."""
+    args = (scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link, rlf)
+    if scen.estimated_ephemeris is None:
+        return Monitor(*args, service=scen.service)
+    return TrueLinkMonitor(*args, service=scen.service, true_ephemeris=scen.ephemeris)
+
+
 def run_simulation(
     scen: Scenario,
     sinks: Sequence,
@@ -191,16 +204,18 @@ def run_simulation(
     state = _initial_state(scen, scen.populations)
     n_ut = state.ut_pos_m.shape[0]
 
+    believed = scen.ephemeris if scen.estimated_ephemeris is None else scen.estimated_ephemeris
+
     def future_state(t):
         ut = concat_states([p.state(t) for _, p in scen.populations])
-        pos, vel, _ = scen.ephemeris(t)
+        pos, vel, _ = believed(t)
         return ut.pos_m, pos[0], vel[0]
 
     times = scen.times_s
     rlf = None
     if scen.rlf is not None:
         rlf = RlfRun(scen.rlf, n_ut, scen.engine.n_beam, OUTAGE_REASONS.index(RLF_REASON))
-    motion = MotionBlocks(scen.ephemeris, scen.populations, times, scen.ephemeris.n_sat, n_ut)
+    motion = MotionBlocks(believed, scen.populations, times, scen.ephemeris.n_sat, n_ut)
     decide = Decider(
         scen.engine, scen.policy, scen.min_snr_db, scen.handover_time_s,
         scen.min_elevation_rad, scen.radius_m, future_state, motion, epoch_s=scen.epoch_s,
@@ -214,10 +229,7 @@ def run_simulation(
         counts = [pop.n_ut for _, pop in scen.populations]
         decide.with_channel(ChannelTracker(scen.environments, counts, keys, decide.min_el))
         environment = decide.channel.environment
-    monitor = Monitor(
-        scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link, rlf,
-        service=scen.service,
-    )  # fmt: skip
+    monitor = _monitor(scen, sink, decide, keys, names, rlf)
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(

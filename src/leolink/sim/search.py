@@ -215,6 +215,7 @@ class CandidateSearch:
                 None if up is None else up[rows[lo : lo + step]],
                 ut_id[lo : lo + step],
                 None if nrm is None else nrm[rows[lo : lo + step]],
+                cone,
             )  # fmt: skip
             for lo in range(0, n_ut, step)
         ]
@@ -234,7 +235,7 @@ class CandidateSearch:
         ut_id = np.arange(pos.shape[0]) % n_ut
         links = self.engine.evaluate_pairs(
             pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id,
-            ut_normal=nrm,
+            ut_normal=nrm, sat_id=key % n_sat,
         )  # fmt: skip
         links.sat = sats  # global ids from here on
         return links

@@ -66,9 +66,9 @@ class EpochFrame:
     The arrays are handed over, read-only: the simulator never writes into an array
     after the ``epoch`` call that carried it (each frame's arrays are new, or, like
     ``population``, the same constant array every epoch), so a sink may keep references
-    instead of copying (a trace writer may buffer them until a chunk is written). A sink
-    must not modify them: the other sinks see the same arrays. A producer
-    of frames that reuses buffers across epochs must copy before the call.
+    instead of copying (the trace writer buffers them until a chunk is written, on a
+    background thread). A sink must not modify them: the other sinks see the same arrays.
+    A producer of frames that reuses buffers across epochs must copy before the call.
     """
 
     k: int
