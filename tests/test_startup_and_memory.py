@@ -10,8 +10,13 @@ HEAVY = ("pandas", "matplotlib", "scipy", "itur", "pyarrow.compute", "pyarrow.pa
 
 
 def test_importing_the_cli_and_run_loads_no_heavy_library():
+    """Up to the first epoch: the CLI, the config (every registered kind's module: sinks,
+    policies, terminals) and the scenario."""
     code = (
         "import sys, json, leolink.cli, leolink.app.run; "
+        "from leolink.config import load_config; "
+        "from leolink.app.scenario import build_scenario; "
+        "build_scenario(load_config('configs/paper.toml')); "
         f"print(json.dumps([m for m in {list(HEAVY)!r} if m in sys.modules]))"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
