@@ -66,9 +66,9 @@ class EphemerisErrorSink:
         return pd.DataFrame({k: np.concatenate([p[k] for p in self._parts]) for k in _KEYS})
 
     def finish(self, final):
-        rows = self.table()
-        if self.out_dir is None or rows.empty:
+        if self.out_dir is None or not self._parts:  # no error: nothing written, no pandas
             return
+        rows = self.table()
         rows["true_best_beam_id"] = rows.true_best_beam_id.astype(np.int64)
         rows["wrong_beam"] = rows.wrong_beam.astype(np.int64)
         self.files = [
