@@ -43,6 +43,16 @@ def epoch():
     return scen.engine, uts, pos, vel, acc, ut, sat, rng
 
 
+@pytest.fixture(params=[None, 3], ids=["threads", "split3"], autouse=True)
+def split(request, monkeypatch):
+    """Each test as the machine runs it, and with every large call split over 3 threads
+    into uneven shares (a row is one thread's: the bits must not change)."""
+    if request.param is not None:
+        monkeypatch.setattr(jit, "n_threads", lambda: request.param)
+        monkeypatch.setattr(jit, "SPLIT_MIN_ROWS", 997)
+    return request.param
+
+
 def _numpy(monkeypatch):
     monkeypatch.setattr(jit, "use", lambda n: False)
 
@@ -127,3 +137,21 @@ def test_tilted_panel_gains_are_the_numpy_bits(epoch, monkeypatch):
     assert _same(got.rx_db, ref.rx_db) and _same(got.path_lin, ref.path_lin)
     vis = got.visible
     assert np.abs(got.rx_db[vis] - flat.rx_db[vis]).max() > 1.0
+
+
+def test_screening_kernel_agrees_with_numpy_on_every_row(epoch, monkeypatch):
+    """The compiled screening (split over threads by UT rows) against the numpy one: the
+    same codes away from the band edges and the same bounds to rounding (it may round
+    differently, jit.py; an unfilled row would hold garbage)."""
+    from leolink.engine import screening
+
+    eng, uts, pos, vel, *_ = epoch
+    axes = body_frame(pos, vel)
+    assert jit.use(uts.n_ut * len(pos))
+    got = screening.screen(eng, uts.pos_m, pos, axes)
+    _numpy(monkeypatch)
+    ref = screening.screen(eng, uts.pos_m, pos, axes)
+    assert (got[0] == ref[0]).mean() > 1 - 1e-6 and (got[0] > 0).sum() > 1000
+    both = (got[0] > 0) & (ref[0] > 0)
+    np.testing.assert_allclose(got[1][both], ref[1][both], rtol=1e-9)
+    assert (got[1][got[0] == 0] == -1.0).all()

@@ -18,10 +18,55 @@ import os
 import numpy as np
 
 __all__ = ["JIT_MIN_PAIRS", "enabled", "links_arrays", "screen_kernel", "serve_columns"]
-__all__ += ["serve_pairs", "use"]
+__all__ += ["n_threads", "run_rows", "serve_pairs", "use"]
 
 #: Smallest number of (UT, satellite) pairs per call worth a compiled kernel.
 JIT_MIN_PAIRS = 1_000
+
+#: Rows per thread below which a kernel call is not split (a task costs ~50 us).
+SPLIT_MIN_ROWS = 16_384
+
+
+@functools.cache
+def n_threads():
+    """Threads a large kernel call is split over: ``LEOLINK_THREADS`` if set, else the
+    CPUs this process may run on."""
+    env = os.environ.get("LEOLINK_THREADS", "").strip()
+    if env:
+        if not env.isdigit() or int(env) < 1:
+            from leolink.errors import ConfigError
+
+            raise ConfigError(f"LEOLINK_THREADS = {env!r} is not allowed: a whole number >= 1")
+        return int(env)
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@functools.cache
+def _pool():
+    from concurrent.futures import ThreadPoolExecutor
+
+    return ThreadPoolExecutor(max(1, n_threads() - 1), thread_name_prefix="leolink-kernel")
+
+
+def run_rows(kernel, n, *args, row_size=1):
+    """``kernel(*args, lo, hi)`` over the rows ``0 .. n - 1``, split over
+    :func:`n_threads` threads when large (the kernels release the GIL). Each row is
+    computed by one thread with the same operations: the bits of a single call.
+    ``row_size``: the work of a row, in units of a pair (a UT's row of satellites)."""
+    k = min(n_threads(), n * row_size // SPLIT_MIN_ROWS, n)
+    if k <= 1:
+        kernel(*args, 0, n)
+        return
+    edges = [n * i // k for i in range(k + 1)]
+    pool = _pool()
+    shares = zip(edges[1:-1], edges[2:], strict=True)
+    tasks = [pool.submit(kernel, *args, lo, hi) for lo, hi in shares]
+    kernel(*args, 0, edges[1])  # this thread's share
+    for task in tasks:
+        task.result()
 
 
 @functools.cache
@@ -57,9 +102,10 @@ def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
     sphere = ut_up is None
     r_ut = np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m)) if sphere else np.zeros(0)
     cx, cy = engine.kernel_coefficients
-    kernels().links_kernel(
-        np.ascontiguousarray(ut_pos_m, float), np.zeros((0, 3)) if sphere else ut_up, sphere,
-        r_ut, np.ascontiguousarray(sat_pos_m, float), np.ascontiguousarray(axes[:, 0, :]),
+    run_rows(
+        kernels().links_kernel, m, np.ascontiguousarray(ut_pos_m, float),
+        np.zeros((0, 3)) if sphere else ut_up, sphere, r_ut,
+        np.ascontiguousarray(sat_pos_m, float), np.ascontiguousarray(axes[:, 0, :]),
         np.ascontiguousarray(axes[:, 1, :]), ut, sat, engine.params.min_elevation_rad,
         engine.beam_ux, cx, engine.codebook.n_sub_x, engine.beam_uy, cy,
         engine.codebook.n_sub_y, *out,
@@ -70,7 +116,9 @@ def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
 def snr_db_bm(links, beam_ix, beam_iy):
     """``Links.snr_db_bm`` by :func:`snr_kernel`."""
     out = np.empty((len(beam_ix), links.n_pair))
-    kernels().snr_kernel(links.kx, links.ky, links.path_snr_lin, beam_ix, beam_iy, out)
+    k = kernels()
+    run_rows(k.snr_kernel, links.n_pair, links.kx, links.ky, links.path_snr_lin, beam_ix,
+             beam_iy, out)  # fmt: skip
     return out
 
 
@@ -83,9 +131,9 @@ def serve_columns(engine, links, pair, served, b, rows, rx, atm):
     n = pair.shape[0]
     out = np.empty((16, n))
     enu = rows["enu"]
-    kernels().serve_kernel(
-        links.kx, links.ky, links.path_snr_lin, links.rel_m, links.slant_range_m,
-        links.elevation_rad, pair, b, served, engine.beam_ix, engine.beam_iy,
+    run_rows(
+        kernels().serve_kernel, n, links.kx, links.ky, links.path_snr_lin, links.rel_m,
+        links.slant_range_m, links.elevation_rad, pair, b, served, engine.beam_ix, engine.beam_iy,
         rows["fading"], rows["i_other"], rows["ut_vel"], rows["ut_acc"], rows["sat_vel"],
         rows["sat_acc"], rows["ut_pos"], np.zeros((0, 3, 3)) if enu is None else enu,
         enu is not None, engine.params.freq_hz / 299_792_458.0, engine.params.freq_hz,

@@ -80,9 +80,10 @@ def _kernels(u, beam_u, coef, n, out, p):
 
 @numba.njit(cache=True, nogil=True)
 def links_kernel(ut_pos, ut_up, sphere, r_ut, sat_pos, ax_x, ax_y, ut, sat, min_el, bx, cx, nx,
-                 by, cy, ny, rel, rho2, rho, elevation, visible, kx, ky):  # fmt: skip
-    """The geometry and beam kernels of ``LinkEngine.evaluate_pairs``, per pair."""
-    for p in range(ut.shape[0]):
+                 by, cy, ny, rel, rho2, rho, elevation, visible, kx, ky, lo, hi):  # fmt: skip
+    """The geometry and beam kernels of ``LinkEngine.evaluate_pairs``, per pair (the
+    pairs ``lo .. hi - 1``: a thread's share)."""
+    for p in range(lo, hi):
         i, j = ut[p], sat[p]
         r0 = ut_pos[i, 0] - sat_pos[j, 0]
         r1 = ut_pos[i, 1] - sat_pos[j, 1]
@@ -109,11 +110,11 @@ def links_kernel(ut_pos, ut_up, sphere, r_ut, sat_pos, ax_x, ax_y, ut, sat, min_
 
 
 @numba.njit(cache=True, nogil=True)
-def snr_kernel(kx, ky, path_snr, ix, iy, out):
-    """``Links.snr_db_bm``: ``(10 log10 k_x + 10 log10 k_y) + 10 log10 p``, (n_beam, m)."""
-    m = path_snr.shape[0]
-    for c in range((m + _CHUNK - 1) // _CHUNK):  # chunks: scratch per thread
-        _snr_chunk(kx, ky, path_snr, ix, iy, out, c * _CHUNK, min(m, (c + 1) * _CHUNK))
+def snr_kernel(kx, ky, path_snr, ix, iy, out, lo, hi):
+    """``Links.snr_db_bm``: ``(10 log10 k_x + 10 log10 k_y) + 10 log10 p``, (n_beam, m),
+    of the pairs ``lo .. hi - 1``."""
+    for c in range((hi - lo + _CHUNK - 1) // _CHUNK):  # chunks: scratch per thread
+        _snr_chunk(kx, ky, path_snr, ix, iy, out, lo + c * _CHUNK, min(hi, lo + (c + 1) * _CHUNK))
 
 
 @numba.njit(cache=True, inline="always")
@@ -150,8 +151,9 @@ def _mod360(x):
 @numba.njit(cache=True, nogil=True)
 def serve_kernel(kx, ky, path_snr, rel, slant, elevation, pair, beam, served, ix, iy, fading,
                  i_other, ut_vel, ut_acc, sat_vel, sat_acc, ut_pos, enu, has_enu, k_dop, freq,
-                 bw, rx, atm, out):  # fmt: skip
-    """``LinkEngine.serve_pairs`` for a full beam lattice with one colour, per row.
+                 bw, rx, atm, out, lo, hi):  # fmt: skip
+    """``LinkEngine.serve_pairs`` for a full beam lattice with one colour, per row (the
+    rows ``lo .. hi - 1``).
 
     ``out`` (16, n): the columns in the order of ``SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS``;
     ``fading``, ``i_other``, ``rx``, ``atm`` (n,): per row (1, 0 and the constants where
@@ -159,7 +161,7 @@ def serve_kernel(kx, ky, path_snr, rel, slant, elevation, pair, beam, served, ix
     """
     c = 299_792_458.0
     ln2 = np.log(2.0)
-    for r in range(pair.shape[0]):
+    for r in range(lo, hi):
         p, b = pair[r], beam[r]
         nan = 1.0 if served[r] else np.nan
         sx, sy = kx[0, p], ky[0, p]
@@ -235,17 +237,18 @@ def _screen_envelope(u, beams, n):
 
 @numba.njit(cache=True, nogil=True)
 def screen_kernel(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_lin, s_min,
-                  band, slack, ut_factor, code, bound, sin_out):  # fmt: skip
-    """Fill ``code``, ``bound`` and ``sin_out`` (n_u, n_s) as ``screening.screen`` does.
+                  band, slack, ut_factor, code, bound, sin_out, lo, hi):  # fmt: skip
+    """Fill ``code``, ``bound`` and ``sin_out`` (n_u, n_s) as ``screening.screen`` does,
+    rows (UTs) ``lo .. hi - 1``.
 
     ``ut_factor (n_u,)``: each UT's ``G_rx / L_atm`` bound where it does not depend on the
     elevation (1 elsewhere: the caller multiplies it in afterwards). The screening rounds
     differently from the numpy one; both bounds hold (it decides what is evaluated only).
     """
-    n_u, n_s = code.shape
+    n_s = code.shape[1]
     fx, fy = float(nx), float(ny)
-    lo, hi = s_min - band, s_min + band
-    for i in range(n_u):
+    s_lo, s_hi = s_min - band, s_min + band
+    for i in range(lo, hi):
         px, py, pz = ut_pos[i, 0], ut_pos[i, 1], ut_pos[i, 2]
         if sphere:
             r = np.sqrt(px * px + py * py + pz * pz)
@@ -259,11 +262,11 @@ def screen_kernel(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_
             inv = 1.0 / np.sqrt(rho2)
             s_el = -(dx * ex + dy * ey + dz * ez) * inv
             sin_out[i, j] = s_el
-            if s_el < lo:
+            if s_el < s_lo:
                 code[i, j] = 0
                 bound[i, j] = -1.0
                 continue
-            code[i, j] = 2 if s_el >= hi else 1
+            code[i, j] = 2 if s_el >= s_hi else 1
             ux = (dx * ax_x[j, 0] + dy * ax_x[j, 1] + dz * ax_x[j, 2]) * inv
             uy = (dx * ax_y[j, 0] + dy * ax_y[j, 1] + dz * ax_y[j, 2]) * inv
             bound[i, j] = k / rho2 * _screen_envelope(ux, bx, fx) * _screen_envelope(uy, by, fy)

@@ -165,13 +165,13 @@ def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
     shape = (ut_pos_m.shape[0], sat_pos_m.shape[0])
     code, bound, sin_el = np.empty(shape, np.int8), np.empty(shape), np.empty(shape)
     up = np.zeros((0, 3)) if ut_up is None else np.ascontiguousarray(ut_up, float)
-    jit.screen_kernel()(
-        np.ascontiguousarray(ut_pos_m, float), up, ut_up is None,
+    jit.run_rows(
+        jit.screen_kernel(), shape[0], np.ascontiguousarray(ut_pos_m, float), up, ut_up is None,
         np.ascontiguousarray(sat_pos_m, float),
         np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
         engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
         engine._k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
-        np.ascontiguousarray(ut_factor, float), code, bound, sin_el,
+        np.ascontiguousarray(ut_factor, float), code, bound, sin_el, row_size=shape[1],
     )  # fmt: skip
     return code, bound, sin_el
 
