@@ -66,6 +66,26 @@ def test_the_table_is_the_mean_and_spread_of_the_runs(compared):
     assert "| a3,hysteresis_db=3 |" in (out / "compare.md").read_text()
 
 
+def test_the_manifest_lists_every_file_and_every_run(compared):
+    """run.json, written last, hashes the tables and plots and each run's own manifest."""
+    import hashlib
+
+    from leolink.io.run_dir import read_manifest
+
+    out, _ = compared
+    data = read_manifest(out)
+    assert data["command"] == "compare" and data["arguments"]["seeds"] == 2
+    listed = {f["path"]: f for f in data["files"]}
+    runs = pd.read_csv(out / "compare_runs.csv")
+    expected = {"compare.csv", "compare_runs.csv", "compare.md", "compare_kpis.png",
+                "compare_tradeoff.png", "compare_sinr_cdf.png"}  # fmt: skip
+    expected |= {(Path(r) / "run.json").relative_to(out).as_posix() for r in runs.run}
+    assert set(listed) == expected
+    for rel, entry in listed.items():
+        body = (out / rel).read_bytes()
+        assert entry["bytes"] == len(body) and entry["sha256"] == hashlib.sha256(body).hexdigest()
+
+
 def test_policy_specs_and_mistakes():
     assert parse_policy("cho,prepare.offset_db=-2,kpi.ping_pong_s=3")[1] == [
         "controller.policy=cho",

@@ -328,7 +328,7 @@ def test_read_track_csv_per_ut_time_order_and_missing_file(tmp_path):
     text = "time_s,ut,lat_deg,lon_deg,alt_m\n0,a,1,2,0\n5,b,1,2,0\n3,a,1,2,0\n2,b,1,2,0\n"
     with pytest.raises(TrackFileError, match=r"line 5, .* of ut 'b'"):
         read_track_csv(write(tmp_path, text))
-    with pytest.raises(LeolinkError, match="nowhere.csv: cannot read track file"):
+    with pytest.raises(LeolinkError, match="track file '.*nowhere.csv' does not exist"):
         read_track_csv(tmp_path / "nowhere.csv")
 
 

@@ -89,7 +89,7 @@ BROKEN = [
         "non_utf8_tle",
         TLE_CONFIG,
         lambda t: _tle_file(t, b"\xff\xfe garbage\n", binary=True),
-        r"sat\.tle: not a text file of TLEs \(byte 0 is not UTF-8\)",
+        r"TLE file '.*sat\.tle' is not UTF-8 text \(byte 0\)",
     ),
     (
         "garbage_tle_field_valid_checksum",

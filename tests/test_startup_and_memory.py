@@ -10,12 +10,21 @@ HEAVY = ("pandas", "matplotlib", "scipy", "itur", "pyarrow.compute", "pyarrow.pa
 
 
 def test_importing_the_cli_and_run_loads_no_heavy_library():
+    """Importing the CLI and the run loads none; a whole run with its default files (plots
+    and report off) none but pyarrow.parquet, for events.parquet: the config (every
+    registered kind's module: sinks, policies, terminals), the scenario, the epochs and
+    every sink's end (the ephemeris-error sink imported pandas to find it had no rows)."""
     code = (
-        "import sys, json, leolink.cli, leolink.app.run; "
-        f"print(json.dumps([m for m in {list(HEAVY)!r} if m in sys.modules]))"
+        "import sys, json, tempfile, leolink.cli, leolink.app.run; "
+        "from leolink.config import load_config; "
+        f"loaded = lambda: [m for m in {list(HEAVY)!r} if m in sys.modules]; "
+        "first = loaded(); "
+        "leolink.app.run.run(load_config('configs/paper.toml', ['run.duration_s=3', "
+        "'output.plots.enabled=false', 'output.report.enabled=false']), tempfile.mkdtemp()); "
+        "print(json.dumps([first, loaded()]))"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert json.loads(done.stdout) == []
+    assert json.loads(done.stdout) == [[], ["pyarrow.parquet"]]
 
 
 def test_plot_sink_keeps_exactly_the_chosen_uts_rows_across_compactions(monkeypatch):

@@ -10,7 +10,7 @@ policy, so every policy sees identical UT tracks, ephemeris and fading. Runs go 
 validated first, serial, local processes or dask). A folder holding an earlier compare is
 refused unless ``overwrite`` or ``resume``.
 
-Outputs (written at the end, ``compare.csv`` last):
+Outputs (written at the end, the manifest ``run.json`` last, as for a run):
 
 - ``compare_runs.csv``: one row per (policy, seed), the flattened overall summary;
 - ``compare.csv``: one row per policy, column ``policy``, ``n_seeds``, and for every
@@ -18,7 +18,8 @@ Outputs (written at the end, ``compare.csv`` last):
   deviation; NaN with one seed);
 - ``compare.md``: the main KPIs as a table (mean +- std);
 - ``compare_kpis.png``, ``compare_tradeoff.png``, ``compare_sinr_cdf.png`` (the SINR of
-  every UT-epoch of every seed, read back from each run's trace).
+  every UT-epoch of every seed, read back from each run's trace);
+- ``run.json``: the files above and every run's own ``run.json``, with sizes and SHA-256.
 """
 
 from __future__ import annotations
@@ -197,11 +198,25 @@ def run_compare(
         ]
     )
     table = _aggregate(runs)
-    write_csv_atomic(runs, out_dir / "compare_runs.csv")
-    write_text_atomic(out_dir / "compare.md", report_table(table))
+    files = [write_csv_atomic(runs, out_dir / "compare_runs.csv"),
+             write_text_atomic(out_dir / "compare.md", report_table(table))]  # fmt: skip
     if plot:
         from leolink.io.compare_plots import plot_compare
 
-        plot_compare(table, out_dir, _cdfs(runs))
-    write_csv_atomic(table, out_dir / "compare.csv")  # last: its presence means "complete"
+        files += plot_compare(table, out_dir, _cdfs(runs))
+    files.append(write_csv_atomic(table, out_dir / "compare.csv"))
+    _manifest(out_dir, cfg_path, base, list(policies), seeds, [*files, *runs["run"]])
     return table
+
+
+def _manifest(out_dir, cfg_path, base, policies, seeds, files):
+    """``run.json``, last: the tables, the plots and every run's own ``run.json``."""
+    import leolink
+    from leolink.config import dump_toml, load_config
+    from leolink.io.run_dir import MANIFEST, write_manifest
+
+    runs = [Path(f) / MANIFEST for f in files if Path(f).is_dir()]
+    arguments = {"policies": policies, "seeds": seeds, "base_overrides": base}
+    write_manifest(out_dir, [f for f in files if not Path(f).is_dir()] + runs, "compare",
+                   dump_toml(load_config(cfg_path, base)), arguments,
+                   version=leolink.__version__)  # fmt: skip

@@ -35,6 +35,7 @@ from leolink.config.schema import (
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
 from leolink.sim.handover_config import FilterConfig, KpiConfig, RlfConfig
+from leolink.textfile import read_text
 
 __all__ = [
     "ConfigBase",
@@ -253,16 +254,7 @@ def _resolve_files(node, base: Path):
 def load_config(path: str | Path, overrides: list[str] | None = None) -> ConfigBase:
     """Read, override and validate a TOML config file."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"config file {str(path)!r} does not exist") from None
-    except UnicodeDecodeError as exc:
-        raise ConfigError(
-            f"config file {str(path)!r} is not UTF-8 text (byte {exc.start})"
-        ) from None
-    except OSError as exc:
-        raise ConfigError(f"config file {str(path)!r} cannot be read: {exc.strerror}") from None
+    text = read_text(path, "config file", ConfigError)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

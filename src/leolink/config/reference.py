@@ -80,9 +80,21 @@ def _rows(model, skip=()):
     return lines + [""]
 
 
+def _tables(name, model, skip):
+    """The nested tables of a section that are not per-entry tables (``[controller.rlf]``)."""
+    lines = []
+    for key, info in model.model_fields.items():
+        sub = info.annotation
+        if key in skip or not (isinstance(sub, type) and issubclass(sub, BaseModel)):
+            continue
+        lines += [f"### `[{name}.{key}]`: {info.description or ''}", "", *_rows(sub)]
+    return lines
+
+
 def _section(name, model):
     if isinstance(model, type) and issubclass(model, SelectorSection):
-        lines = [f"## `[{name}]`", "", *_rows(model)]
+        entries = {e for reg in model.registries.values() for e in reg.names()}
+        lines = [f"## `[{name}]`", "", *_rows(model), *_tables(name, model, entries)]
         for key, reg in model.registries.items():
             for entry in reg.names():
                 which = f" ({key} = '{entry}')" if len(model.registries) > 1 else ""
@@ -96,7 +108,7 @@ def _section(name, model):
             lines += [f"### `[{name}.{entry}]`: {model.registry[entry].doc}", ""]
             lines += _rows(model.registry[entry].config)
         return lines
-    return [f"## `[{name}]`", "", *_rows(model)]
+    return [f"## `[{name}]`", "", *_rows(model), *_tables(name, model, ())]
 
 
 def _populations():

@@ -14,7 +14,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from pydantic import Field
 
 from leolink.io.atomic import write_csv_atomic, write_json_atomic
@@ -55,17 +54,21 @@ class EphemerisErrorSink:
         if "wrong_beam" not in cols:
             return
         keep = np.asarray(cols["service"]) != SERVICE_OUTAGE
-        if keep.any():
-            self._parts.append(pd.DataFrame({k: np.asarray(cols[k])[keep] for k in _KEYS}))
+        if keep.any():  # numpy pieces: one DataFrame at the end (pandas imported then)
+            self._parts.append({k: np.asarray(cols[k])[keep] for k in _KEYS})
 
     def table(self):
-        """The collected rows (empty without an ephemeris error)."""
-        return pd.concat(self._parts, ignore_index=True) if self._parts else pd.DataFrame()
+        """The collected rows, a pandas.DataFrame (empty without an ephemeris error)."""
+        import pandas as pd
+
+        if not self._parts:
+            return pd.DataFrame()
+        return pd.DataFrame({k: np.concatenate([p[k] for p in self._parts]) for k in _KEYS})
 
     def finish(self, final):
-        rows = self.table()
-        if self.out_dir is None or rows.empty:
+        if self.out_dir is None or not self._parts:  # no error: nothing written, no pandas
             return
+        rows = self.table()
         rows["true_best_beam_id"] = rows.true_best_beam_id.astype(np.int64)
         rows["wrong_beam"] = rows.wrong_beam.astype(np.int64)
         self.files = [

@@ -9,9 +9,9 @@ file could be anything a config points at).
 """
 
 import re
-from pathlib import Path
 
 from leolink.errors import LeolinkError
+from leolink.textfile import read_text
 
 __all__ = ["TleFileError", "read_tle_file"]
 
@@ -77,14 +77,7 @@ def _check_tle_line(path, lineno, line, number):
 
 
 def _lines(path):
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise TleFileError(
-            f"{path}: not a text file of TLEs (byte {exc.start} is not UTF-8)"
-        ) from None
-    except OSError as exc:
-        raise TleFileError(f"{path}: cannot read the TLE file ({exc.strerror})") from None
+    text = read_text(path, "TLE file", TleFileError)
     lines = [(i + 1, ln.rstrip()) for i, ln in enumerate(text.splitlines())]
     return [(i, ln) for i, ln in lines if ln.strip()]
 

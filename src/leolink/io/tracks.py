@@ -24,6 +24,7 @@ from pydantic import Field, model_validator
 from leolink.errors import LeolinkError
 from leolink.sim.mobility import Track, Waypoints
 from leolink.sim.populations import FIX_LIMITS, MOBILITY, PopulationParams
+from leolink.textfile import read_text
 
 __all__ = ["TrackFileError", "TrackParams", "read_track", "read_track_csv", "read_track_gpx"]
 
@@ -40,15 +41,7 @@ _COLUMN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,39}")
 
 def _data_lines(path):
     """(line number, parsed fields) of the non-blank, non-``#`` lines of a CSV file."""
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            lines = f.read().splitlines()
-    except UnicodeDecodeError as exc:
-        raise TrackFileError(
-            f"{path}: not a text track file (byte {exc.start} is not UTF-8)"
-        ) from None
-    except OSError as exc:
-        raise TrackFileError(f"{path}: cannot read track file ({exc.strerror})") from None
+    lines = read_text(path, "track file", TrackFileError).splitlines()
     return [
         (i, [c.strip() for c in next(csv.reader([s]))])
         for i, s in enumerate(lines, 1)
@@ -196,13 +189,9 @@ def read_track_gpx(path, time_zero_utc):
     import gpxpy
     import gpxpy.gpx
 
+    text = read_text(path, "GPX file", TrackFileError)
     try:
-        with open(path, encoding="utf-8") as f:
-            gpx = gpxpy.parse(f)
-    except UnicodeDecodeError as exc:
-        raise TrackFileError(f"{path}: not a GPX file (byte {exc.start} is not UTF-8)") from None
-    except OSError as exc:
-        raise TrackFileError(f"{path}: cannot read GPX file ({exc.strerror})") from None
+        gpx = gpxpy.parse(text)
     except (gpxpy.gpx.GPXException, ValueError) as exc:
         line = re.search(r"line (\d+)", str(exc))
         where = f"line {line.group(1)}: " if line else ""
