@@ -59,3 +59,32 @@ def test_shadowed_runs_on_the_pruned_tables_equal_every_cell(tmp_path, policy_se
     # The threshold sits in the middle of the shadowed SNRs: handovers and outages.
     assert events.kind.isin(["beam_handover", "sat_handover"]).sum() >= 3
     assert (events.kind == "outage_end").sum() >= 5
+
+
+def test_the_lookahead_table_carries_the_environment_loss(tmp_path, monkeypatch):
+    # The predictive policy's table at t + lookahead keeps each path's environment loss
+    # (persisting). Over a 1 ms lookahead nothing moves, so each cell's SNR then equals its
+    # SNR now after the environment (1e-3 dB: 1 ms of motion in a main lobe), not its
+    # open-country SNR (clutter and shadowing: dB apart). The tables are those the
+    # controller receives.
+    import leolink.sim.decide as decide
+
+    seen, real_step = [], decide.step
+
+    def spy(t, table, state, policy, *args):
+        seen.append((table.snr_db.copy(), args[3].snr_db.copy()))  # now, future
+        return real_step(t, table, state, policy, *args)
+
+    monkeypatch.setattr(decide, "step", spy)
+    pred = ["controller.policy=predictive", "controller.predictive.lookahead_s=0.001",
+            "run.duration_s=20"]  # fmt: skip
+    trace, _ = _run(tmp_path, pred, exhaustive=False)
+    now = np.concatenate([a.ravel() for a, _ in seen])
+    future = np.concatenate([b.ravel() for _, b in seen])
+    # Cells within 11 dB of the 1 dB threshold (main lobes; in the side lobes' nulls 1 ms
+    # of motion alone moves the SNR by 0.1 dB).
+    both = np.isfinite(now) & np.isfinite(future) & (now > -10.0)
+    assert both.sum() > 100
+    np.testing.assert_allclose(future[both], now[both], atol=1e-3)
+    # The environment does move the SNRs here: clutter or shadowing of several dB.
+    assert (trace.clutter_db.abs() + trace.shadow_db.abs()).max() > 2.0

@@ -89,7 +89,7 @@ MODULES = {
     # The recording of a run (the former sim/recorder.py): trace frames and the deferred
     # recording (sim/monitor.py), the policy step per epoch (sim/decide.py).
     "sim/monitor": SIM_RUN_TESTS,
-    "sim/decide": SIM_RUN_TESTS,
+    "sim/decide": [*SIM_RUN_TESTS, "tests/test_environment_floor.py"],
     "sim/processes": [
         "tests/test_candidates.py",
         "tests/test_simulation.py",
