@@ -13,7 +13,7 @@ import pytest
 
 from leolink.antenna.array import HybridArray, steering_vector
 from leolink.app.scenario import build_scenario
-from leolink.config import load_config
+from leolink.config import load_config, updated
 from leolink.errors import ConfigError
 from leolink.geometry import direction_cosines
 from leolink.io.sinks import MemorySink
@@ -326,3 +326,13 @@ def test_acm_throughput_is_shared_too(tmp_path):
     np.testing.assert_allclose(
         (rr.throughput_bps * rr.n_sharing)[on], base.throughput_bps[on], rtol=1e-12
     )
+
+
+def test_a_block_with_no_satellite_in_view_keeps_the_sharing_column(tmp_path):
+    """Before the pass (the satellite below every UT's horizon) a scheduled run records
+    outage rows with ``n_sharing`` 0 (it stopped with KeyError: 'n_sharing')."""
+    cfg = _cfg(tmp_path, 5, ["scheduler.kind=round_robin"])
+    cfg = updated(cfg, ["run.start_s=-2000", "run.duration_s=10"])
+    _, trace = _run(cfg)
+    assert len(trace) == 5 * 10 and (trace.service == "outage").all()
+    assert (trace.n_sharing == 0).all() and trace.sat_id.eq(-1).all()

@@ -175,8 +175,10 @@ class Monitor:
         geo_sat = np.concatenate([r.geo_sat for r in recs])
         geo_beam = np.concatenate([r.geo_beam for r in recs])
         served = geo_sat >= 0
-        if not served.any():
+        if not served.any():  # no satellite above the mask for any UT of the block
             none = eng.serve_pairs(None, np.full(rows.size, -1), geo_beam, None)
+            if self.service is not None:  # the trace's column, as for unserved rows
+                none["n_sharing"] = np.zeros(rows.size, np.int64)
             return self._finish(none, geo_beam)
         pl = self._pair_links(rows, geo_sat, served, n_ut)
         up_enu = None if dec.enu is None else dec.enu.reshape(-1, 3, 3)[rows]
