@@ -17,8 +17,7 @@ import pytest
 
 from leolink.app.scenario import build_scenario
 from leolink.config import load_config
-from leolink.io.sinks import MemorySink
-from leolink.sim.runner import run_simulation
+from pruning_helpers import trace_and_events
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 WALKER = ROOT / "configs" / "examples" / "walker.toml"
@@ -33,14 +32,7 @@ def _run(tmp_path, policy_sets, exhaustive):
     path.write_text(text)
     # The threshold (min_snr_db = 1 dB) in the middle of the SNRs after the environment.
     sets = ["run.duration_s=100", "controller.min_snr_db=1", "output.plots.enabled=false"]
-    scen = build_scenario(load_config(path, sets + policy_sets))
-    if exhaustive:
-        scen.policy.usable_cells_only = False  # no floor: every visible cell in the tables
-        scen.policy.neighbour_window_db = np.inf  # no window
-        scen.prune = False  # every pair of the cone evaluated
-    sink = MemorySink()
-    run_simulation(scen, [sink])
-    return sink.trace(), sink.events()
+    return trace_and_events(build_scenario(load_config(path, sets + policy_sets)), exhaustive)
 
 
 @pytest.mark.parametrize(

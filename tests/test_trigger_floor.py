@@ -12,8 +12,7 @@ import pytest
 
 from leolink.app.scenario import build_scenario
 from leolink.config import load_config
-from leolink.io.sinks import MemorySink
-from leolink.sim.runner import run_simulation
+from pruning_helpers import trace_and_events
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 WALKER = ROOT / "configs" / "examples" / "walker.toml"
@@ -21,12 +20,7 @@ WALKER = ROOT / "configs" / "examples" / "walker.toml"
 
 def _run(sets, exhaustive):
     scen = build_scenario(load_config(WALKER, ["run.duration_s=300", *sets]))
-    if exhaustive:
-        scen.policy.usable_cells_only = False  # every visible cell in the tables
-        scen.prune = False  # every pair of the cone evaluated
-    sink = MemorySink()
-    run_simulation(scen, [sink])
-    return sink.trace(), sink.events()
+    return trace_and_events(scen, exhaustive)
 
 
 @pytest.mark.parametrize(

@@ -205,18 +205,18 @@ def run_compare(
 
         files += plot_compare(table, out_dir, _cdfs(runs))
     files.append(write_csv_atomic(table, out_dir / "compare.csv"))
-    _manifest(out_dir, cfg_path, base, list(policies), seeds, [*files, *runs["run"]])
+    _manifest(out_dir, cfg_path, base, list(policies), seeds, files, runs["run"])
     return table
 
 
-def _manifest(out_dir, cfg_path, base, policies, seeds, files):
+def _manifest(out_dir, cfg_path, base, policies, seeds, files, run_dirs):
     """``run.json``, last: the tables, the plots and every run's own ``run.json``."""
     import leolink
     from leolink.config import dump_toml, load_config
     from leolink.io.run_dir import MANIFEST, write_manifest
 
-    runs = [Path(f) / MANIFEST for f in files if Path(f).is_dir()]
+    runs = [Path(d) / MANIFEST for d in run_dirs]
     arguments = {"policies": policies, "seeds": seeds, "base_overrides": base}
-    write_manifest(out_dir, [f for f in files if not Path(f).is_dir()] + runs, "compare",
+    write_manifest(out_dir, [*files, *runs], "compare",
                    dump_toml(load_config(cfg_path, base)), arguments,
                    version=leolink.__version__)  # fmt: skip
