@@ -210,18 +210,20 @@ def test_the_wired_precoder_sees_the_believed_and_the_true_satellite(monkeypatch
         return apply(self, cols, sat_id, beam_id, served, lit, inputs)
 
     monkeypatch.setattr(BeamService, "apply", spy)
-    over = [*_offset(along=20e3, radial=3e3), "scheduler.kind=round_robin", "link.precoder=zf"]
+    over = [*_offset(along=20e3, radial=3e3), "ephemeris_error.rtn.velocity_m_s=5",
+            "scheduler.kind=round_robin", "link.precoder=zf"]  # fmt: skip
     trace, _, _, scen = _run(over)
     times = np.unique(trace.time_s)
     assert len(seen) == times.size
     for t, (sat_id, served, inp) in zip(times, seen, strict=True):
-        true, _, _ = scen.ephemeris(np.array([t]))
+        true, true_vel, _ = scen.ephemeris(np.array([t]))
         est, est_vel, _ = scen.estimated_ephemeris(np.array([t]))
         s = sat_id[served]
         assert s.size > 0
         np.testing.assert_allclose(inp["sat_pos_m"][served], true[0, s], rtol=0, atol=1e-6)
         np.testing.assert_allclose(inp["sat_pos_est_m"][served], est[0, s], rtol=0, atol=1e-6)
         np.testing.assert_allclose(inp["sat_vel_est_m"][served], est_vel[0, s], atol=1e-9)
+        assert np.linalg.norm(inp["sat_vel_est_m"][served] - true_vel[0, s], axis=1).min() > 0.1
         off = np.linalg.norm(inp["sat_pos_est_m"][served] - inp["sat_pos_m"][served], axis=1)
         np.testing.assert_allclose(off, math.hypot(20e3, 3e3), rtol=1e-9)
 
