@@ -24,6 +24,7 @@ from leolink.sim.mobility import concat_states  # noqa: E402
 
 CONSTELLATION = "configs/constellation.toml"
 COLUMNS = SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS
+_N_THREADS = jit.n_threads
 
 
 @pytest.fixture(scope="module")
@@ -155,3 +156,23 @@ def test_screening_kernel_agrees_with_numpy_on_every_row(epoch, monkeypatch):
     both = (got[0] > 0) & (ref[0] > 0)
     np.testing.assert_allclose(got[1][both], ref[1][both], rtol=1e-9)
     assert (got[1][got[0] == 0] == -1.0).all()
+
+
+def test_thread_count_from_the_environment(monkeypatch):
+    from leolink.errors import ConfigError
+
+    n_threads = _N_THREADS  # the real one (the split fixture replaces jit.n_threads)
+
+    try:
+        for value, expected in (("3", 3), (" 1 ", 1)):
+            monkeypatch.setenv("LEOLINK_THREADS", value)
+            n_threads.cache_clear()
+            assert n_threads() == expected
+        for bad in ("0", "two", "-2"):
+            monkeypatch.setenv("LEOLINK_THREADS", bad)
+            n_threads.cache_clear()
+            with pytest.raises(ConfigError, match=f"LEOLINK_THREADS = '{bad}' is not allowed"):
+                n_threads()
+    finally:
+        monkeypatch.delenv("LEOLINK_THREADS")
+        n_threads.cache_clear()
