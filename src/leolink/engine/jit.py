@@ -51,6 +51,11 @@ def _pool():
     return ThreadPoolExecutor(max(1, n_threads() - 1), thread_name_prefix="leolink-kernel")
 
 
+# A forked child (leolink.io.render) has none of the pool's threads: it starts its own.
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_pool.cache_clear)
+
+
 def run_rows(kernel, n, *args, row_size=1):
     """``kernel(*args, lo, hi)`` over the rows ``0 .. n - 1``, split over
     :func:`n_threads` threads when large (the kernels release the GIL). Each row is
