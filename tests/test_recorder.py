@@ -289,7 +289,10 @@ def _tree_pairs():
                 lambda xs: (np.asarray(xs, float), xs)
             ),
             st.dictionaries(keys, children, max_size=4).map(
-                lambda d: ({k: v for k, (v, _) in d.items()}, {str(k): e for k, (_, e) in d.items()})
+                lambda d: (
+                    {k: v for k, (v, _) in d.items()},
+                    {str(k): e for k, (_, e) in d.items()},
+                )
             ),
         )
 
