@@ -250,3 +250,78 @@ def test_write_text_atomic_leaves_no_partial(tmp_path):
     with pytest.raises(TypeError):
         write_json_atomic(tmp_path / "b.json", {"x": object()})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]
+
+
+def _leaf_pairs():
+    """(value as a summary holds it, what JSON must read back): numpy and Python scalars,
+    non-finite floats as null."""
+    from hypothesis import strategies as st
+
+    finite = st.floats(allow_nan=False, allow_infinity=False)
+    return st.one_of(
+        finite.map(lambda x: (x, x)),
+        finite.map(lambda x: (np.float64(x), x)),
+        st.floats(width=32, allow_nan=False, allow_infinity=False).map(
+            lambda x: (np.float32(x), float(np.float32(x)))
+        ),
+        st.sampled_from([float("nan"), float("inf"), -float("inf"), np.float64("nan")]).map(
+            lambda x: (x, None)
+        ),
+        st.integers(-(2**62), 2**62).map(lambda i: (np.int64(i), i)),
+        st.integers().map(lambda i: (i, i)),
+        st.booleans().map(lambda b: (np.bool_(b), b)),
+        st.booleans().map(lambda b: (b, b)),
+        st.none().map(lambda n: (n, n)),
+        st.text(max_size=8).map(lambda s: (s, s)),
+    )
+
+
+def _tree_pairs():
+    from hypothesis import strategies as st
+
+    def grow(children):
+        keys = st.one_of(st.text(max_size=5), st.integers(-9, 9))
+        as_list = st.lists(children, max_size=4)
+        return st.one_of(
+            as_list.map(lambda items: ([v for v, _ in items], [e for _, e in items])),
+            as_list.map(lambda items: (tuple(v for v, _ in items), [e for _, e in items])),
+            st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=4).map(
+                lambda xs: (np.asarray(xs, float), xs)
+            ),
+            st.dictionaries(keys, children, max_size=4).map(
+                lambda d: (
+                    {k: v for k, (v, _) in d.items()},
+                    {str(k): e for k, (_, e) in d.items()},
+                )
+            ),
+        )
+
+    return st.recursive(_leaf_pairs(), grow, max_leaves=20)
+
+
+def test_json_is_the_indented_text_of_the_plain_values(tmp_path_factory):
+    """What summary.json holds: numpy scalars and arrays as numbers and lists, NaN and
+    infinities as null, keys as strings, in ``json.dumps(..., indent=2)``'s layout; the
+    expected values are built beside the inputs, not by the converter."""
+    from hypothesis import given, settings
+
+    folder = tmp_path_factory.mktemp("json")
+
+    @settings(max_examples=300, deadline=None)
+    @given(_tree_pairs())
+    def check(pair):
+        value, expected = pair
+        path = write_json_atomic(folder / "s.json", {"x": value})
+        text = path.read_text()
+        assert json.loads(text) == {"x": expected}
+        assert text == json.dumps({"x": expected}, indent=2) + "\n"
+
+    check()
+
+
+def test_a_json_file_of_many_writes_is_whole(tmp_path):
+    from leolink.io import atomic
+
+    values = np.linspace(-1.0, 1.0, 3 * atomic._PIECES // 2)  # ~3 pieces per value
+    path = write_json_atomic(tmp_path / "big.json", {"v": values, "n": None})
+    assert path.read_text() == json.dumps({"v": values.tolist(), "n": None}, indent=2) + "\n"

@@ -8,12 +8,17 @@ angle between the site-to-satellite vector ``d = r - s`` and the ellipsoid norma
 ``asin((n . d) / |d|)``, over all (site, satellite x time) pairs, block by block.
 Rounding: < 1e-12 rad, but within ~0.1 deg of the zenith, where the arcsine of a value
 near 1 leaves ~1e-8 rad (6e-7 deg).
+
+With numba (and ``LEOLINK_JIT`` not 0) the elevations are computed by a compiled kernel
+(:mod:`leolink.visibility_kernel`) split over the CPUs (``LEOLINK_THREADS``), with no
+temporaries; it gives the bits of the numpy code.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from leolink.compiled import enabled, n_threads
 from leolink.geodesy import wgs84_to_ecef
 
 __all__ = ["gmst82_rad", "teme_to_ecef_m", "tle_elevations_rad"]
@@ -101,15 +106,32 @@ def tle_elevations_rad(
     # Blocks of times (the satellites' states: ~64 B per satellite-time), then of sites
     # (~6 float64 temporaries per site, satellite and time). Elementwise arithmetic, not
     # matrix products: the result does not depend on the blocks (BLAS rounding does).
+    kernel = _kernel()
     t_step = max(1, min(n_time, int(block_bytes // (64 * max(n_sat, 1)))))
     for t0 in range(0, n_time, t_step):
         t = slice(t0, t0 + t_step)
         r = _earth_fixed_states(sats, jd[t], fr[t], ut1[t])  # (3, n_sat * n_t)
+        if kernel is not None:  # every site at once: the kernel keeps no temporaries
+            kernel(r, site, normal, out[:, :, t])
+            continue
         s_step = max(1, int(block_bytes // (48 * r.shape[1])))
         for lo in range(0, lat.size, s_step):
             elev = _elevations(r, site[lo : lo + s_step], normal[lo : lo + s_step])
             out[lo : lo + s_step, :, t] = elev.reshape(len(elev), n_sat, -1)
     return out
+
+
+def _kernel():
+    """The compiled :func:`leolink.visibility_kernel.elevations` on :func:`n_threads`
+    threads, or None (numba missing or ``LEOLINK_JIT=0``: the numpy code below)."""
+    if not enabled():
+        return None
+    import numba
+
+    from leolink.visibility_kernel import elevations
+
+    numba.set_num_threads(min(n_threads(), numba.config.NUMBA_NUM_THREADS))
+    return elevations
 
 
 def _elevations(r, site, normal):

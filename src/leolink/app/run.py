@@ -214,12 +214,22 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
 def _run_and_write(cfg, scen, out_dir, summary, sinks, progress):
     stats = run_simulation(scen, sinks, progress=progress)
     sinks = sinks[:-1]  # without the position
+    try:  # the pictures may still be drawn (leolink.io.render): stopped on any error
+        return _write(cfg, scen, out_dir, summary, sinks, stats)
+    except BaseException:
+        for sink in sinks:  # a finished sink's abort only stops what still runs
+            sink.abort()
+        raise
+
+
+def _write(cfg, scen, out_dir, summary, sinks, stats):
+    """The run's own files, then the sinks' (``after_run``), then ``run.json``."""
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
     report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
     per_ut = summary.per_ut_table()
     if out_dir is None:
         return Result(result_summary, None, [], sinks[1], report, per_ut)
-    files = [p for s in sinks for p in getattr(s, "files", [])]
+    files = []
     if "per_ut" not in result_summary:  # a large run: the tables beside summary.json
         files.append(write_parquet_atomic(per_ut, out_dir / "per_ut.parquet"))
         files.append(write_parquet_atomic(summary.dwell_table(), out_dir / "dwells.parquet"))
@@ -230,6 +240,8 @@ def _run_and_write(cfg, scen, out_dir, summary, sinks, progress):
     files.append(write_json_atomic(out_dir / "summary.json", result_summary))
     files.append(write_text_atomic(out_dir / "config.resolved.toml", config_text))
     for sink in sinks:
-        files += sink.after_run(result_summary, config_text) if hasattr(sink, "after_run") else []
+        if hasattr(sink, "after_run"):
+            sink.after_run(result_summary, config_text)
+    files += [p for s in sinks for p in getattr(s, "files", [])]
     files.append(write_manifest(out_dir, files, "run", config_text, version=leolink.__version__))
     return Result(result_summary, out_dir, files, None, report, per_ut)

@@ -17,6 +17,8 @@ import os
 
 import numpy as np
 
+from leolink.compiled import enabled, n_threads
+
 __all__ = ["JIT_MIN_PAIRS", "enabled", "links_arrays", "screen_kernel", "serve_columns"]
 __all__ += ["n_threads", "run_rows", "serve_pairs", "use"]
 
@@ -28,27 +30,15 @@ SPLIT_MIN_ROWS = 16_384
 
 
 @functools.cache
-def n_threads():
-    """Threads a large kernel call is split over: ``LEOLINK_THREADS`` if set, else the
-    CPUs this process may run on."""
-    env = os.environ.get("LEOLINK_THREADS", "").strip()
-    if env:
-        if not env.isdigit() or int(env) < 1:
-            from leolink.errors import ConfigError
-
-            raise ConfigError(f"LEOLINK_THREADS = {env!r} is not allowed: a whole number >= 1")
-        return int(env)
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-@functools.cache
 def _pool():
     from concurrent.futures import ThreadPoolExecutor
 
     return ThreadPoolExecutor(max(1, n_threads() - 1), thread_name_prefix="leolink-kernel")
+
+
+# A forked child (leolink.io.render) has none of the pool's threads: it starts its own.
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_pool.cache_clear)
 
 
 def run_rows(kernel, n, *args, row_size=1):
@@ -67,18 +57,6 @@ def run_rows(kernel, n, *args, row_size=1):
     kernel(*args, 0, edges[1])  # this thread's share
     for task in tasks:
         task.result()
-
-
-@functools.cache
-def enabled():
-    """Whether numba is installed and not turned off (``LEOLINK_JIT=0``)."""
-    if os.environ.get("LEOLINK_JIT", "1").strip() in ("0", "false", "no", "off"):
-        return False
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 def kernels():

@@ -34,6 +34,7 @@ __all__ = [
     "build_table_report",
     "figure_data_uri",
     "kpi_rows",
+    "rendered_figures",
     "run_map_figure",
     "run_figures",
 ]
@@ -252,6 +253,11 @@ def run_figures(stats, summary=None):
     ]
 
 
+def rendered_figures(stats):
+    """:func:`run_figures` as PNG ``data:`` URIs: list of ``(caption, uri)``."""
+    return [(cap, figure_data_uri(fig)) for cap, fig in run_figures(stats)]
+
+
 def _page(title, sections):
     body = "".join(f"<h2>{html.escape(h)}</h2>{content}" for h, content in sections)
     return (
@@ -286,6 +292,7 @@ def build_run_report(
     title="leolink run report",
     animation_path=None,
     embed_max_bytes=8_000_000,
+    figures=None,
 ):
     """Write ``report.html`` of a run.
 
@@ -300,6 +307,8 @@ def build_run_report(
         The resolved config (TOML), shown verbatim.
     animation_path : path-like, optional
         A GIF to embed (or link when over ``embed_max_bytes`` bytes).
+    figures : list of (caption, str), optional
+        :func:`rendered_figures` of ``stats``, if already drawn (default: drawn here).
 
     Returns
     -------
@@ -313,7 +322,8 @@ def build_run_report(
         + _table(["run", "value"], _flatten(summary.get("run", {})))
         + "</div>"
     )
-    figures = [(cap, _img(figure_data_uri(fig), cap)) for cap, fig in run_figures(stats)]
+    figures = rendered_figures(stats) if figures is None else figures
+    figures = [(cap, _img(uri, cap)) for cap, uri in figures]
     sections = [("Key figures", key_tables), figures[0]]
     if animation_path is not None and Path(animation_path).exists():
         sections.append(

@@ -72,7 +72,7 @@ class ReportSink:
         self.out_dir = None if out_dir is None else Path(out_dir)
         self.params, self.ephemeris, self.codebook = params, ephemeris, codebook
         self.epoch_utc = epoch_utc
-        self.stats, self.files, self.animation = None, [], None
+        self.stats, self.files, self.animation, self._jobs = None, [], None, []
 
     def start(self, info):
         uts = list(self.params.uts) or default_series_uts(info.population)
@@ -131,25 +131,39 @@ class ReportSink:
                 stats.add_satellites(times[lo + i], pos[i, serving], vel[i, serving], serving)
 
     def finish(self, final):
+        """Complete the statistics and save them; start drawing the animation (and the
+        exports) and the page's figures, each in a child process (:mod:`leolink.io.render`)."""
+        from leolink.io.render import start
+
         self._flush()
         self._add_dwells(final.dwells)
         self._add_satellites()
         if self.out_dir is None:
             return
-        stats, written = self.stats, []
-        written.append(stats.save(self.out_dir / "report_stats.npz"))
+        self.files = [self.stats.save(self.out_dir / "report_stats.npz")]
+        self._jobs = [start("the report's animation", self._draw_files)]
+        self._jobs.append(start("the report's figures", self._draw_figures))
+
+    def _draw_files(self):
+        """``footprint.gif`` (and the exports): ``(animation path or None, written)``."""
+        stats, animation, written = self.stats, None, []
         drawable = stats.sat_pos_m is not None and stats.beam_u_xy is not None
         if self.params.animation and drawable:
             from leolink.io.animation import frames_from_stats, write_footprint_gif
 
             frames = frames_from_stats(stats, self.params.max_frames)
-            self.animation = write_footprint_gif(self.out_dir / "footprint.gif", frames)["path"]
-            written.append(self.animation)
+            animation = write_footprint_gif(self.out_dir / "footprint.gif", frames)["path"]
+            written.append(animation)
         if self.params.exports:
             from leolink.io.report_dir import write_exports
 
             written += write_exports(stats, self.out_dir, self.epoch_utc)
-        self.files = written
+        return animation, written
+
+    def _draw_figures(self):
+        from leolink.io.report import rendered_figures
+
+        return rendered_figures(self.stats)
 
     def after_run(self, summary, config_text):
         """Write ``report.html`` from the final summary; returns the written paths."""
@@ -157,15 +171,20 @@ class ReportSink:
             return []
         from leolink.io.report import build_run_report
 
+        (self.animation, drawn), figures = (job.result() for job in self._jobs)
         page = build_run_report(
             self.out_dir / "report.html",
             summary,
             self.stats,
             config_text,
             animation_path=self.animation,
+            figures=figures,
         )
-        self.files = [*self.files, page]
-        return [page]
+        self.files = [*self.files, *drawn, page]
+        return [*drawn, page]
 
     def abort(self):
+        """Drop the buffered rows; stop the drawing if it runs."""
         self._buffer, self._n_buffered = [], 0
+        for job in self._jobs:
+            job.cancel()
