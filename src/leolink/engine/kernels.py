@@ -193,14 +193,13 @@ def serve_kernel(kx, ky, path_snr, rel, slant, elevation, pair, beam, served, ix
         if has_enu:
             e0, e1, e2 = enu[r, 0, 0], enu[r, 0, 1], enu[r, 0, 2]
             n0, n1, n2 = enu[r, 1, 0], enu[r, 1, 1], enu[r, 1, 2]
-        else:
+            east = _dot3(l0, l1, l2, e0, e1, e2)
+            north = _dot3(l0, l1, l2, n0, n1, n2)
+        else:  # links.azimuth_deg: the sphere's east and north times h r
             x, y, z = ut_pos[r, 0], ut_pos[r, 1], ut_pos[r, 2]
-            lat, lon = np.arctan2(z, np.hypot(x, y)), np.arctan2(y, x)
-            sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-            e0, e1, e2 = -so, co, 0.0
-            n0, n1, n2 = -sl * co, -sl * so, cl
-        east = _dot3(l0, l1, l2, e0, e1, e2)
-        north = _dot3(l0, l1, l2, n0, n1, n2)
+            h2 = x * x + y * y
+            east = np.sqrt(h2 + z * z) * (x * l1 - y * l0)
+            north = h2 * l2 - z * (x * l0 + y * l1)
         rho = slant[p]
         out[0, r] = (elevation[p] * _DEG) * nan
         out[1, r] = rho * nan

@@ -18,7 +18,7 @@ import numpy as np
 from leolink.antenna.array import dirichlet_kernels
 from leolink.engine import jit
 from leolink.engine.steered import beam_centres, steered_kernels
-from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis
+from leolink.geometry import body_frame
 
 __all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
 __all__ += ["panel_elevation_of_pairs", "reuse_colors", "rows_gain_db"]
@@ -333,11 +333,22 @@ def reuse_colors(lattice_ij, n_colors):
 
 
 def azimuth_deg(los, ut_pos_m, ut_enu):
-    """Azimuth of each row's link ``los (n, 3)`` (UT -> satellite) [deg], [0, 360)."""
-    enu = ut_enu
-    if enu is None:
-        lat, lon, _ = ecef_to_geodetic(ut_pos_m)
-        enu = enu_basis(lat, lon)
-    east = np.einsum("uk,uk->u", los, enu[:, 0, :])
-    north = np.einsum("uk,uk->u", los, enu[:, 1, :])
+    """Azimuth of each row's link ``los (n, 3)`` (UT -> satellite) [deg], [0, 360).
+
+    With ``ut_enu`` (rows east, north, up): ``atan2(los . east, los . north)``. Without,
+    the sphere's local frame at ``p = (x, y, z)``, ``h^2 = x^2 + y^2``, ``r = |p|``:
+    east ``(-y, x, 0) / h`` and north ``(-z x, -z y, h^2) / (h r)``; both components
+    times ``h r > 0`` leave the angle unchanged, so
+    ``atan2(r (x l_y - y l_x), h^2 l_z - z (x l_x + y l_y))``: no trigonometry but the
+    last arctangent (the same angle as through latitude and longitude, to ~1e-13 deg).
+    """
+    if ut_enu is not None:
+        east = np.einsum("uk,uk->u", los, ut_enu[:, 0, :])
+        north = np.einsum("uk,uk->u", los, ut_enu[:, 1, :])
+    else:
+        x, y, z = ut_pos_m[:, 0], ut_pos_m[:, 1], ut_pos_m[:, 2]
+        lx, ly, lz = los[:, 0], los[:, 1], los[:, 2]
+        h2 = x * x + y * y
+        east = np.sqrt(h2 + z * z) * (x * ly - y * lx)
+        north = h2 * lz - z * (x * lx + y * ly)
     return np.mod(np.degrees(np.arctan2(east, north)), 360.0)
