@@ -109,6 +109,7 @@ MODULES = {
         "tests/test_environment_in_run.py",
         "tests/test_active_beams.py",
         "tests/test_link_figures_in_run.py",
+        "tests/test_monitor_contracts.py",
         "tests/test_cli.py::test_warmup_epochs_are_not_recorded_and_cut_dwells_are_censored",
         "--deselect=tests/test_simulation.py::test_same_seed_same_trace_whatever_the_chunk_size",
         "--deselect=tests/test_handover_wiring.py::test_kpis_equal_the_trace_and_events_recomputed",
