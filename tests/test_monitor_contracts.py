@@ -6,7 +6,9 @@
   ``-f/c d(range)/dt`` of the ephemeris' own positions, by central differences;
 - fading inside an environment: the fading factor of each row is the one of the same UT
   and epoch in open country (the draws are per UT and epoch), on top of the
-  environment's loss.
+  environment's loss;
+- fading with scan loss: each row's factor is its draw over the mean of its own receive
+  gain.
 """
 
 from pathlib import Path
@@ -121,3 +123,26 @@ def test_fading_inside_an_environment_is_the_open_country_fading(tmp_path):
     # ... on top of the environment's own loss (shadowing, clutter): the SNRs differ
     loss = out["open", False].snr_db[same] - out[env, False].snr_db[same]
     assert (loss.abs() > 0.1).mean() > 0.5
+
+
+def test_fading_of_every_row_is_its_draw_over_the_mean_of_its_own_receive_gain():
+    """Scan loss on (the receive gain differs row by row): each row's SNR with fading
+    minus without is ``10 log10(|sqrt(N) + g / sqrt(K)|^2 / (N + 1/K))`` (paper Sec. 4.1)
+    with ``N`` the row's own mean receive gain and ``g`` the run's draw for that UT and
+    epoch (counter-based, ``leolink.rng``); float rounding only (1e-9 dB)."""
+    from leolink.rng import complex_normal, ut_keys
+
+    over = [*QUIET, "run.duration_s=30.0", "run.start_s=-15.0", "terminal.upa.scan_loss=true"]
+    cfg = load_config(PAPER, over)
+    mean = run(cfg).trace
+    fading = run(load_config(PAPER, [*over, 'link.fading="rician"'])).trace
+    ok = mean.snr_db.notna() & fading.snr_db.notna()
+    assert ok.sum() > 100 and mean.gain_rx_db[ok].nunique() > 100
+    n_ut = mean.ut_id.max() + 1
+    epoch = np.round((mean.time_s - mean.time_s.min()) / cfg.run.epoch_s).astype(int)
+    keys = ut_keys(cfg.run.seed, n_ut)
+    g = np.array([complex_normal(keys[[u]], k)[0] for u, k in zip(mean.ut_id, epoch, strict=True)])
+    n, k = 10 ** (mean.gain_rx_db.to_numpy() / 10), cfg.link.rician_k
+    factor_db = 10 * np.log10(np.abs(np.sqrt(n) + g / np.sqrt(k)) ** 2 / (n + 1 / k))
+    got = (fading.snr_db - mean.snr_db).to_numpy()
+    np.testing.assert_allclose(got[ok], factor_db[ok], rtol=0, atol=1e-9)
