@@ -8,6 +8,8 @@ satellites below the horizon, beam peaks and the other degenerate cases a run me
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -74,22 +76,42 @@ def test_pair_geometry_and_kernels_are_the_numpy_bits(epoch, ellipsoid_up):
     assert got[4].sum() > 900  # the zenith pairs are visible: the test sees real links
 
 
-def test_evaluate_pairs_and_snr_db_are_the_numpy_bits(epoch, monkeypatch):
+def _turned(enu, tilt_rad=math.pi / 180, turn_rad=math.pi / 9):
+    """Local frames whose up is tilted ``tilt_rad`` about east and whose east is then turned
+    ``turn_rad`` about that up (rows east, north, up): not the sphere's frame."""
+
+    def rot(v, axis, a):  # Rodrigues, per row
+        dot = np.sum(v * axis, axis=-1, keepdims=True)
+        return v * np.cos(a) + np.cross(axis, v) * np.sin(a) + axis * dot * (1 - np.cos(a))
+
+    e, n, u = enu[:, 0], enu[:, 1], enu[:, 2]
+    n, u = rot(n, e, tilt_rad), rot(u, e, tilt_rad)
+    return np.stack([rot(e, u, turn_rad), rot(n, u, turn_rad), u], axis=1)
+
+
+@pytest.mark.parametrize("given_up", [False, True])
+def test_evaluate_pairs_and_snr_db_are_the_numpy_bits(epoch, monkeypatch, given_up):
+    """With the sphere's up, and with a given up 1 deg off it (the fused geometry must use
+    it: elevations and visibility differ)."""
     eng, uts, pos, vel, _, ut, sat, _ = epoch
     assert jit.use(ut.size)
-    links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
+    up = _turned(enu_basis(uts.lat_rad, uts.lon_rad))[:, 2] if given_up else None
+    links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat, up)
     snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)
     _numpy(monkeypatch)
-    ref = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
+    ref = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat, up)
+    assert _same(links.elevation_rad, ref.elevation_rad)
     assert _same(links.path_lin, ref.path_lin) and _same(links.kx, ref.kx)
     assert _same(snr, ref.snr_db_bm(eng.beam_ix, eng.beam_iy))
     assert np.isfinite(snr).sum() > 15 * 900
 
 
-@pytest.mark.parametrize("extras", [False, True])
+@pytest.mark.parametrize("extras", [False, True, "lit"])
 def test_serving_columns_are_the_numpy_bits(epoch, monkeypatch, extras):
     """Every serving column, with and without fading, other-satellite interference and
-    given local frames; rows without a link (pair -1) are NaN in both."""
+    given local frames (turned 20 deg from the sphere's: the azimuth must use them), and
+    with lit beams (active beams: the numpy path, which the fused kernel must not take);
+    rows without a link (pair -1) are NaN in both."""
     eng, uts, pos, vel, acc, ut, sat, rng = epoch
     links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
     n = 30_000
@@ -101,7 +123,10 @@ def test_serving_columns_are_the_numpy_bits(epoch, monkeypatch, extras):
     if extras:
         lat, lon, _ = ecef_to_geodetic(kw["ut_pos_m"])
         kw.update(rx_fading_lin=rng.uniform(0.2, 1.5, n), i_other=rng.uniform(0.0, 0.3, n),
-                  ut_enu=enu_basis(lat, lon))  # fmt: skip
+                  ut_enu=_turned(enu_basis(lat, lon)))  # fmt: skip
+    if extras == "lit":
+        kw["lit"] = rng.random((n, eng.n_beam)) < 0.5
+        kw["lit"][np.arange(n), beam] = True  # the serving beam is lit (as a run has it)
     got = eng.serve_pairs(links, pair, beam, *args, **kw)
     _numpy(monkeypatch)
     ref = eng.serve_pairs(links, pair, beam, *args, **kw)

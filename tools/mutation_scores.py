@@ -38,7 +38,16 @@ MODULES = {
     # The engine package, file by file; its numba kernels (engine/kernels.py) are not
     # mutated (mutmut's trampolines cannot run inside jitted code): every run here sets
     # LEOLINK_JIT=0, so the numpy reference path is what is measured.
-    "engine/__init__": ENGINE_TESTS,
+    # serve_pairs' paths that the engine files above never take: active beams' lit
+    # beams, tilted panels and a given ENU, fading, other satellites' interference.
+    "engine/__init__": [
+        *ENGINE_TESTS,
+        "tests/test_engine_contracts.py",
+        "tests/test_active_beams.py",
+        "tests/test_terminal_scan_loss.py",
+        "tests/test_fading_in_run.py",
+        "tests/test_link_figures_in_run.py",
+    ],
     "engine/links": [*ENGINE_TESTS, "tests/test_links_contracts.py"],
     "engine/screening": ENGINE_TESTS,
     "kinematics": ["tests/test_kinematics.py", "tests/test_trace_independent.py"],
@@ -88,7 +97,24 @@ MODULES = {
     "sim/controller": ["tests/test_controller.py", "tests/test_simulation.py"],
     # The recording of a run (the former sim/recorder.py): trace frames and the deferred
     # recording (sim/monitor.py), the policy step per epoch (sim/decide.py).
-    "sim/monitor": SIM_RUN_TESTS,
+    # Every path of the monitor: RLF per epoch (test_handover_wiring), links on the true
+    # states (test_ephemeris_error), fading, environments (blocked outages), active beams
+    # and beam sharing, other satellites and the SINR service threshold, the warm-up's
+    # censored dwells. The slowest checks that add no path of their own are left out.
+    "sim/monitor": [
+        *SIM_RUN_TESTS,
+        "tests/test_handover_wiring.py",
+        "tests/test_ephemeris_error.py",
+        "tests/test_fading_in_run.py",
+        "tests/test_environment_in_run.py",
+        "tests/test_active_beams.py",
+        "tests/test_link_figures_in_run.py",
+        "tests/test_monitor_contracts.py",
+        "tests/test_cli.py::test_warmup_epochs_are_not_recorded_and_cut_dwells_are_censored",
+        "--deselect=tests/test_simulation.py::test_same_seed_same_trace_whatever_the_chunk_size",
+        "--deselect=tests/test_handover_wiring.py::test_kpis_equal_the_trace_and_events_recomputed",
+        "--deselect=tests/test_environment_in_run.py::test_scintillation_twice_is_refused",
+    ],
     "sim/decide": [*SIM_RUN_TESTS, "tests/test_environment_floor.py"],
     "sim/processes": [
         "tests/test_candidates.py",
@@ -136,7 +162,9 @@ def _prepare(dest: Path, module: str, root: Path = ROOT) -> None:
     if sep:  # drop the repository's own section (it mutates every listed module at once)
         rest = _.split("\n[", 1)
         head = head + ("[" + rest[1] if len(rest) > 1 else "")
-    tests = [t for t in MODULES[module] if (root / t).exists()]  # an older tree may lack some
+    # an older tree may lack some files; "--..." items are pytest options, "::" a test's id
+    tests = [t for t in MODULES[module]
+             if t.startswith("-") or (root / t.split("::")[0]).exists()]  # fmt: skip
     (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
 
 
