@@ -11,8 +11,11 @@ jobs of a run and its own last work then share the machine's cores: on two cores
 constellation's ~11 s of pictures take ~6 s of wall time.
 
 The pictures are the same bytes as when drawn in the run's own process (a test compares
-them). ``LEOLINK_FORK=0`` in the environment, or a platform without ``fork``, runs every
-job in the calling process at :func:`start`.
+them). The run's other threads (the kernels' pool, idle then; the trace writer's, joined
+before) hold nothing a child needs: the kernels' pool is dropped in a child
+(:mod:`leolink.engine.jit`), and Python 3.12's warning of a fork with threads is silenced.
+``LEOLINK_FORK=0`` in the environment, or a platform without ``fork``, runs every job in
+the calling process at :func:`start`.
 
 Stopping: a child ignores SIGINT (a Ctrl-C in a terminal reaches the whole process group;
 the run stops its children itself) and turns SIGTERM into ``KeyboardInterrupt``, so that
@@ -30,6 +33,7 @@ import signal
 import sys
 import time
 import traceback
+import warnings
 
 from leolink.errors import LeolinkError
 
@@ -129,7 +133,9 @@ def start(name, func, *args, **kwargs):
             job._outcome = ("error", exc)
         return job
     read_fd, write_fd = os.pipe()
-    pid = os.fork()
+    with warnings.catch_warnings():  # Python >= 3.12 warns of a fork with threads: the
+        warnings.simplefilter("ignore", DeprecationWarning)  # child takes none of their locks
+        pid = os.fork()
     if pid == 0:  # the child: never returns into the caller's frames
         os.close(read_fd)
         _child(write_fd, func, args, kwargs)
