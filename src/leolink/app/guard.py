@@ -23,6 +23,8 @@ import sys
 import threading
 import warnings
 
+from leolink.io.render import die_with_parent
+
 __all__ = [
     "SILENCED",
     "Stopped",
@@ -33,7 +35,6 @@ __all__ = [
 ]
 
 _SIGNALS = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
-_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 _WATCHDOG_S = 0.5
 
 #: (message regex, category, module regex, why it is silenced).
@@ -148,12 +149,7 @@ def worker_init(parent_pid: int):
     """Initializer of a sweep's worker process (``ProcessPoolExecutor(initializer=...)``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_term)
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    die_with_parent(signal.SIGTERM)
     if _parent_gone(parent_pid):  # the parent died before prctl took effect
         os._exit(128 + signal.SIGTERM)
     threading.Thread(target=_watchdog, args=(parent_pid,), daemon=True).start()
