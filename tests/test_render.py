@@ -19,7 +19,7 @@ from leolink.engine import jit
 from leolink.errors import LeolinkError
 from leolink.io import plots, render
 from leolink.io.atomic import PendingFiles
-from reliability_helpers import PAPER, files_in
+from reliability_helpers import PAPER, ROOT, files_in
 from test_signals import _alive, _children, _kill_left, _start, _wait_for
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="fork: Linux and macOS")
@@ -222,3 +222,41 @@ def test_sigterm_while_the_pictures_are_drawn_stops_them_cleanly(tmp_path):
     left = files_in(out)
     assert not [f for f in left if ".partial" in f], left
     assert "run.json" not in left and "footprint.gif" not in left
+
+
+_ORPHAN = """
+import sys, time
+from pathlib import Path
+from leolink.io import render
+from leolink.io.atomic import PendingFiles
+
+def slow(folder):
+    with PendingFiles() as pending:
+        pending.open(Path(folder) / "slow.png").write(b"half a picture")
+        time.sleep(60)
+
+job = render.start("a slow picture", slow, sys.argv[1])
+print(job._pid, flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="prctl(PR_SET_PDEATHSIG)")
+def test_a_child_stops_cleanly_when_the_run_is_killed(tmp_path):
+    """SIGKILL of the run's process (no cleanup of its own): the kernel sends its drawing
+    child SIGTERM, and the child removes its temporary file."""
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "LEOLINK_FORK": "1"}
+    cmd = [sys.executable, "-c", _ORPHAN, str(tmp_path)]
+    parent = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
+    child = None
+    try:
+        child = int(parent.stdout.readline())
+        _wait_for(lambda: any(".partial" in f for f in files_in(tmp_path)), "the partial file")
+        parent.kill()
+        parent.wait(timeout=30)
+        _wait_for(lambda: not _alive(child), "the child to stop")
+    finally:
+        _kill_left([parent.pid] + ([child] if child else []))
+    assert files_in(tmp_path) == []
