@@ -22,6 +22,7 @@ from leolink.config import load_config
 from leolink.engine import LinkEngine, screening
 from leolink.engine.screening import UNCERTAIN, VISIBLE, envelope, screen
 from leolink.geometry import body_frame, enu_basis
+from leolink.sim import search
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.processes import candidate_satellites
 from leolink.sim.search import CandidateSearch
@@ -221,3 +222,37 @@ def test_pruned_tables_of_tilted_panels_are_the_exhaustive_tables(block, tilted)
     (r, c, v, b), (r0, c0, v0, b0) = out
     assert np.array_equal(r, r0) and np.array_equal(c, c0) and np.array_equal(v, v0)
     assert np.array_equal(b, b0, equal_nan=True)
+
+
+@pytest.mark.parametrize("floor_db", [-np.inf, 5.0])
+@pytest.mark.parametrize("pairs", [1, 37, 1024])
+def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_db):
+    """The tables are built in chunks of whole rows (bounded memory): chunks of one pair
+    (every row longer than a chunk), of 37 pairs (cuts inside rows moved to the next row)
+    and of 1024 give the tables of one chunk, bit for bit."""
+    eng, n_ut, mb, cones = block
+    window_db = np.inf if floor_db > -np.inf else 3.0
+    cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
+    assert ref.links.n_pair > 4 * 1024  # several chunks of every size
+    monkeypatch.setattr(search, "TABLE_PAIRS", pairs)
+    cells, snr, blk = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
+    assert np.array_equal(cells, cells_ref) and np.array_equal(snr, snr_ref)
+    assert np.array_equal(blk.best_cell, ref.best_cell)
+    assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
+    assert np.array_equal(blk.n_visible, ref.n_visible)
+
+
+@given(
+    rows=st.lists(st.integers(0, 6), max_size=40).map(lambda r: np.sort(np.array(r, int))),
+    size=st.integers(1, 12),
+)
+def test_row_chunks_cut_only_between_rows(rows, size):
+    slices = list(search._row_chunks(rows, size))
+    assert slices[0][0] == 0 and slices[-1][1] == rows.size
+    assert all(a[1] == b[0] for a, b in zip(slices, slices[1:], strict=False))
+    for lo, hi in slices:
+        assert hi > lo or rows.size == 0
+        # at most `size` entries, then the rest of the last one's row
+        assert hi - lo <= size or rows[lo + size - 1] == rows[hi - 1]
+        if hi < rows.size:
+            assert rows[hi - 1] != rows[hi]  # a row is never split

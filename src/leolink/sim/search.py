@@ -41,6 +41,9 @@ __all__ = ["DENSE_CONE", "BlockCandidates", "CandidateSearch"]
 
 #: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each).
 SCREEN_PAIRS = 1 << 18
+#: Evaluated pairs turned into table entries at once (bounds the (pairs, beams)
+#: temporaries: ~4 MiB each with 16 beams).
+TABLE_PAIRS = 1 << 15
 #: Cones of at most this many satellites are evaluated whole (screening would not pay).
 DENSE_CONE = 2
 
@@ -241,44 +244,65 @@ class CandidateSearch:
         return links
 
     def _tables(self, k0, n_ut, n_k, links, sure):
-        """Window tables and diagnostics of the sorted evaluated pairs."""
+        """Window tables and diagnostics of the sorted evaluated pairs, in chunks of whole
+        rows (:data:`TABLE_PAIRS` pairs): the (pairs, beams) temporaries stay bounded
+        however many satellites a block sees; every value is one row's, so the tables do
+        not depend on the chunks."""
         eng, nb, n_rows = self.engine, self.engine.n_beam, n_k * n_ut
-        vis = links.visible
-        rows, sat = links.ut[vis], links.sat[vis]
-        snr = links.take(np.flatnonzero(vis)).snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (m, nb)
-        n_visible = sure + np.bincount(rows, minlength=n_rows)
+        vis = np.flatnonzero(links.visible)
+        rows_vis = links.ut[vis]
+        n_visible = sure + np.bincount(rows_vis, minlength=n_rows)
         best_db = np.full(n_rows, np.nan)
-        if rows.size:
-            start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+        best_cell = np.full(n_rows, -1, np.int64)
+        entries = []
+        for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
+            pairs = vis[lo:hi]
+            rows, sat = rows_vis[lo:hi], links.sat[pairs]
+            snr = links.take(pairs).snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (m, nb)
+            if rows.size:
+                start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+                with np.errstate(invalid="ignore"):
+                    pair_best = np.fmax.reduce(snr, axis=1)
+                    best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
+            cell = sat[:, None] * nb + np.arange(nb)[None, :]
             with np.errstate(invalid="ignore"):
-                pair_best = np.fmax.reduce(snr, axis=1)
-                best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
-        cell = sat[:, None] * nb + np.arange(nb)[None, :]
-        with np.errstate(invalid="ignore"):
-            keep = snr >= (best_db - self.window_db)[rows][:, None]
-        r = np.broadcast_to(rows[:, None], cell.shape)
-        if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
-            best_cell = _best_cells(rows, cell, snr, best_db, n_rows)
-            with np.errstate(invalid="ignore"):
-                keep &= snr >= self.floor_db
-            table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
-        else:
-            table = Candidates.from_entries(n_rows, r[keep], cell[keep], snr[keep])
+                keep = snr >= (best_db - self.window_db)[rows][:, None]
+            if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
+                _best_cells(rows, cell, snr, best_db, best_cell)
+                with np.errstate(invalid="ignore"):
+                    keep &= snr >= self.floor_db
+            r = np.broadcast_to(rows[:, None], cell.shape)
+            entries.append((r[keep], cell[keep], snr[keep]))
+        ut, cell, snr = (np.concatenate(e) for e in zip(*entries, strict=True))
+        table = Candidates.from_entries(n_rows, ut, cell, snr)
+        if self.floor_db == -np.inf:
             best_cell, _ = table.best()
         return BlockCandidates(
             k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
         )
 
 
-def _best_cells(rows, cell, snr, best_db, n_rows):
-    """Each row's best cell (-1 where its best SNR is not finite), ties to the lowest id,
-    as :meth:`Candidates.best` of the whole table, without building it.
+def _row_chunks(rows, size):
+    """``(lo, hi)`` slices of the sorted ``rows`` of about ``size`` entries each, cut
+    between rows (a row longer than ``size`` is one slice); one empty slice if none."""
+    lo, n = 0, rows.size
+    while True:
+        hi = n if lo + size >= n else int(np.searchsorted(rows, rows[lo + size - 1], "right"))
+        yield lo, hi
+        if hi >= n:
+            return
+        lo = hi
+
+
+def _best_cells(rows, cell, snr, best_db, out):
+    """Write into ``out`` each of ``rows``' best cell (left as is where its best SNR is
+    not finite), ties to the lowest id, as :meth:`Candidates.best` of the whole table,
+    without building it.
 
     ``rows`` (m,) sorted, with the pairs of a row by ascending satellite, so that the
     entries ``(pair, beam)`` of a row, flattened, are in ascending cell id: the first
     entry equal to the row's best is the lowest tied cell.
     """
-    out = np.full(n_rows, -1, np.int64)
     with np.errstate(invalid="ignore"):
         ok = np.isfinite(best_db)
         tied = (snr == best_db[rows][:, None]) & ok[rows][:, None]
