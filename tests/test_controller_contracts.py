@@ -355,3 +355,19 @@ def test_the_policy_gets_the_epoch_time_and_the_tables_masked_at_min_snr():
     message = r"^policy Probe\(\) returned an unusable candidate for 1 UT\(s\), first ut_id 1 -> 1$"
     with pytest.raises(ValueError, match=message):
         step(0.0, now, state, Probe(bad=True), 3.0, 0.0, 2)
+
+
+def test_the_controller_decides_again_at_the_epoch_the_execution_ends():
+    """Epochs accumulate 0.1 s steps and the execution lasts 3 x 0.1 s: the handover at
+    epoch 3 ends at t_3 + 0.3, one ulp after t_6 (the 1 ns tolerance): the switch back
+    asked for at epoch 6 happens at epoch 6, not one epoch late."""
+    snr, ho_s = np.full((1, 2), 10.0), 3 * 0.1
+    t_s, times, state = [0.0], [], ControllerState.initial(1)
+    for _ in range(9):
+        t_s.append(t_s[-1] + 0.1)
+    assert t_s[6] < t_s[3] + ho_s  # the rounding this test is about
+    for k, target in enumerate([0, 0, 0, 1, 1, 1, 0, 0, 0]):
+        res = step(t_s[k], snr, state, Given(0.0), 0.0, ho_s, 2, target=np.array([target]))
+        times += [k] * res.events["time_s"].size
+        state = res.state
+    assert times == [3, 6]
