@@ -94,7 +94,16 @@ MODULES = {
     "link/budget": ["tests/test_budget.py", "tests/test_trace_independent.py"],
     "link/fading": ["tests/test_fading.py", "tests/test_fading_in_run.py"],
     "rng": ["tests/test_rng.py", "tests/test_fading_in_run.py"],
-    "sim/controller": ["tests/test_controller.py", "tests/test_simulation.py"],
+    # The controller's own tests (hand-built sequences, the scalar reference of
+    # test_controller_contracts.py) and the run tests (resumed events, interruptions, the
+    # dwells' and events' columns through the sinks); the 45 s chunk-size check adds no
+    # path of its own.
+    "sim/controller": [
+        "tests/test_controller.py",
+        "tests/test_controller_contracts.py",
+        "tests/test_simulation.py",
+        "--deselect=tests/test_simulation.py::test_same_seed_same_trace_whatever_the_chunk_size",
+    ],
     # The recording of a run (the former sim/recorder.py): trace frames and the deferred
     # recording (sim/monitor.py), the policy step per epoch (sim/decide.py).
     # Every path of the monitor: RLF per epoch (test_handover_wiring), links on the true
