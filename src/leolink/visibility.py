@@ -26,6 +26,8 @@ __all__ = ["gmst82_rad", "teme_to_ecef_m", "tle_elevations_rad"]
 SECONDS_PER_DAY = 86_400.0
 #: Default memory of one block of work [bytes] (a few float64 arrays of the block's size).
 BLOCK_BYTES = 64 * 2**20
+#: Fewest blocks of times of the compiled path (sgp4 of one overlaps the kernel of another).
+PIPELINE_BLOCKS = 8
 
 
 def gmst82_rad(jd_ut1, fr_ut1=0.0):
@@ -108,17 +110,38 @@ def tle_elevations_rad(
     # matrix products: the result does not depend on the blocks (BLAS rounding does).
     kernel = _kernel()
     t_step = max(1, min(n_time, int(block_bytes // (64 * max(n_sat, 1)))))
+    if kernel is not None:
+        _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step)
+        return out
     for t0 in range(0, n_time, t_step):
         t = slice(t0, t0 + t_step)
         r = _earth_fixed_states(sats, jd[t], fr[t], ut1[t])  # (3, n_sat * n_t)
-        if kernel is not None:  # every site at once: the kernel keeps no temporaries
-            kernel(r, site, normal, out[:, :, t])
-            continue
         s_step = max(1, int(block_bytes // (48 * r.shape[1])))
         for lo in range(0, lat.size, s_step):
             elev = _elevations(r, site[lo : lo + s_step], normal[lo : lo + s_step])
             out[lo : lo + s_step, :, t] = elev.reshape(len(elev), n_sat, -1)
     return out
+
+
+def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
+    """The compiled path, every site at once (the kernel keeps no temporaries), in at
+    least :data:`PIPELINE_BLOCKS` blocks of times: sgp4, which holds the GIL, propagates
+    the next block on a thread while the kernel, which releases it, fills this one."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    t_step = max(1, min(t_step, -(-jd.size // PIPELINE_BLOCKS)))
+    blocks = [slice(t0, t0 + t_step) for t0 in range(0, jd.size, t_step)]
+    with ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as pool:
+
+        def states(t):
+            return pool.submit(_earth_fixed_states, sats, jd[t], fr[t], ut1[t])
+
+        pending = states(blocks[0]) if blocks else None
+        for i, t in enumerate(blocks):  # (no block: no time, nothing to fill)
+            r = pending.result()
+            if i + 1 < len(blocks):
+                pending = states(blocks[i + 1])
+            kernel(r, site, normal, out[:, :, t])
 
 
 def _kernel():
