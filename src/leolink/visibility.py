@@ -126,7 +126,8 @@ def tle_elevations_rad(
 def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
     """The compiled path, every site at once (the kernel keeps no temporaries), in at
     least :data:`PIPELINE_BLOCKS` blocks of times: sgp4, which holds the GIL, propagates
-    the next block on a thread while the kernel, which releases it, fills this one."""
+    the next block on a thread while the kernel, which releases it, fills this one (so two
+    blocks' states are alive at once: twice ``block_bytes``)."""
     from concurrent.futures import ThreadPoolExecutor
 
     t_step = max(1, min(t_step, -(-jd.size // PIPELINE_BLOCKS)))

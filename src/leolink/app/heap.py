@@ -27,22 +27,27 @@ MMAP_THRESHOLD_BYTES = 4 * 2**20
 M_MMAP_THRESHOLD = -3  # <malloc.h>
 #: The environment's own malloc settings (glibc reads them at start-up): left alone.
 _TUNABLES = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_",
-             "MALLOC_MMAP_MAX_", "GLIBC_TUNABLES")  # fmt: skip
+             "MALLOC_MMAP_MAX_")  # fmt: skip
 
 
 def fix_mmap_threshold(nbytes=MMAP_THRESHOLD_BYTES):
     """Fix glibc's mmap threshold at ``nbytes`` for this process (``mallopt``).
 
     Nothing is done off Linux, with another C library (whose ``mallopt`` returns 0 or is
-    missing), or where the environment sets glibc's malloc tunables (the user's choice
-    wins). Process-wide and harmless to call again.
+    missing), or where the environment sets glibc's malloc tunables (``MALLOC_*_`` or a
+    ``glibc.malloc.*`` in ``GLIBC_TUNABLES``: the user's choice wins). Process-wide and
+    harmless to call again.
 
     Returns
     -------
     bool
-        Whether the threshold was set.
+        Whether glibc's allocator took the threshold (meaningless under an allocator
+        preloaded with ``LD_PRELOAD``, e.g. jemalloc).
     """
-    if not sys.platform.startswith("linux") or any(k in os.environ for k in _TUNABLES):
+    own = any(k in os.environ for k in _TUNABLES)
+    if own or "glibc.malloc." in os.environ.get("GLIBC_TUNABLES", ""):
+        return False
+    if not sys.platform.startswith("linux"):
         return False
     try:
         mallopt = ctypes.CDLL(None).mallopt

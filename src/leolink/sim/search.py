@@ -266,7 +266,7 @@ class CandidateSearch:
                     best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
             cell = sat[:, None] * nb + np.arange(nb)[None, :]
             with np.errstate(invalid="ignore"):
-                keep = snr >= (best_db - self.window_db)[rows][:, None]
+                keep = snr >= (best_db[rows] - self.window_db)[:, None]
             if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
                 _best_cells(rows, cell, snr, best_db, best_cell)
                 with np.errstate(invalid="ignore"):
@@ -283,8 +283,8 @@ class CandidateSearch:
 
 
 def _row_chunks(rows, size):
-    """``(lo, hi)`` slices of the sorted ``rows`` of about ``size`` entries each, cut
-    between rows (a row longer than ``size`` is one slice); one empty slice if none."""
+    """``(lo, hi)`` slices of the sorted ``rows``, each of at least ``size`` entries (the
+    last may have fewer) and ending at the end of a row; one empty slice if none."""
     lo, n = 0, rows.size
     while True:
         hi = n if lo + size >= n else int(np.searchsorted(rows, rows[lo + size - 1], "right"))
@@ -303,9 +303,9 @@ def _best_cells(rows, cell, snr, best_db, out):
     entries ``(pair, beam)`` of a row, flattened, are in ascending cell id: the first
     entry equal to the row's best is the lowest tied cell.
     """
+    best = best_db[rows]
     with np.errstate(invalid="ignore"):
-        ok = np.isfinite(best_db)
-        tied = (snr == best_db[rows][:, None]) & ok[rows][:, None]
+        tied = (snr == best[:, None]) & np.isfinite(best)[:, None]
     flat = np.flatnonzero(tied)
     row_of = rows[flat // snr.shape[1]]
     first = np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]]) if flat.size else flat
