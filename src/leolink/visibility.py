@@ -11,7 +11,9 @@ near 1 leaves ~1e-8 rad (6e-7 deg).
 
 With numba (and ``LEOLINK_JIT`` not 0) the elevations are computed by a compiled kernel
 (:mod:`leolink.visibility_kernel`) split over the CPUs (``LEOLINK_THREADS``), with no
-temporaries; it gives the bits of the numpy code.
+temporaries; its ``sin(elevation)`` has the bits of the numpy code's, its arcsine
+(fdlibm's, vectorized) is within 1 ulp of numpy's (2.2e-16 rad; the bits do not depend on
+the thread count).
 """
 
 from __future__ import annotations
@@ -142,7 +144,7 @@ def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
             r = pending.result()
             if i + 1 < len(blocks):
                 pending = states(blocks[i + 1])
-            kernel(r, site, normal, out[:, :, t])
+            kernel(r, site, normal, out, t.start)
 
 
 def _kernel():
