@@ -129,34 +129,42 @@ def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
     """The compiled path, every site at once (the kernel keeps no temporaries), in at
     least :data:`PIPELINE_BLOCKS` blocks of times: sgp4, which holds the GIL, propagates
     the next block on a thread while the kernel, which releases it, fills this one (so two
-    blocks' states are alive at once: twice ``block_bytes``)."""
+    blocks' states are alive at once: twice ``block_bytes``) on one thread fewer: the
+    kernel splits the sites evenly between its threads, and one of them sharing a CPU
+    with sgp4 would leave the others idle, waiting for it (the last block: every thread)."""
     from concurrent.futures import ThreadPoolExecutor
+
+    import numba
 
     t_step = max(1, min(t_step, -(-jd.size // PIPELINE_BLOCKS)))
     blocks = [slice(t0, t0 + t_step) for t0 in range(0, jd.size, t_step)]
-    with ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as pool:
+    caller_threads = numba.get_num_threads()
+    n_thread = min(n_threads(), numba.config.NUMBA_NUM_THREADS)
+    try:
+        with ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as pool:
 
-        def states(t):
-            return pool.submit(_earth_fixed_states, sats, jd[t], fr[t], ut1[t])
+            def states(t):
+                return pool.submit(_earth_fixed_states, sats, jd[t], fr[t], ut1[t])
 
-        pending = states(blocks[0]) if blocks else None
-        for i, t in enumerate(blocks):  # (no block: no time, nothing to fill)
-            r = pending.result()
-            if i + 1 < len(blocks):
-                pending = states(blocks[i + 1])
-            kernel(r, site, normal, out, t.start)
+            pending = states(blocks[0]) if blocks else None
+            for i, t in enumerate(blocks):  # (no block: no time, nothing to fill)
+                r = pending.result()
+                last = i + 1 == len(blocks)
+                if not last:
+                    pending = states(blocks[i + 1])
+                numba.set_num_threads(n_thread if last else max(1, n_thread - 1))
+                kernel(r, site, normal, out, t.start)
+    finally:
+        numba.set_num_threads(caller_threads)
 
 
 def _kernel():
-    """The compiled :func:`leolink.visibility_kernel.elevations` on :func:`n_threads`
-    threads, or None (numba missing or ``LEOLINK_JIT=0``: the numpy code below)."""
+    """The compiled :func:`leolink.visibility_kernel.elevations`, or None (numba missing
+    or ``LEOLINK_JIT=0``: the numpy code below)."""
     if not enabled():
         return None
-    import numba
-
     from leolink.visibility_kernel import elevations
 
-    numba.set_num_threads(min(n_threads(), numba.config.NUMBA_NUM_THREADS))
     return elevations
 
 
