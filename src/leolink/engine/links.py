@@ -127,6 +127,25 @@ class Links:
             path_db = 10.0 * np.log10(self.path_snr_lin)
         return lx[beam_ix] + ly[beam_iy] + path_db
 
+    def best_beam(self, beam_ix, beam_iy):
+        """Each pair's beam of largest SNR and its SNR [dB] (the paper's max-SNR beam).
+
+        ``numpy.argmax`` of :meth:`snr_db_bm` over the beams, and that entry: ties go to
+        the first beam, a pair not visible (every beam NaN) to beam 0 with NaN. The
+        compiled kernel gives the same beams and bits without the (n_beam, m) matrix: it
+        compares linear SNRs and takes logarithms for the largest (and near ties) only.
+
+        Returns
+        -------
+        beam : ndarray of int64, shape (m,)
+        snr_db : ndarray, shape (m,)
+        """
+        if jit.use(self.n_pair):
+            return jit.best_beam(self, beam_ix, beam_iy)
+        snr = self.snr_db_bm(beam_ix, beam_iy)
+        beam = np.argmax(snr, axis=0)
+        return beam, snr[beam, np.arange(self.n_pair)]
+
 
 _PAIR_FIELDS = ("ut", "sat", "rel_m", "slant_range_m", "elevation_rad", "visible", "path_lin")
 
