@@ -103,7 +103,7 @@ def _block_work(engine, ut, pos, vel, acc, block):
         u, s = np.tile(np.arange(n_ut), n_k), np.repeat(np.arange(n_k), n_ut)
         links = engine.evaluate_pairs(ut, pos[k0 : k0 + n_k], vel[k0 : k0 + n_k], u, s)
         if hasattr(links, "best_beam"):
-            beam, _ = links.best_beam(engine.beam_ix, engine.beam_iy)
+            beam, _ = links.best_beam(engine.beam_ix, engine.beam_iy)  # no dB values
         else:
             beam = np.argmax(links.snr_db_bm(engine.beam_ix, engine.beam_iy), axis=0)
         m = u.size

@@ -142,12 +142,15 @@ def test_best_beam_is_numpys_argmax(epoch, monkeypatch, edges):
     links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
     if edges:
         links = _edge_links(links, rng)
-    got = links.best_beam(eng.beam_ix, eng.beam_iy)
+    got = links.best_beam(eng.beam_ix, eng.beam_iy, with_snr_db=True)
+    alone, none = links.best_beam(eng.beam_ix, eng.beam_iy)
     with np.errstate(invalid="ignore"):  # -inf + inf: the NaN cases
         snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)
         _numpy(monkeypatch)
-        beam, val = dataclasses.replace(links).best_beam(eng.beam_ix, eng.beam_iy)
-    assert _same(got[0], beam) and _same(got[1], val)
+        beam, val = dataclasses.replace(links).best_beam(eng.beam_ix, eng.beam_iy, True)
+        ref_alone = dataclasses.replace(links).best_beam(eng.beam_ix, eng.beam_iy)
+    assert _same(got[0], beam) and _same(got[1], val) and _same(alone, beam)
+    assert none is None and ref_alone[1] is None and _same(ref_alone[0], beam)
     ref = np.argmax(snr, axis=0)  # the definition, on the compiled matrix as well
     assert _same(beam, ref) and _same(val, snr[ref, np.arange(ref.size)])
     vis = links.visible

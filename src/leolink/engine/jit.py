@@ -100,13 +100,14 @@ def snr_db_bm(links, beam_ix, beam_iy):
     return out
 
 
-def best_beam(links, beam_ix, beam_iy):
-    """``Links.best_beam`` by :func:`best_beam_kernel`."""
+def best_beam(links, beam_ix, beam_iy, with_snr_db):
+    """``Links.best_beam`` by :func:`best_beam_kernel`: the beams, and their SNR [dB] or
+    None."""
     m = links.n_pair
     best, best_db = np.empty(m, np.int64), np.empty(m)
     run_rows(kernels().best_beam_kernel, m, links.kx, links.ky, links.path_snr_lin, beam_ix,
-             beam_iy, best, best_db)  # fmt: skip
-    return best, best_db
+             beam_iy, bool(with_snr_db), best, best_db)  # fmt: skip
+    return best, (best_db if with_snr_db else None)
 
 
 def serve_columns(engine, links, pair, served, b, rows, rx, atm):

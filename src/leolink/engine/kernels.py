@@ -143,7 +143,7 @@ _PATH_MIN, _PATH_MAX, _SNR_MIN, _SNR_MAX = 1e-150, 1e150, 1e-100, 1e100
 
 
 @numba.njit(cache=True, nogil=True)
-def best_beam_kernel(kx, ky, path_snr, ix, iy, best, best_db, lo, hi):
+def best_beam_kernel(kx, ky, path_snr, ix, iy, with_db, best, best_db, lo, hi):
     """``numpy.argmax(Links.snr_db_bm(ix, iy), axis=0)`` and that beam's dB value, of the
     pairs ``lo .. hi - 1``, without the (n_beam, m) matrix.
 
@@ -154,6 +154,7 @@ def best_beam_kernel(kx, ky, path_snr, ix, iy, best, best_db, lo, hi):
     Elsewhere (near ties, NaN kernels, values outside ``_PATH_*``, ``_SNR_*``) every beam's
     dB value is computed and ``numpy.argmax``'s rule applied (the first NaN, else the first
     maximum); a pair not visible (NaN path: every beam NaN) gets beam 0 and NaN.
+    ``with_db`` False: the quick pairs' ``best_db`` is left unwritten (not asked for).
     """
     for p in range(lo, hi):
         path = path_snr[p]
@@ -171,9 +172,10 @@ def best_beam_kernel(kx, ky, path_snr, ix, iy, best, best_db, lo, hi):
         clear = s_2nd < s_max * (1.0 - _TIE_MARGIN) and not nan
         if clear and _PATH_MIN <= path <= _PATH_MAX and _SNR_MIN <= s_max <= _SNR_MAX:
             best[p] = i
-            best_db[p] = (
-                10.0 * np.log10(kx[ix[i], p]) + 10.0 * np.log10(ky[iy[i], p])
-            ) + 10.0 * np.log10(path)
+            if with_db:
+                best_db[p] = (
+                    10.0 * np.log10(kx[ix[i], p]) + 10.0 * np.log10(ky[iy[i], p])
+                ) + 10.0 * np.log10(path)
         else:
             _best_of_all(kx, ky, path, ix, iy, best, best_db, p)
 
