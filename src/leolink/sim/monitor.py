@@ -109,6 +109,7 @@ class Monitor:
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.epoch_s = float(epoch_s)
         self.population = np.asarray(population, dtype=object)
+        self._tiled = {}
         self.pending = []
         if link is None:
             p = engine.params
@@ -351,10 +352,17 @@ class Monitor:
             n_visible=rec.n_visible.astype(np.int64),
             best_snr_db=rec.best_snr_db,
             alt_m=mb.ut_alt_m[j].reshape(-1),
-            population=np.tile(self.population, n),
+            population=self._population(n),
             interruption_s=gap_s,
         )
         return cols
+
+    def _population(self, n_epoch):
+        """The population of every row of ``n_epoch`` epochs: the same array for the same
+        length (the writers' codes of a string column are kept for the array last seen)."""
+        if n_epoch not in self._tiled:
+            self._tiled[n_epoch] = np.tile(self.population, n_epoch)
+        return self._tiled[n_epoch]
 
 
 class _Joined:
