@@ -164,3 +164,37 @@ def test_sinks_in_memory_end_the_same_by_block_or_by_epoch(captured, make):
     else:
         assert len(a[0]) == captured.info.n_ut * captured.info.n_epochs
         assert a[0].equals(b[0]) and a[1].equals(b[1])
+
+
+class _EpochsOnly:
+    """A sink of the Sink protocol without ``block`` (as a user's may be)."""
+
+    def start(self, info):
+        self.frames = []
+
+    def epoch(self, frame):
+        self.frames.append(copy.deepcopy(frame))
+
+    def finish(self, final):
+        pass
+
+    def abort(self):
+        pass
+
+
+def test_a_sink_without_block_gets_the_epoch_frames_in_order(captured):
+    from leolink.app.scenario import build_scenario
+    from leolink.sim.runner import run_simulation
+
+    sink = _EpochsOnly()
+    run_simulation(build_scenario(load_config(ROOT / "configs/paper.toml", ["run.epoch_s=0.5"])),
+                   [sink])  # fmt: skip
+    expected = [f for b in captured.blocks for f in b.frames()]
+    assert [f.k for f in sink.frames] == list(range(captured.info.n_epochs))
+    for got, want in zip(sink.frames, expected, strict=True):
+        assert got.t_s == want.t_s
+        for part in ("columns", "events", "dwells"):
+            a, b = getattr(got, part), getattr(want, part)
+            assert a.keys() == b.keys()
+            for k in a:
+                np.testing.assert_array_equal(a[k], b[k])

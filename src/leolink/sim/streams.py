@@ -1,11 +1,11 @@
 """What the simulator streams out: epoch frames, to sinks that the caller supplies.
 
-``sim`` writes no file. Every recorded epoch reaches each sink as an :class:`EpochFrame`
-(the trace columns of every UT, the events and the dwells closed at that epoch); at the
-end a :class:`FinalFrame` (the dwells still open, censored by the end). Sinks that the
-CLI and :func:`leolink.run` wire by default (trace and event files, the summary
-statistics, plots) live in :mod:`leolink.io.sinks`; any object following :class:`Sink`
-works.
+``sim`` writes no file. Every recorded epoch reaches each sink, as an :class:`EpochFrame`
+(the trace columns of every UT, the events and the dwells closed at that epoch) or within
+a :class:`BlockFrame` (below); at the end a :class:`FinalFrame` (the dwells still open,
+censored by the end). Sinks that the CLI and :func:`leolink.run` wire by default (trace
+and event files, the summary statistics, plots) live in :mod:`leolink.io.sinks`; any
+object following :class:`Sink` works.
 
 The simulator evaluates the links of a motion block's epochs at once and hands them over
 as one :class:`BlockFrame` (consecutive epochs, in order). A sink with a ``block`` method
