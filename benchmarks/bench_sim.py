@@ -3,6 +3,8 @@
 1,000 UTs (half static, half moving at car to aircraft speeds, spread over the ROI) x
 3,600 epochs (the paper's 120 s pass at 1/30 s), one satellite, 15 beams:
 UT-epochs/s end to end with the Parquet trace (in this process: no start-up), peak memory.
+The outputs: trace.parquet, events, summary.json; no pictures (plots and report off: the
+report's cost is ``bench_report``).
 The engine alone on this workload is ``bench_engine`` (c).
 
 Run: ``python benchmarks/bench_sim.py [--quick] [--uts N] [--epochs N]``. Prints figures.
@@ -25,6 +27,7 @@ def scenario(n_ut, n_epoch):
     half = n_ut // 2
     over = [
         "output.plots.enabled=false",
+        "output.report.enabled=false",
         'output.trace.formats=["parquet"]',
         f"run.epoch_s={120.0 / n_epoch!r}",
         "run.duration_s=120.0",

@@ -2,7 +2,9 @@
 
 10 UTs (the paper's 7 with 7 random static UTs for its 4 points: 1 + 7 + 1 + 1) under the
 paper's pass, 600 epochs of 1 s centred on the overhead instant, default outputs but the
-plots (trace.csv, events.csv, summary.json), each run a fresh ``leolink run`` process.
+pictures (trace.csv, events.csv and .parquet, summary.json: no plots, no report, as the
+peer's loop draws none; the report's cost is ``bench_report``), each run a fresh
+``leolink run`` process.
 The fixed cost per epoch is the slope, between a 600-epoch and a 60-epoch run, of the
 simulation loop's own wall time (``run.wall_time_s`` of ``summary.json``: the sinks, the
 epochs and their end; the pictures are drawn in child processes, leolink.io.render);
@@ -23,6 +25,7 @@ from _common import PAPER, row, run_cli
 N_UT = 10
 SETS = [
     "output.plots.enabled=false",
+    "output.report.enabled=false",
     'population.1.placement="random"',
     "population.1.count=7",
     "population.1.x_m=[]",

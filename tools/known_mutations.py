@@ -82,8 +82,10 @@ MUTATIONS = (
     Mutation(
         "lat_lon_swapped",
         "src/leolink/sim/monitor.py",
-        "lat_deg=np.degrees(mb.ut_lat_rad[j]),\n            lon_deg=np.degrees(mb.ut_lon_rad[j]),",
-        "lat_deg=np.degrees(mb.ut_lon_rad[j]),\n            lon_deg=np.degrees(mb.ut_lat_rad[j]),",
+        "lat_deg=np.degrees(mb.ut_lat_rad[j]).reshape(-1),\n"
+        "            lon_deg=np.degrees(mb.ut_lon_rad[j]).reshape(-1),",
+        "lat_deg=np.degrees(mb.ut_lon_rad[j]).reshape(-1),\n"
+        "            lon_deg=np.degrees(mb.ut_lat_rad[j]).reshape(-1),",
         ("tests/test_trace_independent.py",),
     ),
     Mutation(

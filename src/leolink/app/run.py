@@ -97,6 +97,9 @@ class _Position:
     def epoch(self, frame):
         self.n_done, self.t_s = self.n_done + 1, frame.t_s
 
+    def block(self, frame):
+        self.n_done, self.t_s = self.n_done + len(frame.t_s), float(frame.t_s[-1])
+
     def finish(self, final):
         pass
 

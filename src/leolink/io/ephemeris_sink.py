@@ -57,6 +57,8 @@ class EphemerisErrorSink:
         if keep.any():  # numpy pieces: one DataFrame at the end (pandas imported then)
             self._parts.append({k: np.asarray(cols[k])[keep] for k in _KEYS})
 
+    block = epoch  # the rows are joined at the end
+
     def table(self):
         """The collected rows, a pandas.DataFrame (empty without an ephemeris error)."""
         import pandas as pd

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink.io.summary_stats import running_sum
 from leolink.io.tables import NO_MODCOD_NAME
 from leolink.link.acm import THROUGHPUT_COLUMNS
 from leolink.link.modcod import modcod_table
@@ -72,7 +73,8 @@ class LinkStats:
         for model, key in _MODELS.items():
             if key in columns:
                 tput = np.nan_to_num(np.asarray(columns[key], float), nan=0.0)
-                self.tput_sum[model] += np.bincount(ut, tput, minlength=n)
+                # row by row: the same sum whether the rows come an epoch or a block at a time
+                self.tput_sum[model][:] = running_sum(self.tput_sum[model], ut, tput)
                 self.tput_seen[model] = True
 
     def _usage(self, counts):

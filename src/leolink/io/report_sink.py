@@ -106,6 +106,8 @@ class ReportSink:
             self.stats.add_events(frame.events)
         self._add_dwells(frame.dwells)
 
+    block = epoch  # ReportStats takes rows in any chunking
+
     def _flush(self):
         if self._buffer:
             names = self._buffer[0]

@@ -75,6 +75,8 @@ class TraceSink:
     def epoch(self, frame):
         self.writer.append(_trace_columns(frame.columns, self.schema))
 
+    block = epoch  # the writer cuts chunks of ``chunk_rows`` whatever it is given
+
     def finish(self, final):
         self.files = list(self.writer.close().values())
 
@@ -97,6 +99,8 @@ class EventSink:
     def epoch(self, frame):
         if len(frame.events["ut_id"]):
             self.writer.append(frame.events)
+
+    block = epoch
 
     def finish(self, final):
         self.files = list(self.writer.close().values())
@@ -121,6 +125,8 @@ class MemorySink:
         self._trace.append(to_table(_trace_columns(frame.columns, self.schema), self.schema))
         if len(frame.events["ut_id"]):
             self._events.append(to_table(frame.events, EVENT_SCHEMA))
+
+    block = epoch  # the tables are joined at the end
 
     def finish(self, final):
         pass
@@ -163,17 +169,22 @@ class PlotSink:
         self._span = [None, None]
 
     def epoch(self, frame):
-        cols = frame.columns
+        self._add(frame.columns, frame.events, frame.t_s, frame.t_s)
+
+    def block(self, frame):
+        """The block's rows of the chosen UTs at once (the same rows as epoch by epoch)."""
+        self._add(frame.columns, frame.events, frame.t_s[0], frame.t_s[-1])
+
+    def _add(self, cols, ev, first_s, last_s):
         keep = np.isin(cols["ut_id"], self.ut_ids)
         if keep.any():
             rows = {n: np.asarray(v)[keep] for n, v in _trace_columns(cols).items()}
             self._rows = _compacted(self._rows, to_table(rows, TRACE_SCHEMA))
-        ev = frame.events
         keep = np.isin(ev["ut_id"], self.ut_ids)
         if keep.any():
             table = to_table({k: np.asarray(v)[keep] for k, v in ev.items()}, EVENT_SCHEMA)
             self._events = _compacted(self._events, table)
-        self._span = [frame.t_s if self._span[0] is None else self._span[0], frame.t_s]
+        self._span = [first_s if self._span[0] is None else self._span[0], last_s]
 
     def finish(self, final):
         """Start drawing (:mod:`leolink.io.render`); :attr:`files` waits for the PNGs."""

@@ -131,6 +131,8 @@ class SummaryAccumulator:
         self.add_events(frame.events)
         self.add_dwells(frame.dwells)
 
+    block = epoch  # epochs in order: the same statistics as epoch by epoch (add_trace)
+
     def finish(self, final):
         """Add the dwells still open at the end of the run; the summary is then fixed."""
         self.add_dwells(final.dwells)

@@ -4,8 +4,9 @@
 epoch. It keeps the epoch's decision and, at the end of each motion block
 (:mod:`leolink.sim.motion`), evaluates the links of all the block's recorded epochs in
 one engine call (the pairs the controller's search evaluated are reused) and hands the
-sinks one :class:`~leolink.sim.streams.EpochFrame` per epoch, in order. Sinks see the
-same frames as if each were sent at its epoch, up to one block later.
+sinks the block's epochs in one :class:`~leolink.sim.streams.BlockFrame`, its trace
+columns assembled for all of them at once. Sinks see the same rows as if each epoch were
+sent at its time, up to one block later.
 
 In outage rows where a satellite is above the minimum elevation, the geometry and budget
 columns are those of the best candidate (``best_snr_db``); the link columns (SNR, SINR,
@@ -34,7 +35,7 @@ from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
 from leolink.sim.controller import SERVICE_HANDOVER, SERVICE_OUTAGE, interruption_s
 from leolink.sim.service_link import ServiceLink
-from leolink.sim.streams import EpochFrame
+from leolink.sim.streams import BlockFrame, EpochFrame, deliver
 
 __all__ = ["Monitor"]
 
@@ -108,6 +109,7 @@ class Monitor:
         self.fading_k, self.ut_keys = fading_k, ut_keys
         self.epoch_s = float(epoch_s)
         self.population = np.asarray(population, dtype=object)
+        self._tiled = {}
         self.pending = []
         if link is None:
             p = engine.params
@@ -127,7 +129,7 @@ class Monitor:
     def _per_epoch(self, state):
         """This epoch's links, then RLF (which may drop serving cells), then its frame."""
         rec = self._record(state)
-        cols = self._columns(rec, self._links([rec]))
+        cols = self._columns([rec], self._links([rec]))
         res = rec.decision
         state.controller, events, dwells = self.rlf.merge(state, cols, res.events, res.dwells)
         if state.recording:
@@ -156,16 +158,19 @@ class Monitor:
         return rec
 
     def flush(self, state):
-        """Evaluate and send the kept epochs (all in the current motion block)."""
+        """Evaluate the kept epochs (all in the current motion block) and send them as one
+        :class:`~leolink.sim.streams.BlockFrame`."""
         if not self.pending:
             return
         recs, self.pending = self.pending, []
-        cols = self._links(recs)
-        n_ut = len(recs[0].geo_sat)
-        for i, rec in enumerate(recs):
-            part = {name: v[i * n_ut : (i + 1) * n_ut] for name, v in cols.items()}
-            frame_cols = self._columns(rec, part)
-            self._send(state, rec, frame_cols, rec.decision.events, rec.decision.dwells)
+        cols = self._columns(recs, self._links(recs))
+        start_s = state.times_s[state.n_warmup]
+        events = [r.decision.events for r in recs]
+        dwells = [_warmup_censored(r.decision.dwells, start_s) for r in recs]
+        frame = BlockFrame(recs[0].k - state.n_warmup, np.array([r.t_s for r in recs], float),
+                           len(recs[0].geo_sat), cols, _joined(events), _joined(dwells),
+                           _ends(events), _ends(dwells))  # fmt: skip
+        deliver(self.sink, frame)
 
     def _links(self, recs):
         """``serve_pairs`` of every UT of every kept epoch, in one call."""
@@ -303,9 +308,12 @@ class Monitor:
             out.append(eng.other_satellites_interference(snap, s, b, u, lit))
         return np.concatenate(out)
 
-    def _columns(self, rec, cols):
-        """The trace columns of one epoch from its links ``cols`` (views, (n_ut,))."""
-        res, n_ut = rec.decision, len(rec.geo_sat)
+    def _columns(self, recs, cols):
+        """The trace columns of the kept epochs ``recs`` from their links ``cols`` (rows
+        of every UT of each epoch, epoch after epoch)."""
+        n_ut, dec = len(recs[0].geo_sat), self.decider
+        res = _Joined([r.decision for r in recs], ("service", "sat_id", "beam_id"))
+        rec = _Joined(recs, ("gap_s", "n_visible", "best_snr_db", "open_snr_db", "share"))
         service = self.link.service(res.service, cols["sinr_db"])
         gap_s = rec.gap_s
         if service is not res.service:  # rows turned to outage (low SINR) lose no time
@@ -323,29 +331,58 @@ class Monitor:
         self.link.add_figures(cols, served if rec.share is None else served * rec.share)
         reason = service.astype(np.int8)  # served -> none, handover -> handover
         reason[outage] = np.where(rec.n_visible[outage] > 0, 3, 2)
-        if rec.env_cols is not None:
-            cols.update({k: v for k, v in rec.env_cols.items() if k != "extra_loss_db"})
+        if recs[0].env_cols is not None:
+            env = _joined([r.env_cols for r in recs])
+            cols.update({k: v for k, v in env.items() if k != "extra_loss_db"})
             # In open country the best beam would have served: the environment blocked it.
-            open_ok = rec.open_snr_db >= self.decider.min_snr_db
+            open_ok = rec.open_snr_db >= dec.min_snr_db
             blocked = (res.service == SERVICE_OUTAGE) & open_ok
             reason[blocked] = 4
-        mb, j = self.decider.mb, rec.k - self.decider.mb.k0
+        mb, n = dec.mb, len(recs)
+        j = np.array([r.k for r in recs]) - mb.k0
         cols.update(
-            time_s=np.full(n_ut, rec.t_s),
-            ut_id=np.arange(n_ut, dtype=np.int64),
+            time_s=np.repeat(np.array([r.t_s for r in recs], float), n_ut),
+            ut_id=np.tile(np.arange(n_ut, dtype=np.int64), n),
             sat_id=res.sat_id,
             beam_id=res.beam_id,
-            lat_deg=np.degrees(mb.ut_lat_rad[j]),
-            lon_deg=np.degrees(mb.ut_lon_rad[j]),
+            lat_deg=np.degrees(mb.ut_lat_rad[j]).reshape(-1),
+            lon_deg=np.degrees(mb.ut_lon_rad[j]).reshape(-1),
             service=service,
             outage_reason=reason,
             n_visible=rec.n_visible.astype(np.int64),
             best_snr_db=rec.best_snr_db,
-            alt_m=mb.ut_alt_m[j].copy(),
-            population=self.population,
+            alt_m=mb.ut_alt_m[j].reshape(-1),
+            population=self._population(n),
             interruption_s=gap_s,
         )
         return cols
+
+    def _population(self, n_epoch):
+        """The population of every row of ``n_epoch`` epochs: the same array for the same
+        length (the writers' codes of a string column are kept for the array last seen)."""
+        if n_epoch not in self._tiled:
+            self._tiled[n_epoch] = np.tile(self.population, n_epoch)
+        return self._tiled[n_epoch]
+
+
+class _Joined:
+    """The named per-UT arrays of several epochs' records, joined epoch after epoch (an
+    attribute that is None in the records is None)."""
+
+    def __init__(self, items, names):
+        for name in names:
+            parts = [getattr(item, name) for item in items]
+            setattr(self, name, None if parts[0] is None else np.concatenate(parts))
+
+
+def _joined(tables):
+    """Dicts of 1-D arrays with the same keys, joined in order."""
+    return {k: np.concatenate([np.asarray(t[k]) for t in tables]) for k in tables[0]}
+
+
+def _ends(tables):
+    """End of each table's rows in :func:`_joined` ``(tables)``."""
+    return np.cumsum([len(next(iter(t.values()))) for t in tables], dtype=np.int64)
 
 
 def _warmup_censored(dwells, record_start_s):

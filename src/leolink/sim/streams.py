@@ -1,11 +1,18 @@
 """What the simulator streams out: epoch frames, to sinks that the caller supplies.
 
-``sim`` writes no file. Every recorded epoch it hands each sink an :class:`EpochFrame`
-(the trace columns of every UT, the events and the dwells closed at that epoch); at the
-end a :class:`FinalFrame` (the dwells still open, censored by the end). Sinks that the
-CLI and :func:`leolink.run` wire by default (trace and event files, the summary
-statistics, plots) live in :mod:`leolink.io.sinks`; any object following :class:`Sink`
-works.
+``sim`` writes no file. Every recorded epoch reaches each sink, as an :class:`EpochFrame`
+(the trace columns of every UT, the events and the dwells closed at that epoch) or within
+a :class:`BlockFrame` (below); at the end a :class:`FinalFrame` (the dwells still open,
+censored by the end). Sinks that the CLI and :func:`leolink.run` wire by default (trace
+and event files, the summary statistics, plots) live in :mod:`leolink.io.sinks`; any
+object following :class:`Sink` works.
+
+The simulator evaluates the links of a motion block's epochs at once and hands them over
+as one :class:`BlockFrame` (consecutive epochs, in order). A sink with a ``block`` method
+takes it whole (one call per block instead of one per epoch: the fixed cost of an epoch);
+:class:`SinkGroup` splits it into the same :class:`EpochFrame` s, in order, for the others.
+A sink's ``block(frame)`` must leave it in the state that ``epoch`` over
+``frame.frames()`` would.
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["EpochFrame", "FinalFrame", "RunInfo", "Sink", "SinkGroup"]
+__all__ = ["BlockFrame", "EpochFrame", "FinalFrame", "RunInfo", "Sink", "SinkGroup", "deliver"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,6 +86,50 @@ class EpochFrame:
 
 
 @dataclasses.dataclass(frozen=True)
+class BlockFrame:
+    """Consecutive recorded epochs, the rows of each epoch after the previous epoch's.
+
+    Attributes
+    ----------
+    k0 : int, index of the first recorded epoch.
+    t_s : ndarray (n_epoch,) [s], the epochs' times.
+    n_ut : int
+    columns : dict of ndarray (n_epoch * n_ut,), the trace columns of every epoch, epoch
+        after epoch (epoch ``i``'s rows are ``i * n_ut .. (i + 1) * n_ut - 1``, by UT).
+    events, dwells : dict of 1-D arrays, the epochs' events and closed dwells, in order.
+    event_end, dwell_end : ndarray (n_epoch,) of int, the end of each epoch's events
+        (dwells) in ``events`` (``dwells``): epoch ``i`` has ``end[i - 1] .. end[i] - 1``.
+
+    Notes
+    -----
+    Handed over read-only, as an :class:`EpochFrame`'s arrays (its Notes).
+    """
+
+    k0: int
+    t_s: np.ndarray
+    n_ut: int
+    columns: dict[str, np.ndarray]
+    events: dict[str, np.ndarray]
+    dwells: dict[str, np.ndarray]
+    event_end: np.ndarray
+    dwell_end: np.ndarray
+
+    def frames(self):
+        """The block's :class:`EpochFrame` s, in order (their arrays are views)."""
+        n, e0, d0 = self.n_ut, 0, 0
+        for i, t_s in enumerate(self.t_s.tolist()):
+            e1, d1 = int(self.event_end[i]), int(self.dwell_end[i])
+            yield EpochFrame(
+                self.k0 + i,
+                t_s,
+                {k: v[i * n : (i + 1) * n] for k, v in self.columns.items()},
+                {k: v[e0:e1] for k, v in self.events.items()},
+                {k: v[d0:d1] for k, v in self.dwells.items()},
+            )
+            e0, d0 = e1, d1
+
+
+@dataclasses.dataclass(frozen=True)
 class FinalFrame:
     """The end of the run: ``end_s`` [s] and the dwells still open (``censored_end``)."""
 
@@ -99,6 +150,16 @@ class Sink(Protocol):
     def finish(self, final: FinalFrame) -> None: ...
 
     def abort(self) -> None: ...
+
+
+def deliver(sink, frame):
+    """Hand ``sink`` a :class:`BlockFrame`: whole if it has ``block``, else epoch by epoch."""
+    whole = getattr(sink, "block", None)
+    if whole is not None:
+        whole(frame)
+        return
+    for epoch in frame.frames():
+        sink.epoch(epoch)
 
 
 class SinkGroup:
@@ -123,6 +184,11 @@ class SinkGroup:
     def epoch(self, frame):
         for sink in self.sinks:
             sink.epoch(frame)
+
+    def block(self, frame):
+        """A :class:`BlockFrame` to each sink, in order (:func:`deliver`)."""
+        for sink in self.sinks:
+            deliver(sink, frame)
 
     def finish(self, final):
         for sink in self.sinks:

@@ -1,0 +1,200 @@
+"""Block frames: a run's sinks take a motion block's epochs at once (``Sink.block``), and
+must end in the state that the same epochs sent one by one give (``leolink.sim.streams``).
+
+The reference is the epoch-by-epoch path itself: ``deliver`` patched to split every block
+into its epoch frames, as it does for a sink without ``block``. Every output file of real
+runs (the paper's pass, a town with environments, a Walker shell with an ephemeris error)
+is compared between the two paths, and the split is checked against what an epoch frame
+is (its rows are one epoch's UTs, its dwells end at that epoch).
+"""
+
+import copy
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from leolink.app.run import run
+from leolink.config import load_config
+from leolink.io import sinks as io_sinks
+from leolink.sim import monitor, streams
+
+ROOT = Path(__file__).resolve().parents[1]
+SHORT = ["run.duration_s=30.0", "run.start_s=45.0"]
+# The pictures are drawn from the files compared (the plots' rows: a test below).
+NO_PICTURES = ["output.plots.enabled=false", "output.report.animation=false"]
+BOTH_TRACES = "output.trace.formats=['csv', 'parquet']"
+RUNS = {
+    "paper": ("configs/paper.toml", ["run.epoch_s=0.25", BOTH_TRACES]),
+    "town": ("configs/examples/town.toml", []),
+    "walker_ephemeris": (
+        "configs/examples/walker.toml",
+        ["run.duration_s=40.0", "ephemeris_error.model='rtn'",
+         "ephemeris_error.rtn.along_track_m=2000.0"],
+    ),
+}  # fmt: skip
+
+
+def _split(sink, frame):
+    for epoch in frame.frames():
+        sink.epoch(epoch)
+
+
+def _run(name, out, epoch_by_epoch, monkeypatch):
+    path, sets = RUNS[name]
+    with monkeypatch.context() as m:
+        if epoch_by_epoch:
+            m.setattr(streams, "deliver", _split)
+            m.setattr(monitor, "deliver", _split)
+        short = SHORT if name != "walker_ephemeris" else []
+        cfg = load_config(ROOT / path, [*short, *NO_PICTURES, *sets])
+        run(cfg, out_dir=out)
+    return out
+
+
+def _same_file(a, b):
+    if a.name in ("run.json", "report.html") or a.suffix in (".png", ".gif"):
+        return True  # wall times / pictures: drawn from the files compared here
+    if a.name == "summary.json":
+        x, y = json.loads(a.read_text()), json.loads(b.read_text())
+        x["run"].pop("wall_time_s"), y["run"].pop("wall_time_s")
+        return x == y
+    if a.suffix == ".parquet":
+        return pq.read_table(a).to_pandas().equals(pq.read_table(b).to_pandas())  # NaN == NaN
+    if a.suffix == ".npz":
+        x, y = np.load(a, allow_pickle=False), np.load(b, allow_pickle=False)
+        return x.files == y.files and all(
+            np.array_equal(x[k], y[k], equal_nan=x[k].dtype.kind == "f") for k in x.files
+        )
+    return a.read_bytes() == b.read_bytes()
+
+
+@pytest.mark.parametrize("name", sorted(RUNS))
+def test_a_run_is_the_same_sent_a_block_or_an_epoch_at_a_time(name, tmp_path, monkeypatch):
+    block = _run(name, tmp_path / "block", False, monkeypatch)
+    epoch = _run(name, tmp_path / "epoch", True, monkeypatch)
+    files = sorted(p.name for p in block.iterdir())
+    assert files == sorted(p.name for p in epoch.iterdir())
+    assert {"summary.json", "events.csv", "report_stats.npz"} <= set(files)
+    if name == "walker_ephemeris":
+        assert "ephemeris_errors.csv" in files
+    differ = [f for f in files if not _same_file(block / f, epoch / f)]
+    assert differ == []
+
+
+class _Capture:
+    """Keeps copies of the block frames of a run (and the run's info)."""
+
+    def start(self, info):
+        self.info, self.blocks = info, []
+
+    def block(self, frame):
+        self.blocks.append(copy.deepcopy(frame))
+
+    def epoch(self, frame):
+        raise AssertionError("the simulator sends blocks")
+
+    def finish(self, final):
+        self.final = final
+
+    def abort(self):
+        pass
+
+
+@pytest.fixture(scope="module")
+def captured():
+    """The block frames of the paper's pass at 0.5 s (7 UTs, several blocks, handovers)."""
+    from leolink.app.scenario import build_scenario
+    from leolink.sim.runner import run_simulation
+
+    cfg = load_config(ROOT / "configs/paper.toml", ["run.epoch_s=0.5"])
+    cap = _Capture()
+    run_simulation(build_scenario(cfg), [cap])
+    assert len(cap.blocks) > 2 and len(set(cap.info.population)) > 1
+    return cap
+
+
+def test_epoch_frames_of_a_block_are_its_epochs(captured):
+    n_ut, n_epoch = captured.info.n_ut, 0
+    for block in captured.blocks:
+        assert block.k0 == n_epoch  # blocks follow one another
+        for i, frame in enumerate(block.frames()):
+            assert frame.k == block.k0 + i and frame.t_s == block.t_s[i]
+            np.testing.assert_array_equal(frame.columns["ut_id"], np.arange(n_ut))
+            np.testing.assert_array_equal(frame.columns["time_s"], np.full(n_ut, frame.t_s))
+            assert tuple(frame.columns["population"]) == captured.info.population
+            assert np.all(frame.dwells["end_s"] == frame.t_s)  # a dwell closes at its epoch
+            ev = frame.events["time_s"]
+            assert np.all((ev >= frame.t_s) & (ev < frame.t_s + captured.info.epoch_s))
+            n_epoch += 1
+        n_ev = sum(len(f.events["ut_id"]) for f in block.frames())
+        assert n_ev == len(block.events["ut_id"]) == block.event_end[-1]
+    assert n_epoch == captured.info.n_epochs
+    assert sum(len(b.events["ut_id"]) for b in captured.blocks) > 0  # events to split
+    assert sum(len(b.dwells["ut_id"]) for b in captured.blocks) > 0
+
+
+def _state(sink):
+    if isinstance(sink, io_sinks.PlotSink):
+        rows = pa.concat_tables([io_sinks.TRACE_SCHEMA.empty_table(), *sink._rows])
+        events = pa.concat_tables([io_sinks.EVENT_SCHEMA.empty_table(), *sink._events])
+        return rows, events, sink._span
+    return sink.trace(), sink.events()
+
+
+@pytest.mark.parametrize(
+    "make",
+    [lambda: io_sinks.PlotSink("unused", None, ut_ids=(0, 5, 6)), io_sinks.MemorySink],
+    ids=["plots", "memory"],
+)  # fmt: skip
+def test_sinks_in_memory_end_the_same_by_block_or_by_epoch(captured, make):
+    by_block, by_epoch = make(), make()
+    for sink in (by_block, by_epoch):
+        sink.start(captured.info)
+    for block in captured.blocks:
+        by_block.block(block)
+        _split(by_epoch, block)
+    a, b = _state(by_block), _state(by_epoch)
+    if isinstance(by_block, io_sinks.PlotSink):
+        assert a[0].num_rows == 3 * captured.info.n_epochs and a[1].num_rows > 0
+        assert a[0].equals(b[0]) and a[1].equals(b[1]) and a[2] == b[2]
+    else:
+        assert len(a[0]) == captured.info.n_ut * captured.info.n_epochs
+        assert a[0].equals(b[0]) and a[1].equals(b[1])
+
+
+class _EpochsOnly:
+    """A sink of the Sink protocol without ``block`` (as a user's may be)."""
+
+    def start(self, info):
+        self.frames = []
+
+    def epoch(self, frame):
+        self.frames.append(copy.deepcopy(frame))
+
+    def finish(self, final):
+        pass
+
+    def abort(self):
+        pass
+
+
+def test_a_sink_without_block_gets_the_epoch_frames_in_order(captured):
+    from leolink.app.scenario import build_scenario
+    from leolink.sim.runner import run_simulation
+
+    sink = _EpochsOnly()
+    run_simulation(build_scenario(load_config(ROOT / "configs/paper.toml", ["run.epoch_s=0.5"])),
+                   [sink])  # fmt: skip
+    expected = [f for b in captured.blocks for f in b.frames()]
+    assert [f.k for f in sink.frames] == list(range(captured.info.n_epochs))
+    for got, want in zip(sink.frames, expected, strict=True):
+        assert got.t_s == want.t_s
+        for part in ("columns", "events", "dwells"):
+            a, b = getattr(got, part), getattr(want, part)
+            assert a.keys() == b.keys()
+            for k in a:
+                np.testing.assert_array_equal(a[k], b[k])
