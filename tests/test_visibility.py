@@ -151,3 +151,16 @@ def test_the_compiled_kernel_agrees_with_the_numpy_code(monkeypatch):
     single = _walker_elevations(monkeypatch, compiled=True, dtype=np.float32)
     np.testing.assert_array_equal(single, got.astype(np.float32))
     np.testing.assert_array_max_ulp(single, ref.astype(np.float32), maxulp=1)
+
+
+def test_the_callers_numba_thread_count_is_left_as_it_was(monkeypatch):
+    """The pipeline sets numba's threads per block (one fewer while sgp4 runs): the
+    caller's setting afterwards is the one it had."""
+    numba = pytest.importorskip("numba")
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        _walker_elevations(monkeypatch, compiled=True, threads="2")
+        assert numba.get_num_threads() == 1
+    finally:
+        numba.set_num_threads(before)
