@@ -154,8 +154,8 @@ def test_the_compiled_kernel_agrees_with_the_numpy_code(monkeypatch):
 
 
 def test_the_callers_numba_thread_count_is_left_as_it_was(monkeypatch):
-    """The pipeline sets numba's threads per block (one fewer while sgp4 runs): the
-    caller's setting afterwards is the one it had."""
+    """The pipeline sets numba's threads (LEOLINK_THREADS): the caller's setting
+    afterwards is the one it had."""
     numba = pytest.importorskip("numba")
     before = numba.get_num_threads()
     try:
