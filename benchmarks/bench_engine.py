@@ -2,9 +2,12 @@
 
 (a) closed-form beam gains vs the explicit steering-vector product on the same work;
 (b) SNR and SINR for 1,000,000 ground points x 15 beams of one satellite (time, memory);
-(c) engine throughput in UT-epochs/s, 1,000 UTs, one satellite: SNR of all 15 beams, best
-beam, SINR, SE, Doppler and its rate, angular speed (the calls the simulator makes: blocks
-of 64 epochs), with the compiled kernels (the default) and numpy only.
+(c) engine throughput in UT-epochs/s, 1,000 UTs, one satellite, blocks of 64 epochs (the
+calls the simulator makes), with the compiled kernels (the default) and numpy only. Per
+UT-epoch: the pair's geometry and beam kernels, the SNR of all 15 beams and the best of
+them (``Links.best_beam``, the paper's max-SNR selection: ``numpy.argmax`` of the dB SNRs;
+compiled, every beam's linear SNR, the dB value of the largest only), then the serving
+link's columns (gains, SNR, SINR, SE, throughput, Doppler + rate, angular speed, azimuth).
 
 Run: ``python benchmarks/bench_engine.py [--quick] [--points N]``. Prints figures.
 """
@@ -88,17 +91,26 @@ def _snapshot_work(engine, ut, pos, vel, acc):
 
 def _block_work(engine, ut, pos, vel, acc, block):
     """The simulator's calls: the pairs of ``block`` epochs at once (``evaluate_pairs``),
-    SNR of all 15 beams, best beam, then every serving link (``serve_pairs``)."""
+    each pair's best beam (``Links.best_beam``: the SNR of all 15 beams, the largest
+    kept, the paper's max-SNR selection; on an older tree ``argmax`` of ``snr_db_bm``),
+    then every serving link (``serve_pairs``). The rows' states are laid out as the
+    simulator has them (UT-major within an epoch: ``np.repeat`` / ``np.tile`` of the
+    epoch's and the UTs' arrays, the values of ``vel[k0 + s]`` and ``ut[u]``)."""
     n_ut = len(ut)
     zero = np.zeros((n_ut * block, 3))
     for k0 in range(0, len(pos), block):
         n_k = min(block, len(pos) - k0)
         u, s = np.tile(np.arange(n_ut), n_k), np.repeat(np.arange(n_k), n_ut)
         links = engine.evaluate_pairs(ut, pos[k0 : k0 + n_k], vel[k0 : k0 + n_k], u, s)
-        beam = np.argmax(links.snr_db_bm(engine.beam_ix, engine.beam_iy), axis=0)
+        if hasattr(links, "best_beam"):
+            beam, _ = links.best_beam(engine.beam_ix, engine.beam_iy)  # no dB values
+        else:
+            beam = np.argmax(links.snr_db_bm(engine.beam_ix, engine.beam_iy), axis=0)
         m = u.size
-        engine.serve_pairs(links, np.arange(m), beam, zero[:m], zero[:m], vel[k0 + s],
-                           acc[k0 + s], ut_pos_m=ut[u])  # fmt: skip
+        sat_vel = np.repeat(vel[k0 : k0 + n_k], n_ut, axis=0)
+        sat_acc = np.repeat(acc[k0 : k0 + n_k], n_ut, axis=0)
+        engine.serve_pairs(links, np.arange(m), beam, zero[:m], zero[:m], sat_vel, sat_acc,
+                           ut_pos_m=np.tile(ut, (n_k, 1)))  # fmt: skip
 
 
 def engine_throughput(cfg, engine, n_ut=1000, n_epoch=640, block=64):

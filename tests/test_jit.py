@@ -8,6 +8,7 @@ satellites below the horizon, beam peaks and the other degenerate cases a run me
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -104,6 +105,76 @@ def test_evaluate_pairs_and_snr_db_are_the_numpy_bits(epoch, monkeypatch, given_
     assert _same(links.path_lin, ref.path_lin) and _same(links.kx, ref.kx)
     assert _same(snr, ref.snr_db_bm(eng.beam_ix, eng.beam_iy))
     assert np.isfinite(snr).sum() > 15 * 900
+
+
+def _edge_links(links, rng):
+    """``links`` (a real epoch's pairs) with the cases the best-beam kernel must decide as
+    ``numpy.argmax`` does, each on its own visible pairs: exact ties of the best beams
+    (along x, and all 15), near ties (the best x kernel 1 to 4 ulps apart: the dB values
+    may tie where the linear ones do not), a NaN kernel, all-zero kernels (-inf dB),
+    subnormal kernels, paths outside the kernel's quick range (1e-180, 1e180, 0, inf),
+    linear SNRs one subnormal step apart whose dB values are equal (the quick rule would
+    take the larger linear one, numpy the first)."""
+    kx, ky, path = links.kx.copy(), links.ky.copy(), links.path_lin.copy()
+    vis = rng.permutation(np.flatnonzero(links.visible))
+    cases = np.array_split(vis[: 13 * (vis.size // 14)], 13)
+    kx[:, cases[0]] = kx[:, cases[0]].max(axis=0)  # ties along x
+    kx[:, cases[1]] = kx[:, cases[1]].max(axis=0)  # ties of all 15
+    ky[:, cases[1]] = ky[:, cases[1]].max(axis=0)
+    top = kx[:, cases[2]].max(axis=0)
+    for a in range(kx.shape[0]):  # near ties: a few ulps either side of the best
+        kx[a, cases[2]] = top + rng.integers(-4, 5, top.size) * np.spacing(top)
+    kx[3, cases[3]] = np.nan
+    kx[:, cases[4]] = 0.0
+    kx[1:, cases[5]] = 1e-310 * rng.random((kx.shape[0] - 1, cases[5].size))
+    for c, f in zip(cases[6:10], (1e-180, 1e180, 0.0, np.inf), strict=True):
+        path[c] *= f
+    ky[:, cases[10]] = 0.0  # with an infinite path: 0 x inf, NaN in every beam
+    path[cases[10]] = np.inf
+    kx[:, cases[11]] = kx[:, cases[11]].max(axis=0) * (1.0 + 1e-10 * rng.random(5)[:, None])
+    c = cases[12]  # x kernels 0 and 1 one ulp apart (the same dB values: the first wins),
+    top = 1e-12 * kx[:, c].max(axis=0)  # linear SNRs one subnormal step apart (~1e-317)
+    kx[0, c], kx[1, c], kx[2:, c] = top, np.nextafter(top, np.inf), 0.5 * top
+    g0, g1 = (top * ky[:, c].max(axis=0), kx[1, c] * ky[:, c].max(axis=0))
+    q = (2e6 + 0.5) / g1 * 2.0**-1074  # g1 q half way between two subnormals
+    for _ in range(8):
+        q = np.nextafter(q, 0.0)
+    split = np.full(c.size, np.nan)
+    for _ in range(17):  # the path, within 8 ulps, that rounds g0 q and g1 q apart
+        hit = np.isnan(split) & (g1 * q > g0 * q)
+        split[hit] = q[hit]
+        q = np.nextafter(q, np.inf)
+    assert np.isfinite(split).sum() > c.size // 2
+    path[c] = np.where(np.isnan(split), q, split)
+    return dataclasses.replace(links, kx=kx, ky=ky, path_lin=path)
+
+
+@pytest.mark.parametrize("edges", [False, True], ids=["real", "edges"])
+def test_best_beam_is_numpys_argmax(epoch, monkeypatch, edges):
+    """``Links.best_beam`` compiled against ``numpy.argmax`` of the dB matrix (the numpy
+    path), every pair (most are below the horizon: NaN rows), beam and value; with the
+    ties and degenerate values of :func:`_edge_links`."""
+    eng, uts, pos, vel, _, ut, sat, rng = epoch
+    links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat)
+    if edges:
+        links = _edge_links(links, rng)
+    got = links.best_beam(eng.beam_ix, eng.beam_iy, with_snr_db=True)
+    alone, none = links.best_beam(eng.beam_ix, eng.beam_iy)
+    with np.errstate(invalid="ignore"):  # -inf + inf: the NaN cases
+        snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)
+        _numpy(monkeypatch)
+        beam, val = dataclasses.replace(links).best_beam(eng.beam_ix, eng.beam_iy, True)
+        ref_alone = dataclasses.replace(links).best_beam(eng.beam_ix, eng.beam_iy)
+    assert _same(got[0], beam) and _same(got[1], val) and _same(alone, beam)
+    assert none is None and ref_alone[1] is None and _same(ref_alone[0], beam)
+    ref = np.argmax(snr, axis=0)  # the definition, on the compiled matrix as well
+    assert _same(beam, ref) and _same(val, snr[ref, np.arange(ref.size)])
+    vis = links.visible
+    assert (beam[~vis] == 0).all() and np.isnan(val[~vis]).all() and vis.sum() > 900
+    if edges:  # the cases are there: ties resolved to a beam other than the linear argmax
+        lin = np.argmax(links.gain_tx_bm(eng.beam_ix, eng.beam_iy), axis=0)
+        assert np.isnan(val[vis]).sum() > 50 and (np.isneginf(val[vis])).sum() > 50
+        assert (lin[vis] != beam[vis]).sum() > 0
 
 
 @pytest.mark.parametrize("extras", [False, True, "lit"])

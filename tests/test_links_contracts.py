@@ -20,6 +20,7 @@ from leolink.app.scenario import codebook_from_config
 from leolink.config import load_config
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.engine.links import (
+    _PAIR_FIELDS,
     Links,
     azimuth_deg,
     group_constants_db,
@@ -181,3 +182,30 @@ def test_azimuth_of_lines_of_sight_in_the_sphere_and_in_a_given_frame():
     los = np.cos(el) * turned[:, 1] + np.sin(el) * u  # due "north" of the turned frame
     _assert_same_angle(azimuth_deg(los, pos, turned), np.zeros(n))
     _assert_same_angle(azimuth_deg(los, pos, None), np.full(n, 20.0))  # the turned north
+
+
+def test_best_beam_is_the_largest_linear_snr_and_ties_go_to_the_first_beam():
+    """``Links.best_beam`` (the numpy path: fewer pairs than a compiled call takes) against
+    every beam's linear SNR ``k_x k_y p`` taken beam by beam: the same beam where the two
+    largest differ by 1e-6 or more, its dB value to 1e-9 dB (``log10`` rounding, ~1e-14);
+    beam 0 and NaN below the mask; exact ties (equal kernels) go to the lowest beam."""
+    eng = _engine()
+    cos_el = math.cos(math.radians(60.0))  # UTs under a satellite 600 km up, and its antipode
+    ut = R * _unit(np.c_[RNG.uniform(-1, 1, (400, 2)) * 0.03 * cos_el, np.ones(400)])
+    sat = np.array([[0.0, 0.0, R + 600e3], [0.0, 0.0, -(R + 600e3)]])
+    vel = np.array([[7.5e3, 0.0, 0.0], [7.5e3, 0.0, 0.0]])
+    links = eng.evaluate_pairs(ut, sat, vel, np.tile(np.arange(400), 2), np.repeat([0, 1], 400))
+    beam, snr_db = links.best_beam(eng.beam_ix, eng.beam_iy, with_snr_db=True)
+    lin = np.stack([links.kx[i] * links.ky[j] * links.path_lin for i, j in
+                    zip(eng.beam_ix, eng.beam_iy, strict=True)])  # fmt: skip
+    top = np.sort(lin, axis=0)
+    clear = links.visible & (top[-2] < top[-1] * (1.0 - 1e-6))
+    assert links.visible[:400].all() and not links.visible[400:].any() and clear.sum() > 390
+    assert (beam[clear] == np.argmax(lin, axis=0)[clear]).all()
+    assert np.abs(snr_db[:400] - 10.0 * np.log10(top[-1, :400])).max() < 1e-9
+    assert (beam[400:] == 0).all() and np.isnan(snr_db[400:]).all()
+    assert links.best_beam(eng.beam_ix, eng.beam_iy)[1] is None
+    kx = np.repeat(links.kx.max(axis=0, keepdims=True), links.kx.shape[0], axis=0)
+    tied = Links(*(getattr(links, f) for f in _PAIR_FIELDS), kx, links.ky, links.rx_db)
+    first = np.argmax(np.where(eng.beam_ix == 0, 1, 0)[:, None] * links.ky[eng.beam_iy], axis=0)
+    assert (tied.best_beam(eng.beam_ix, eng.beam_iy)[0][:400] == first[:400]).all()

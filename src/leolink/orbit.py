@@ -126,8 +126,9 @@ def circular_state(
     p_vec = np.stack([np.cos(raan), np.sin(raan), np.zeros_like(raan)], axis=-1)
     q_vec = np.stack([-np.sin(raan) * np.cos(inc), np.cos(raan) * np.cos(inc), np.sin(inc)], -1)
     u = (u0 + n * t)[..., None]  # (n_time, n_sat, 1)
-    pos = a[:, None] * (np.cos(u) * p_vec + np.sin(u) * q_vec)
-    vel = (a * n)[:, None] * (-np.sin(u) * p_vec + np.cos(u) * q_vec)
+    cos_u, sin_u = np.cos(u), np.sin(u)
+    pos = a[:, None] * (cos_u * p_vec + sin_u * q_vec)
+    vel = (a * n)[:, None] * (-sin_u * p_vec + cos_u * q_vec)
     acc = -((n * n)[:, None]) * pos
     return pos, vel, acc
 

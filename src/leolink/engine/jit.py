@@ -19,8 +19,8 @@ import numpy as np
 
 from leolink.compiled import enabled, n_threads
 
-__all__ = ["JIT_MIN_PAIRS", "enabled", "links_arrays", "screen_kernel", "serve_columns"]
-__all__ += ["n_threads", "run_rows", "serve_pairs", "use"]
+__all__ = ["JIT_MIN_PAIRS", "best_beam", "enabled", "links_arrays", "screen_kernel"]
+__all__ += ["n_threads", "run_rows", "serve_columns", "serve_pairs", "use"]
 
 #: Smallest number of (UT, satellite) pairs per call worth a compiled kernel.
 JIT_MIN_PAIRS = 1_000
@@ -98,6 +98,16 @@ def snr_db_bm(links, beam_ix, beam_iy):
     run_rows(k.snr_kernel, links.n_pair, links.kx, links.ky, links.path_snr_lin, beam_ix,
              beam_iy, out)  # fmt: skip
     return out
+
+
+def best_beam(links, beam_ix, beam_iy, with_snr_db):
+    """``Links.best_beam`` by :func:`best_beam_kernel`: the beams, and their SNR [dB] or
+    None."""
+    m = links.n_pair
+    best, best_db = np.empty(m, np.int64), np.empty(m)
+    run_rows(kernels().best_beam_kernel, m, links.kx, links.ky, links.path_snr_lin, beam_ix,
+             beam_iy, bool(with_snr_db), best, best_db)  # fmt: skip
+    return best, (best_db if with_snr_db else None)
 
 
 def serve_columns(engine, links, pair, served, b, rows, rx, atm):

@@ -132,6 +132,70 @@ def _snr_chunk(kx, ky, path_snr, ix, iy, out, lo, hi):
             out[b, p] = (lx[ix[b]] + ly[iy[b]]) + pdb
 
 
+#: :func:`best_beam_kernel`'s margin: a beam whose linear SNR is below ``1 - _TIE_MARGIN``
+#: times the largest is below it in dB too. Exactly, its SNR is then below by 4.3e-9 dB at
+#: least (the products err by a few 1e-16, relative); the dB values as computed err by
+#: < 1e-10 dB (C library ``log10`` <= 2 ulp, terms below 1e4 dB: ~1e-11 dB).
+_TIE_MARGIN = 1e-9
+#: Ranges of the path and of the largest linear SNR where that argument holds: every
+#: product near the largest is a normal number, the subnormal ones are far below it.
+_PATH_MIN, _PATH_MAX, _SNR_MIN, _SNR_MAX = 1e-150, 1e150, 1e-100, 1e100
+
+
+@numba.njit(cache=True, nogil=True)
+def best_beam_kernel(kx, ky, path_snr, ix, iy, with_db, best, best_db, lo, hi):
+    """``numpy.argmax(Links.snr_db_bm(ix, iy), axis=0)`` and that beam's dB value, of the
+    pairs ``lo .. hi - 1``, without the (n_beam, m) matrix.
+
+    Every beam's linear SNR ``(k_x k_y) p`` is computed and the largest kept, with the
+    second largest. Where the second is below ``1 - _TIE_MARGIN`` times the largest
+    (every pair but near ties), the largest is the dB argmax as well: only its dB value
+    is computed, ``(10 log10 k_x + 10 log10 k_y) + 10 log10 p`` as in :func:`snr_kernel`.
+    Elsewhere (near ties, NaN kernels, values outside ``_PATH_*``, ``_SNR_*``) every beam's
+    dB value is computed and ``numpy.argmax``'s rule applied (the first NaN, else the first
+    maximum); a pair not visible (NaN path: every beam NaN) gets beam 0 and NaN.
+    ``with_db`` False: the quick pairs' ``best_db`` is left unwritten (not asked for).
+    """
+    for p in range(lo, hi):
+        path = path_snr[p]
+        if path != path:
+            best[p], best_db[p] = 0, np.nan
+            continue
+        s_max, s_2nd, i, nan = -1.0, -1.0, 0, False
+        for b in range(ix.shape[0]):  # written for selects, not branches
+            s = (kx[ix[b], p] * ky[iy[b], p]) * path
+            nan |= s != s
+            up = s > s_max
+            s_2nd = max(s_2nd, s_max if up else s)
+            i = b if up else i
+            s_max = s if up else s_max
+        clear = s_2nd < s_max * (1.0 - _TIE_MARGIN) and not nan
+        if clear and _PATH_MIN <= path <= _PATH_MAX and _SNR_MIN <= s_max <= _SNR_MAX:
+            best[p] = i
+            if with_db:
+                best_db[p] = (
+                    10.0 * np.log10(kx[ix[i], p]) + 10.0 * np.log10(ky[iy[i], p])
+                ) + 10.0 * np.log10(path)
+        else:
+            _best_of_all(kx, ky, path, ix, iy, best, best_db, p)
+
+
+@numba.njit(cache=True, inline="always")
+def _best_of_all(kx, ky, path, ix, iy, best, best_db, p):
+    """``numpy.argmax`` of every beam's dB value (the first NaN, else the first maximum)
+    into ``best[p]``, and that value into ``best_db[p]``."""
+    pdb = 10.0 * np.log10(path)
+    i, d_best = 0, 0.0
+    for b in range(ix.shape[0]):
+        d = (10.0 * np.log10(kx[ix[b], p]) + 10.0 * np.log10(ky[iy[b], p])) + pdb
+        if d != d:
+            i, d_best = b, d
+            break
+        if b == 0 or d > d_best:
+            i, d_best = b, d
+    best[p], best_db[p] = i, d_best
+
+
 _DEG = 180.0 / np.pi  # numpy.degrees multiplies by this constant
 _C4PI = 4.0 * np.pi
 

@@ -127,6 +127,27 @@ class Links:
             path_db = 10.0 * np.log10(self.path_snr_lin)
         return lx[beam_ix] + ly[beam_iy] + path_db
 
+    def best_beam(self, beam_ix, beam_iy, with_snr_db=False):
+        """Each pair's beam of largest SNR (the paper's max-SNR beam), and its SNR [dB].
+
+        ``numpy.argmax`` of :meth:`snr_db_bm` over the beams: ties go to the first beam,
+        a pair not visible (every beam NaN) to beam 0. The compiled kernel gives the same
+        beams and values without the (n_beam, m) matrix: it compares every beam's linear
+        SNR and takes logarithms for the largest only (every beam on near ties).
+
+        Returns
+        -------
+        beam : ndarray of int64, shape (m,)
+        snr_db : ndarray, shape (m,), or None
+            With ``with_snr_db``: that beam's entry of :meth:`snr_db_bm` (NaN where not
+            visible); None otherwise (the kernel then skips its logarithms).
+        """
+        if jit.use(self.n_pair):
+            return jit.best_beam(self, beam_ix, beam_iy, with_snr_db)
+        snr = self.snr_db_bm(beam_ix, beam_iy)
+        beam = np.argmax(snr, axis=0)
+        return beam, (snr[beam, np.arange(self.n_pair)] if with_snr_db else None)
+
 
 _PAIR_FIELDS = ("ut", "sat", "rel_m", "slant_range_m", "elevation_rad", "visible", "path_lin")
 
