@@ -94,23 +94,25 @@ def _block_work(engine, ut, pos, vel, acc, block):
     each pair's best beam (``Links.best_beam``: the SNR of all 15 beams, the largest
     kept, the paper's max-SNR selection; on an older tree ``argmax`` of ``snr_db_bm``),
     then every serving link (``serve_pairs``). The rows' states are laid out as the
-    simulator has them (UT-major within an epoch: ``np.repeat`` / ``np.tile`` of the
-    epoch's and the UTs' arrays, the values of ``vel[k0 + s]`` and ``ut[u]``)."""
+    simulator has them (UT-major within an epoch: ``np.repeat`` of the epoch's states;
+    the index arrays and the static UTs' rows once per block length, as the simulator
+    keeps a block's UT positions)."""
     n_ut = len(ut)
     zero = np.zeros((n_ut * block, 3))
+    u, s = np.tile(np.arange(n_ut), block), np.repeat(np.arange(block), n_ut)
+    pair, ut_rows = np.arange(u.size), np.tile(ut, (block, 1))
     for k0 in range(0, len(pos), block):
         n_k = min(block, len(pos) - k0)
-        u, s = np.tile(np.arange(n_ut), n_k), np.repeat(np.arange(n_k), n_ut)
-        links = engine.evaluate_pairs(ut, pos[k0 : k0 + n_k], vel[k0 : k0 + n_k], u, s)
+        m = n_k * n_ut
+        links = engine.evaluate_pairs(ut, pos[k0 : k0 + n_k], vel[k0 : k0 + n_k], u[:m], s[:m])
         if hasattr(links, "best_beam"):
             beam, _ = links.best_beam(engine.beam_ix, engine.beam_iy)  # no dB values
         else:
             beam = np.argmax(links.snr_db_bm(engine.beam_ix, engine.beam_iy), axis=0)
-        m = u.size
         sat_vel = np.repeat(vel[k0 : k0 + n_k], n_ut, axis=0)
         sat_acc = np.repeat(acc[k0 : k0 + n_k], n_ut, axis=0)
-        engine.serve_pairs(links, np.arange(m), beam, zero[:m], zero[:m], sat_vel, sat_acc,
-                           ut_pos_m=np.tile(ut, (n_k, 1)))  # fmt: skip
+        engine.serve_pairs(links, pair[:m], beam, zero[:m], zero[:m], sat_vel, sat_acc,
+                           ut_pos_m=ut_rows[:m])  # fmt: skip
 
 
 def engine_throughput(cfg, engine, n_ut=1000, n_epoch=640, block=64):

@@ -20,6 +20,7 @@ import pytest
 from leolink.app.run import run
 from leolink.config import load_config
 from leolink.io import sinks as io_sinks
+from leolink.io import summary as io_summary
 from leolink.sim import monitor, streams
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +29,9 @@ SHORT = ["run.duration_s=30.0", "run.start_s=45.0"]
 NO_PICTURES = ["output.plots.enabled=false", "output.report.animation=false"]
 BOTH_TRACES = "output.trace.formats=['csv', 'parquet']"
 RUNS = {
-    "paper": ("configs/paper.toml", ["run.epoch_s=0.25", BOTH_TRACES]),
+    # a partial first block (the warm-up), trace chunks of 100 rows
+    "paper": ("configs/paper.toml",
+              ["run.epoch_s=0.25", "run.warmup_s=3.5", BOTH_TRACES, "output.trace.chunk_rows=100"]),
     "town": ("configs/examples/town.toml", []),
     "walker_ephemeris": (
         "configs/examples/walker.toml",
@@ -46,6 +49,7 @@ def _split(sink, frame):
 def _run(name, out, epoch_by_epoch, monkeypatch):
     path, sets = RUNS[name]
     with monkeypatch.context() as m:
+        m.setattr(io_summary, "_POOL_BUFFER", 50)  # the summary folds its rows many times
         if epoch_by_epoch:
             m.setattr(streams, "deliver", _split)
             m.setattr(monitor, "deliver", _split)
@@ -186,15 +190,88 @@ def test_a_sink_without_block_gets_the_epoch_frames_in_order(captured):
     from leolink.app.scenario import build_scenario
     from leolink.sim.runner import run_simulation
 
-    sink = _EpochsOnly()
-    run_simulation(build_scenario(load_config(ROOT / "configs/paper.toml", ["run.epoch_s=0.5"])),
-                   [sink])  # fmt: skip
-    expected = [f for b in captured.blocks for f in b.frames()]
-    assert [f.k for f in sink.frames] == list(range(captured.info.n_epochs))
-    for got, want in zip(sink.frames, expected, strict=True):
-        assert got.t_s == want.t_s
-        for part in ("columns", "events", "dwells"):
-            a, b = getattr(got, part), getattr(want, part)
-            assert a.keys() == b.keys()
-            for k in a:
-                np.testing.assert_array_equal(a[k], b[k])
+    sink, memory = _EpochsOnly(), io_sinks.MemorySink()
+    cfg = load_config(ROOT / "configs/paper.toml", ["run.epoch_s=0.5"])
+    run_simulation(build_scenario(cfg), [sink, memory])
+    n_ut, n_epoch = captured.info.n_ut, captured.info.n_epochs
+    assert [f.k for f in sink.frames] == list(range(n_epoch))
+    trace, events = memory.trace(), memory.events()  # the same run's rows, taken by block
+    for f in sink.frames:
+        rows = trace.iloc[f.k * n_ut : (f.k + 1) * n_ut]
+        assert np.all(rows.time_s.to_numpy() == f.t_s)
+        for name in ("ut_id", "sat_id", "beam_id", "snr_db", "sinr_db", "doppler_hz"):
+            np.testing.assert_array_equal(rows[name].to_numpy(), f.columns[name])
+    ev = {k: np.concatenate([f.events[k] for f in sink.frames]) for k in ("time_s", "ut_id")}
+    np.testing.assert_array_equal(ev["time_s"], events.time_s.to_numpy())
+    np.testing.assert_array_equal(ev["ut_id"], events.ut_id.to_numpy())
+    assert len(ev["ut_id"]) > 0
+
+
+def test_the_monitor_assembles_a_block_as_its_epochs_one_by_one(monkeypatch):
+    """``Monitor._columns`` of a block's records equals the same function over each epoch's
+    slice of the links (the monitor's code before blocks), joined: beam sharing, fading,
+    a SINR service threshold and a handover time make every branch of it run."""
+    calls = []
+    original = monitor.Monitor._columns
+
+    def checked(self, recs, cols):
+        if len(recs) > 1:
+            n = len(recs[0].geo_sat)
+            cut = [
+                {k: v[i * n : (i + 1) * n].copy() for k, v in cols.items()}
+                for i in range(len(recs))
+            ]
+            parts = [original(self, [r], c) for r, c in zip(recs, cut, strict=True)]
+            out = original(self, recs, {k: v.copy() for k, v in cols.items()})
+            for key in out:
+                joined = np.concatenate([np.asarray(p[key]) for p in parts])
+                assert np.array_equal(out[key], joined, equal_nan=joined.dtype.kind == "f"), key
+            calls.append(len(recs))
+        return original(self, recs, cols)
+
+    monkeypatch.setattr(monitor.Monitor, "_columns", checked)
+    sets = ["run.epoch_s=0.5", "controller.handover_time_s=0.2", "controller.service_metric='sinr'",
+            "link.fading='rician'", "link.interference='all_satellites'",
+            "scheduler.kind='round_robin'"]  # fmt: skip
+    from leolink.app.scenario import build_scenario
+    from leolink.sim.runner import run_simulation
+
+    cfg = load_config(ROOT / "configs/paper.toml", sets)
+    run_simulation(build_scenario(cfg), [io_sinks.MemorySink()])
+    assert len(calls) > 2
+
+
+def test_an_interrupted_run_counts_the_blocks_it_finished():
+    from leolink.app.run import _Position
+
+    pos = _Position()
+    pos.start(type("Info", (), {"n_epochs": 240})())
+    pos.block(streams.BlockFrame(0, np.arange(64) * 0.5, 7, {}, {}, {}, np.zeros(64), np.zeros(64)))
+    assert pos.where(None) == "the run stopped after t = 31.5 s (epoch 64 of 240)"
+
+
+class _Counting:
+    def __init__(self):
+        self.n_epoch, self.n_block = 0, 0
+
+    def epoch(self, frame):
+        self.n_epoch += 1
+
+    def block(self, frame):
+        self.n_block += 1
+
+
+class _OwnEpoch(_Counting):
+    """Overrides ``epoch`` only: it must see every epoch."""
+
+    def epoch(self, frame):
+        self.n_epoch += 10
+
+
+def test_a_subclass_overriding_epoch_only_gets_epochs(captured):
+    block = captured.blocks[0]
+    base, sub = _Counting(), _OwnEpoch()
+    streams.deliver(base, block)
+    streams.deliver(sub, block)
+    assert (base.n_block, base.n_epoch) == (1, 0)
+    assert (sub.n_block, sub.n_epoch) == (0, 10 * len(block.t_s))

@@ -112,10 +112,12 @@ def _edge_links(links, rng):
     ``numpy.argmax`` does, each on its own visible pairs: exact ties of the best beams
     (along x, and all 15), near ties (the best x kernel 1 to 4 ulps apart: the dB values
     may tie where the linear ones do not), a NaN kernel, all-zero kernels (-inf dB),
-    subnormal kernels, paths outside the kernel's quick range (1e-180, 1e180, 0, inf)."""
+    subnormal kernels, paths outside the kernel's quick range (1e-180, 1e180, 0, inf),
+    linear SNRs one subnormal step apart whose dB values are equal (the quick rule would
+    take the larger linear one, numpy the first)."""
     kx, ky, path = links.kx.copy(), links.ky.copy(), links.path_lin.copy()
     vis = rng.permutation(np.flatnonzero(links.visible))
-    cases = np.array_split(vis[: 12 * (vis.size // 13)], 12)
+    cases = np.array_split(vis[: 13 * (vis.size // 14)], 13)
     kx[:, cases[0]] = kx[:, cases[0]].max(axis=0)  # ties along x
     kx[:, cases[1]] = kx[:, cases[1]].max(axis=0)  # ties of all 15
     ky[:, cases[1]] = ky[:, cases[1]].max(axis=0)
@@ -130,6 +132,20 @@ def _edge_links(links, rng):
     ky[:, cases[10]] = 0.0  # with an infinite path: 0 x inf, NaN in every beam
     path[cases[10]] = np.inf
     kx[:, cases[11]] = kx[:, cases[11]].max(axis=0) * (1.0 + 1e-10 * rng.random(5)[:, None])
+    c = cases[12]  # x kernels 0 and 1 one ulp apart (the same dB values: the first wins),
+    top = 1e-12 * kx[:, c].max(axis=0)  # linear SNRs one subnormal step apart (~1e-317)
+    kx[0, c], kx[1, c], kx[2:, c] = top, np.nextafter(top, np.inf), 0.5 * top
+    g0, g1 = (top * ky[:, c].max(axis=0), kx[1, c] * ky[:, c].max(axis=0))
+    q = (2e6 + 0.5) / g1 * 2.0**-1074  # g1 q half way between two subnormals
+    for _ in range(8):
+        q = np.nextafter(q, 0.0)
+    split = np.full(c.size, np.nan)
+    for _ in range(17):  # the path, within 8 ulps, that rounds g0 q and g1 q apart
+        hit = np.isnan(split) & (g1 * q > g0 * q)
+        split[hit] = q[hit]
+        q = np.nextafter(q, np.inf)
+    assert np.isfinite(split).sum() > c.size // 2
+    path[c] = np.where(np.isnan(split), q, split)
     return dataclasses.replace(links, kx=kx, ky=ky, path_lin=path)
 
 

@@ -32,6 +32,9 @@ SIM_RUN_TESTS = [
     "tests/test_summary_of_a_run.py",
     "tests/test_trace_independent.py",
 ]
+#: The block frames (sim/streams.py BlockFrame, deliver; the monitor's flush): every output
+#: file of three runs by block and by epoch, and the frames against what they mean.
+BLOCK_TESTS = ["tests/test_block_frames.py", "tests/test_block_frame_contracts.py"]
 #: module -> the fast tests that exercise it (the whole suite would cost ~2 min per mutant
 #: batch; these run in seconds).
 MODULES = {
@@ -119,11 +122,13 @@ MODULES = {
         "tests/test_active_beams.py",
         "tests/test_link_figures_in_run.py",
         "tests/test_monitor_contracts.py",
+        *BLOCK_TESTS,
         "tests/test_cli.py::test_warmup_epochs_are_not_recorded_and_cut_dwells_are_censored",
         "--deselect=tests/test_simulation.py::test_same_seed_same_trace_whatever_the_chunk_size",
         "--deselect=tests/test_handover_wiring.py::test_kpis_equal_the_trace_and_events_recomputed",
         "--deselect=tests/test_environment_in_run.py::test_scintillation_twice_is_refused",
     ],
+    "sim/streams": [*BLOCK_TESTS, "tests/test_simulation.py"],
     "sim/decide": [*SIM_RUN_TESTS, "tests/test_environment_floor.py"],
     "sim/processes": [
         "tests/test_candidates.py",

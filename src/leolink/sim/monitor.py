@@ -1,4 +1,4 @@
-"""The monitor's side of an epoch: every UT's serving link, streamed as epoch frames.
+"""The monitor's side of an epoch: every UT's serving link, streamed to the sinks.
 
 :class:`Monitor` is what :func:`~leolink.sim.processes.link_monitor` calls once per
 epoch. It keeps the epoch's decision and, at the end of each motion block
@@ -78,7 +78,7 @@ class _Record:
 
 
 class Monitor:
-    """Serving links of every UT -> epoch frames for the sinks (module docstring).
+    """Serving links of every UT -> block (or epoch) frames for the sinks (module docstring).
 
     Parameters
     ----------

@@ -191,8 +191,10 @@ def run_simulation(
     ----------
     scen : Scenario
     sinks : sequence of :class:`~leolink.sim.streams.Sink`
-        Each gets ``start``, one ``epoch`` per recorded epoch and ``finish``, or
-        ``abort`` if the run fails or is interrupted (the exception propagates).
+        Each gets ``start``, the recorded epochs (one ``block`` per motion block if it has
+        ``block``, else one ``epoch`` per epoch: :func:`~leolink.sim.streams.deliver`) and
+        ``finish``, or ``abort`` if the run fails or is interrupted (the exception
+        propagates).
     progress : callable, optional
         ``progress(done_epochs, n_epochs)``, called about 200 times.
 

@@ -71,8 +71,9 @@ class EpochFrame:
     Notes
     -----
     The arrays are handed over, read-only: the simulator never writes into an array
-    after the ``epoch`` call that carried it (each frame's arrays are new, or, like
-    ``population``, the same constant array every epoch), so a sink may keep references
+    after the call that carried it (each frame's arrays are new, or views of a new
+    :class:`BlockFrame`'s, or, like ``population``, the same constant array for blocks of
+    the same length), so a sink may keep references
     instead of copying (the trace writer buffers them until a chunk is written, on a
     background thread). A sink must not modify them: the other sinks see the same arrays.
     A producer of frames that reuses buffers across epochs must copy before the call.
@@ -115,7 +116,8 @@ class BlockFrame:
     dwell_end: np.ndarray
 
     def frames(self):
-        """The block's :class:`EpochFrame` s, in order (their arrays are views)."""
+        """The block's :class:`EpochFrame` s, in order (their arrays are views of the
+        block's: a sink that keeps a few epochs' rows should copy them)."""
         n, e0, d0 = self.n_ut, 0, 0
         for i, t_s in enumerate(self.t_s.tolist()):
             e1, d1 = int(self.event_end[i]), int(self.dwell_end[i])
@@ -141,7 +143,13 @@ class FinalFrame:
 class Sink(Protocol):
     """Receives the stream of one run: ``start``, ``epoch`` per recorded epoch, ``finish``;
     ``abort`` instead of ``finish`` when the run fails or is interrupted (a sink that
-    writes files then removes what it had not finished)."""
+    writes files then removes what it had not finished).
+
+    Optionally ``block(frame)``: a :class:`BlockFrame` instead of its epochs' ``epoch``
+    calls (:func:`deliver`); ``epoch`` is still needed (runs with radio link failure
+    monitoring send epoch frames). Sinks get a block one after the other: a sink must not
+    read another's state before ``finish``.
+    """
 
     def start(self, info: RunInfo) -> None: ...
 
@@ -153,13 +161,24 @@ class Sink(Protocol):
 
 
 def deliver(sink, frame):
-    """Hand ``sink`` a :class:`BlockFrame`: whole if it has ``block``, else epoch by epoch."""
+    """Hand ``sink`` a :class:`BlockFrame`: whole if it has ``block``, else epoch by epoch.
+
+    A subclass that overrides ``epoch`` but not its base's ``block`` gets epochs: its
+    ``epoch`` must see every row.
+    """
     whole = getattr(sink, "block", None)
-    if whole is not None:
+    if whole is not None and _owner(sink, "block") <= _owner(sink, "epoch"):
         whole(frame)
         return
     for epoch in frame.frames():
         sink.epoch(epoch)
+
+
+def _owner(sink, name):
+    """Place in the sink's class hierarchy (0: its own class) of the class that defines
+    ``name``; past the end for an attribute of the instance itself."""
+    mro = type(sink).__mro__
+    return next((i for i, cls in enumerate(mro) if name in vars(cls)), len(mro))
 
 
 class SinkGroup:
