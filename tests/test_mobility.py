@@ -393,3 +393,53 @@ def test_concat_states():
     assert isinstance(c, UTState) and c.n_ut == 3 and c.pos_m.shape == (3, 3)
     np.testing.assert_array_equal(c.vel_m_s[2], b.vel_m_s[0])
     np.testing.assert_array_equal(c.lat_rad[:2], a.lat_rad)
+
+
+# --- many times in one call (sim/motion.py's blocks) --------------------------------------
+UT_FIELDS = ("pos_m", "vel_m_s", "acc_m_s2", "lat_rad", "lon_rad", "alt_m")
+
+
+def _block_models():
+    rng = np.random.default_rng(11)
+    n = 257
+    lat, lon = rng.uniform(-1.5, 1.5, n), rng.uniform(-np.pi, np.pi, n)
+    moving = ConstantVelocity(lat, lon, rng.uniform(0.0, 12e3, n), rng.uniform(-np.pi, np.pi, n),
+                              rng.uniform(0.0, 300.0, n), t0_s=-7.3)  # fmt: skip
+    return {"static": Static(lat, lon, rng.uniform(0.0, 100.0, n)), "great circle": moving}
+
+
+@pytest.mark.parametrize("name", ["static", "great circle"])
+def test_states_of_many_times_are_the_states_time_after_time_bit_for_bit(name):
+    """``states(times)`` is documented as ``state`` at each time (the simulator's outputs
+    must not depend on which is called): equal bits, for times of 1/30 s steps around the
+    model's start (before and after it) and a day later."""
+    model = _block_models()[name]
+    times = np.concatenate([np.arange(-37, 27) / 30.0 + 59.9, [86400.0, -7.3]])
+    block = model.states(times)
+    for j, t in enumerate(times):
+        one = model.state(float(t))
+        for f in UT_FIELDS:
+            got, expected = getattr(block, f)[j], getattr(one, f)
+            assert got.shape == expected.shape and np.array_equal(got, expected), (f, t)
+
+
+def test_motion_blocks_take_a_wrapped_models_own_states():
+    """OnWgs84 hands unknown attributes to the sphere model it wraps; a block of its UTs
+    must still be on the ellipsoid (its ``state``), not the wrapped model's ``states``."""
+    from leolink.sim.mobility import OnWgs84
+    from leolink.sim.motion import MotionBlocks
+
+    sphere = _block_models()["great circle"]
+    wgs84 = OnWgs84(sphere)
+    times = np.arange(5) * 10.0
+
+    def no_satellites(t_s):
+        return (np.zeros((len(t_s), 0, 3)),) * 3
+
+    both = [("sphere", sphere), ("wgs84", wgs84)]
+    block = MotionBlocks(no_satellites, both, times, 0, 2 * sphere.n_ut).block_of(0)
+    for j, t in enumerate(times):
+        for f in UT_FIELDS:
+            expected = np.concatenate([getattr(m.state(t), f) for _, m in both])
+            assert np.array_equal(getattr(block, "ut_" + f)[j], expected), (f, t)
+    assert not np.allclose(wgs84.state(10.0).pos_m, sphere.state(10.0).pos_m, atol=1e3)

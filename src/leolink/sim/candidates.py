@@ -97,7 +97,11 @@ class Candidates:
 
     def value_at(self, cells):
         """``snr_db`` of ``cells[i]`` in row ``i``, NaN where absent or ``cells[i] < 0``."""
-        slot = self.slot_of(cells)
+        return self.at(self.slot_of(cells))
+
+    def at(self, slot):
+        """``snr_db`` of slot ``slot[i]`` in row ``i``, NaN where ``slot[i] < 0`` (the
+        slots of :meth:`slot_of`, for a table of the same cells)."""
         if self.n_slot == 0:
             return np.full(slot.shape, np.nan)
         val = self.snr_db[np.arange(slot.size), np.maximum(slot, 0)]

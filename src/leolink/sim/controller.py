@@ -42,6 +42,7 @@ EVENT_KINDS = (
     "rlf",  # radio link failure (leolink.sim.rlf_run): from_* the failed cell, to_* -1
 )
 SERVICE_RESUMED = EVENT_KINDS.index("service_resumed")
+_KIND_NAMES = np.asarray(EVENT_KINDS)
 EVENT_COLUMNS = (
     "time_s",
     "ut_id",
@@ -151,28 +152,28 @@ def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
     return fire, np.where(fire, -1, pending), np.where(fire | (pending < 0), np.nan, since)
 
 
-def _events(t_s, kind_code, old, new, new_db, n_beam, before_db):
+def _events(t_s, kind_code, old, old_split, new_split, new_db, before_db):
     """Events of UTs with ``kind_code >= 0`` (at most one per UT per epoch);
+    ``old_split``, ``new_split``: ``_split`` of the old and new serving cells (n_ut,);
     ``new_db``, ``before_db`` (n_ut,): the new serving cell's SNR, the old link's last."""
     ut = np.flatnonzero(kind_code >= 0)
-    from_sat, from_beam = _split(old[ut], n_beam)
-    to_sat, to_beam = _split(new[ut], n_beam)
     return {
         "time_s": np.full(ut.size, float(t_s)),
         "ut_id": ut.astype(np.int64),
-        "kind": np.asarray(EVENT_KINDS)[kind_code[ut]],
-        "from_sat": from_sat,
-        "from_beam": from_beam,
-        "to_sat": to_sat,
-        "to_beam": to_beam,
+        "kind": _KIND_NAMES[kind_code[ut]],
+        "from_sat": old_split[0][ut],
+        "from_beam": old_split[1][ut],
+        "to_sat": new_split[0][ut],
+        "to_beam": new_split[1][ut],
         "snr_before_db": np.where(old[ut] >= 0, before_db[ut], np.nan),
         "snr_after_db": new_db[ut],
     }
 
 
-def _dwells(ut, cand, start_s, end_s, censored_start, censored_end, n_beam):
-    """Dwell records of the UTs ``ut`` on candidates ``cand``."""
-    sat, beam = _split(cand, n_beam)
+def _dwells(ut, cand, start_s, end_s, censored_start, censored_end, n_beam, split=None):
+    """Dwell records of the UTs ``ut`` on candidates ``cand`` (``split``: their
+    ``_split``, if known)."""
+    sat, beam = _split(cand, n_beam) if split is None else split
     return {
         "ut_id": np.asarray(ut, np.int64),
         "sat_id": sat,
@@ -184,9 +185,10 @@ def _dwells(ut, cand, start_s, end_s, censored_start, censored_end, n_beam):
     }
 
 
-def _check_targets(policy, target, usable_db, needs):
-    """A policy must return a usable candidate wherever one is needed."""
-    ok = np.isfinite(value_at(usable_db, target))
+def _check_targets(policy, target, target_db, needs):
+    """A policy must return a usable candidate wherever one is needed (``target_db``: the
+    usable SNR of ``target``)."""
+    ok = np.isfinite(target_db)
     bad = np.flatnonzero(needs & ~ok)
     if bad.size:
         raise ValueError(
@@ -244,12 +246,14 @@ def step(
         target = policy.choose(t_s, usable_db, state, future_db)
     target = np.asarray(target, np.int64)
     old = state.serving
+    # The usable table has the cells of the full one: each cell's slot is found once.
+    slot_old, slot_target = snr_db.slot_of(old), snr_db.slot_of(target)
     has_usable = np.isfinite(usable_db.snr_db).any(axis=1)
     first = has_usable & (old < 0) & ~state.in_outage
     interrupted = (old >= 0) & (t_s < state.interrupted_until_s - TIME_TOL_S)
-    _check_targets(policy, target, usable_db, has_usable & ~interrupted)
+    _check_targets(policy, target, usable_db.at(slot_target), has_usable & ~interrupted)
 
-    immediate = ~np.isfinite(value_at(usable_db, old))
+    immediate = ~np.isfinite(usable_db.at(slot_old))
     wants = has_usable & (old >= 0) & ~interrupted & (target != old)
     ttt_s = float(policy.time_to_trigger_s)
     handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
@@ -257,15 +261,18 @@ def step(
     outage_end = has_usable & state.in_outage
     adopt = handover | outage_end | first
     new = np.where(adopt, target, np.where(outage_start, -1, old))
+    slot_new = np.where(adopt, slot_target, np.where(outage_start, -1, slot_old))
+    old_split, new_split = _split(old, n_beam), _split(new, n_beam)
 
-    same_sat = _split(target, n_beam)[0] == _split(old, n_beam)[0]
+    # A handover adopts the target: its satellite is the new one's.
+    same_sat = new_split[0] == old_split[0]
     kind = np.full(old.shape, -1, np.int64)
     kind[handover] = np.where(same_sat[handover], 0, 1)
     kind[outage_start] = 2
     kind[outage_end] = 3
-    last_db = _last_serving_db(state, value_at(snr_db, old))
-    new_db = value_at(snr_db, new)
-    events = _events(t_s, kind, old, new, new_db, n_beam, last_db)
+    last_db = _last_serving_db(state, snr_db.at(slot_old))
+    new_db = snr_db.at(slot_new)
+    events = _events(t_s, kind, old, old_split, new_split, new_db, last_db)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
     dwells = _dwells(
         closing,
@@ -275,6 +282,7 @@ def step(
         state.dwell_censored_start[closing],
         False,
         n_beam,
+        (old_split[0][closing], old_split[1][closing]),
     )
     new_state = ControllerState(
         serving=new,
@@ -293,9 +301,7 @@ def step(
         n_beam=int(n_beam),
         serving_snr_db=_serving_db(old, new, new_db, last_db),
     )
-    return StepResult(
-        new_state, events, dwells, service_codes(t_s, new_state), *_split(new, n_beam)
-    )
+    return StepResult(new_state, events, dwells, service_codes(t_s, new_state), *new_split)
 
 
 def _as_table(snr_db):

@@ -125,6 +125,15 @@ class Static:
         lat, lon, alt = self.lat_rad.copy(), self.lon_rad.copy(), self.alt_m.copy()
         return UTState(self._pos_m.copy(), zero, zero.copy(), lat, lon, alt)
 
+    def states(self, times_s):
+        """:meth:`state` at every time of ``times_s`` (n_t,), each array with a leading
+        time axis (read-only broadcast views)."""
+        n_t = len(times_s)
+        zero = np.broadcast_to(0.0, (n_t, self.n_ut, 3))
+        along = [np.broadcast_to(a, (n_t, *a.shape)) for a in (self.lat_rad, self.lon_rad)]
+        alt = np.broadcast_to(self.alt_m, (n_t, self.n_ut))
+        return UTState(np.broadcast_to(self._pos_m, (n_t, self.n_ut, 3)), zero, zero, *along, alt)
+
 
 class ConstantVelocity:
     """Terminals moving along great circles at constant speed and constant height.
@@ -186,6 +195,22 @@ class ConstantVelocity:
         vel = self.speed_m_s[:, None] * tangent
         acc = -(self.speed_m_s**2 / r_m)[:, None] * up
         return UTState(pos, vel, acc, lat, lon, self.alt_m.copy())
+
+    def states(self, times_s):
+        """:meth:`state` at every time of ``times_s`` (n_t,) in one call, each array with a
+        leading time axis: the same operations, element by element (the same bits)."""
+        r_m = self.radius_m + self.alt_m
+        times_s = np.asarray(times_s, float)
+        phi = self.speed_m_s * (times_s[:, None] - self.t0_s) / r_m
+        c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
+        up = c * self._u0 + s * self._e0
+        tangent = c * self._e0 - s * self._u0
+        pos = r_m[:, None] * up
+        lat = np.arcsin(np.clip(up[..., 2], -1.0, 1.0))
+        lon = np.arctan2(up[..., 1], up[..., 0])
+        vel = self.speed_m_s[:, None] * tangent
+        acc = -(self.speed_m_s**2 / r_m)[:, None] * up
+        return UTState(pos, vel, acc, lat, lon, np.broadcast_to(self.alt_m, phi.shape))
 
 
 @dataclass(frozen=True)

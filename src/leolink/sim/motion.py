@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink.sim.mobility import concat_states
+from leolink.sim.mobility import UTState
 
 __all__ = ["MAX_BLOCK_EPOCHS", "MotionBlock", "MotionBlocks"]
 
@@ -84,15 +84,27 @@ class MotionBlocks:
     def _compute(self, k0, k1):
         times = self.times_s[k0:k1]
         pos, vel, acc = self.ephemeris(times)
-        uts = [concat_states([p.state(float(t)) for _, p in self.populations]) for t in times]
+        blocks = [_states(model, times) for _, model in self.populations]
         return MotionBlock(
             k0,
             k1,
             pos,
             vel,
             acc,
-            *(np.stack([getattr(u, f) for u in uts]) for f in _UT_FIELDS),
+            *(np.concatenate([getattr(b, f) for b in blocks], axis=1) for f in _UT_FIELDS),
         )
+
+
+def _states(model, times_s):
+    """The model's states at ``times_s``, a :class:`UTState` whose arrays have a leading
+    time axis: in one call where the model's class has ``states`` (static UTs, great
+    circles), else time after time. (The class, not the instance: a wrapper such as
+    ``OnWgs84`` hands unknown attributes to the model it wraps, whose ``states`` would be
+    the sphere's.)"""
+    if getattr(type(model), "states", None) is not None:
+        return model.states(times_s)
+    per_t = [model.state(float(t)) for t in times_s]
+    return UTState(*(np.stack([getattr(u, f) for u in per_t]) for f in _UT_FIELDS))
 
 
 _UT_FIELDS = ("pos_m", "vel_m_s", "acc_m_s2", "lat_rad", "lon_rad", "alt_m")

@@ -33,7 +33,12 @@ __all__ = [
 
 @runtime_checkable
 class MotionModel(Protocol):
-    """``n_ut`` terminals whose ``state(t_s)`` is a :class:`~leolink.sim.mobility.UTState`."""
+    """``n_ut`` terminals whose ``state(t_s)`` is a :class:`~leolink.sim.mobility.UTState`.
+
+    A model may also have ``states(times_s)``: the states at many times in one call (each
+    array with a leading time axis), equal to ``state`` time after time; the simulator
+    uses it for a block of epochs where the class has it (:mod:`leolink.sim.motion`).
+    """
 
     n_ut: int
 
