@@ -152,7 +152,8 @@ class Decider:
         res = step(t, decided, c, self.policy, self.min_snr_db, self.handover_time_s, nb,
                    future, target)  # fmt: skip
         resumed = resumed_events(t, self.epoch_s, res.state, table)
-        res.events = concat_events(res.events, resumed)
+        if resumed["ut_id"].size:  # (both tables have the same dtypes: nothing to join)
+            res.events = concat_events(res.events, resumed)
         unserved = np.flatnonzero(res.sat_id < 0)
         state.best_unserved = (unserved, best_cell[unserved])
         cone = self.cones[k - blk.k0]
