@@ -443,3 +443,20 @@ def test_motion_blocks_take_a_wrapped_models_own_states():
             expected = np.concatenate([getattr(m.state(t), f) for _, m in both])
             assert np.array_equal(getattr(block, "ut_" + f)[j], expected), (f, t)
     assert not np.allclose(wgs84.state(10.0).pos_m, sphere.state(10.0).pos_m, atol=1e3)
+
+
+def test_motion_blocks_are_c_contiguous_whatever_the_models_layout():
+    """A static population's states are broadcast views; the block's arrays must still be
+    C-contiguous, the layout of stacked per-epoch states: with other strides the engine's
+    reductions (einsum over the 3 axes) give other last bits (the TLE example's
+    elevations moved by 1 ulp)."""
+    from leolink.sim.motion import MotionBlocks
+
+    def no_satellites(t_s):
+        return (np.zeros((len(t_s), 0, 3)),) * 3
+
+    static = _block_models()["static"]
+    block = MotionBlocks(no_satellites, [("s", static)], np.arange(7.0), 0, static.n_ut).block_of(0)
+    for f in UT_FIELDS:
+        arr = getattr(block, "ut_" + f)
+        assert arr.flags.c_contiguous and arr.strides[-1] == 8, f

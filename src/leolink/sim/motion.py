@@ -91,8 +91,15 @@ class MotionBlocks:
             pos,
             vel,
             acc,
-            *(np.concatenate([getattr(b, f) for b in blocks], axis=1) for f in _UT_FIELDS),
+            *(_joined([getattr(b, f) for b in blocks]) for f in _UT_FIELDS),
         )
+
+
+def _joined(parts):
+    """The populations' arrays side by side (UT axis 1), C-contiguous: numpy keeps the
+    inputs' layout, and a broadcast one (static UTs) would give the engine's reductions
+    other strides, hence other last bits."""
+    return np.ascontiguousarray(np.concatenate(parts, axis=1))
 
 
 def _states(model, times_s):
