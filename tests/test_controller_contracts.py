@@ -371,3 +371,20 @@ def test_the_controller_decides_again_at_the_epoch_the_execution_ends():
         times += [k] * res.events["time_s"].size
         state = res.state
     assert times == [3, 6]
+
+
+def test_an_epoch_without_resumed_service_gives_an_empty_table_of_the_same_dtypes():
+    """resumed_events of an epoch where no execution ends is empty, with the columns and
+    dtypes of one where a UT resumes (the decider joins the two tables only when the
+    second has rows, so an empty table must not be what fixes a dtype)."""
+    state = ControllerState.initial(2)
+    state.serving[:] = [3, -1]
+    state.interrupted_until_s[:] = [0.5, -np.inf]
+    state.n_beam = 2
+    snr = np.array([[0.0, 0.0, 0.0, 7.0], [0.0, 0.0, 0.0, 0.0]])
+    some = resumed_events(0.0, 1.0, state, snr)
+    none = resumed_events(1.0, 1.0, state, snr)  # the execution ended at 0.5 s
+    assert some["ut_id"].tolist() == [0] and some["snr_after_db"].tolist() == [7.0]
+    assert list(none) == list(some)
+    for k in some:
+        assert none[k].shape == (0,) and none[k].dtype == some[k].dtype, k

@@ -143,6 +143,8 @@ def _split(cand, n_beam):
 
 def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
     """Pending bookkeeping. Returns (fire, pending, pending_since_s)."""
+    if not wants.any():  # (most epochs: nothing fires, nothing pends)
+        return np.zeros(wants.shape, bool), np.full(wants.shape, -1, np.int64), _nan(wants)
     pending = np.where(wants & ~immediate, target, -1)
     same = (pending >= 0) & (pending == state.pending)
     since = np.where(same, state.pending_since_s, np.where(pending >= 0, t_s, np.nan))
@@ -342,6 +344,8 @@ def resumed_events(t_s, epoch_s, state, snr_db):
     due = (state.serving >= 0) & ~state.in_outage & (until > t_s + TIME_TOL_S)
     due &= until <= t_s + epoch_s + TIME_TOL_S
     ut = np.flatnonzero(due)
+    if ut.size == 0:  # (most epochs)
+        return _no_events()
     ut = ut[np.lexsort((ut, until[ut]))]
     to_sat, to_beam = _split(state.serving[ut], state.n_beam or 1)
     none = np.full(ut.size, -1, np.int64)
@@ -356,6 +360,18 @@ def resumed_events(t_s, epoch_s, state, snr_db):
         "snr_before_db": np.full(ut.size, np.nan),
         "snr_after_db": value_at(_as_table(snr_db).rows(ut), state.serving[ut]),
     }
+
+
+def _nan(like):
+    return np.full(like.shape, np.nan)
+
+
+def _no_events():
+    """An empty event table, with the dtypes of a non-empty one."""
+    ids = {k: np.zeros(0, np.int64) for k in EVENT_COLUMNS if k.endswith(("_id", "_sat", "_beam"))}
+    values = {k: np.zeros(0) for k in ("time_s", "snr_before_db", "snr_after_db")}
+    table = {**ids, **values, "kind": _KIND_NAMES[ids["ut_id"]]}
+    return {k: table[k] for k in EVENT_COLUMNS}
 
 
 def concat_events(*tables):
