@@ -144,7 +144,8 @@ def _split(cand, n_beam):
 def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
     """Pending bookkeeping. Returns (fire, pending, pending_since_s)."""
     if not wants.any():  # (most epochs: nothing fires, nothing pends)
-        return np.zeros(wants.shape, bool), np.full(wants.shape, -1, np.int64), _nan(wants)
+        n = wants.shape
+        return np.zeros(n, bool), np.full(n, -1, np.int64), np.full(n, np.nan)
     pending = np.where(wants & ~immediate, target, -1)
     same = (pending >= 0) & (pending == state.pending)
     since = np.where(same, state.pending_since_s, np.where(pending >= 0, t_s, np.nan))
@@ -276,16 +277,9 @@ def step(
     new_db = snr_db.at(slot_new)
     events = _events(t_s, kind, old, old_split, new_split, new_db, last_db)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
-    dwells = _dwells(
-        closing,
-        old[closing],
-        state.serving_since_s[closing],
-        t_s,
-        state.dwell_censored_start[closing],
-        False,
-        n_beam,
-        (old_split[0][closing], old_split[1][closing]),
-    )
+    dwells = _dwells(closing, old[closing], state.serving_since_s[closing], t_s,
+                     state.dwell_censored_start[closing], False, n_beam,
+                     (old_split[0][closing], old_split[1][closing]))  # fmt: skip
     new_state = ControllerState(
         serving=new,
         pending=np.where(adopt | outage_start, -1, pending),
@@ -362,16 +356,11 @@ def resumed_events(t_s, epoch_s, state, snr_db):
     }
 
 
-def _nan(like):
-    return np.full(like.shape, np.nan)
-
-
 def _no_events():
     """An empty event table, with the dtypes of a non-empty one."""
-    ids = {k: np.zeros(0, np.int64) for k in EVENT_COLUMNS if k.endswith(("_id", "_sat", "_beam"))}
-    values = {k: np.zeros(0) for k in ("time_s", "snr_before_db", "snr_after_db")}
-    table = {**ids, **values, "kind": _KIND_NAMES[ids["ut_id"]]}
-    return {k: table[k] for k in EVENT_COLUMNS}
+    int_ = ("ut_id", "from_sat", "from_beam", "to_sat", "to_beam")
+    return {k: _KIND_NAMES[:0] if k == "kind" else np.zeros(0, np.int64 if k in int_ else float)
+            for k in EVENT_COLUMNS}  # fmt: skip
 
 
 def concat_events(*tables):

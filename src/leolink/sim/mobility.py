@@ -126,13 +126,10 @@ class Static:
         return UTState(self._pos_m.copy(), zero, zero.copy(), lat, lon, alt)
 
     def states(self, times_s):
-        """:meth:`state` at every time of ``times_s`` (n_t,), each array with a leading
-        time axis (read-only broadcast views)."""
-        n_t = len(times_s)
-        zero = np.broadcast_to(0.0, (n_t, self.n_ut, 3))
-        along = [np.broadcast_to(a, (n_t, *a.shape)) for a in (self.lat_rad, self.lon_rad)]
-        alt = np.broadcast_to(self.alt_m, (n_t, self.n_ut))
-        return UTState(np.broadcast_to(self._pos_m, (n_t, self.n_ut, 3)), zero, zero, *along, alt)
+        """:meth:`state` at each of ``times_s`` (n_t,): a leading time axis, read-only views."""
+        v, zero = (len(times_s), self.n_ut), np.broadcast_to(0.0, (len(times_s), self.n_ut, 3))
+        lat, lon, alt = (np.broadcast_to(a, v) for a in (self.lat_rad, self.lon_rad, self.alt_m))
+        return UTState(np.broadcast_to(self._pos_m, zero.shape), zero, zero, lat, lon, alt)
 
 
 class ConstantVelocity:
@@ -197,11 +194,9 @@ class ConstantVelocity:
         return UTState(pos, vel, acc, lat, lon, self.alt_m.copy())
 
     def states(self, times_s):
-        """:meth:`state` at every time of ``times_s`` (n_t,) in one call, each array with a
-        leading time axis: the same operations, element by element (the same bits)."""
+        """:meth:`state` at each of ``times_s`` (n_t,), a leading time axis: the same bits."""
         r_m = self.radius_m + self.alt_m
-        times_s = np.asarray(times_s, float)
-        phi = self.speed_m_s * (times_s[:, None] - self.t0_s) / r_m
+        phi = self.speed_m_s * (np.asarray(times_s, float)[:, None] - self.t0_s) / r_m
         c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
         up = c * self._u0 + s * self._e0
         tangent = c * self._e0 - s * self._u0
