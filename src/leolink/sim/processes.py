@@ -90,7 +90,7 @@ def satellite_motion(env, state, motion, epoch_s):
 
 def ut_motion(env, state, motion, ut_slice, epoch_s):
     """Move one mobility population (its UTs are ``ut_slice`` of the shared arrays), from
-    the motion blocks (each population's state evaluated once per epoch)."""
+    the motion blocks (each population's states evaluated once per block of epochs)."""
     for k in range(len(state.times_s)):
         b = motion.block_of(k)
         i = k - b.k0
