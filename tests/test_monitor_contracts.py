@@ -166,17 +166,21 @@ def test_fading_of_every_row_is_its_draw_over_the_mean_of_its_own_receive_gain()
     np.testing.assert_allclose(got[ok], factor_db[ok], rtol=0, atol=1e-9)
 
 
-def test_precoded_se_with_more_beams_than_chains_is_that_of_the_lit_beams_chains(tmp_path):
+@pytest.mark.parametrize("fading", [False, True], ids=["mean", "rician"])
+def test_precoded_se_with_more_beams_than_chains_is_that_of_the_lit_beams_chains(tmp_path, fading):
     """O = 2 (47 beams, 15 RF chains), demand-lit beams, round robin and ZF, 30 UTs (up to
     4 per beam): each served UT's SE (times its beam's UT count, the round-robin share)
     is the mean ``log2(1 + SINR)`` over its slots of explicit steering vectors of the
     60 x 72 array, the lit beams by ascending id on chains 0, 1, ...
     (``test_active_beams._explicit_se``), its path SNR from the engine called by hand on
-    the row's position; float rounding only (1e-9). Demand lights the cells holding UTs
-    by their best beam and each UT is served by its best lit beam, so the lit beams are
-    the epoch's served beams."""
+    the row's position, times the row's fading factor with Rician draws (the trace's SNR
+    over the engine's mean one: the draws move the precoder's channel too); float
+    rounding only (1e-9). Demand lights the cells holding UTs by their best beam and each
+    UT is served by its best lit beam, so the lit beams are the epoch's served beams."""
     sets = ["satellite_array.oversampling=2.0", "satellite_array.active_beams=demand",
             "scheduler.kind=round_robin", "link.precoder=zf", "run.duration_s=3"]  # fmt: skip
+    if fading:
+        sets.append('link.fading="rician"')
     scen, tr = _run_in_memory(_paper_drop(tmp_path, 30, sets))
     eng = scen.engine
     assert eng.n_beam == 47 and (tr.service == "served").all() and tr.n_sharing.max() >= 3
@@ -186,7 +190,15 @@ def test_precoded_se_with_more_beams_than_chains_is_that_of_the_lit_beams_chains
         lat, lon = np.radians(on.lat_deg.to_numpy()), np.radians(on.lon_deg.to_numpy())
         ut = geodetic_to_ecef(lat, lon, on.alt_m.to_numpy())
         pos, vel = (a[0] for a in scen.ephemeris(np.array([t]))[:2])
-        path = eng.evaluate(ut, pos, vel).path_snr_lin[:, 0]
+        snap = eng.evaluate(ut, pos, vel)
+        path = snap.path_snr_lin[:, 0]
+        mean_db = snap.snr_db[np.arange(beam.size), 0, beam]
+        factor = 10 ** ((on.snr_db.to_numpy() - mean_db) / 10)
+        if fading:
+            assert np.std(10 * np.log10(factor)) > 0.03  # K = 10, N = 576: ~0.08 dB
+        else:
+            np.testing.assert_allclose(factor, 1.0, rtol=1e-12)
+        path = path * factor
         lit = np.zeros(eng.n_beam, bool)
         lit[beam] = True
         want = _explicit_se(ut, pos[0], vel[0], path, beam, "zf", eng.colors,
