@@ -306,3 +306,17 @@ def test_other_satellites_on_wgs84_with_colours_and_lit_beams_are_the_explicit_s
             assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6, abs=1e-300)
             other.append((powers.sum() - powers[r.sat_id].sum()) / noise_w)
     assert np.count_nonzero(other) >= len(tr) // 2  # the other satellites do interfere
+
+
+def test_in_an_environment_only_outage_rows_that_open_country_serves_are_blocked(tmp_path):
+    """Suburban UTs: an outage row's reason is ``blocked`` exactly where the same UT and
+    epoch is served in open country (same UTs, seed and epochs: the environment took the
+    link away), and every served row's reason stays ``none``."""
+    over = ["run.duration_s=20.0", "run.start_s=-10.0"]
+    env, open_ = (run(_with_populations(tmp_path, TOWN, SUBURBAN.format(env=name), over)).trace
+                  for name in ("suburban", "open"))  # fmt: skip
+    assert (env.service == "served").sum() > 50 and (env.service == "outage").sum() > 5
+    assert (env.outage_reason[env.service != "outage"] == "none").all()
+    out = env.service == "outage"
+    np.testing.assert_array_equal(env.outage_reason[out] == "blocked",
+                                  open_.service[out] != "outage")  # fmt: skip
