@@ -320,3 +320,20 @@ def test_in_an_environment_only_outage_rows_that_open_country_serves_are_blocked
     out = env.service == "outage"
     np.testing.assert_array_equal(env.outage_reason[out] == "blocked",
                                   open_.service[out] != "outage")  # fmt: skip
+
+
+def test_an_outage_row_with_a_satellite_in_view_has_its_best_beams_budget(tmp_path):
+    """Beam hopping with the ``wait`` fallback (47 beams, 15 lit a dwell): UTs whose best
+    beam is dark are in outage with a satellite in view; their budget columns are those
+    of their best candidate, ``P - L_cable - L_other + G_tx + G_rx - FSPL - A - 10 log10(k
+    T B) = best_snr_db`` to 1e-9 dB (float rounding: 4e-14)."""
+    sets = ["satellite_array.oversampling=2.0", "satellite_array.active_beams=hopping",
+            "run.duration_s=4"]  # fmt: skip
+    scen, tr = _run_in_memory(_paper_drop(tmp_path, 20, sets))
+    p = scen.engine.params
+    out = tr[(tr.service == "outage") & (tr.n_visible > 0)]
+    assert len(out) > 20 and out.snr_db.isna().all()
+    noise_db = 10 * math.log10(BOLTZMANN_J_K * p.bandwidth_hz) + p.noise_temp_dbk
+    budget = (p.ptx_dbw - p.cable_loss_db - p.other_loss_db + out.gain_tx_db + out.gain_rx_db
+              - out.fspl_db - out.atm_db - noise_db)  # fmt: skip
+    np.testing.assert_allclose(budget, out.best_snr_db, rtol=0, atol=1e-9)
