@@ -8,18 +8,36 @@
   and epoch in open country (the draws are per UT and epoch), on top of the
   environment's loss;
 - fading with scan loss: each row's factor is its draw over the mean of its own receive
-  gain.
+  gain;
+- beam sharing with the digital precoder and active beams (more beams than RF chains):
+  each UT's precoded SE is the one of explicit steering vectors on the lit beams' chains;
+- the other satellites' interference on WGS 84 with reuse colours and active beams: each
+  row's SNR, SINR and interference against an explicit sum of the received powers of every
+  lit beam of every satellite above the UT's (geodetic) horizon.
+
+Not tested, equivalent: ``Monitor._share``'s ``served`` is ``sat_id >= 0 & service !=
+outage``, and ``|`` for ``&`` gives the same rows: every controller state has ``in_outage
+=> serving == -1`` (``ControllerState.initial``: none in outage; ``step``: an
+``outage_start`` UT gets ``-1``, one staying in outage keeps its ``-1``, one leaving it
+adopts a cell; RLF's ``_drop_serving`` sets both), so ``service_codes`` gives outage
+exactly where ``serving < 0``, i.e. where ``sat_id = -1``.
 """
 
+import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from leolink.app.run import run
 from leolink.app.scenario import ephemeris_from_config
 from leolink.config import load_config
-from leolink.constants import SPEED_OF_LIGHT_M_S
+from leolink.constants import BOLTZMANN_J_K, SPEED_OF_LIGHT_M_S
 from leolink.geometry import geodetic_to_ecef
+from test_active_beams import _cfg as _paper_drop
+from test_active_beams import _explicit_se
+from test_active_beams import _run as _run_in_memory
+from test_engine_contracts import _upa
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "configs" / "paper.toml"
@@ -146,3 +164,176 @@ def test_fading_of_every_row_is_its_draw_over_the_mean_of_its_own_receive_gain()
     factor_db = 10 * np.log10(np.abs(np.sqrt(n) + g / np.sqrt(k)) ** 2 / (n + 1 / k))
     got = (fading.snr_db - mean.snr_db).to_numpy()
     np.testing.assert_allclose(got[ok], factor_db[ok], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("fading", [False, True], ids=["mean", "rician"])
+def test_precoded_se_with_more_beams_than_chains_is_that_of_the_lit_beams_chains(tmp_path, fading):
+    """O = 2 (47 beams, 15 RF chains), demand-lit beams, round robin and ZF, 30 UTs (up to
+    4 per beam): each served UT's SE (times its beam's UT count, the round-robin share)
+    is the mean ``log2(1 + SINR)`` over its slots of explicit steering vectors of the
+    60 x 72 array, the lit beams by ascending id on chains 0, 1, ...
+    (``test_active_beams._explicit_se``), its path SNR from the engine called by hand on
+    the row's position, times the row's fading factor with Rician draws (the trace's SNR
+    over the engine's mean one: the draws move the precoder's channel too); float
+    rounding only (1e-9). Demand lights the cells holding UTs by their best beam and each
+    UT is served by its best lit beam, so the lit beams are the epoch's served beams."""
+    sets = ["satellite_array.oversampling=2.0", "satellite_array.active_beams=demand",
+            "scheduler.kind=round_robin", "link.precoder=zf", "run.duration_s=3"]  # fmt: skip
+    if fading:
+        sets.append('link.fading="rician"')
+    scen, tr = _run_in_memory(_paper_drop(tmp_path, 30, sets))
+    eng = scen.engine
+    assert eng.n_beam == 47 and (tr.service == "served").all() and tr.n_sharing.max() >= 3
+    for t, on in tr.groupby("time_s"):
+        beam = on.beam_id.to_numpy()
+        assert np.unique(beam).size == 15  # every chain drives a beam: ids up to 46
+        lat, lon = np.radians(on.lat_deg.to_numpy()), np.radians(on.lon_deg.to_numpy())
+        ut = geodetic_to_ecef(lat, lon, on.alt_m.to_numpy())
+        pos, vel = (a[0] for a in scen.ephemeris(np.array([t]))[:2])
+        snap = eng.evaluate(ut, pos, vel)
+        path = snap.path_snr_lin[:, 0]
+        mean_db = snap.snr_db[np.arange(beam.size), 0, beam]
+        factor = 10 ** ((on.snr_db.to_numpy() - mean_db) / 10)
+        if fading:
+            assert np.std(10 * np.log10(factor)) > 0.03  # K = 10, N = 576: ~0.08 dB
+        else:
+            np.testing.assert_allclose(factor, 1.0, rtol=1e-12)
+        path = path * factor
+        lit = np.zeros(eng.n_beam, bool)
+        lit[beam] = True
+        want = _explicit_se(ut, pos[0], vel[0], path, beam, "zf", eng.colors,
+                            np.asarray(eng.codebook.u_xy, float), lit)  # fmt: skip
+        got = (on.se_bps_hz * on.n_sharing).to_numpy()
+        np.testing.assert_allclose(got, want, rtol=1e-9)
+
+
+#: WGS 84 (NIMA TR8350.2, 3rd ed., Table 3.1): semi-major axis [m], flattening.
+WGS84_A_M, WGS84_F = 6378137.0, 1 / 298.257223563
+NEAR = """
+[[population]]
+name = "near"
+kind = "static"
+placement = "points"
+x_m = [150000.0, -200000.0, 0.0, 300000.0, -400000.0]
+y_m = [0.0, 100000.0, -250000.0, 350000.0, -100000.0]
+"""
+
+
+def _geodetic_frame(lat_rad, lon_rad, h_m):
+    """Position on the WGS 84 ellipsoid and the local east, north, up of its normal."""
+    e2 = WGS84_F * (2 - WGS84_F)
+    n = WGS84_A_M / math.sqrt(1 - e2 * math.sin(lat_rad) ** 2)
+    cl, sl, co, so = math.cos(lat_rad), math.sin(lat_rad), math.cos(lon_rad), math.sin(lon_rad)
+    pos = np.array([(n + h_m) * cl * co, (n + h_m) * cl * so, (n * (1 - e2) + h_m) * sl])
+    up, east = np.array([cl * co, cl * so, sl]), np.array([-so, co, 0.0])
+    return pos, east, np.cross(up, east), up
+
+
+def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit):
+    """(n_sat, n_beam) received powers [W] at one UT served by beam ``b`` of satellite
+    ``s``: every lit beam of the serving beam's colour of every satellite above the UT's
+    horizon; the satellite beams by explicit steering-vector sums in the body frame (x
+    along the velocity's part across the radius, z radial), the UT's 24 x 24 UPA steered
+    at ``s`` in its local east and north (gain ``N + 1/K`` on the serving satellite, the
+    array factor off the beam plus ``1/K`` on the others), free space, fixed atmosphere."""
+    p, cb = eng.params, eng.codebook
+    beams = _upa(np.asarray(cb.u_xy, float), cb.n_sub_x, cb.n_sub_y)
+    n_el, n_ut_x, k_r = cb.n_sub_x * cb.n_sub_y, 24, cfg.link.rician_k
+    ptx_w = 10 ** ((p.ptx_dbw - p.cable_loss_db - p.other_loss_db) / 10)
+    atm = 10 ** (cfg.atmosphere.fixed.loss_db / 10)
+    d_s = (pos[s] - ut) / np.linalg.norm(pos[s] - ut)
+    w = _upa(np.array([d_s @ east, d_s @ north]), n_ut_x, n_ut_x)
+    powers = np.zeros(lit.shape)
+    for k in range(len(pos)):
+        rho = np.linalg.norm(pos[k] - ut)
+        d = (pos[k] - ut) / rho
+        if d @ up <= 0:
+            continue
+        z = pos[k] / np.linalg.norm(pos[k])
+        x = vel[k] - (vel[k] @ z) * z
+        x /= np.linalg.norm(x)
+        a = _upa(np.array([-d @ x, -d @ np.cross(z, x)]), cb.n_sub_x, cb.n_sub_y)
+        g_tx = np.abs(beams.conj() @ a) ** 2 / n_el
+        if k == s:
+            g_rx = n_ut_x**2 + 1 / k_r
+        else:
+            a_ut = _upa(np.array([d @ east, d @ north]), n_ut_x, n_ut_x)
+            g_rx = np.abs(a_ut.conj() @ w) ** 2 / n_ut_x**2 + 1 / k_r
+        loss = (4 * np.pi * rho * p.freq_hz / SPEED_OF_LIGHT_M_S) ** 2 * atm
+        on = lit[k] & (eng.colors == eng.colors[b])
+        powers[k] = np.where(on, ptx_w * g_tx * g_rx / loss, 0.0)
+    return powers
+
+
+def test_other_satellites_on_wgs84_with_colours_and_lit_beams_are_the_explicit_sum(tmp_path):
+    """Walker, every satellite interfering, WGS 84 (geodetic local frames), 3 reuse
+    colours, demand-lit beams, 9 static UTs around a ROI under satellite 0 at 40 N (it
+    serves 6 of them on beams of all 3 colours, two other satellites the rest): each row's
+    SNR and SINR against the explicit received powers of every satellite above the UT's
+    geodetic horizon (``_received_w``), 1e-9 dB, and its interference over noise
+    ``10^((SNR - SINR)/10) - 1`` to 1e-6 of itself (float rounding: 1e-13 dB and 1e-10;
+    the sphere's radial frames would be off by 10 %, the serving colour of a wrong beam
+    by 1.6 %). The lit beams are the served cells (demand lights each UT's best cell)."""
+    text = WALKER.read_text() + NEAR
+    path = tmp_path / "walker.toml"
+    path.write_text(text)
+    over = [*QUIET, "run.duration_s=3.0", "run.start_s=1000.0", 'earth.model="wgs84"',
+            'link.interference="all_satellites"', "link.reuse_colors=3",
+            'satellite_array.active_beams="demand"', "roi.center_lat_deg=40.0",
+            "roi.center_lon_deg=39.5"]  # fmt: skip
+    cfg = load_config(path, over)
+    scen, tr = _run_in_memory(cfg)
+    eng, eph = scen.engine, ephemeris_from_config(cfg)
+    assert (tr.sat_id >= 0).all() and tr.sat_id.nunique() >= 3
+    assert np.unique(eng.colors[tr.beam_id[tr.sat_id == 0]]).size == 3
+    p = eng.params
+    noise_w = BOLTZMANN_J_K * 10 ** (p.noise_temp_dbk / 10) * p.bandwidth_hz / 3
+    other = []
+    for t, rows in tr.groupby("time_s"):
+        pos, vel = (a[0] for a in eph(np.array([t]))[:2])
+        lit = np.zeros((len(pos), eng.n_beam), bool)
+        lit[rows.sat_id, rows.beam_id] = True
+        for r in rows.itertuples():
+            ut, east, north, up = _geodetic_frame(math.radians(r.lat_deg),
+                                                  math.radians(r.lon_deg), r.alt_m)  # fmt: skip
+            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, r.sat_id, r.beam_id,
+                                 lit)  # fmt: skip
+            signal = powers[r.sat_id, r.beam_id]
+            i_w = powers.sum() - signal
+            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
+            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
+            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
+            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6, abs=1e-300)
+            other.append((powers.sum() - powers[r.sat_id].sum()) / noise_w)
+    assert np.count_nonzero(other) >= len(tr) // 2  # the other satellites do interfere
+
+
+def test_in_an_environment_only_outage_rows_that_open_country_serves_are_blocked(tmp_path):
+    """Suburban UTs: an outage row's reason is ``blocked`` exactly where the same UT and
+    epoch is served in open country (same UTs, seed and epochs: the environment took the
+    link away), and every served row's reason stays ``none``."""
+    over = ["run.duration_s=20.0", "run.start_s=-10.0"]
+    env, open_ = (run(_with_populations(tmp_path, TOWN, SUBURBAN.format(env=name), over)).trace
+                  for name in ("suburban", "open"))  # fmt: skip
+    assert (env.service == "served").sum() > 50 and (env.service == "outage").sum() > 5
+    assert (env.outage_reason[env.service != "outage"] == "none").all()
+    out = env.service == "outage"
+    np.testing.assert_array_equal(env.outage_reason[out] == "blocked",
+                                  open_.service[out] != "outage")  # fmt: skip
+
+
+def test_an_outage_row_with_a_satellite_in_view_has_its_best_beams_budget(tmp_path):
+    """Beam hopping with the ``wait`` fallback (47 beams, 15 lit a dwell): UTs whose best
+    beam is dark are in outage with a satellite in view; their budget columns are those
+    of their best candidate, ``P - L_cable - L_other + G_tx + G_rx - FSPL - A - 10 log10(k
+    T B) = best_snr_db`` to 1e-9 dB (float rounding: 4e-14)."""
+    sets = ["satellite_array.oversampling=2.0", "satellite_array.active_beams=hopping",
+            "run.duration_s=4"]  # fmt: skip
+    scen, tr = _run_in_memory(_paper_drop(tmp_path, 20, sets))
+    p = scen.engine.params
+    out = tr[(tr.service == "outage") & (tr.n_visible > 0)]
+    assert len(out) > 20 and out.snr_db.isna().all()
+    noise_db = 10 * math.log10(BOLTZMANN_J_K * p.bandwidth_hz) + p.noise_temp_dbk
+    budget = (p.ptx_dbw - p.cable_loss_db - p.other_loss_db + out.gain_tx_db + out.gain_rx_db
+              - out.fspl_db - out.atm_db - noise_db)  # fmt: skip
+    np.testing.assert_allclose(budget, out.best_snr_db, rtol=0, atol=1e-9)
