@@ -9,7 +9,6 @@ inside the first motion block of 64 epochs), 51 s recorded: blocks of 37, 64 and
 (a block of one epoch is a block too).
 """
 
-import copy
 import math
 import re
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from frame_helpers import BlockCapture
 from leolink.app import run as app_run
 from leolink.config import load_config
 from leolink.io.link_summary import LinkStats
@@ -29,32 +29,13 @@ EPOCH_S, WARMUP_S, DURATION_S = 0.5, 13.5, 51.0
 SETS = [f"run.epoch_s={EPOCH_S}", f"run.warmup_s={WARMUP_S}", f"run.duration_s={DURATION_S}"]
 
 
-class _Capture:
-    """Deep copies of a run's block frames, its info and final frame."""
-
-    def start(self, info):
-        self.info, self.blocks = info, []
-
-    def block(self, frame):
-        self.blocks.append(copy.deepcopy(frame))
-
-    def epoch(self, frame):
-        raise AssertionError("the simulator sends blocks")
-
-    def finish(self, final):
-        self.final = final
-
-    def abort(self):
-        pass
-
-
 @pytest.fixture(scope="module")
 def run():
     from leolink.app.scenario import build_scenario
     from leolink.sim.runner import run_simulation
 
     cfg = load_config(ROOT / "configs/paper.toml", SETS)
-    cap = _Capture()
+    cap = BlockCapture()
     run_simulation(build_scenario(cfg), [cap])
     return cfg, cap
 

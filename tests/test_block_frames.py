@@ -17,6 +17,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from frame_helpers import BlockCapture
 from leolink.app.run import run
 from leolink.config import load_config
 from leolink.io import sinks as io_sinks
@@ -89,25 +90,6 @@ def test_a_run_is_the_same_sent_a_block_or_an_epoch_at_a_time(name, tmp_path, mo
     assert differ == []
 
 
-class _Capture:
-    """Keeps copies of the block frames of a run (and the run's info)."""
-
-    def start(self, info):
-        self.info, self.blocks = info, []
-
-    def block(self, frame):
-        self.blocks.append(copy.deepcopy(frame))
-
-    def epoch(self, frame):
-        raise AssertionError("the simulator sends blocks")
-
-    def finish(self, final):
-        self.final = final
-
-    def abort(self):
-        pass
-
-
 @pytest.fixture(scope="module")
 def captured():
     """The block frames of the paper's pass at 0.5 s (7 UTs, several blocks, handovers)."""
@@ -115,7 +97,7 @@ def captured():
     from leolink.sim.runner import run_simulation
 
     cfg = load_config(ROOT / "configs/paper.toml", ["run.epoch_s=0.5"])
-    cap = _Capture()
+    cap = BlockCapture()
     run_simulation(build_scenario(cfg), [cap])
     assert len(cap.blocks) > 2 and len(set(cap.info.population)) > 1
     return cap

@@ -103,13 +103,23 @@ def walker():
     return eng, ut, enu, panel, pos[sats], vel[sats], acc[sats], rng
 
 
+def _tx_gains(cb, beams, sat_pos_m, sat_vel_m_s, d):
+    """Every beam's gain of the satellite's array toward a UT (``d``: the unit vector from
+    the UT to the satellite), explicit steering vectors in its body frame (z radial, x
+    along the velocity's horizontal part); ``beams`` = ``_upa`` of the codebook."""
+    z = sat_pos_m / np.linalg.norm(sat_pos_m)
+    x = sat_vel_m_s - (sat_vel_m_s @ z) * z
+    x /= np.linalg.norm(x)
+    a = _upa(np.array([-d @ x, -d @ np.cross(z, x)]), cb.n_sub_x, cb.n_sub_y)
+    return np.abs(beams.conj() @ a) ** 2 / (cb.n_sub_x * cb.n_sub_y)
+
+
 def _reference(eng, ut, enu, panel, sp, sv, s, b, lit=None):
     """Per UT: the received power of every (satellite, beam) [W] (zero where dark, or for
     another colour than the serving beam's, or below the UT's horizon), and the serving
     link's elevation, panel elevation, azimuth, slant range and atmosphere."""
     p, cb = eng.params, eng.codebook
     beams = _upa(np.asarray(cb.u_xy, float), cb.n_sub_x, cb.n_sub_y)  # (n_beam, n_el)
-    n_el = cb.n_sub_x * cb.n_sub_y
     ptx_w = 10 ** ((p.ptx_dbw - p.cable_loss_db - p.other_loss_db) / 10)
     out = []
     for i in range(len(ut)):
@@ -125,11 +135,7 @@ def _reference(eng, ut, enu, panel, sp, sv, s, b, lit=None):
             el = math.asin(d @ up)
             if el <= 0:
                 continue
-            z = sp[k] / np.linalg.norm(sp[k])
-            x = sv[k] - (sv[k] @ z) * z
-            x /= np.linalg.norm(x)
-            a = _upa(np.array([-d @ x, -d @ np.cross(z, x)]), cb.n_sub_x, cb.n_sub_y)
-            g_tx = np.abs(beams.conj() @ a) ** 2 / n_el
+            g_tx = _tx_gains(cb, beams, sp[k], sv[k], d)
             if k == s[i]:  # the serving link: element factor of the angle above the panel
                 g_rx = N_UT_X**2 * math.sin(math.asin(d @ pn)) ** Q + 1 / K_RICIAN
                 serving = dict(el=el, el_panel=math.asin(d @ pn), rho=rho, g_rx=g_rx,

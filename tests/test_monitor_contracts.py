@@ -37,7 +37,7 @@ from leolink.geometry import geodetic_to_ecef
 from test_active_beams import _cfg as _paper_drop
 from test_active_beams import _explicit_se
 from test_active_beams import _run as _run_in_memory
-from test_engine_contracts import _upa
+from test_engine_contracts import _tx_gains, _upa
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "configs" / "paper.toml"
@@ -238,7 +238,7 @@ def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit):
     array factor off the beam plus ``1/K`` on the others), free space, fixed atmosphere."""
     p, cb = eng.params, eng.codebook
     beams = _upa(np.asarray(cb.u_xy, float), cb.n_sub_x, cb.n_sub_y)
-    n_el, n_ut_x, k_r = cb.n_sub_x * cb.n_sub_y, 24, cfg.link.rician_k
+    n_ut_x, k_r = 24, cfg.link.rician_k
     ptx_w = 10 ** ((p.ptx_dbw - p.cable_loss_db - p.other_loss_db) / 10)
     atm = 10 ** (cfg.atmosphere.fixed.loss_db / 10)
     d_s = (pos[s] - ut) / np.linalg.norm(pos[s] - ut)
@@ -249,11 +249,7 @@ def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit):
         d = (pos[k] - ut) / rho
         if d @ up <= 0:
             continue
-        z = pos[k] / np.linalg.norm(pos[k])
-        x = vel[k] - (vel[k] @ z) * z
-        x /= np.linalg.norm(x)
-        a = _upa(np.array([-d @ x, -d @ np.cross(z, x)]), cb.n_sub_x, cb.n_sub_y)
-        g_tx = np.abs(beams.conj() @ a) ** 2 / n_el
+        g_tx = _tx_gains(cb, beams, pos[k], vel[k], d)
         if k == s:
             g_rx = n_ut_x**2 + 1 / k_r
         else:
