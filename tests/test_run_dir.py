@@ -198,3 +198,26 @@ def test_version_flag(capsys):
     text = (REPO / "pyproject.toml").read_text()
     version = text.split('version = "', 1)[1].split('"', 1)[0]
     assert capsys.readouterr().out.strip() == f"leolink {version}"
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["run", PAPER, *SHORT],
+        ["coverage", PAPER, "--grid", "11", "--no-plots"],
+        ["sweep", PAPER, "--param", "link.ptx_dbw=12,15", *SHORT],
+        ["compare", PAPER, "--policies", "max_snr,a3", "--seeds", "1", *SHORT],
+    ],
+    ids=lambda c: c[0],
+)
+def test_a_relative_output_folder_works_as_the_readme_writes_it(command, tmp_path, monkeypatch):
+    """README's first command, ``leolink run configs/paper.toml --out out/paper``: an output
+    folder relative to the current directory (every other test passes an absolute one)."""
+    monkeypatch.chdir(tmp_path)
+    assert _leolink(*command, "--out", "out/x", "--quiet") == 0
+    folder = tmp_path / "out" / "x"
+    listed = {f["path"] for f in json.loads((folder / "run.json").read_text())["files"]}
+    written = {p for p in _files(folder) if p.count("/") == 0} - {"run.json"}
+    assert written and written <= listed  # every file of the folder (sweeps: and each run's)
+    if command[0] == "run":
+        assert _leolink("report", "out/x", "--no-animation", "--quiet") == 0

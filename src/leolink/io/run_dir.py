@@ -240,7 +240,8 @@ def write_manifest(out_dir, files, command, config_text, arguments=None, *, vers
     ----------
     out_dir : path-like
     files : iterable of path-like
-        Files the command wrote (duplicates and ``run.json`` itself are dropped).
+        Files the command wrote, as it wrote them (absolute, or relative to the current
+        directory like ``out_dir``); duplicates and ``run.json`` itself are dropped.
     command : str
         ``"run"``, ``"coverage"``, ``"sweep"``, ...
     config_text : str
@@ -257,8 +258,7 @@ def write_manifest(out_dir, files, command, config_text, arguments=None, *, vers
     out_dir = Path(out_dir)
     entries, seen = [], set()
     for f in files:
-        path = Path(f)
-        path = path if path.is_absolute() else out_dir / path
+        path = Path(f)  # as the command wrote it: absolute, or relative to the cwd
         rel = path.resolve().relative_to(out_dir.resolve()).as_posix()
         if rel in seen or rel == MANIFEST:
             continue
