@@ -250,18 +250,22 @@ def step(
     target = np.asarray(target, np.int64)
     old = state.serving
     # The usable table has the cells of the full one: each cell's slot is found once.
-    slot_old, slot_target = snr_db.slot_of(old), snr_db.slot_of(target)
+    slot_old, slot_target = snr_db.slot_of(old, target)
     has_usable = np.isfinite(usable_db.snr_db).any(axis=1)
     first = has_usable & (old < 0) & ~state.in_outage
     interrupted = (old >= 0) & (t_s < state.interrupted_until_s - TIME_TOL_S)
     _check_targets(policy, target, usable_db.at(slot_target), has_usable & ~interrupted)
 
-    immediate = ~np.isfinite(usable_db.at(slot_old))
+    current_db = snr_db.at(slot_old)
+    with np.errstate(invalid="ignore"):  # the serving cell's usable SNR, as in usable_db
+        immediate = ~np.isfinite(np.where(current_db >= min_snr_db, current_db, np.nan))
     wants = has_usable & (old >= 0) & ~interrupted & (target != old)
-    ttt_s = float(policy.time_to_trigger_s)
-    handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
     outage_start = ~has_usable & ~state.in_outage
     outage_end = has_usable & state.in_outage
+    if not (wants | first | outage_start | outage_end).any():  # (most epochs of small runs)
+        return _unchanged(t_s, state, current_db, n_beam)
+    ttt_s = float(policy.time_to_trigger_s)
+    handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
     adopt = handover | outage_end | first
     new = np.where(adopt, target, np.where(outage_start, -1, old))
     slot_new = np.where(adopt, slot_target, np.where(outage_start, -1, slot_old))
@@ -273,7 +277,7 @@ def step(
     kind[handover] = np.where(same_sat[handover], 0, 1)
     kind[outage_start] = 2
     kind[outage_end] = 3
-    last_db = _last_serving_db(state, snr_db.at(slot_old))
+    last_db = _last_serving_db(state, current_db)
     new_db = snr_db.at(slot_new)
     events = _events(t_s, kind, old, old_split, new_split, new_db, last_db)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
@@ -298,6 +302,25 @@ def step(
         serving_snr_db=_serving_db(old, new, new_db, last_db),
     )
     return StepResult(new_state, events, dwells, service_codes(t_s, new_state), *new_split)
+
+
+def _unchanged(t_s, state, current_db, n_beam):
+    """:func:`step`'s result where no UT wants another cell, is assigned a first one,
+    starts or ends an outage: every cell kept, nothing pending (a target no longer
+    wanted stops pending, as in :func:`_time_to_trigger`), no events, no dwells; only the
+    serving links' last SNR moves."""
+    n = state.serving.shape
+    last_db = _last_serving_db(state, current_db)
+    new_state = dataclasses.replace(
+        state,
+        pending=np.full(n, -1, np.int64),
+        pending_since_s=np.full(n, np.nan),
+        n_beam=int(n_beam),
+        serving_snr_db=np.where(state.serving < 0, np.nan, last_db),
+    )
+    sat, beam = _split(state.serving, n_beam)
+    return StepResult(new_state, _no_events(), _no_dwells(), service_codes(t_s, new_state),
+                      sat, beam)  # fmt: skip
 
 
 def _as_table(snr_db):
@@ -361,6 +384,13 @@ def _no_events():
     int_ = ("ut_id", "from_sat", "from_beam", "to_sat", "to_beam")
     return {k: _KIND_NAMES[:0] if k == "kind" else np.zeros(0, np.int64 if k in int_ else float)
             for k in EVENT_COLUMNS}  # fmt: skip
+
+
+def _no_dwells():
+    """An empty dwell table, with the dtypes of a non-empty one."""
+    types = {"ut_id": np.int64, "sat_id": np.int64, "beam_id": np.int64, "start_s": float,
+             "end_s": float, "censored_start": bool, "censored_end": bool}  # fmt: skip
+    return {k: np.zeros(0, types[k]) for k in DWELL_COLUMNS}
 
 
 def concat_events(*tables):
