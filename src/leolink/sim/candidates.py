@@ -89,7 +89,8 @@ class Candidates:
     def slot_of(self, cells, *more):
         """Slot of ``cells[i]`` in row ``i``, -1 where absent (or ``cells[i] < 0``); given
         ``more`` arrays of cells, a tuple of the slots of each (found in one search)."""
-        c = np.stack([np.asarray(x, np.int64) for x in (cells, *more)])[..., None]
+        arrays = np.array((cells, *more), np.int64) if more else np.asarray(cells, np.int64)[None]
+        c = arrays[..., None]
         if self.n_slot == 0:
             slots = np.full(c.shape[:2], -1, np.int64)
         else:
