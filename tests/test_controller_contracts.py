@@ -388,3 +388,28 @@ def test_an_epoch_without_resumed_service_gives_an_empty_table_of_the_same_dtype
     assert list(none) == list(some)
     for k in some:
         assert none[k].shape == (0,) and none[k].dtype == some[k].dtype, k
+
+
+def test_an_epoch_where_nobody_moves_keeps_the_state_and_the_dtypes_of_the_tables():
+    """An epoch where no UT wants another cell, gets a first one or starts or ends an
+    outage takes step's shortcut: its (empty) event and dwell tables have the columns and
+    dtypes of non-empty ones; its state keeps every field but the serving SNR."""
+    snr = np.array([[9.0, 3.0, np.nan, np.nan], [np.nan] * 4])
+    moved = np.array([[3.0, 9.0, np.nan, np.nan], [np.nan] * 4])
+    first = step(0.0, snr, ControllerState.initial(2), MaxSnr(), 0.0, 0.0, 2)
+    assert first.events["kind"].tolist() == ["outage_start"]  # UT 1; UT 0 gets cell 0
+    quiet = step(1.0, snr, first.state, MaxSnr(), 0.0, 0.0, 2)
+    hand = step(2.0, moved, quiet.state, MaxSnr(), 0.0, 0.0, 2)
+    assert hand.events["kind"].tolist() == ["beam_handover"] and hand.dwells["ut_id"].size == 1
+    for name, full in (("events", first.events), ("dwells", hand.dwells)):
+        empty = getattr(quiet, name)
+        assert list(empty) == list(full), name
+        for k in full:
+            assert empty[k].shape == (0,) and empty[k].dtype == full[k].dtype, (name, k)
+    assert quiet.state.serving.tolist() == [0, -1] and quiet.service.tolist() == [0, 2]
+    assert quiet.sat_id.tolist() == [0, -1] and quiet.beam_id.tolist() == [0, -1]
+    assert quiet.state.serving_snr_db.tolist()[0] == 9.0
+    assert math.isnan(quiet.state.serving_snr_db[1])
+    for field in ("pending", "pending_since_s", "serving_since_s", "interrupted_until_s",
+                  "in_outage", "dwell_censored_start", "n_beam"):  # fmt: skip
+        np.testing.assert_array_equal(getattr(quiet.state, field), getattr(first.state, field))

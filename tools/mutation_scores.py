@@ -107,6 +107,11 @@ MODULES = {
         "tests/test_simulation.py",
         "--deselect=tests/test_simulation.py::test_same_seed_same_trace_whatever_the_chunk_size",
     ],
+    # The step's event and dwell tables (moved out of sim/controller.py on 2026-12-02).
+    "sim/event_tables": [
+        "tests/test_controller.py",
+        "tests/test_controller_contracts.py",
+    ],
     # The recording of a run (the former sim/recorder.py): trace frames and the deferred
     # recording (sim/monitor.py), the policy step per epoch (sim/decide.py).
     # Every path of the monitor: RLF per epoch (test_handover_wiring), links on the true

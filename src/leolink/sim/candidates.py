@@ -86,14 +86,17 @@ class Candidates:
         """The table of the UTs ``idx``."""
         return Candidates(self.cell[idx], self.snr_db[idx])
 
-    def slot_of(self, cells):
-        """Slot of ``cells[i]`` in row ``i``, -1 where absent (or ``cells[i] < 0``)."""
-        cells = np.asarray(cells, np.int64)
+    def slot_of(self, cells, *more):
+        """Slot of ``cells[i]`` in row ``i``, -1 where absent (or ``cells[i] < 0``); given
+        ``more`` arrays of cells, a tuple of the slots of each (found in one search)."""
+        arrays = np.array((cells, *more), np.int64) if more else np.asarray(cells, np.int64)[None]
+        c = arrays[..., None]
         if self.n_slot == 0:
-            return np.full(cells.shape, -1, np.int64)
-        hit = (self.cell == cells[:, None]) & (cells[:, None] >= 0)
-        slot = np.argmax(hit, axis=1)
-        return np.where(hit[np.arange(cells.size), slot], slot, -1)
+            slots = np.full(c.shape[:2], -1, np.int64)
+        else:
+            hit = (self.cell == c) & (c >= 0)  # (n_arrays, n_ut, n_slot)
+            slots = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
+        return tuple(slots) if more else slots[0]
 
     def value_at(self, cells):
         """``snr_db`` of ``cells[i]`` in row ``i``, NaN where absent or ``cells[i] < 0``."""

@@ -23,6 +23,18 @@ import dataclasses
 import numpy as np
 
 from leolink.sim.candidates import Candidates
+from leolink.sim.event_tables import (  # noqa: F401  (the tables' names, re-exported)
+    DWELL_COLUMNS,
+    EVENT_COLUMNS,
+    EVENT_KINDS,
+    SERVICE_RESUMED,
+    concat_events,
+    dwells_table,
+    events_table,
+    no_dwells,
+    no_events,
+    split_cells,
+)
 from leolink.sim.policies import best_candidate, value_at  # noqa: F401  (re-exported)
 
 # Epoch times accumulate float rounding (k * 0.1 s); 1 ns is far below any epoch length.
@@ -31,38 +43,6 @@ TIME_TOL_S = 1e-9
 SERVICE_SERVED, SERVICE_HANDOVER, SERVICE_OUTAGE = 0, 1, 2
 #: Trace ``service`` code -> name (index = code).
 SERVICE_NAMES = ("served", "handover", "outage")
-#: Event kinds (new kinds are appended, never renamed). ``service_resumed``: the end of a
-#: handover's execution time (``to_*`` the serving link, ``from_*`` -1).
-EVENT_KINDS = (
-    "beam_handover",
-    "sat_handover",
-    "outage_start",
-    "outage_end",
-    "service_resumed",
-    "rlf",  # radio link failure (leolink.sim.rlf_run): from_* the failed cell, to_* -1
-)
-SERVICE_RESUMED = EVENT_KINDS.index("service_resumed")
-_KIND_NAMES = np.asarray(EVENT_KINDS)
-EVENT_COLUMNS = (
-    "time_s",
-    "ut_id",
-    "kind",
-    "from_sat",
-    "from_beam",
-    "to_sat",
-    "to_beam",
-    "snr_before_db",
-    "snr_after_db",
-)
-DWELL_COLUMNS = (
-    "ut_id",
-    "sat_id",
-    "beam_id",
-    "start_s",
-    "end_s",
-    "censored_start",
-    "censored_end",
-)
 
 
 @dataclasses.dataclass
@@ -131,16 +111,6 @@ class StepResult:
     beam_id: np.ndarray
 
 
-def _split(cand, n_beam):
-    """Candidate index -> (sat, beam), -1 for -1."""
-    cand = np.asarray(cand, np.int64)
-    sat, beam = np.divmod(cand, n_beam)
-    none = cand < 0
-    sat[none] = -1
-    beam[none] = -1
-    return sat, beam
-
-
 def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
     """Pending bookkeeping. Returns (fire, pending, pending_since_s)."""
     if not wants.any():  # (most epochs: nothing fires, nothing pends)
@@ -153,39 +123,6 @@ def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
         waited = t_s - since >= ttt_s - TIME_TOL_S
     fire = wants & (immediate | waited)
     return fire, np.where(fire, -1, pending), np.where(fire | (pending < 0), np.nan, since)
-
-
-def _events(t_s, kind_code, old, old_split, new_split, new_db, before_db):
-    """Events of UTs with ``kind_code >= 0`` (at most one per UT per epoch);
-    ``old_split``, ``new_split``: ``_split`` of the old and new serving cells (n_ut,);
-    ``new_db``, ``before_db`` (n_ut,): the new serving cell's SNR, the old link's last."""
-    ut = np.flatnonzero(kind_code >= 0)
-    return {
-        "time_s": np.full(ut.size, float(t_s)),
-        "ut_id": ut.astype(np.int64),
-        "kind": _KIND_NAMES[kind_code[ut]],
-        "from_sat": old_split[0][ut],
-        "from_beam": old_split[1][ut],
-        "to_sat": new_split[0][ut],
-        "to_beam": new_split[1][ut],
-        "snr_before_db": np.where(old[ut] >= 0, before_db[ut], np.nan),
-        "snr_after_db": new_db[ut],
-    }
-
-
-def _dwells(ut, cand, start_s, end_s, censored_start, censored_end, n_beam, split=None):
-    """Dwell records of the UTs ``ut`` on candidates ``cand`` (``split``: their
-    ``_split``, if known)."""
-    sat, beam = _split(cand, n_beam) if split is None else split
-    return {
-        "ut_id": np.asarray(ut, np.int64),
-        "sat_id": sat,
-        "beam_id": beam,
-        "start_s": np.asarray(start_s, float),
-        "end_s": np.broadcast_to(np.asarray(end_s, float), ut.shape).copy(),
-        "censored_start": np.asarray(censored_start, bool),
-        "censored_end": np.full(ut.shape, censored_end, bool),
-    }
 
 
 def _check_targets(policy, target, target_db, needs):
@@ -250,22 +187,26 @@ def step(
     target = np.asarray(target, np.int64)
     old = state.serving
     # The usable table has the cells of the full one: each cell's slot is found once.
-    slot_old, slot_target = snr_db.slot_of(old), snr_db.slot_of(target)
+    slot_old, slot_target = snr_db.slot_of(old, target)
     has_usable = np.isfinite(usable_db.snr_db).any(axis=1)
     first = has_usable & (old < 0) & ~state.in_outage
     interrupted = (old >= 0) & (t_s < state.interrupted_until_s - TIME_TOL_S)
     _check_targets(policy, target, usable_db.at(slot_target), has_usable & ~interrupted)
 
-    immediate = ~np.isfinite(usable_db.at(slot_old))
+    current_db = snr_db.at(slot_old)
+    with np.errstate(invalid="ignore"):  # the serving cell's usable SNR, as in usable_db
+        immediate = ~np.isfinite(np.where(current_db >= min_snr_db, current_db, np.nan))
     wants = has_usable & (old >= 0) & ~interrupted & (target != old)
-    ttt_s = float(policy.time_to_trigger_s)
-    handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
     outage_start = ~has_usable & ~state.in_outage
     outage_end = has_usable & state.in_outage
+    if not (wants | first | outage_start | outage_end).any():  # (most epochs of small runs)
+        return _unchanged(t_s, state, current_db, n_beam)
+    ttt_s = float(policy.time_to_trigger_s)
+    handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
     adopt = handover | outage_end | first
     new = np.where(adopt, target, np.where(outage_start, -1, old))
     slot_new = np.where(adopt, slot_target, np.where(outage_start, -1, slot_old))
-    old_split, new_split = _split(old, n_beam), _split(new, n_beam)
+    old_split, new_split = split_cells(old, n_beam), split_cells(new, n_beam)
 
     # A handover adopts the target: its satellite is the new one's.
     same_sat = new_split[0] == old_split[0]
@@ -273,11 +214,11 @@ def step(
     kind[handover] = np.where(same_sat[handover], 0, 1)
     kind[outage_start] = 2
     kind[outage_end] = 3
-    last_db = _last_serving_db(state, snr_db.at(slot_old))
+    last_db = _last_serving_db(state, current_db)
     new_db = snr_db.at(slot_new)
-    events = _events(t_s, kind, old, old_split, new_split, new_db, last_db)
+    events = events_table(t_s, kind, old, old_split, new_split, new_db, last_db)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
-    dwells = _dwells(closing, old[closing], state.serving_since_s[closing], t_s,
+    dwells = dwells_table(closing, old[closing], state.serving_since_s[closing], t_s,
                      state.dwell_censored_start[closing], False, n_beam,
                      (old_split[0][closing], old_split[1][closing]))  # fmt: skip
     new_state = ControllerState(
@@ -298,6 +239,25 @@ def step(
         serving_snr_db=_serving_db(old, new, new_db, last_db),
     )
     return StepResult(new_state, events, dwells, service_codes(t_s, new_state), *new_split)
+
+
+def _unchanged(t_s, state, current_db, n_beam):
+    """:func:`step`'s result where no UT wants another cell, is assigned a first one,
+    starts or ends an outage: every cell kept, nothing pending (a target no longer
+    wanted stops pending, as in :func:`_time_to_trigger`), no events, no dwells; only the
+    serving links' last SNR moves."""
+    n = state.serving.shape
+    last_db = _last_serving_db(state, current_db)
+    new_state = dataclasses.replace(
+        state,
+        pending=np.full(n, -1, np.int64),
+        pending_since_s=np.full(n, np.nan),
+        n_beam=int(n_beam),
+        serving_snr_db=np.where(state.serving < 0, np.nan, last_db),
+    )
+    sat, beam = split_cells(state.serving, n_beam)
+    return StepResult(new_state, no_events(), no_dwells(), service_codes(t_s, new_state),
+                      sat, beam)  # fmt: skip
 
 
 def _as_table(snr_db):
@@ -339,9 +299,9 @@ def resumed_events(t_s, epoch_s, state, snr_db):
     due &= until <= t_s + epoch_s + TIME_TOL_S
     ut = np.flatnonzero(due)
     if ut.size == 0:  # (most epochs)
-        return _no_events()
+        return no_events()
     ut = ut[np.lexsort((ut, until[ut]))]
-    to_sat, to_beam = _split(state.serving[ut], state.n_beam or 1)
+    to_sat, to_beam = split_cells(state.serving[ut], state.n_beam or 1)
     none = np.full(ut.size, -1, np.int64)
     return {
         "time_s": until[ut].astype(float),
@@ -354,18 +314,6 @@ def resumed_events(t_s, epoch_s, state, snr_db):
         "snr_before_db": np.full(ut.size, np.nan),
         "snr_after_db": value_at(_as_table(snr_db).rows(ut), state.serving[ut]),
     }
-
-
-def _no_events():
-    """An empty event table, with the dtypes of a non-empty one."""
-    int_ = ("ut_id", "from_sat", "from_beam", "to_sat", "to_beam")
-    return {k: _KIND_NAMES[:0] if k == "kind" else np.zeros(0, np.int64 if k in int_ else float)
-            for k in EVENT_COLUMNS}  # fmt: skip
-
-
-def concat_events(*tables):
-    """Join event tables (dicts of ``EVENT_COLUMNS`` arrays) in the order given."""
-    return {k: np.concatenate([np.asarray(t[k]) for t in tables]) for k in EVENT_COLUMNS}
 
 
 def service_codes(t_s, state):
@@ -385,7 +333,7 @@ def close_dwells(state, t_end_s, n_beam=None):
     ut = np.flatnonzero(state.serving >= 0)
     if ut.size and n_beam is None:
         raise ValueError("close_dwells needs n_beam (no step() has recorded it)")
-    return _dwells(
+    return dwells_table(
         ut,
         state.serving[ut],
         state.serving_since_s[ut],
