@@ -14,13 +14,20 @@
 - the other satellites' interference on WGS 84 with reuse colours and active beams: each
   row's SNR, SINR and interference against an explicit sum of the received powers of every
   lit beam of every satellite above the UT's (geodetic) horizon.
+- the same in an urban environment (every beam lit): each interfering path scaled by the
+  loss of its own (UT, satellite) channel state, as the run's channel tracker gave it.
 
 Not tested, equivalent: ``Monitor._share``'s ``served`` is ``sat_id >= 0 & service !=
 outage``, and ``|`` for ``&`` gives the same rows: every controller state has ``in_outage
 => serving == -1`` (``ControllerState.initial``: none in outage; ``step``: an
 ``outage_start`` UT gets ``-1``, one staying in outage keeps its ``-1``, one leaving it
 adopts a cell; RLF's ``_drop_serving`` sets both), so ``service_codes`` gives outage
-exactly where ``serving < 0``, i.e. where ``sat_id = -1``.
+exactly where ``serving < 0``, i.e. where ``sat_id = -1``. ``Monitor.population`` built
+with numpy's default dtype (``<U`` strings) instead of ``object``: the array reaches only
+the trace's ``population`` column, and every sink that reads that column (the trace
+writer's ``Vocabulary.codes``, ``to_table`` of the in-memory and plot sinks) takes
+``values.astype(str)``, the same array from both; the output files of two runs are the
+same bytes (docs/testing.md, eighth pass).
 """
 
 import math
@@ -333,3 +340,77 @@ def test_an_outage_row_with_a_satellite_in_view_has_its_best_beams_budget(tmp_pa
     budget = (p.ptx_dbw - p.cable_loss_db - p.other_loss_db + out.gain_tx_db + out.gain_rx_db
               - out.fspl_db - out.atm_db - noise_db)  # fmt: skip
     np.testing.assert_allclose(budget, out.best_snr_db, rtol=0, atol=1e-9)
+
+
+def test_other_satellites_in_an_environment_each_path_with_its_own_loss(tmp_path, monkeypatch):
+    """Walker, every satellite interfering, 3 reuse colours, every beam lit, the 5 UTs of
+    ``NEAR`` in an urban environment (TR 38.811 LoS states, shadowing, clutter per path):
+    each served row's SNR, SINR and interference over noise against the explicit received
+    powers of every satellite above the UT's horizon (``_received_w``), each satellite's
+    powers (the serving one's other beams share its path) scaled by ``10^(-L/10)`` of that
+    (UT, satellite) path's loss ``L = shadow + clutter`` in the channel state the run used
+    (``ChannelTracker.step``'s return, captured epoch by epoch; the serving path's terms
+    are the trace's). 1e-9 dB and 1e-6 of I/N, as on WGS 84 (float rounding: measured
+    8e-14 dB and 4e-15). The tolerance must be that tight: here the other satellites are
+    4e-5 to 2.5e-3 of the interference (the serving satellite's other beams are the
+    rest), and ``11^(-L/10)`` for their loss moves the SINR by 4.5e-5 dB. The
+    interfering paths' losses must differ from the serving one's (half of them by over
+    1 dB), or a loss taken from the wrong path would pass."""
+    from leolink.sim.environment import ChannelTracker
+
+    channels = []
+    step = ChannelTracker.step
+
+    def captured(self, *args, **kwargs):
+        channels.append(step(self, *args, **kwargs))
+        return channels[-1]
+
+    monkeypatch.setattr(ChannelTracker, "step", captured)
+    path = tmp_path / "walker.toml"
+    path.write_text(WALKER.read_text() + NEAR + 'environment = "urban"\n')
+    over = [*QUIET, "run.duration_s=3.0", "run.start_s=1000.0", 'earth.model="wgs84"',
+            'link.interference="all_satellites"', "link.reuse_colors=3",
+            "roi.center_lat_deg=40.0", "roi.center_lon_deg=39.5"]  # fmt: skip
+    cfg = load_config(path, over)
+    scen, tr = _run_in_memory(cfg)
+    eng, eph = scen.engine, ephemeris_from_config(cfg)
+    times = np.unique(tr.time_s)
+    assert len(channels) == times.size  # one state per epoch, no warm-up
+    p = eng.params
+    noise_w = BOLTZMANN_J_K * 10 ** (p.noise_temp_dbk / 10) * p.bandwidth_hz / 3
+    served = 0
+    spread_db = []
+    for ch, t in zip(channels, times, strict=True):
+        rows = tr[tr.time_s == t]
+        pos, vel = (a[0] for a in eph(np.array([t]))[:2])
+        # (n_ut, n_sat) loss of every path with a state [dB], 0 without (below the horizon)
+        loss_db = np.zeros((len(rows), len(pos)))
+        has = ch.sat_id >= 0
+        u_idx, slot = np.nonzero(has)
+        terms = ch.terms
+        loss_db[u_idx, ch.sat_id[has]] = (terms.shadow_db + terms.clutter_db)[u_idx, slot]
+        for r in rows.itertuples():
+            if r.service != "served":
+                continue
+            served += 1
+            u, s = r.ut_id, r.sat_id
+            j = int(np.flatnonzero(ch.sat_id[u] == s)[0])  # the serving path: the trace's
+            assert r.shadow_db == pytest.approx(terms.shadow_db[u, j], abs=1e-12)
+            assert r.clutter_db == pytest.approx(terms.clutter_db[u, j], abs=1e-12)
+            ut, east, north, up = _geodetic_frame(math.radians(r.lat_deg),
+                                                  math.radians(r.lon_deg), r.alt_m)  # fmt: skip
+            lit = np.ones((len(pos), eng.n_beam), bool)
+            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, s, r.beam_id, lit)
+            powers = powers * 10 ** (-loss_db[u] / 10)[:, None]
+            signal = powers[s, r.beam_id]
+            i_w = powers.sum() - signal
+            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
+            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
+            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
+            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6)
+            other = powers.sum(axis=1) > 0
+            other[s] = False
+            spread_db += list(np.abs(loss_db[u, other] - loss_db[u, s]))
+    assert served >= 10
+    # the interferers' own losses: many differ from the serving path's by over 1 dB
+    assert np.mean(np.array(spread_db) > 1.0) > 0.3
