@@ -13,9 +13,12 @@
   each UT's precoded SE is the one of explicit steering vectors on the lit beams' chains;
 - the other satellites' interference on WGS 84 with reuse colours and active beams: each
   row's SNR, SINR and interference against an explicit sum of the received powers of every
-  lit beam of every satellite above the UT's (geodetic) horizon.
-- the same in an urban environment (every beam lit): each interfering path scaled by the
-  loss of its own (UT, satellite) channel state, as the run's channel tracker gave it.
+  lit beam of every satellite above the UT's (geodetic) horizon, and its azimuth in the
+  geodetic frame;
+- the same in an urban environment (every beam lit), flat and tilted panels: each
+  interfering path scaled by the loss of its own (UT, satellite) channel state, as the
+  run's channel tracker gave it, the UT array in its panel's axes;
+- a scenario without a service link (``Scenario.link`` None): the engine's figures.
 
 Not tested, equivalent: ``Monitor._share``'s ``served`` is ``sat_id >= 0 & service !=
 outage``, and ``|`` for ``&`` gives the same rows: every controller state has ``in_outage
@@ -236,13 +239,16 @@ def _geodetic_frame(lat_rad, lon_rad, h_m):
     return pos, east, np.cross(up, east), up
 
 
-def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit):
+def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit, axes=None):
     """(n_sat, n_beam) received powers [W] at one UT served by beam ``b`` of satellite
     ``s``: every lit beam of the serving beam's colour of every satellite above the UT's
     horizon; the satellite beams by explicit steering-vector sums in the body frame (x
     along the velocity's part across the radius, z radial), the UT's 24 x 24 UPA steered
-    at ``s`` in its local east and north (gain ``N + 1/K`` on the serving satellite, the
-    array factor off the beam plus ``1/K`` on the others), free space, fixed atmosphere."""
+    at ``s`` in its local east and north, or in its panel's ``axes`` (x, y) if given
+    (gain ``N + 1/K`` on the serving satellite, the array factor off the beam plus
+    ``1/K`` on the others), free space, fixed atmosphere."""
+    if axes is not None:
+        east, north = axes
     p, cb = eng.params, eng.codebook
     beams = _upa(np.asarray(cb.u_xy, float), cb.n_sub_x, cb.n_sub_y)
     n_ut_x, k_r = 24, cfg.link.rician_k
@@ -276,7 +282,9 @@ def test_other_satellites_on_wgs84_with_colours_and_lit_beams_are_the_explicit_s
     geodetic horizon (``_received_w``), 1e-9 dB, and its interference over noise
     ``10^((SNR - SINR)/10) - 1`` to 1e-6 of itself (float rounding: 1e-13 dB and 1e-10;
     the sphere's radial frames would be off by 10 %, the serving colour of a wrong beam
-    by 1.6 %). The lit beams are the served cells (demand lights each UT's best cell)."""
+    by 1.6 %); its azimuth is that of the geodetic east and north, 1e-9 deg (the
+    sphere's frame is off by 0.4 deg here). The lit beams are the served cells
+    (demand lights each UT's best cell)."""
     text = WALKER.read_text() + NEAR
     path = tmp_path / "walker.toml"
     path.write_text(text)
@@ -307,6 +315,9 @@ def test_other_satellites_on_wgs84_with_colours_and_lit_beams_are_the_explicit_s
             assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
             i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
             assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6, abs=1e-300)
+            d = pos[r.sat_id] - ut  # azimuth in the geodetic frame: clockwise from north
+            az_deg = math.degrees(math.atan2(d @ east, d @ north)) % 360.0
+            assert r.azimuth_deg == pytest.approx(az_deg, abs=1e-9)
             other.append((powers.sum() - powers[r.sat_id].sum()) / noise_w)
     assert np.count_nonzero(other) >= len(tr) // 2  # the other satellites do interfere
 
@@ -342,7 +353,10 @@ def test_an_outage_row_with_a_satellite_in_view_has_its_best_beams_budget(tmp_pa
     np.testing.assert_allclose(budget, out.best_snr_db, rtol=0, atol=1e-9)
 
 
-def test_other_satellites_in_an_environment_each_path_with_its_own_loss(tmp_path, monkeypatch):
+@pytest.mark.parametrize("tilt_deg", [0.0, 15.0], ids=["flat", "tilted"])
+def test_other_satellites_in_an_environment_each_path_with_its_own_loss(
+    tmp_path, monkeypatch, tilt_deg
+):
     """Walker, every satellite interfering, 3 reuse colours, every beam lit, the 5 UTs of
     ``NEAR`` in an urban environment (TR 38.811 LoS states, shadowing, clutter per path):
     each served row's SNR, SINR and interference over noise against the explicit received
@@ -370,11 +384,13 @@ def test_other_satellites_in_an_environment_each_path_with_its_own_loss(tmp_path
     path.write_text(WALKER.read_text() + NEAR + 'environment = "urban"\n')
     over = [*QUIET, "run.duration_s=3.0", "run.start_s=1000.0", 'earth.model="wgs84"',
             'link.interference="all_satellites"', "link.reuse_colors=3",
-            "roi.center_lat_deg=40.0", "roi.center_lon_deg=39.5"]  # fmt: skip
+            "roi.center_lat_deg=40.0", "roi.center_lon_deg=39.5",
+            f"population.2.panel_tilt_deg={tilt_deg}"]  # fmt: skip
     cfg = load_config(path, over)
     scen, tr = _run_in_memory(cfg)
     eng, eph = scen.engine, ephemeris_from_config(cfg)
     times = np.unique(tr.time_s)
+    tilt = math.radians(tilt_deg)
     assert len(channels) == times.size  # one state per epoch, no warm-up
     p = eng.params
     noise_w = BOLTZMANN_J_K * 10 ** (p.noise_temp_dbk / 10) * p.bandwidth_hz / 3
@@ -400,7 +416,13 @@ def test_other_satellites_in_an_environment_each_path_with_its_own_loss(tmp_path
             ut, east, north, up = _geodetic_frame(math.radians(r.lat_deg),
                                                   math.radians(r.lon_deg), r.alt_m)  # fmt: skip
             lit = np.ones((len(pos), eng.n_beam), bool)
-            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, s, r.beam_id, lit)
+            axes = None
+            if r.population == "near":  # x east, tilted down: the normal towards x (east)
+                x_axis = math.cos(tilt) * east - math.sin(tilt) * up
+                normal = math.sin(tilt) * east + math.cos(tilt) * up
+                axes = (x_axis, np.cross(normal, x_axis))
+            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, s, r.beam_id, lit,
+                                 axes)  # fmt: skip
             powers = powers * 10 ** (-loss_db[u] / 10)[:, None]
             signal = powers[s, r.beam_id]
             i_w = powers.sum() - signal
@@ -414,3 +436,29 @@ def test_other_satellites_in_an_environment_each_path_with_its_own_loss(tmp_path
     assert served >= 10
     # the interferers' own losses: many differ from the serving path's by over 1 dB
     assert np.mean(np.array(spread_db) > 1.0) > 0.3
+
+
+def test_a_scenario_without_a_service_link_gets_the_engines_figures():
+    """``Scenario.link`` None (its default: a scenario built by hand) gives the monitor the
+    link figures of the engine's power, cable loss and bandwidth with the ``[modcod]``
+    defaults, and the controller's service: the trace of the config's own (default)
+    figures, and the EIRP is ``P - L_cable + G_tx`` (1.5 dB of cable loss, so that power
+    and loss cannot be swapped unseen), float rounding only."""
+    import dataclasses
+
+    from leolink.io.sinks import MemorySink
+    from leolink.sim.runner import run_simulation
+
+    cfg = load_config(PAPER, [*QUIET, "run.duration_s=10.0", "link.cable_loss_db=1.5"])
+    scen, want = _run_in_memory(cfg)
+    mem = MemorySink()
+    run_simulation(dataclasses.replace(scen, link=None), [mem])
+    got = mem.trace()
+    p = scen.engine.params
+    link = got[got.snr_db.notna()]
+    assert len(link) > 0.9 * len(got) and link.modcod.nunique() > 3  # the figures are there
+    np.testing.assert_allclose(link.eirp_dbw, p.ptx_dbw - 1.5 + link.gain_tx_db, rtol=0,
+                               atol=1e-9)  # fmt: skip
+    assert list(got.columns) == list(want.columns)
+    for col in got.columns:
+        np.testing.assert_array_equal(got[col].to_numpy(), want[col].to_numpy(), err_msg=col)
