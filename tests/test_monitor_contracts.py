@@ -98,6 +98,30 @@ def test_a_ut_without_any_satellite_in_view_has_no_link_beside_served_uts(tmp_pa
         np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
 
 
+def test_with_one_demand_lit_beam_a_ut_without_any_satellite_has_no_link(tmp_path):
+    """One beam (one RF chain, a 3 km ROI) lit on demand: the UT 4,000 km cross-track
+    that never sees the pass has NaN links and the two UTs under the beam, in the same
+    blocks, get the links of a run without it (an unserved row's placeholder beam must
+    be one the codebook has: beam 0)."""
+    over = ["run.duration_s=10.0", "roi.semi_axis_x_m=3000.0", "roi.semi_axis_y_m=3000.0",
+            "satellite_array.n_rf_x=1", "satellite_array.n_rf_y=1",
+            'satellite_array.oversampling="auto"',
+            "satellite_array.active_beams=demand"]  # fmt: skip
+    pops = FAR.replace("[0.0, 200000.0]", "[0.0, 1000.0]").replace(
+        "[0.0, -100000.0]", "[0.0, -1000.0]"
+    )
+    scen, tr = _run_in_memory(_with_populations(tmp_path, PAPER, pops, over))
+    assert scen.engine.n_beam == 1
+    far, near = tr[tr.ut_id == 2], tr[tr.ut_id < 2]
+    assert (far.n_visible == 0).all() and far.snr_db.isna().all()
+    assert near.snr_db.notna().sum() >= 10
+    _, alone = _run_in_memory(
+        _with_populations(tmp_path, PAPER, pops.split("\n\n")[0] + "\n", over)
+    )
+    for col in GEOMETRY:
+        np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
+
+
 def test_walker_doppler_of_every_row_is_the_range_rate_of_its_satellite():
     """Walker (several satellites in one block): each served row's Doppler against
     ``-f/c (|s(t + h) - u| - |s(t - h) - u|) / 2h`` of the ephemeris (static UTs, no
