@@ -18,7 +18,9 @@
 - the same in an urban environment (every beam lit), flat and tilted panels: each
   interfering path scaled by the loss of its own (UT, satellite) channel state, as the
   run's channel tracker gave it, the UT array in its panel's axes;
-- a scenario without a service link (``Scenario.link`` None): the engine's figures.
+- the same with exactly two satellites, both in view;
+- a scenario without a service link (``Scenario.link`` None): the engine's figures;
+- one demand-lit beam and a UT that never sees a satellite.
 
 Not tested, equivalent: ``Monitor._share``'s ``served`` is ``sat_id >= 0 & service !=
 outage``, and ``|`` for ``&`` gives the same rows: every controller state has ``in_outage
@@ -364,10 +366,11 @@ def test_an_outage_row_with_a_satellite_in_view_has_its_best_beams_budget(tmp_pa
     """Beam hopping with the ``wait`` fallback (47 beams, 15 lit a dwell): UTs whose best
     beam is dark are in outage with a satellite in view; their budget columns are those
     of their best candidate, ``P - L_cable - L_other + G_tx + G_rx - FSPL - A - 10 log10(k
-    T B) = best_snr_db`` to 1e-9 dB (float rounding: 4e-14)."""
+    T B) = best_snr_db`` to 1e-9 dB (float rounding: 4e-14). 60 UTs: some of them have
+    cell 0 (satellite 0, beam 0) as their best, a valid candidate too (3 outage rows)."""
     sets = ["satellite_array.oversampling=2.0", "satellite_array.active_beams=hopping",
             "run.duration_s=4"]  # fmt: skip
-    scen, tr = _run_in_memory(_paper_drop(tmp_path, 20, sets))
+    scen, tr = _run_in_memory(_paper_drop(tmp_path, 60, sets))
     p = scen.engine.params
     out = tr[(tr.service == "outage") & (tr.n_visible > 0)]
     assert len(out) > 20 and out.snr_db.isna().all()
@@ -486,3 +489,57 @@ def test_a_scenario_without_a_service_link_gets_the_engines_figures():
     assert list(got.columns) == list(want.columns)
     for col in got.columns:
         np.testing.assert_array_equal(got[col].to_numpy(), want[col].to_numpy(), err_msg=col)
+
+
+TWO = """
+[[population]]
+name = "between"
+kind = "static"
+placement = "points"
+x_m = [10000.0, 30000.0, -30000.0, 5000.0, 20000.0]
+y_m = [5000.0, 0.0, 20000.0, -30000.0, 30000.0]
+"""
+
+
+def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path):
+    """A Walker constellation of 2 satellites (2 planes at 53 deg, phasing 1: they cross
+    at the nodes), every satellite interfering, 292 s after they met at the ascending
+    node: 25 deg of arc apart, both 34 deg above the UTs near the equator between them
+    (the monitor's cone is both: at most 64 satellites are never screened). Each row's
+    SNR, SINR (1e-9 dB) and I/N (1e-6) against ``_received_w`` in the sphere's radial
+    frame, and the other satellite must matter (over 1e-5 of the interference; measured
+    3e-4 to 1e-3: without it the SINR is 3e-3 dB off)."""
+    path = tmp_path / "walker.toml"
+    path.write_text(WALKER.read_text().split("[[population]]")[0] + TWO)
+    # the midpoint of the two satellites at t = 292 s (from the ephemeris: 0 N, 9.615 E)
+    over = [*QUIET, "run.duration_s=3.0", "run.start_s=292.0", "constellation.n_planes=2",
+            "constellation.sats_per_plane=1", "constellation.phasing=1",
+            'link.interference="all_satellites"', "roi.center_lat_deg=0.0",
+            "roi.center_lon_deg=9.615"]  # fmt: skip
+    cfg = load_config(path, over)
+    scen, tr = _run_in_memory(cfg)
+    eng, eph = scen.engine, ephemeris_from_config(cfg)
+    assert (tr.sat_id >= 0).all() and eph.n_sat == 2
+    p = eng.params
+    noise_w = BOLTZMANN_J_K * 10 ** (p.noise_temp_dbk / 10) * p.bandwidth_hz
+    share = []
+    for t, rows in tr.groupby("time_s"):
+        pos, vel = (a[0] for a in eph(np.array([t]))[:2])
+        lat, lon = np.radians(rows.lat_deg.to_numpy()), np.radians(rows.lon_deg.to_numpy())
+        ut = geodetic_to_ecef(lat, lon, rows.alt_m.to_numpy())
+        up = ut / np.linalg.norm(ut, axis=1)[:, None]
+        assert (np.einsum("usk,uk->us", pos[None] - ut[:, None], up) > 0).all()  # both up
+        for i, r in enumerate(rows.itertuples()):
+            east = np.array([-math.sin(lon[i]), math.cos(lon[i]), 0.0])
+            north = np.cross(up[i], east)
+            lit = np.ones((len(pos), eng.n_beam), bool)
+            s = r.sat_id
+            powers = _received_w(eng, cfg, ut[i], east, north, up[i], pos, vel, s, r.beam_id, lit)
+            signal = powers[s, r.beam_id]
+            i_w = powers.sum() - signal
+            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
+            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
+            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
+            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6)
+            share.append(powers[1 - s].sum() / i_w)
+    assert min(share) > 1e-5
