@@ -543,3 +543,60 @@ def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path
             assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6)
             share.append(powers[1 - s].sum() / i_w)
     assert min(share) > 1e-5
+
+
+def test_every_satellite_interfering_with_a_single_satellite_changes_nothing():
+    """``link.interference = "all_satellites"`` on the paper's single pass: there is no
+    other satellite, so every column of every epoch (the blocks hold several epochs, the
+    cone one satellite) is the default run's, bit for bit."""
+    over = [*QUIET, "run.duration_s=20.0"]
+    want = run(load_config(PAPER, over)).trace
+    got = run(load_config(PAPER, [*over, 'link.interference="all_satellites"'])).trace
+    assert len(got) == len(want) > 100
+    for col in want.columns:
+        np.testing.assert_array_equal(got[col].to_numpy(), want[col].to_numpy(), err_msg=col)
+
+
+def test_a_dwell_that_begins_at_the_first_recorded_epoch_is_not_censored():
+    """The paper's centre UT hands over at 14, 45, 76 and 107 s (31 s dwells). With a 14 s
+    warm-up the dwell from 14 s begins with the recording, it is not cut by it: three
+    complete 31 s dwells; the one from 0 to 14 s began in the warm-up (censored), the last
+    one is cut by the end."""
+    cfg = load_config(PAPER, [*QUIET, "run.warmup_s=14", "run.duration_s=100"])
+    res = run(cfg.model_copy(update={"population": cfg.population[:1]}))
+    assert res.trace.time_s.min() == 14.0
+    dwell = res.summary["per_ut"][0]["dwell"]
+    assert dwell["complete_s"] == pytest.approx([31.0, 31.0, 31.0])
+    starts = [(d["start_s"], d["censored_start"]) for d in dwell["censored"]]
+    assert starts == [(0.0, True), (107.0, False)]
+
+
+def test_one_beam_two_satellites_interfering_and_a_ut_without_any(tmp_path):
+    """The two-satellite Walker above with one beam (one RF chain, a 3 km ROI) and every
+    satellite interfering, plus a UT 4,000 km away that sees neither: its rows have no
+    link, and the two UTs under the beam get the links of a run without it (a row
+    without a satellite must not pick a beam the codebook lacks)."""
+    pops = FAR.replace("[0.0, 200000.0]", "[500.0, 1000.0]").replace(
+        "[0.0, -100000.0]", "[300.0, -1000.0]"
+    )
+    head = WALKER.read_text().split("[[population]]")[0]
+    over = [*QUIET, "run.duration_s=3.0", "run.start_s=292.0", "constellation.n_planes=2",
+            "constellation.sats_per_plane=1", "constellation.phasing=1",
+            'link.interference="all_satellites"', "roi.center_lat_deg=0.0",
+            "roi.center_lon_deg=9.615", "roi.semi_axis_x_m=3000.0",
+            "roi.semi_axis_y_m=3000.0", "satellite_array.n_rf_x=1",
+            "satellite_array.n_rf_y=1", 'satellite_array.oversampling="auto"',
+            "controller.min_snr_db=-60.0"]  # fmt: skip
+    # (the one beam points at the satellite's nadir, 12.5 deg of arc away: -50 dB SNR)
+    out = []
+    for text in (pops, pops.split("\n\n")[0] + "\n"):
+        path = tmp_path / "walker.toml"
+        path.write_text(head + text)
+        out.append(_run_in_memory(load_config(path, over)))
+    (scen, tr), (_, alone) = out
+    assert scen.engine.n_beam == 1
+    far, near = tr[tr.ut_id == 2], tr[tr.ut_id < 2]
+    assert (far.n_visible == 0).all() and far.snr_db.isna().all()
+    assert near.sinr_db.notna().all() and (near.sinr_db < near.snr_db).all()
+    for col in (*GEOMETRY, "sinr_db"):
+        np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
