@@ -152,7 +152,8 @@ def test_dvbs2x_throughput_model_fills_throughput_bps(snr_run):
 
 def test_sinr_service_metric_turns_low_sinr_rows_into_outage(sinr_run):
     threshold = 3.0
-    over = [*SHORT, f"controller.min_snr_db={threshold}"]
+    # 0.3 s handover execution: some handover epochs fall below the threshold too
+    over = [*SHORT, f"controller.min_snr_db={threshold}", "controller.handover_time_s=0.3"]
     by_snr = run(load_config(PAPER, over)).trace
     by_sinr = run(load_config(PAPER, [*over, 'controller.service_metric="sinr"'])).trace
     low = (by_snr.service != "outage") & ~(by_snr.sinr_db >= threshold)
@@ -160,6 +161,9 @@ def test_sinr_service_metric_turns_low_sinr_rows_into_outage(sinr_run):
     assert (by_sinr.service[low] == "outage").all()
     assert (by_sinr.outage_reason[low] == "below_threshold").all()
     assert by_sinr.sinr_db[low].isna().all() and by_sinr.throughput_bps[low].isna().all()
+    # an outage row loses no time to a handover, also where the controller handed over
+    assert ((by_snr.service[low] == "handover") & (by_snr.interruption_s[low] > 0)).sum() > 5
+    assert (by_sinr.interruption_s[low] == 0.0).all()
     same = ~low
     assert (by_sinr.service[same] == by_snr.service[same]).all()
     assert (by_sinr.beam_id == by_snr.beam_id).all()  # beams stay the controller's (SNR)

@@ -13,14 +13,26 @@
   each UT's precoded SE is the one of explicit steering vectors on the lit beams' chains;
 - the other satellites' interference on WGS 84 with reuse colours and active beams: each
   row's SNR, SINR and interference against an explicit sum of the received powers of every
-  lit beam of every satellite above the UT's (geodetic) horizon.
+  lit beam of every satellite above the UT's (geodetic) horizon, and its azimuth in the
+  geodetic frame;
+- the same in an urban environment (every beam lit), flat and tilted panels: each
+  interfering path scaled by the loss of its own (UT, satellite) channel state, as the
+  run's channel tracker gave it, the UT array in its panel's axes;
+- the same with exactly two satellites, both in view;
+- a scenario without a service link (``Scenario.link`` None): the engine's figures;
+- one demand-lit beam and a UT that never sees a satellite.
 
 Not tested, equivalent: ``Monitor._share``'s ``served`` is ``sat_id >= 0 & service !=
 outage``, and ``|`` for ``&`` gives the same rows: every controller state has ``in_outage
 => serving == -1`` (``ControllerState.initial``: none in outage; ``step``: an
 ``outage_start`` UT gets ``-1``, one staying in outage keeps its ``-1``, one leaving it
 adopts a cell; RLF's ``_drop_serving`` sets both), so ``service_codes`` gives outage
-exactly where ``serving < 0``, i.e. where ``sat_id = -1``.
+exactly where ``serving < 0``, i.e. where ``sat_id = -1``. ``Monitor.population`` built
+with numpy's default dtype (``<U`` strings) instead of ``object``: the array reaches only
+the trace's ``population`` column, and every sink that reads that column (the trace
+writer's ``Vocabulary.codes``, ``to_table`` of the in-memory and plot sinks) takes
+``values.astype(str)``, the same array from both; the output files of two runs are the
+same bytes (docs/testing.md, eighth pass).
 """
 
 import math
@@ -84,6 +96,30 @@ def test_a_ut_without_any_satellite_in_view_has_no_link_beside_served_uts(tmp_pa
     assert near.snr_db.notna().all()
     alone = run(_with_populations(tmp_path, PAPER, FAR.split("\n\n")[0] + "\n",
                                   ["run.duration_s=60.0"])).trace  # fmt: skip
+    for col in GEOMETRY:
+        np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
+
+
+def test_with_one_demand_lit_beam_a_ut_without_any_satellite_has_no_link(tmp_path):
+    """One beam (one RF chain, a 3 km ROI) lit on demand: the UT 4,000 km cross-track
+    that never sees the pass has NaN links and the two UTs under the beam, in the same
+    blocks, get the links of a run without it (an unserved row's placeholder beam must
+    be one the codebook has: beam 0)."""
+    over = ["run.duration_s=10.0", "roi.semi_axis_x_m=3000.0", "roi.semi_axis_y_m=3000.0",
+            "satellite_array.n_rf_x=1", "satellite_array.n_rf_y=1",
+            'satellite_array.oversampling="auto"',
+            "satellite_array.active_beams=demand"]  # fmt: skip
+    pops = FAR.replace("[0.0, 200000.0]", "[0.0, 1000.0]").replace(
+        "[0.0, -100000.0]", "[0.0, -1000.0]"
+    )
+    scen, tr = _run_in_memory(_with_populations(tmp_path, PAPER, pops, over))
+    assert scen.engine.n_beam == 1
+    far, near = tr[tr.ut_id == 2], tr[tr.ut_id < 2]
+    assert (far.n_visible == 0).all() and far.snr_db.isna().all()
+    assert near.snr_db.notna().sum() >= 10
+    _, alone = _run_in_memory(
+        _with_populations(tmp_path, PAPER, pops.split("\n\n")[0] + "\n", over)
+    )
     for col in GEOMETRY:
         np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
 
@@ -229,13 +265,16 @@ def _geodetic_frame(lat_rad, lon_rad, h_m):
     return pos, east, np.cross(up, east), up
 
 
-def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit):
+def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit, axes=None):
     """(n_sat, n_beam) received powers [W] at one UT served by beam ``b`` of satellite
     ``s``: every lit beam of the serving beam's colour of every satellite above the UT's
     horizon; the satellite beams by explicit steering-vector sums in the body frame (x
     along the velocity's part across the radius, z radial), the UT's 24 x 24 UPA steered
-    at ``s`` in its local east and north (gain ``N + 1/K`` on the serving satellite, the
-    array factor off the beam plus ``1/K`` on the others), free space, fixed atmosphere."""
+    at ``s`` in its local east and north, or in its panel's ``axes`` (x, y) if given
+    (gain ``N + 1/K`` on the serving satellite, the array factor off the beam plus
+    ``1/K`` on the others), free space, fixed atmosphere."""
+    if axes is not None:
+        east, north = axes
     p, cb = eng.params, eng.codebook
     beams = _upa(np.asarray(cb.u_xy, float), cb.n_sub_x, cb.n_sub_y)
     n_ut_x, k_r = 24, cfg.link.rician_k
@@ -269,7 +308,9 @@ def test_other_satellites_on_wgs84_with_colours_and_lit_beams_are_the_explicit_s
     geodetic horizon (``_received_w``), 1e-9 dB, and its interference over noise
     ``10^((SNR - SINR)/10) - 1`` to 1e-6 of itself (float rounding: 1e-13 dB and 1e-10;
     the sphere's radial frames would be off by 10 %, the serving colour of a wrong beam
-    by 1.6 %). The lit beams are the served cells (demand lights each UT's best cell)."""
+    by 1.6 %); its azimuth is that of the geodetic east and north, 1e-9 deg (the
+    sphere's frame is off by 0.4 deg here). The lit beams are the served cells
+    (demand lights each UT's best cell)."""
     text = WALKER.read_text() + NEAR
     path = tmp_path / "walker.toml"
     path.write_text(text)
@@ -300,6 +341,9 @@ def test_other_satellites_on_wgs84_with_colours_and_lit_beams_are_the_explicit_s
             assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
             i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
             assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6, abs=1e-300)
+            d = pos[r.sat_id] - ut  # azimuth in the geodetic frame: clockwise from north
+            az_deg = math.degrees(math.atan2(d @ east, d @ north)) % 360.0
+            assert r.azimuth_deg == pytest.approx(az_deg, abs=1e-9)
             other.append((powers.sum() - powers[r.sat_id].sum()) / noise_w)
     assert np.count_nonzero(other) >= len(tr) // 2  # the other satellites do interfere
 
@@ -322,10 +366,11 @@ def test_an_outage_row_with_a_satellite_in_view_has_its_best_beams_budget(tmp_pa
     """Beam hopping with the ``wait`` fallback (47 beams, 15 lit a dwell): UTs whose best
     beam is dark are in outage with a satellite in view; their budget columns are those
     of their best candidate, ``P - L_cable - L_other + G_tx + G_rx - FSPL - A - 10 log10(k
-    T B) = best_snr_db`` to 1e-9 dB (float rounding: 4e-14)."""
+    T B) = best_snr_db`` to 1e-9 dB (float rounding: 4e-14). 60 UTs: some of them have
+    cell 0 (satellite 0, beam 0) as their best, a valid candidate too (3 outage rows)."""
     sets = ["satellite_array.oversampling=2.0", "satellite_array.active_beams=hopping",
             "run.duration_s=4"]  # fmt: skip
-    scen, tr = _run_in_memory(_paper_drop(tmp_path, 20, sets))
+    scen, tr = _run_in_memory(_paper_drop(tmp_path, 60, sets))
     p = scen.engine.params
     out = tr[(tr.service == "outage") & (tr.n_visible > 0)]
     assert len(out) > 20 and out.snr_db.isna().all()
@@ -333,3 +378,225 @@ def test_an_outage_row_with_a_satellite_in_view_has_its_best_beams_budget(tmp_pa
     budget = (p.ptx_dbw - p.cable_loss_db - p.other_loss_db + out.gain_tx_db + out.gain_rx_db
               - out.fspl_db - out.atm_db - noise_db)  # fmt: skip
     np.testing.assert_allclose(budget, out.best_snr_db, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 15.0], ids=["flat", "tilted"])
+def test_other_satellites_in_an_environment_each_path_with_its_own_loss(
+    tmp_path, monkeypatch, tilt_deg
+):
+    """Walker, every satellite interfering, 3 reuse colours, every beam lit, the 5 UTs of
+    ``NEAR`` in an urban environment (TR 38.811 LoS states, shadowing, clutter per path):
+    each served row's SNR, SINR and interference over noise against the explicit received
+    powers of every satellite above the UT's horizon (``_received_w``), each satellite's
+    powers (the serving one's other beams share its path) scaled by ``10^(-L/10)`` of that
+    (UT, satellite) path's loss ``L = shadow + clutter`` in the channel state the run used
+    (``ChannelTracker.step``'s return, captured epoch by epoch; the serving path's terms
+    are the trace's). 1e-9 dB and 1e-6 of I/N, as on WGS 84 (float rounding: measured
+    8e-14 dB and 4e-15). The tolerance must be that tight: here the other satellites are
+    4e-5 to 2.5e-3 of the interference (the serving satellite's other beams are the
+    rest), and ``11^(-L/10)`` for their loss moves the SINR by 4.5e-5 dB. The
+    interfering paths' losses must differ from the serving one's (half of them by over
+    1 dB), or a loss taken from the wrong path would pass."""
+    from leolink.sim.environment import ChannelTracker
+
+    channels = []
+    step = ChannelTracker.step
+
+    def captured(self, *args, **kwargs):
+        channels.append(step(self, *args, **kwargs))
+        return channels[-1]
+
+    monkeypatch.setattr(ChannelTracker, "step", captured)
+    path = tmp_path / "walker.toml"
+    path.write_text(WALKER.read_text() + NEAR + 'environment = "urban"\n')
+    over = [*QUIET, "run.duration_s=3.0", "run.start_s=1000.0", 'earth.model="wgs84"',
+            'link.interference="all_satellites"', "link.reuse_colors=3",
+            "roi.center_lat_deg=40.0", "roi.center_lon_deg=39.5",
+            f"population.2.panel_tilt_deg={tilt_deg}"]  # fmt: skip
+    cfg = load_config(path, over)
+    scen, tr = _run_in_memory(cfg)
+    eng, eph = scen.engine, ephemeris_from_config(cfg)
+    times = np.unique(tr.time_s)
+    tilt = math.radians(tilt_deg)
+    assert len(channels) == times.size  # one state per epoch, no warm-up
+    p = eng.params
+    noise_w = BOLTZMANN_J_K * 10 ** (p.noise_temp_dbk / 10) * p.bandwidth_hz / 3
+    served = 0
+    spread_db = []
+    for ch, t in zip(channels, times, strict=True):
+        rows = tr[tr.time_s == t]
+        pos, vel = (a[0] for a in eph(np.array([t]))[:2])
+        # (n_ut, n_sat) loss of every path with a state [dB], 0 without (below the horizon)
+        loss_db = np.zeros((len(rows), len(pos)))
+        has = ch.sat_id >= 0
+        u_idx, slot = np.nonzero(has)
+        terms = ch.terms
+        loss_db[u_idx, ch.sat_id[has]] = (terms.shadow_db + terms.clutter_db)[u_idx, slot]
+        for r in rows.itertuples():
+            if r.service != "served":
+                continue
+            served += 1
+            u, s = r.ut_id, r.sat_id
+            j = int(np.flatnonzero(ch.sat_id[u] == s)[0])  # the serving path: the trace's
+            assert r.shadow_db == pytest.approx(terms.shadow_db[u, j], abs=1e-12)
+            assert r.clutter_db == pytest.approx(terms.clutter_db[u, j], abs=1e-12)
+            ut, east, north, up = _geodetic_frame(math.radians(r.lat_deg),
+                                                  math.radians(r.lon_deg), r.alt_m)  # fmt: skip
+            lit = np.ones((len(pos), eng.n_beam), bool)
+            axes = None
+            if r.population == "near":  # x east, tilted down: the normal towards x (east)
+                x_axis = math.cos(tilt) * east - math.sin(tilt) * up
+                normal = math.sin(tilt) * east + math.cos(tilt) * up
+                axes = (x_axis, np.cross(normal, x_axis))
+            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, s, r.beam_id, lit,
+                                 axes)  # fmt: skip
+            powers = powers * 10 ** (-loss_db[u] / 10)[:, None]
+            signal = powers[s, r.beam_id]
+            i_w = powers.sum() - signal
+            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
+            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
+            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
+            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6)
+            other = powers.sum(axis=1) > 0
+            other[s] = False
+            spread_db += list(np.abs(loss_db[u, other] - loss_db[u, s]))
+    assert served >= 10
+    # the interferers' own losses: many differ from the serving path's by over 1 dB
+    assert np.mean(np.array(spread_db) > 1.0) > 0.3
+
+
+def test_a_scenario_without_a_service_link_gets_the_engines_figures():
+    """``Scenario.link`` None (its default: a scenario built by hand) gives the monitor the
+    link figures of the engine's power, cable loss and bandwidth with the ``[modcod]``
+    defaults, and the controller's service: the trace of the config's own (default)
+    figures, and the EIRP is ``P - L_cable + G_tx`` (1.5 dB of cable loss, so that power
+    and loss cannot be swapped unseen), float rounding only."""
+    import dataclasses
+
+    from leolink.io.sinks import MemorySink
+    from leolink.sim.runner import run_simulation
+
+    cfg = load_config(PAPER, [*QUIET, "run.duration_s=10.0", "link.cable_loss_db=1.5"])
+    scen, want = _run_in_memory(cfg)
+    mem = MemorySink()
+    run_simulation(dataclasses.replace(scen, link=None), [mem])
+    got = mem.trace()
+    p = scen.engine.params
+    link = got[got.snr_db.notna()]
+    assert len(link) > 0.9 * len(got) and link.modcod.nunique() > 3  # the figures are there
+    np.testing.assert_allclose(link.eirp_dbw, p.ptx_dbw - 1.5 + link.gain_tx_db, rtol=0,
+                               atol=1e-9)  # fmt: skip
+    assert list(got.columns) == list(want.columns)
+    for col in got.columns:
+        np.testing.assert_array_equal(got[col].to_numpy(), want[col].to_numpy(), err_msg=col)
+
+
+TWO = """
+[[population]]
+name = "between"
+kind = "static"
+placement = "points"
+x_m = [10000.0, 30000.0, -30000.0, 5000.0, 20000.0]
+y_m = [5000.0, 0.0, 20000.0, -30000.0, 30000.0]
+"""
+
+
+def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path):
+    """A Walker constellation of 2 satellites (2 planes at 53 deg, phasing 1: they cross
+    at the nodes), every satellite interfering, 292 s after they met at the ascending
+    node: 25 deg of arc apart, both 34 deg above the UTs near the equator between them
+    (the monitor's cone is both: at most 64 satellites are never screened). Each row's
+    SNR, SINR (1e-9 dB) and I/N (1e-6) against ``_received_w`` in the sphere's radial
+    frame, and the other satellite must matter (over 1e-5 of the interference; measured
+    3e-4 to 1e-3: without it the SINR is 3e-3 dB off)."""
+    path = tmp_path / "walker.toml"
+    path.write_text(WALKER.read_text().split("[[population]]")[0] + TWO)
+    # the midpoint of the two satellites at t = 292 s (from the ephemeris: 0 N, 9.615 E)
+    over = [*QUIET, "run.duration_s=3.0", "run.start_s=292.0", "constellation.n_planes=2",
+            "constellation.sats_per_plane=1", "constellation.phasing=1",
+            'link.interference="all_satellites"', "roi.center_lat_deg=0.0",
+            "roi.center_lon_deg=9.615"]  # fmt: skip
+    cfg = load_config(path, over)
+    scen, tr = _run_in_memory(cfg)
+    eng, eph = scen.engine, ephemeris_from_config(cfg)
+    assert (tr.sat_id >= 0).all() and eph.n_sat == 2
+    p = eng.params
+    noise_w = BOLTZMANN_J_K * 10 ** (p.noise_temp_dbk / 10) * p.bandwidth_hz
+    share = []
+    for t, rows in tr.groupby("time_s"):
+        pos, vel = (a[0] for a in eph(np.array([t]))[:2])
+        lat, lon = np.radians(rows.lat_deg.to_numpy()), np.radians(rows.lon_deg.to_numpy())
+        ut = geodetic_to_ecef(lat, lon, rows.alt_m.to_numpy())
+        up = ut / np.linalg.norm(ut, axis=1)[:, None]
+        assert (np.einsum("usk,uk->us", pos[None] - ut[:, None], up) > 0).all()  # both up
+        for i, r in enumerate(rows.itertuples()):
+            east = np.array([-math.sin(lon[i]), math.cos(lon[i]), 0.0])
+            north = np.cross(up[i], east)
+            lit = np.ones((len(pos), eng.n_beam), bool)
+            s = r.sat_id
+            powers = _received_w(eng, cfg, ut[i], east, north, up[i], pos, vel, s, r.beam_id, lit)
+            signal = powers[s, r.beam_id]
+            i_w = powers.sum() - signal
+            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
+            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
+            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
+            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6)
+            share.append(powers[1 - s].sum() / i_w)
+    assert min(share) > 1e-5
+
+
+def test_every_satellite_interfering_with_a_single_satellite_changes_nothing():
+    """``link.interference = "all_satellites"`` on the paper's single pass: there is no
+    other satellite, so every column of every epoch (the blocks hold several epochs, the
+    cone one satellite) is the default run's, bit for bit."""
+    over = [*QUIET, "run.duration_s=20.0"]
+    want = run(load_config(PAPER, over)).trace
+    got = run(load_config(PAPER, [*over, 'link.interference="all_satellites"'])).trace
+    assert len(got) == len(want) > 100
+    for col in want.columns:
+        np.testing.assert_array_equal(got[col].to_numpy(), want[col].to_numpy(), err_msg=col)
+
+
+def test_a_dwell_that_begins_at_the_first_recorded_epoch_is_not_censored():
+    """The paper's centre UT hands over at 14, 45, 76 and 107 s (31 s dwells). With a 14 s
+    warm-up the dwell from 14 s begins with the recording, it is not cut by it: three
+    complete 31 s dwells; the one from 0 to 14 s began in the warm-up (censored), the last
+    one is cut by the end."""
+    cfg = load_config(PAPER, [*QUIET, "run.warmup_s=14", "run.duration_s=100"])
+    res = run(cfg.model_copy(update={"population": cfg.population[:1]}))
+    assert res.trace.time_s.min() == 14.0
+    dwell = res.summary["per_ut"][0]["dwell"]
+    assert dwell["complete_s"] == pytest.approx([31.0, 31.0, 31.0])
+    starts = [(d["start_s"], d["censored_start"]) for d in dwell["censored"]]
+    assert starts == [(0.0, True), (107.0, False)]
+
+
+def test_one_beam_two_satellites_interfering_and_a_ut_without_any(tmp_path):
+    """The two-satellite Walker above with one beam (one RF chain, a 3 km ROI) and every
+    satellite interfering, plus a UT 4,000 km away that sees neither: its rows have no
+    link, and the two UTs under the beam get the links of a run without it (a row
+    without a satellite must not pick a beam the codebook lacks)."""
+    pops = FAR.replace("[0.0, 200000.0]", "[500.0, 1000.0]").replace(
+        "[0.0, -100000.0]", "[300.0, -1000.0]"
+    )
+    head = WALKER.read_text().split("[[population]]")[0]
+    over = [*QUIET, "run.duration_s=3.0", "run.start_s=292.0", "constellation.n_planes=2",
+            "constellation.sats_per_plane=1", "constellation.phasing=1",
+            'link.interference="all_satellites"', "roi.center_lat_deg=0.0",
+            "roi.center_lon_deg=9.615", "roi.semi_axis_x_m=3000.0",
+            "roi.semi_axis_y_m=3000.0", "satellite_array.n_rf_x=1",
+            "satellite_array.n_rf_y=1", 'satellite_array.oversampling="auto"',
+            "controller.min_snr_db=-60.0"]  # fmt: skip
+    # (the one beam points at the satellite's nadir, 12.5 deg of arc away: -50 dB SNR)
+    out = []
+    for text in (pops, pops.split("\n\n")[0] + "\n"):
+        path = tmp_path / "walker.toml"
+        path.write_text(head + text)
+        out.append(_run_in_memory(load_config(path, over)))
+    (scen, tr), (_, alone) = out
+    assert scen.engine.n_beam == 1
+    far, near = tr[tr.ut_id == 2], tr[tr.ut_id < 2]
+    assert (far.n_visible == 0).all() and far.snr_db.isna().all()
+    assert near.sinr_db.notna().all() and (near.sinr_db < near.snr_db).all()
+    for col in (*GEOMETRY, "sinr_db"):
+        np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
