@@ -265,6 +265,20 @@ def _geodetic_frame(lat_rad, lon_rad, h_m):
     return pos, east, np.cross(up, east), up
 
 
+def _check_row(r, powers, noise_w):
+    """A trace row's SNR and SINR against the received powers ``(n_sat, n_beam)`` [W] of
+    every beam (the serving one at the row's satellite and beam), 1e-9 dB, and its
+    interference over noise ``10^((SNR - SINR)/10) - 1`` to 1e-6 of itself; returns the
+    interference power [W]."""
+    signal = powers[r.sat_id, r.beam_id]
+    i_w = powers.sum() - signal
+    assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
+    assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
+    i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
+    assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6, abs=1e-300)
+    return i_w
+
+
 def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit, axes=None):
     """(n_sat, n_beam) received powers [W] at one UT served by beam ``b`` of satellite
     ``s``: every lit beam of the serving beam's colour of every satellite above the UT's
@@ -335,12 +349,7 @@ def test_other_satellites_on_wgs84_with_colours_and_lit_beams_are_the_explicit_s
                                                   math.radians(r.lon_deg), r.alt_m)  # fmt: skip
             powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, r.sat_id, r.beam_id,
                                  lit)  # fmt: skip
-            signal = powers[r.sat_id, r.beam_id]
-            i_w = powers.sum() - signal
-            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
-            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
-            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
-            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6, abs=1e-300)
+            _check_row(r, powers, noise_w)
             d = pos[r.sat_id] - ut  # azimuth in the geodetic frame: clockwise from north
             az_deg = math.degrees(math.atan2(d @ east, d @ north)) % 360.0
             assert r.azimuth_deg == pytest.approx(az_deg, abs=1e-9)
@@ -451,12 +460,7 @@ def test_other_satellites_in_an_environment_each_path_with_its_own_loss(
             powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, s, r.beam_id, lit,
                                  axes)  # fmt: skip
             powers = powers * 10 ** (-loss_db[u] / 10)[:, None]
-            signal = powers[s, r.beam_id]
-            i_w = powers.sum() - signal
-            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
-            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
-            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
-            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6)
+            _check_row(r, powers, noise_w)
             other = powers.sum(axis=1) > 0
             other[s] = False
             spread_db += list(np.abs(loss_db[u, other] - loss_db[u, s]))
@@ -535,12 +539,7 @@ def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path
             lit = np.ones((len(pos), eng.n_beam), bool)
             s = r.sat_id
             powers = _received_w(eng, cfg, ut[i], east, north, up[i], pos, vel, s, r.beam_id, lit)
-            signal = powers[s, r.beam_id]
-            i_w = powers.sum() - signal
-            assert r.snr_db == pytest.approx(10 * math.log10(signal / noise_w), abs=1e-9)
-            assert r.sinr_db == pytest.approx(10 * math.log10(signal / (i_w + noise_w)), abs=1e-9)
-            i_over_n = 10 ** ((r.snr_db - r.sinr_db) / 10) - 1
-            assert i_over_n == pytest.approx(i_w / noise_w, rel=1e-6)
+            i_w = _check_row(r, powers, noise_w)
             share.append(powers[1 - s].sum() / i_w)
     assert min(share) > 1e-5
 
