@@ -219,8 +219,8 @@ def step(
     events = events_table(t_s, kind, old, old_split, new_split, new_db, last_db)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
     dwells = dwells_table(closing, old[closing], state.serving_since_s[closing], t_s,
-                     state.dwell_censored_start[closing], False, n_beam,
-                     (old_split[0][closing], old_split[1][closing]))  # fmt: skip
+                          state.dwell_censored_start[closing], False, n_beam,
+                          (old_split[0][closing], old_split[1][closing]))  # fmt: skip
     new_state = ControllerState(
         serving=new,
         pending=np.where(adopt | outage_start, -1, pending),
