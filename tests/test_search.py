@@ -26,6 +26,7 @@ from leolink.sim import search
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.processes import candidate_satellites
 from leolink.sim.search import CandidateSearch
+from platform_math import ATOL_ANGLE_DB, same
 from scopes import shared_run_scope
 
 CONSTELLATION = "configs/constellation.toml"
@@ -236,9 +237,11 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
     assert ref.links.visible.sum() > 4 * 1024  # several chunks of every size
     monkeypatch.setattr(search, "TABLE_PAIRS", pairs)
     cells, snr, blk = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
-    assert np.array_equal(cells, cells_ref) and np.array_equal(snr, snr_ref)
+    # Chunks of fewer than jit.JIT_MIN_PAIRS pairs take the numpy path: bit for bit where
+    # numpy's loops are the C library's, within a few ulp elsewhere (platform_math).
+    assert np.array_equal(cells, cells_ref) and same(snr, snr_ref, ATOL_ANGLE_DB)
     assert np.array_equal(blk.best_cell, ref.best_cell)
-    assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
+    assert same(blk.best_snr_db, ref.best_snr_db, ATOL_ANGLE_DB)
     assert np.array_equal(blk.n_visible, ref.n_visible)
 
 

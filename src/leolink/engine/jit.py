@@ -5,7 +5,9 @@ numba is imported on first use only, and only for work large enough to repay its
 numpy code then runs everywhere). Kernels compile once per machine (``cache=True``).
 
 The kernels (:mod:`leolink.engine.kernels`) repeat the numpy code's operations one for
-one: a pair gets the same bits from either (``tests/test_jit.py``). The screening kernel
+one: a pair gets the same bits from either where numpy's transcendental loops are the C
+library's (x86-64 without AVX-512; with AVX-512, a few ulp: :mod:`leolink.engine.kernels`,
+``tests/test_jit.py``). The screening kernel
 is the exception: it decides which pairs the engine evaluates, never a value that reaches
 an output, so it may (and does) round differently; both of its bounds are rigorous.
 """

@@ -5,8 +5,11 @@ point operations one for one, in the same order, so that a pair gets the same bi
 either: a sum of three products is ``(p0 + p2) + p1`` (what ``numpy.einsum`` does over a
 length-3 axis), the Dirichlet angle subtraction ``fma(c1, t1, c0 t0)`` (what the BLAS
 product of ``dirichlet_kernels`` does), the transcendental functions are the C library's
-(as numpy's float64 loops on x86-64 without AVX-512). ``tests/test_jit.py`` checks the
-equality bit for bit.
+(as numpy's float64 loops on x86-64 without AVX-512; with AVX-512 numpy takes ``arcsin``,
+``arctan2``, ``log10``, ``log1p``, ``exp`` and ``power`` from Intel's SVML, a few ulp
+away, so that the two paths then differ in the last bits). ``tests/test_jit.py`` checks
+the equality bit for bit where numpy's loops are the C library's, to a few ulp elsewhere
+(``tests/platform_math.py``).
 """
 
 from __future__ import annotations
