@@ -14,8 +14,6 @@ power cut would cost ~0.15 s per file on this kind of machine).
 from __future__ import annotations
 
 import contextlib
-import itertools
-import json
 import math
 import os
 import secrets
@@ -24,6 +22,8 @@ from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
+
+from leolink.io.json_text import json_pieces
 
 __all__ = [
     "PARTIAL_SUFFIX",
@@ -36,7 +36,7 @@ __all__ = [
 ]
 
 PARTIAL_SUFFIX = ".partial"
-_PIECES = 1 << 17  # encoder pieces per write (a few bytes each: ~1 MiB)
+_WRITE_CHARS = 1 << 20  # characters per write of a JSON file (ASCII: 1 MiB)
 _FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
 
 
@@ -144,14 +144,20 @@ def to_jsonable(obj):
 def write_json_atomic(path, obj):
     """Write ``obj`` as indented JSON (NaN -> null) atomically; return the path.
 
-    Encoded in writes of :data:`_PIECES` pieces (~1 MiB): a large summary is never held as
-    one string (the same text as ``json.dumps(..., indent=2)`` plus a newline).
+    The text of ``json.dumps(to_jsonable(obj), indent=2, allow_nan=False)`` plus a newline,
+    built by :func:`leolink.io.json_text.json_pieces` and written in parts of about
+    :data:`_WRITE_CHARS` characters: a large summary is never held as one string.
     """
-    pieces = json.JSONEncoder(indent=2, allow_nan=False).iterencode(to_jsonable(obj))
     with atomic_file(path) as f:
-        while text := "".join(itertools.islice(pieces, _PIECES)):  # joined in C, not per piece
-            f.write(text.encode("utf-8"))
-        f.write(b"\n")
+        parts, size = [], 0
+        for piece in json_pieces(obj):
+            parts.append(piece)
+            size += len(piece)
+            if size >= _WRITE_CHARS:
+                f.write("".join(parts).encode("ascii"))
+                parts, size = [], 0
+        parts.append("\n")
+        f.write("".join(parts).encode("ascii"))
     return Path(path)
 
 
