@@ -16,7 +16,8 @@ The figure that counts: ``ratio_peer_loop_over_leolink_process`` (> 1: leolink's
 process is faster than the peer's loop alone). Skips cleanly, with a message, when the
 peer is not installed. The driver below is ours; none of the peer's code is copied.
 
-Run: ``python benchmarks/bench_peer.py [--repeat N]``. Prints figures only.
+Run: ``python benchmarks/bench_peer.py [--repeat N] [--quick]`` (quick: 1 repeat).
+Prints figures only.
 """
 
 from __future__ import annotations
@@ -169,7 +170,10 @@ def main(argv=None):
     ``peer_loop_s``, ``peer_process_s``, ``peer_ut_epochs_per_s`` (loop), the ratios."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--quick", action="store_true", help="one run of each")
     args = ap.parse_args([] if argv is None else argv)
+    if args.quick:
+        args.repeat = 1
     n = N_UT * int(round(DURATION_S / EPOCH_S))
     print(f"small run: {N_UT} UTs x {DURATION_S:.0f} s at {EPOCH_S:g} s = {n:,} UT-epochs, "
           "one LEO pass (ISS TLE)")  # fmt: skip
@@ -177,6 +181,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         cfg, path, sites = leolink_config(tmp)
         env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+        env.pop("PYTHONDONTWRITEBYTECODE", None)  # as _common.run_cli: the bytecode cache on
         cmd = [sys.executable, "-m", "leolink.cli", "run", str(path), "--out", f"{tmp}/o",
                "--overwrite"]  # fmt: skip
         times = [_timed([*cmd, "--quiet"], env)[0] for _ in range(args.repeat)]

@@ -25,7 +25,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 #: The benchmark modules, in the order they run (each ``main(quick, argv) -> dict``).
 MODULES = ("bench_engine", "bench_sim", "bench_constellation", "bench_small",
-           "bench_memory", "bench_visibility", "bench_opensatcom")  # fmt: skip
+           "bench_memory", "bench_visibility", "bench_peer")  # fmt: skip
+#: Benchmarks run on their own, not by this command (minutes each, or a part's floor).
+RUN_ALONE = ("bench_report", "bench_writer")
 #: Aims of the issue (speed at constellation scale): name -> (unit, "<=" or ">=", aim).
 AIMS = {
     "engine.ut_epochs_per_s": ("UT-ep/s", ">=", 3e6),
@@ -37,6 +39,8 @@ AIMS = {
     "small.fixed_ms_per_epoch": ("ms", "<=", 0.2),
     "small.ut_epochs_per_s": ("UT-ep/s", ">=", 15e3),
     "visibility.speedup_vs_skyfield": ("x", ">=", 100.0),
+    # leolink's whole process against the peer's mission loop alone (bench_peer).
+    "peer.ratio_peer_loop_over_leolink_process": ("x", ">=", 1.0),
 }
 
 

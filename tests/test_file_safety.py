@@ -133,6 +133,47 @@ def test_full_disk(tmp_path, monkeypatch, capsys):
     assert [f for f in files_in(out) if ".partial" in f or f == "run.json"] == []
 
 
+def test_full_disk_under_pyarrows_own_file(tmp_path, monkeypatch, capsys):
+    """The trace and event writers write through pyarrow's own file on the partial file
+    (``PendingFiles.open_native``, no GIL per write): there the device fills up at once
+    (``/dev/full``: every write is ENOSPC, raised by pyarrow, not by Python's file)."""
+    import leolink.io.atomic as atomic
+
+    assert os.path.exists("/dev/full")  # Linux's always-full device
+    monkeypatch.setattr(atomic, "_reopen_path", lambda handle: "/dev/full")
+    out = tmp_path / "run"
+    code, _, err = cli(capsys, "run", PAPER, *SHORT, "--out", out, "--quiet")
+    assert code == EXIT_USAGE and err.count("\n") == 1
+    assert err == f"leolink: error: no space left on the device writing {out} (free some " \
+        "space or use another --out)\n"  # fmt: skip
+    assert [f for f in files_in(out) if ".partial" in f or f == "run.json"] == []
+
+
+def test_pyarrows_own_file_becomes_the_target_only_on_commit(tmp_path):
+    """``open_native`` writes to the partial file itself (reopened through
+    ``/proc/self/fd``): nothing at the target before the commit, the bytes after; an
+    abort leaves nothing; a file object without a descriptor is given back as it is."""
+    import pyarrow as pa
+
+    from leolink.io.atomic import PendingFiles, _reopen_path
+
+    target = tmp_path / "t.bin"
+    pending = PendingFiles()
+    f = pending.open_native(target)
+    assert isinstance(f, pa.NativeFile)
+    f.write(b"abc" * 1000)
+    partial = [p for p in tmp_path.iterdir() if p.name.endswith(".partial")]
+    assert len(partial) == 1 and partial[0].stat().st_size == 3000 and not target.exists()
+    assert pending.commit() == [target] and target.read_bytes() == b"abc" * 1000
+    assert f.closed and sorted(p.name for p in tmp_path.iterdir()) == ["t.bin"]
+
+    pending = PendingFiles()
+    pending.open_native(tmp_path / "u.bin").write(b"x")
+    pending.abort()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.bin"]
+    assert _reopen_path(io.BytesIO()) is None
+
+
 def test_unreachable_dask_scheduler(tmp_path, capsys):
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))

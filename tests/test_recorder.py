@@ -322,6 +322,6 @@ def test_json_is_the_indented_text_of_the_plain_values(tmp_path_factory):
 def test_a_json_file_of_many_writes_is_whole(tmp_path):
     from leolink.io import atomic
 
-    values = np.linspace(-1.0, 1.0, 3 * atomic._PIECES // 2)  # ~3 pieces per value
+    values = np.linspace(-1.0, 1.0, 3 * atomic._WRITE_CHARS // 20)  # ~3 writes (~24 chars each)
     path = write_json_atomic(tmp_path / "big.json", {"v": values, "n": None})
     assert path.read_text() == json.dumps({"v": values.tolist(), "n": None}, indent=2) + "\n"

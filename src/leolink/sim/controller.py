@@ -248,10 +248,14 @@ def _unchanged(t_s, state, current_db, n_beam):
     serving links' last SNR moves."""
     n = state.serving.shape
     last_db = _last_serving_db(state, current_db)
-    new_state = dataclasses.replace(
-        state,
+    new_state = ControllerState(  # (not dataclasses.replace: ~5 us of introspection)
+        serving=state.serving,
         pending=np.full(n, -1, np.int64),
         pending_since_s=np.full(n, np.nan),
+        interrupted_until_s=state.interrupted_until_s,
+        serving_since_s=state.serving_since_s,
+        in_outage=state.in_outage,
+        dwell_censored_start=state.dwell_censored_start,
         n_beam=int(n_beam),
         serving_snr_db=np.where(state.serving < 0, np.nan, last_db),
     )

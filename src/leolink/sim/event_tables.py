@@ -89,15 +89,32 @@ def dwells_table(ut, cand, start_s, end_s, censored_start, censored_end, n_beam,
 
 
 def no_events():
-    """An empty event table, with the dtypes of a non-empty one."""
-    int_ = ("ut_id", "from_sat", "from_beam", "to_sat", "to_beam")
-    return {k: _KIND_NAMES[:0] if k == "kind" else np.zeros(0, np.int64 if k in int_ else float)
-            for k in EVENT_COLUMNS}  # fmt: skip
+    """An empty event table, with the dtypes of a non-empty one (a new dict of shared,
+    read-only empty arrays: most epochs have no event)."""
+    return dict(_NO_EVENTS)
 
 
 def no_dwells():
-    """An empty dwell table, with the dtypes of a non-empty one."""
-    return {k: np.zeros(0, t) for k, t in zip(DWELL_COLUMNS, _DWELL_DTYPES, strict=True)}
+    """An empty dwell table, with the dtypes of a non-empty one (as :func:`no_events`)."""
+    return dict(_NO_DWELLS)
+
+
+def _read_only(values):
+    values.flags.writeable = False
+    return values
+
+
+def _empty_event_column(name):
+    if name == "kind":
+        return _KIND_NAMES[:0]
+    ints = ("ut_id", "from_sat", "from_beam", "to_sat", "to_beam")
+    return np.zeros(0, np.int64 if name in ints else float)
+
+
+_NO_EVENTS = {k: _read_only(_empty_event_column(k)) for k in EVENT_COLUMNS}
+_NO_DWELLS = {
+    k: _read_only(np.zeros(0, t)) for k, t in zip(DWELL_COLUMNS, _DWELL_DTYPES, strict=True)
+}
 
 
 def concat_events(*tables):
