@@ -149,6 +149,18 @@ def test_full_disk_under_pyarrows_own_file(tmp_path, monkeypatch, capsys):
     assert [f for f in files_in(out) if ".partial" in f or f == "run.json"] == []
 
 
+def test_a_file_that_does_not_reopen_is_written_through_python(tmp_path, monkeypatch, capsys):
+    """Where the partial file cannot be reopened (a sandbox's /proc), the tables are
+    written through the Python file: the run's outputs are whole."""
+    import leolink.io.atomic as atomic
+
+    monkeypatch.setattr(atomic, "_reopen_path", lambda handle: str(tmp_path / "no" / "such"))
+    code, _, err = cli(capsys, "run", PAPER, *SHORT, "--out", tmp_path / "run", "--quiet")
+    assert code == 0 and err == ""
+    text = (tmp_path / "run" / "trace.csv").read_text()
+    assert text.startswith("time_s,") and text.count("\n") > 3
+
+
 def test_pyarrows_own_file_becomes_the_target_only_on_commit(tmp_path):
     """``open_native`` writes to the partial file itself (reopened through
     ``/proc/self/fd``): nothing at the target before the commit, the bytes after; an
