@@ -1,8 +1,9 @@
 """Indented JSON text of a run's summary: the standard library's text, built faster.
 
 ``json.JSONEncoder(indent=2)`` encodes in pure Python, one generator step per value (its
-C encoder takes no indent before Python 3.13); a 1,000-UT summary (~70,000 values) then
-costs ~1 s. :func:`json_pieces` gives the same characters, each container's items joined
+C encoder takes no indent before Python 3.13): the constellation's 4.1 MB summary (1,000
+UTs, ~70,000 values) took 0.29 s, 0.105 s this way. :func:`json_pieces` gives the same
+characters, each container's items joined
 in one ``str.join`` and every leaf formatted by the function the standard library uses
 (``float.__repr__``, ``int.__repr__``, ``encode_basestring_ascii``). It encodes what
 :func:`leolink.io.atomic.to_jsonable` would give (numpy scalars and arrays as Python
