@@ -130,25 +130,34 @@ def explicit_gain(u_xy, weights, nx, ny):
     return np.abs(a.conj() @ f) ** 2 / np.sum(np.abs(f) ** 2, axis=0)
 
 
-def dirichlet_kernels(u, beam_u, n):
-    """Dirichlet kernels of ``u (m,)`` against each ``beam_u (k,)`` -> (k, m).
-
-    ``sin(n (x - b)) / sin(x - b)`` by angle subtraction, with ``x = pi u / 2``: four
-    sines/cosines per direction whatever the number of beams, and one small matrix
-    product for all ``k`` beams. Where ``|sin(x - b)|`` is tiny (at a beam peak or a
-    grating lobe) cancellation would cost accuracy, so those few entries are recomputed
-    directly with :func:`ula_gain`.
-    """
-    u = np.asarray(u, dtype=float)
-    beam_u = np.asarray(beam_u, dtype=float)
-    k = beam_u.size
-    x = (0.5 * np.pi) * u
-    trig = np.empty((4, u.size))
+def dirichlet_trig(u, n):
+    """``(sin x, cos x, sin n x, cos n x)`` of ``x = pi u / 2``, shape (4, m): all that
+    :func:`dirichlet_kernels` needs of the directions ``u (m,)`` (given to it again, it
+    spares the sines of directions met before, e.g. the ROI samples of a codebook search)."""
+    x = (0.5 * np.pi) * np.asarray(u, dtype=float)
+    trig = np.empty((4, x.size))
     np.sin(x, out=trig[0])
     np.cos(x, out=trig[1])
     x *= n
     np.sin(x, out=trig[2])
     np.cos(x, out=trig[3])
+    return trig
+
+
+def dirichlet_kernels(u, beam_u, n, trig=None):
+    """Dirichlet kernels of ``u (m,)`` against each ``beam_u (k,)`` -> (k, m).
+
+    ``sin(n (x - b)) / sin(x - b)`` by angle subtraction, with ``x = pi u / 2``: four
+    sines/cosines per direction whatever the number of beams (:func:`dirichlet_trig`, or
+    ``trig`` if given: those of ``u`` and ``n``), and one small matrix product for all
+    ``k`` beams. Where ``|sin(x - b)|`` is tiny (at a beam peak or a grating lobe)
+    cancellation would cost accuracy, so those few entries are recomputed directly with
+    :func:`ula_gain`.
+    """
+    u = np.asarray(u, dtype=float)
+    beam_u = np.asarray(beam_u, dtype=float)
+    k = beam_u.size
+    trig = dirichlet_trig(u, n) if trig is None else trig
     coef = dirichlet_coefficients(beam_u, n)
     # BLAS computes a 1-column product on another path (matrix-vector), which rounds
     # differently: a second column keeps every direction's kernel the same bit for bit

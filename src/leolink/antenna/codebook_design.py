@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from leolink.antenna.array import dirichlet_kernels
+from leolink.antenna.array import dirichlet_kernels, dirichlet_trig
 from leolink.antenna.codebook import (
     CANONICAL_ALONG_TRACK,
     Codebook,
@@ -156,12 +156,24 @@ def _roi_directions(rx_m, ry_m, altitude_m, radius_m, n_grid, n_edge):
     return x, y, u
 
 
-def _best_gain_lin(codebook, u_xy):
-    """Best beam's linear gain at each direction ``u_xy (n, 2)`` -> (n,)."""
+@functools.lru_cache(maxsize=4)  # ~2.4 MB each with the default sampling
+def _roi_trig(directions_key, n_sub_x, n_sub_y):
+    """:func:`~leolink.antenna.array.dirichlet_trig` of the ROI samples along x and y:
+    the same for every O that ``auto`` tries (a third of a design's time)."""
+    u = _roi_directions(*directions_key)[2]
+    trig = dirichlet_trig(u[:, 0], n_sub_x), dirichlet_trig(u[:, 1], n_sub_y)
+    for a in trig:
+        a.setflags(write=False)
+    return trig
+
+
+def _best_gain_lin(codebook, u_xy, trig=(None, None)):
+    """Best beam's linear gain at each direction ``u_xy (n, 2)`` -> (n,) (``trig``: the
+    directions' :func:`~leolink.antenna.array.dirichlet_trig` along x and y, if known)."""
     bx, ix = np.unique(codebook.u_xy[:, 0], return_inverse=True)
     by, iy = np.unique(codebook.u_xy[:, 1], return_inverse=True)
-    kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x)
-    ky = dirichlet_kernels(u_xy[:, 1], by, codebook.n_sub_y)
+    kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x, trig[0])
+    ky = dirichlet_kernels(u_xy[:, 1], by, codebook.n_sub_y, trig[1])
     best = np.zeros(u_xy.shape[0])
     for b in range(codebook.n_beam):  # a few dozen beams: one vector product each
         np.maximum(best, kx[ix[b]] * ky[iy[b]], out=best)
@@ -187,12 +199,12 @@ def worst_roi_loss(
     RoiLoss
         ``10 log10(n_sub_x n_sub_y / max_b G_b)`` at the worst sampled point [dB].
     """
-    x, y, u = _roi_directions(
-        float(rx_m), float(ry_m), float(altitude_m), float(radius_m), int(n_grid), int(n_edge)
-    )
+    key = (float(rx_m), float(ry_m), float(altitude_m), float(radius_m), int(n_grid), int(n_edge))
+    x, y, u = _roi_directions(*key)
     if codebook.n_beam == 0:
         return RoiLoss(np.inf, float(x[0]), float(y[0]))
-    gain = _best_gain_lin(codebook, u) / (codebook.n_sub_x * codebook.n_sub_y)
+    trig = _roi_trig(key, int(codebook.n_sub_x), int(codebook.n_sub_y))
+    gain = _best_gain_lin(codebook, u, trig) / (codebook.n_sub_x * codebook.n_sub_y)
     k = int(np.argmin(gain))
     with np.errstate(divide="ignore"):
         return RoiLoss(float(-10.0 * np.log10(gain[k])), float(x[k]), float(y[k]))
