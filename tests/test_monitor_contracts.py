@@ -39,13 +39,17 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from leolink.app.run import run
-from leolink.app.scenario import ephemeris_from_config
+from leolink.app.scenario import build_scenario, ephemeris_from_config
 from leolink.config import load_config
 from leolink.constants import BOLTZMANN_J_K, SPEED_OF_LIGHT_M_S
 from leolink.geometry import geodetic_to_ecef
+from leolink.io.sinks import MemorySink
+from leolink.sim.monitor import Monitor
+from leolink.sim.runner import run_simulation
 from test_active_beams import _cfg as _paper_drop
 from test_active_beams import _explicit_se
 from test_active_beams import _run as _run_in_memory
@@ -599,3 +603,41 @@ def test_one_beam_two_satellites_interfering_and_a_ut_without_any(tmp_path):
     assert near.sinr_db.notna().all() and (near.sinr_db < near.snr_db).all()
     for col in (*GEOMETRY, "sinr_db"):
         np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
+
+
+def test_serving_pairs_the_pruned_search_left_out_get_their_own_links(monkeypatch):
+    """Hysteresis (window 0 dB: the pruned search keeps only the pairs that can hold a
+    UT's best cell) on a rotating Walker with moving UTs: the controller keeps serving
+    satellites whose pairs the search left out, 3 rows of one block and 2 of another,
+    which the monitor evaluates itself. The trace equals that of ``prune = False`` (every
+    pair of the cone evaluated, none left to the monitor), bit for bit: each left-out row
+    has the link of its own pair, not of another row's."""
+    over = [*QUIET, 'constellation.kind="walker"', "constellation.n_planes=12",
+            "constellation.sats_per_plane=10", "constellation.min_elevation_deg=25",
+            'satellite_array.oversampling="auto"', "earth.rotation=true",
+            "run.duration_s=600", "run.epoch_s=5", 'controller.policy="hysteresis"',
+            "controller.hysteresis.margin_db=1.0", "controller.handover_time_s=5.0",
+            "controller.min_snr_db=-25.0", "population.1.count=6",
+            'population.1.placement="random"']  # fmt: skip
+    left_out = []
+    pair_links = Monitor._pair_links
+
+    def counted(self, rows, geo_sat, served, n_ut):
+        pair = self.decider.block.find_pairs(rows, geo_sat)
+        left_out.append(int((served & (pair < 0)).sum()))
+        return pair_links(self, rows, geo_sat, served, n_ut)
+
+    monkeypatch.setattr(Monitor, "_pair_links", counted)
+    traces = []
+    for prune in (True, False):
+        scen = build_scenario(load_config(PAPER, over))
+        scen.prune = prune
+        sink = MemorySink()
+        run_simulation(scen, [sink])
+        traces.append(sink.trace())
+        if prune:
+            assert max(left_out) >= 2  # several left-out rows in one block
+            left_out.clear()
+    assert sum(left_out) == 0
+    assert (traces[0].sat_id >= 0).sum() > 500
+    pd.testing.assert_frame_equal(traces[0], traces[1])
