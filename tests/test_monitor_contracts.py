@@ -641,3 +641,35 @@ def test_serving_pairs_the_pruned_search_left_out_get_their_own_links(monkeypatc
     assert sum(left_out) == 0
     assert (traces[0].sat_id >= 0).sum() > 500
     pd.testing.assert_frame_equal(traces[0], traces[1])
+
+
+class _EpochCapture:
+    """The ``k`` and ``t_s`` of every epoch frame, and the rows' times (epoch-only sink)."""
+
+    def start(self, info):
+        self.info, self.frames = info, []
+
+    def epoch(self, frame):
+        self.frames.append((frame.k, frame.t_s, np.unique(frame.columns["time_s"])))
+
+    def finish(self, final):
+        pass
+
+    def abort(self):
+        pass
+
+
+def test_with_rlf_each_epoch_frame_is_numbered_from_the_recording_at_its_time():
+    """With radio link failure monitoring the monitor sends each epoch as it is decided
+    (after RLF), one :class:`EpochFrame` each: after a 3 s warm-up at 0.5 s epochs the
+    frames are numbered 0, 1, ... from the first recorded epoch, at ``start + 3 s + k
+    0.5 s``, the time of their rows."""
+    cfg = load_config(PAPER, [*QUIET, "controller.rlf.enabled=true", "run.epoch_s=0.5",
+                              "run.warmup_s=3.0", "run.duration_s=10.0"])  # fmt: skip
+    cap = _EpochCapture()
+    run_simulation(build_scenario(cfg), [cap])
+    k, t_s, rows_t = zip(*cap.frames, strict=True)
+    assert list(k) == list(range(20)) and cap.info.n_epochs == 20
+    want = cfg.run.start_s + 3.0 + 0.5 * np.arange(20)
+    np.testing.assert_allclose(t_s, want, rtol=0, atol=1e-9)
+    assert all(r.tolist() == [t] for r, t in zip(rows_t, want, strict=True))
