@@ -673,3 +673,26 @@ def test_with_rlf_each_epoch_frame_is_numbered_from_the_recording_at_its_time():
     want = cfg.run.start_s + 3.0 + 0.5 * np.arange(20)
     np.testing.assert_allclose(t_s, want, rtol=0, atol=1e-9)
     assert all(r.tolist() == [t] for r, t in zip(rows_t, want, strict=True))
+
+
+def test_fading_in_a_block_whose_only_link_is_its_first_pair():
+    """One UT, 65 epochs: the second motion block holds the last epoch alone, whose only
+    link is the block's pair 0. Its row too gets its Rician draw, as every other row: SNR
+    with fading minus without is ``10 log10(|sqrt(N) + g / sqrt(K)|^2 / (N + 1/K))`` with
+    the UT's receive gain ``N`` and the run's draw ``g`` for that UT and epoch."""
+    from leolink.rng import complex_normal, ut_keys
+
+    over = [*QUIET, "run.duration_s=65.0", "run.start_s=-15.0"]
+    cfg = load_config(PAPER, over)
+    cfg = cfg.model_copy(update={"population": cfg.population[:1]})
+    mean = run(cfg).trace
+    cfg_f = load_config(PAPER, [*over, 'link.fading="rician"'])
+    fading = run(cfg_f.model_copy(update={"population": cfg_f.population[:1]})).trace
+    assert len(mean) == 65 and mean.snr_db.notna().all() and fading.snr_db.notna().all()
+    keys = ut_keys(cfg.run.seed, 1)
+    g = np.array([complex_normal(keys, k)[0] for k in range(65)])
+    n, k = 10 ** (mean.gain_rx_db.to_numpy() / 10), cfg.link.rician_k
+    factor_db = 10 * np.log10(np.abs(np.sqrt(n) + g / np.sqrt(k)) ** 2 / (n + 1 / k))
+    assert abs(factor_db[-1]) > 0.01
+    got = (fading.snr_db - mean.snr_db).to_numpy()
+    np.testing.assert_allclose(got, factor_db, rtol=0, atol=1e-9)
