@@ -509,23 +509,28 @@ y_m = [5000.0, 0.0, 20000.0, -30000.0, 30000.0]
 """
 
 
-def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path):
+@pytest.mark.parametrize("start_s", [292.0, 229.0], ids=["one_block", "two_blocks"])
+def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path, start_s):
     """A Walker constellation of 2 satellites (2 planes at 53 deg, phasing 1: they cross
     at the nodes), every satellite interfering, 292 s after they met at the ascending
     node: 25 deg of arc apart, both 34 deg above the UTs near the equator between them
     (the monitor's cone is both: at most 64 satellites are never screened). Each row's
     SNR, SINR (1e-9 dB) and I/N (1e-6) against ``_received_w`` in the sphere's radial
     frame, and the other satellite must matter (over 1e-5 of the interference; measured
-    3e-4 to 1e-3: without it the SINR is 3e-3 dB off)."""
+    3e-4 to 1e-3: without it the SINR is 3e-3 dB off). The rows of 292-294 s are checked;
+    from 229 s they are the last epoch of the first 64-epoch motion block and the first
+    two of the second (an epoch's index in its block is ``k - k0``)."""
     path = tmp_path / "walker.toml"
     path.write_text(WALKER.read_text().split("[[population]]")[0] + TWO)
     # the midpoint of the two satellites at t = 292 s (from the ephemeris: 0 N, 9.615 E)
-    over = [*QUIET, "run.duration_s=3.0", "run.start_s=292.0", "constellation.n_planes=2",
-            "constellation.sats_per_plane=1", "constellation.phasing=1",
-            'link.interference="all_satellites"', "roi.center_lat_deg=0.0",
-            "roi.center_lon_deg=9.615"]  # fmt: skip
+    over = [*QUIET, f"run.duration_s={295.0 - start_s}", f"run.start_s={start_s}",
+            "constellation.n_planes=2", "constellation.sats_per_plane=1",
+            "constellation.phasing=1", 'link.interference="all_satellites"',
+            "roi.center_lat_deg=0.0", "roi.center_lon_deg=9.615"]  # fmt: skip
     cfg = load_config(path, over)
     scen, tr = _run_in_memory(cfg)
+    tr = tr[tr.time_s >= 292.0]
+    assert tr.time_s.nunique() == 3
     eng, eph = scen.engine, ephemeris_from_config(cfg)
     assert (tr.sat_id >= 0).all() and eph.n_sat == 2
     p = eng.params
