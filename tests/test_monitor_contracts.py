@@ -283,18 +283,20 @@ def _check_row(r, powers, noise_w):
     return i_w
 
 
-def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit, axes=None):
+def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit, axes=None, beams=None):
     """(n_sat, n_beam) received powers [W] at one UT served by beam ``b`` of satellite
     ``s``: every lit beam of the serving beam's colour of every satellite above the UT's
     horizon; the satellite beams by explicit steering-vector sums in the body frame (x
     along the velocity's part across the radius, z radial), the UT's 24 x 24 UPA steered
     at ``s`` in its local east and north, or in its panel's ``axes`` (x, y) if given
     (gain ``N + 1/K`` on the serving satellite, the array factor off the beam plus
-    ``1/K`` on the others), free space, fixed atmosphere."""
+    ``1/K`` on the others), free space, fixed atmosphere. ``beams``: each satellite's
+    steering vectors ``(n_sat, n_beam, n_el)`` (None: the codebook's for all)."""
     if axes is not None:
         east, north = axes
     p, cb = eng.params, eng.codebook
-    beams = _upa(np.asarray(cb.u_xy, float), cb.n_sub_x, cb.n_sub_y)
+    if beams is None:
+        beams = [_upa(np.asarray(cb.u_xy, float), cb.n_sub_x, cb.n_sub_y)] * len(pos)
     n_ut_x, k_r = 24, cfg.link.rician_k
     ptx_w = 10 ** ((p.ptx_dbw - p.cable_loss_db - p.other_loss_db) / 10)
     atm = 10 ** (cfg.atmosphere.fixed.loss_db / 10)
@@ -306,7 +308,7 @@ def _received_w(eng, cfg, ut, east, north, up, pos, vel, s, b, lit, axes=None):
         d = (pos[k] - ut) / rho
         if d @ up <= 0:
             continue
-        g_tx = _tx_gains(cb, beams, pos[k], vel[k], d)
+        g_tx = _tx_gains(cb, beams[k], pos[k], vel[k], d)
         if k == s:
             g_rx = n_ut_x**2 + 1 / k_r
         else:
@@ -701,3 +703,59 @@ def test_fading_in_a_block_whose_only_link_is_its_first_pair():
     assert abs(factor_db[-1]) > 0.01
     got = (fading.snr_db - mean.snr_db).to_numpy()
     np.testing.assert_allclose(got, factor_db, rtol=0, atol=1e-9)
+
+
+def _earth_fixed_beams(cb, cells, pos, vel, sin_min_el, cos_for):
+    """Steering vectors ``(n_sat, n_beam, n_el)`` of beams re-steered at each satellite's
+    ground cells ``cells (n_sat, n_beam, 3)``, in its body frame (as ``_tx_gains``), and
+    which beams are on: the cell sees the satellite at or above the minimum elevation
+    and the cell is within the field of regard (angle off nadir)."""
+    beams, on = [], []
+    for c, sp, sv in zip(cells, pos, vel, strict=True):
+        z = sp / np.linalg.norm(sp)
+        x = sv - (sv @ z) * z
+        x /= np.linalg.norm(x)
+        d = (c - sp) / np.linalg.norm(c - sp, axis=1)[:, None]  # satellite -> cell
+        v = np.stack([d @ x, d @ np.cross(z, x)], axis=-1)
+        sin_el = -np.einsum("bk,bk->b", d, c / np.linalg.norm(c, axis=1)[:, None])
+        with np.errstate(invalid="ignore"):
+            on.append((sin_el >= sin_min_el) & (-d @ z >= cos_for))
+        beams.append(_upa(np.where(on[-1][:, None], v, 0.0), cb.n_sub_x, cb.n_sub_y))
+    return np.array(beams), np.array(on)
+
+
+def test_other_satellites_with_earth_fixed_beams_are_the_explicit_sum(tmp_path):
+    """Walker, every satellite interfering, beams re-steered to Earth-fixed cells (each
+    satellite its own footprint's cells at the reference instant, read from the engine's
+    steering mode): each row's SNR, SINR (1e-9 dB) and I/N (1e-6) against the explicit
+    received powers of every satellite above the UT's horizon, each satellite's beams
+    steered at its own cells (``_earth_fixed_beams``); the cone's satellites are not the
+    first ones of the constellation (a satellite row of the interference sum is not its
+    id)."""
+    path = tmp_path / "walker.toml"
+    path.write_text(WALKER.read_text() + NEAR)
+    over = [*QUIET, "run.duration_s=3.0", 'link.interference="all_satellites"',
+            'satellite_array.steering="earth_fixed"']  # fmt: skip
+    cfg = load_config(path, over)
+    scen, tr = _run_in_memory(cfg)
+    eng, eph = scen.engine, ephemeris_from_config(cfg)
+    st = eng.steering
+    assert (tr.sat_id >= 0).all() and tr.sat_id.nunique() >= 2 and len(st.cells_m) == eph.n_sat
+    p = eng.params
+    noise_w = BOLTZMANN_J_K * 10 ** (p.noise_temp_dbk / 10) * p.bandwidth_hz
+    other = []
+    for t, rows in tr.groupby("time_s"):
+        pos, vel = (a[0] for a in eph(np.array([t]))[:2])
+        beams, on = _earth_fixed_beams(eng.codebook, st.cells_m, pos, vel, st.sin_min_el,
+                                       st.cos_for)  # fmt: skip
+        lat, lon = np.radians(rows.lat_deg.to_numpy()), np.radians(rows.lon_deg.to_numpy())
+        ut = geodetic_to_ecef(lat, lon, rows.alt_m.to_numpy())
+        up = ut / np.linalg.norm(ut, axis=1)[:, None]
+        for i, r in enumerate(rows.itertuples()):
+            east = np.array([-math.sin(lon[i]), math.cos(lon[i]), 0.0])
+            north = np.cross(up[i], east)
+            powers = _received_w(eng, cfg, ut[i], east, north, up[i], pos, vel, r.sat_id,
+                                 r.beam_id, on, beams=beams)  # fmt: skip
+            i_w = _check_row(r, powers, noise_w)
+            other.append((powers.sum() - powers[r.sat_id].sum()) / i_w)
+    assert min(other) > 1e-4
