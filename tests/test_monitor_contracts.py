@@ -808,3 +808,19 @@ def test_precoded_sinr_with_other_satellites_is_the_explicit_sum(tmp_path):
     want = alone.sinr_db.to_numpy() - 10 * np.log10(1 + i_o)
     assert (10 * np.log10(1 + i_o)).min() > 1e-4
     np.testing.assert_allclose(tr.sinr_db.to_numpy(), want, rtol=0, atol=1e-9)
+
+
+def test_a_handover_epochs_se_is_the_served_part_of_a_half_second_epoch():
+    """0.5 s epochs, 0.2 s handover execution: a handover row's SE and throughput are the
+    link's ``log2(1 + SINR)`` times the served part of its epoch, ``1 - 0.2 / 0.5``, and
+    its interruption is 0.2 s; the other served rows get the whole link."""
+    cfg = load_config(PAPER, [*QUIET, "run.epoch_s=0.5", "run.duration_s=60.0",
+                              "controller.handover_time_s=0.2"])  # fmt: skip
+    tr = run(cfg).trace
+    se_link = np.log2(1 + 10 ** (tr.sinr_db / 10))
+    ho, served = tr[tr.service == "handover"], tr[tr.service == "served"]
+    assert len(ho) >= 5 and len(served) > 100
+    np.testing.assert_allclose(ho.interruption_s, 0.2, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ho.se_bps_hz, se_link[ho.index] * (1 - 0.2 / 0.5), rtol=1e-9)
+    np.testing.assert_allclose(ho.throughput_bps, ho.se_bps_hz * cfg.link.bandwidth_hz, rtol=1e-9)
+    np.testing.assert_allclose(served.se_bps_hz, se_link[served.index], rtol=1e-9)
