@@ -824,3 +824,26 @@ def test_a_handover_epochs_se_is_the_served_part_of_a_half_second_epoch():
     np.testing.assert_allclose(ho.se_bps_hz, se_link[ho.index] * (1 - 0.2 / 0.5), rtol=1e-9)
     np.testing.assert_allclose(ho.throughput_bps, ho.se_bps_hz * cfg.link.bandwidth_hz, rtol=1e-9)
     np.testing.assert_allclose(served.se_bps_hz, se_link[served.index], rtol=1e-9)
+
+
+def test_an_outage_row_whose_open_country_snr_is_the_threshold_exactly_is_blocked(tmp_path):
+    """Suburban UTs with ``controller.min_snr_db`` set to the open-country best SNR of one
+    row, exactly (a candidate at the threshold is usable): open country serves that row,
+    the environment's loss puts it in outage, so it is ``blocked``; and, as above, the
+    outage rows are ``blocked`` exactly where open country serves."""
+    over = ["run.duration_s=20.0", "run.start_s=-10.0"]
+
+    def both(sets):
+        return [run(_with_populations(tmp_path, TOWN, SUBURBAN.format(env=name), sets)).trace
+                for name in ("suburban", "open")]  # fmt: skip
+
+    env0, open0 = both(over)
+    lost = open0.best_snr_db - env0.best_snr_db
+    r = int(np.flatnonzero((lost > 1.0) & (open0.service == "served"))[0])
+    x = float(open0.best_snr_db[r])
+    env, open_ = both([*over, f"controller.min_snr_db={x!r}"])
+    assert open_.best_snr_db[r] == x and open_.service[r] == "served"
+    assert env.service[r] == "outage" and env.outage_reason[r] == "blocked"
+    out = env.service == "outage"
+    np.testing.assert_array_equal(env.outage_reason[out] == "blocked",
+                                  open_.service[out] != "outage")  # fmt: skip
