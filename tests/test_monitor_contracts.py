@@ -20,7 +20,12 @@
   run's channel tracker gave it, the UT array in its panel's axes;
 - the same with exactly two satellites, both in view;
 - a scenario without a service link (``Scenario.link`` None): the engine's figures;
-- one demand-lit beam and a UT that never sees a satellite.
+- one demand-lit beam and a UT that never sees a satellite;
+- (ninth pass) serving pairs the pruned search left out, against ``prune = False``; the
+  epoch frames of RLF runs; fading in a block whose only link is pair 0; the explicit
+  interference sum across two motion blocks, with Earth-fixed beams, and with the ZF
+  precoder; a handover row's SE at 0.5 s epochs; an open-country SNR exactly at the
+  threshold (``blocked``).
 
 Not tested, equivalent: ``Monitor._share``'s ``served`` is ``sat_id >= 0 & service !=
 outage``, and ``|`` for ``&`` gives the same rows: every controller state has ``in_outage
