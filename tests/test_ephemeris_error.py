@@ -240,3 +240,28 @@ def test_a_precoder_with_re_steered_or_quantized_beams_is_refused(sets, what):
     with pytest.raises(ConfigError, match=f"link.precoder = 'mmse' is not allowed with "
                                           f"satellite_array.{what}"):  # fmt: skip
         load_config(PAPER, over)
+
+
+def test_fading_of_the_true_link_is_on_top_of_the_pointing_loss():
+    """20 km errors with Rician fading: each served row's SNR with fading minus without
+    is the draw's factor ``10 log10(|sqrt(N) + g / sqrt(K)|^2 / (N + 1/K))`` (``N`` the
+    terminal's gain at the true elevation, ``g`` the run's draw for that UT and epoch),
+    1e-9 dB: the pointing loss is in both SNRs, the fading in one."""
+    from leolink.rng import complex_normal, ut_keys
+
+    axes = ("along_track", "cross_track", "radial")
+    over = [*RTN, "run.duration_s=60", *(f"ephemeris_error.rtn.{a}_m=20000" for a in axes)]
+    mean, _, rows, scen = _run(over)
+    fading, _, _, _ = _run([*over, 'link.fading="rician"'])
+    ok = (mean.service == "served") & (fading.service == "served")
+    assert ok.sum() > 100 and (rows.pointing_loss_db[ok.to_numpy()] > 0.0).all()
+    cfg = load_config(PAPER, over)
+    epoch = np.round((mean.time_s - cfg.run.start_s) / cfg.run.epoch_s).astype(int)
+    keys = ut_keys(cfg.run.seed, int(mean.ut_id.max()) + 1)
+    g = np.array([complex_normal(keys[[u]], k)[0] for u, k in zip(mean.ut_id, epoch, strict=True)])
+    n = 10 ** (scen.engine.terminal.gain_db(np.radians(mean.elevation_deg.to_numpy())) / 10)
+    k_r = cfg.link.rician_k
+    factor_db = 10 * np.log10(np.abs(np.sqrt(n) + g / np.sqrt(k_r)) ** 2 / (n + 1 / k_r))
+    got = (fading.snr_db - mean.snr_db).to_numpy()
+    assert (np.abs(factor_db[ok]) > 1e-3).mean() > 0.9
+    np.testing.assert_allclose(got[ok], factor_db[ok], rtol=0, atol=1e-9)
