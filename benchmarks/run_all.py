@@ -72,6 +72,9 @@ def flatten(results):
 def print_table(flat, before=None):
     print(f"{'figure':<40} {'value':>14} {'aim':>14} {'vs aim':>8}" + (" vs before" * bool(before)))
     for name, value in flat.items():
+        if not isinstance(value, int | float):  # e.g. the peer's version
+            print(f"{name:<40} {value!s:>14}")
+            continue
         unit, op, aim = AIMS.get(name, ("", None, None))
         ratio = "" if aim is None else f"{(value / aim if op == '>=' else aim / value):7.2f}x"
         target = "" if aim is None else f"{op} {aim:,.4g}"
@@ -89,13 +92,13 @@ def main(argv=None):
     args = ap.parse_args(argv)
     flat = flatten(run_modules(args.quick))
     before = json.loads(args.compare.read_text())["figures"] if args.compare else None
-    print_table(flat, before)
-    if args.json:
+    if args.json:  # first: a figures table that fails to print loses no run
         meta = {"quick": args.quick, "python": platform.python_version(),
                 "load_average_1_5_15": os.getloadavg(),
                 "machine": platform.machine(), "time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ",
                 time.gmtime())}  # fmt: skip
         args.json.write_text(json.dumps({"meta": meta, "figures": flat}, indent=1) + "\n")
+    print_table(flat, before)
 
 
 if __name__ == "__main__":

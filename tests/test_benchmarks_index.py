@@ -36,3 +36,13 @@ def test_every_benchmark_is_in_the_readme_table():
     text = (BENCHMARKS / "README.md").read_text()
     for path in BENCHMARKS.glob("bench_*.py"):
         assert f"`{path.name}`" in text, path.name
+
+
+def test_the_table_prints_every_figure_numbers_and_text(capsys):
+    """A module may return a text figure (bench_peer's ``peer_version``): the table shows
+    it instead of failing on it (as it did, after every benchmark had run)."""
+    run_all = _run_all()
+    flat = {"peer.peer_version": "0.7.0", "engine.ut_epochs_per_s": 4.5e6, "sim.wall_s": 9.0}
+    run_all.print_table(flat, before={"sim.wall_s": 10.0})
+    out = capsys.readouterr().out
+    assert "0.7.0" in out and "1.50x" in out and "0.90x" in out
