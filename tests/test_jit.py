@@ -1,9 +1,11 @@
 """The compiled kernels (engine/kernels.py) against the numpy reference, bit for bit.
 
 The kernels repeat the numpy code's operations in the same order (engine/kernels.py
-docstring), so every value must be identical, not close: the inputs are a real
-constellation epoch (4,399 satellites, the config's 1,000 UTs) and the pairs include
-satellites below the horizon, beam peaks and the other degenerate cases a run meets.
+docstring), so every value must be identical, not close, wherever numpy's transcendental
+loops are the C library's (on AVX-512 CPUs numpy takes some from SVML: then within a few
+ulp, tests/platform_math.py): the inputs are a real constellation epoch (4,399
+satellites, the config's 1,000 UTs) and the pairs include satellites below the horizon,
+beam peaks and the other degenerate cases a run meets.
 """
 
 from __future__ import annotations
