@@ -259,3 +259,39 @@ def test_row_chunks_cut_only_between_rows(rows, size):
         assert hi - lo <= size or rows[lo + size - 1] == rows[hi - 1]
         if hi < rows.size:
             assert rows[hi - 1] != rows[hi]  # a row is never split
+
+
+def test_screening_of_per_population_terminals_follows_each_rows_ut(block):
+    """Per-population terminals (``TerminalGroups``): 10 dBi, 40 dBi and a metasurface
+    (its gain falls with the elevation: the per-pair factor) in one screen of 200 UTs
+    taken out of order, each row's UT given by ``ut_id``. The bound of every visible pair
+    is above its best beam's SNR evaluated exactly with that UT's own terminal, and
+    within 1e-3 of it at the best pair of each population: a row bounded with another
+    row's terminal is 30 dB (or 20 dB) off one way or the other."""
+    from leolink.antenna.terminal import FixedGain, Metasurface, TerminalGroups
+
+    eng, n_ut, mb, cones = block
+    group = np.arange(n_ut) % 3  # UT i has terminal i % 3
+    terms = TerminalGroups([FixedGain(10.0), FixedGain(40.0), Metasurface()], group)
+    multi = LinkEngine(eng.codebook, terms, eng.params, eng.atmosphere, eng.colors)
+    sel = np.random.default_rng(3).permutation(n_ut)[:200]  # rows != UTs
+    assert (group[sel] != group[np.arange(200)]).mean() > 0.5
+    cone = cones[0]
+    sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
+    ut_pos = mb.ut_pos_m[0][sel]
+    code, bound = screen(multi, ut_pos, sat_pos, body_frame(sat_pos, sat_vel), ut_id=sel)
+    ut, sat = np.nonzero(np.ones(code.shape, bool))
+    links = multi.evaluate_pairs(ut_pos, sat_pos, sat_vel, ut, sat, ut_id=sel)
+    vis = links.visible
+    # The reference takes each UT's own terminal: 10 / 40 dBi, 33 + 12 log10(sin el).
+    g = group[sel][ut]
+    el = links.elevation_rad
+    expect = np.choose(g, [np.full(el.shape, 10.0), np.full(el.shape, 40.0),
+                           33.0 + 12.0 * np.log10(np.abs(np.sin(el)))])  # fmt: skip
+    assert np.allclose(np.broadcast_to(links.rx_db, el.shape)[vis], expect[vis], atol=1e-9)
+    best = links.gain_tx_bm(multi.beam_ix, multi.beam_iy).max(axis=0) * links.path_snr_lin
+    b, e = bound.reshape(-1), best
+    assert (code.reshape(-1)[vis] > 0).all() and (b[vis] >= e[vis]).all()
+    for k in range(3):  # tight at the best pair of each population
+        mine = vis & (g == k)
+        assert mine.sum() > 100 and (b[mine] / e[mine]).min() < 1.0 + 1e-3
