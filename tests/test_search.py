@@ -70,6 +70,7 @@ def test_screening_bound_is_above_every_beam_and_visibility_agrees(block):
     vis = links.visible.reshape(code.shape)
     assert (code[vis] > 0).all() and not (code[~vis] == VISIBLE).any()
     assert (code == UNCERTAIN).sum() <= 10  # the band is 1e-9 of sin(elevation) wide
+    assert code.dtype == np.int8  # as documented: one byte per pair of the grid
     b, e = bound.reshape(-1)[links.visible], best[links.visible]
     assert (b >= e).all()
     # Tight where it matters: the best pair of a UT is bounded within 3 dB.
@@ -206,6 +207,18 @@ def test_screening_bound_holds_for_tilted_panels(block, tilted):
     vis = links.visible
     assert (bound.reshape(-1)[vis] >= best[vis]).all()
     assert (flat.reshape(-1)[vis] < best[vis]).sum() > 100
+    # The bound's terminal factor is the gain at the angle above the panel plane, pair by
+    # pair: tilted / flat = G(asin(n . d / |d|)) / G(el), d = satellite - UT (sphere: up
+    # is radial), recomputed here from the positions.
+    d = sat_pos[None, :, :] - mb.ut_pos_m[0][:, None, :]
+    dist = np.linalg.norm(d, axis=2)
+    up = mb.ut_pos_m[0] / np.linalg.norm(mb.ut_pos_m[0], axis=1)[:, None]
+    sin_p = np.einsum("usk,uk->us", d, normal[0]) / dist
+    sin_e = np.einsum("usk,uk->us", d, up) / dist
+    gain = scan.terminal.gain_db
+    want = 10.0 ** ((gain(np.arcsin(sin_p)) - gain(np.arcsin(sin_e))) / 10.0)
+    on = code > 0
+    assert on.sum() > 1000 and np.allclose(bound[on] / flat[on], want[on], rtol=1e-9)
 
 
 def test_pruned_tables_of_tilted_panels_are_the_exhaustive_tables(block, tilted):
