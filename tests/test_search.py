@@ -77,6 +77,32 @@ def test_screening_bound_is_above_every_beam_and_visibility_agrees(block):
     assert np.median(b / e) < 30.0 and (b / e).min() < 1.0 + 1e-3
 
 
+def test_screening_bound_is_the_product_of_the_envelopes(block):
+    """The bound of each pair is what engine/screening.py says, recomputed here from the
+    positions: the engine's ``K / rho^2 x G_rx / L_atm`` of the pair (its exact evaluation)
+    times ``E_x(u_x) E_y(u_y)`` at the direction cosines ``u = (ut - sat) . axis / rho``
+    of the satellite's body frame, times the two slacks (1 + 1e-6 each, ``BOUND_SLACK``
+    and the one of the dB gain). A bound only looser (wrong cosines: the envelope's
+    maximum ``n``) still bounds every beam; this sees it."""
+    eng, n_ut, mb, cones = block
+    cone = cones[0]
+    sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
+    axes = body_frame(sat_pos, sat_vel)
+    code, bound = screen(eng, mb.ut_pos_m[0], sat_pos, axes)
+    ut, sat = np.nonzero(np.ones(code.shape, bool))
+    links = eng.evaluate_pairs(mb.ut_pos_m[0], sat_pos, sat_vel, ut, sat)
+    rel = mb.ut_pos_m[0][:, None, :] - sat_pos[None, :, :]
+    rho = np.linalg.norm(rel, axis=2)
+    ux = np.einsum("usk,sk->us", rel, axes[:, 0]) / rho
+    uy = np.einsum("usk,sk->us", rel, axes[:, 1]) / rho
+    cb = eng.codebook
+    env = envelope(ux, eng.beam_ux, cb.n_sub_x) * envelope(uy, eng.beam_uy, cb.n_sub_y)
+    want = env * links.path_lin.reshape(code.shape) * (1.0 + screening.BOUND_SLACK) ** 2
+    on = code > 0
+    assert on.sum() > 10_000 and np.allclose(bound[on], want[on], rtol=1e-9, atol=0.0)
+    assert (env[on] < 0.5 * cb.n_sub_x * cb.n_sub_y).mean() > 0.9  # most pairs off-beam
+
+
 def _tables(eng, n_ut, mb, cones, window_db, prune, floor_db=-np.inf):
     blk = CandidateSearch(eng, window_db, prune, floor_db).block(
         0, n_ut, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones
