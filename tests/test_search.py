@@ -77,7 +77,23 @@ def test_screening_bound_is_above_every_beam_and_visibility_agrees(block):
     assert np.median(b / e) < 30.0 and (b / e).min() < 1.0 + 1e-3
 
 
-def test_screening_bound_is_the_product_of_the_envelopes(block):
+def _variant(eng, kind):
+    """The constellation's engine (per-population UPAs, a fixed loss) or one with another
+    terminal / atmosphere: each path of the bound's ``G_rx / L_atm`` factor."""
+    from leolink.antenna.terminal import Metasurface
+    from leolink.link.atmosphere import AtmosphereTable
+
+    if kind == "groups":
+        return eng
+    terminal = Metasurface() if "metasurface" in kind else UPATerminal(24, 24, 10.0)
+    atm = eng.atmosphere
+    if "table" in kind:  # 0.3 dB at zenith, growing as 1 / sin(el): depends on it
+        atm = AtmosphereTable(lambda el: 0.3 / np.sin(np.maximum(el, 0.05)))
+    return LinkEngine(eng.codebook, terminal, eng.params, atm, eng.colors)
+
+
+@pytest.mark.parametrize("kind", ["groups", "upa", "upa_table", "metasurface_table"])
+def test_screening_bound_is_the_product_of_the_envelopes(block, kind):
     """The bound of each pair is what engine/screening.py says, recomputed here from the
     positions: the engine's ``K / rho^2 x G_rx / L_atm`` of the pair (its exact evaluation)
     times ``E_x(u_x) E_y(u_y)`` at the direction cosines ``u = (ut - sat) . axis / rho``
@@ -85,6 +101,7 @@ def test_screening_bound_is_the_product_of_the_envelopes(block):
     and the one of the dB gain). A bound only looser (wrong cosines: the envelope's
     maximum ``n``) still bounds every beam; this sees it."""
     eng, n_ut, mb, cones = block
+    eng = _variant(eng, kind)
     cone = cones[0]
     sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
     axes = body_frame(sat_pos, sat_vel)
