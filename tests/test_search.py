@@ -351,3 +351,30 @@ def test_screening_of_per_population_terminals_follows_each_rows_ut(block):
     for k in range(3):  # tight at the best pair of each population
         mine = vis & (g == k)
         assert mine.sum() > 100 and (b[mine] / e[mine]).min() < 1.0 + 1e-3
+
+
+def test_screening_of_satellites_at_the_zenith(block):
+    """Satellites straight above their UTs: ``sin(el)`` from dot products rounds to
+    slightly above 1 for some of them (here 1 + 2e-16), the terminal's gain and the loss
+    are then taken at 90 deg (clipped), not NaN: the bound stays above the exact SNR."""
+    from leolink.antenna.terminal import Metasurface
+
+    eng, n_ut, mb, cones = block
+    eng = _variant(eng, "metasurface_table")
+    rng = np.random.default_rng(11)
+    u = rng.normal(size=(400, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    ut_pos, sat_pos = 6371e3 * u, (6371e3 + 1300e3) * u
+    sat_vel = np.cross(u, rng.normal(size=(400, 3)))  # orthogonal to the position
+    r = np.linalg.norm(ut_pos, axis=1)  # the screening's sin(el), for these inputs only
+    rho = np.sqrt(
+        r * r + np.einsum("sk,sk->s", sat_pos, sat_pos) - 2 * np.einsum("sk,sk->s", ut_pos, sat_pos)
+    )
+    assert ((np.einsum("sk,sk->s", ut_pos, sat_pos) / r - r) / rho > 1.0).any()
+    code, bound = screen(eng, ut_pos, sat_pos, body_frame(sat_pos, sat_vel))
+    pair = np.arange(400)
+    links = eng.evaluate_pairs(ut_pos, sat_pos, sat_vel, pair, pair)
+    best = links.gain_tx_bm(eng.beam_ix, eng.beam_iy).max(axis=0) * links.path_snr_lin
+    b = bound[pair, pair]
+    assert (code[pair, pair] == VISIBLE).all() and np.isfinite(b).all() and (b >= best).all()
+    assert np.allclose(links.rx_db, Metasurface().gain_db(np.pi / 2), atol=1e-6)
