@@ -378,3 +378,12 @@ def test_screening_of_satellites_at_the_zenith(block):
     b = bound[pair, pair]
     assert (code[pair, pair] == VISIBLE).all() and np.isfinite(b).all() and (b >= best).all()
     assert np.allclose(links.rx_db, Metasurface().gain_db(np.pi / 2), atol=1e-6)
+    # The same with a scan-loss UPA lying flat (normal = up): the angle above the panel
+    # plane, from the normal's dot product, rounds above 1 too.
+    scan = LinkEngine(eng.codebook, UPATerminal(24, 24, 10.0, scan_loss=True), eng.params,
+                      eng.atmosphere, eng.colors)  # fmt: skip
+    code, bound = screen(scan, ut_pos, sat_pos, body_frame(sat_pos, sat_vel), ut_normal=u)
+    links = scan.evaluate_pairs(ut_pos, sat_pos, sat_vel, pair, pair, ut_normal=u)
+    best = links.gain_tx_bm(scan.beam_ix, scan.beam_iy).max(axis=0) * links.path_snr_lin
+    b = bound[pair, pair]
+    assert (code[pair, pair] == VISIBLE).all() and np.isfinite(b).all() and (b >= best).all()
