@@ -43,6 +43,24 @@ def test_envelope_bounds_every_beam_kernel(u, n, k):
     assert float(envelope(np.array([u]), beams, n)[0]) >= exact * (1.0 - 1e-12)
 
 
+@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6))
+@example(u=-0.95, n=12, k=1)  # nearest to the beam at 0.9 through its grating lobe
+@example(u=0.0, n=3, k=1)  # 0.9 away: the sine's polynomial at its least accurate
+@settings(max_examples=300, deadline=None)
+def test_envelope_is_the_documented_minimum(u, n, k):
+    """Not only above the kernels: ``min(n, 1 / (n sin^2(pi d / 2)))`` with ``d`` the
+    distance to the nearest beam modulo 2 (brute force over the shifts -2, 0, 2), within
+    the Taylor polynomial's remainder: ``sin x - P_7(x) <= x^9 / 9! <= 1.6e-4`` at
+    ``x <= pi / 2``, so ``1 / s^2`` is at most 3.2e-4 above (4e-4 allowed)."""
+    beams = np.linspace(-0.8, 0.8, k) if k > 1 else np.array([0.9])
+    d = min(abs(u - b + shift) for b in beams for shift in (-2.0, 0.0, 2.0))
+    s = np.sin(0.5 * np.pi * min(d, 1.0))
+    with np.errstate(divide="ignore"):  # s^2 below the smallest float: 1 / 0 -> inf -> n
+        want = min(float(n), 1.0 / (n * s * s))
+    got = float(envelope(np.array([u]), beams, n)[0])
+    assert want * (1.0 - 1e-12) <= got <= want * (1.0 + 4e-4)
+
+
 @pytest.fixture(scope=shared_run_scope)  # per test under mutmut (tests/scopes.py)
 def block():
     scen = build_scenario(load_config(CONSTELLATION, ["run.duration_s=10"]))
