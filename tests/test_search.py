@@ -33,26 +33,37 @@ CONSTELLATION = "configs/constellation.toml"
 N_EPOCH = 2
 
 
-@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6))
-@example(u=0.2, n=12, k=5)  # a beam peak: the bound is n itself
-@example(u=-0.95, n=12, k=1)  # nearest to the beam at 0.9 through its grating lobe (at -1.1)
+def _beams(k, lo, hi):
+    """``k`` sorted beam cosines from ``lo`` to ``hi`` (one: ``hi``); asymmetric sets
+    have a first beam nearest to some ``u`` through its grating lobe."""
+    return np.sort(np.linspace(lo, hi, k)) if k > 1 else np.array([hi])
+
+
+_LO, _HI = st.floats(-1.0, 1.0), st.floats(-1.0, 1.0)
+
+
+@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6), lo=_LO, hi=_HI)
+@example(u=0.2, n=12, k=5, lo=-0.8, hi=0.8)  # a beam peak: the bound is n itself
+@example(u=-0.95, n=12, k=1, lo=0.0, hi=0.9)  # nearest to 0.9 through its grating lobe
+@example(u=0.95, n=12, k=2, lo=-0.9, hi=0.3)  # nearest to -0.9 through its grating lobe
 @settings(max_examples=300, deadline=None)
-def test_envelope_bounds_every_beam_kernel(u, n, k):
-    beams = np.linspace(-0.8, 0.8, k) if k > 1 else np.array([0.9])
+def test_envelope_bounds_every_beam_kernel(u, n, k, lo, hi):
+    beams = _beams(k, lo, hi)
     exact = max(float(ula_gain(u - b, n)) for b in beams)  # sin^2(n x) / (n sin^2 x)
     assert float(envelope(np.array([u]), beams, n)[0]) >= exact * (1.0 - 1e-12)
 
 
-@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6))
-@example(u=-0.95, n=12, k=1)  # nearest to the beam at 0.9 through its grating lobe
-@example(u=0.0, n=3, k=1)  # 0.9 away: the sine's polynomial at its least accurate
+@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6), lo=_LO, hi=_HI)
+@example(u=-0.95, n=12, k=1, lo=0.0, hi=0.9)  # nearest to 0.9 through its grating lobe
+@example(u=0.95, n=12, k=2, lo=-0.9, hi=0.3)  # nearest to -0.9 through its grating lobe
+@example(u=0.0, n=3, k=1, lo=0.0, hi=0.9)  # 0.9 away: the polynomial at its least accurate
 @settings(max_examples=300, deadline=None)
-def test_envelope_is_the_documented_minimum(u, n, k):
+def test_envelope_is_the_documented_minimum(u, n, k, lo, hi):
     """Not only above the kernels: ``min(n, 1 / (n sin^2(pi d / 2)))`` with ``d`` the
     distance to the nearest beam modulo 2 (brute force over the shifts -2, 0, 2), within
     the Taylor polynomial's remainder: ``sin x - P_7(x) <= x^9 / 9! <= 1.6e-4`` at
     ``x <= pi / 2``, so ``1 / s^2`` is at most 3.2e-4 above (4e-4 allowed)."""
-    beams = np.linspace(-0.8, 0.8, k) if k > 1 else np.array([0.9])
+    beams = _beams(k, lo, hi)
     d = min(abs(u - b + shift) for b in beams for shift in (-2.0, 0.0, 2.0))
     s = np.sin(0.5 * np.pi * min(d, 1.0))
     with np.errstate(divide="ignore", over="ignore"):  # tiny s: 1 / (n s^2) -> inf -> n
