@@ -72,6 +72,17 @@ def test_envelope_is_the_documented_minimum(u, n, k, lo, hi):
     assert want * (1.0 - 1e-12) <= got <= want * (1.0 + 4e-4)
 
 
+def test_envelope_on_a_beam_is_n_without_a_warning():
+    """On a beam (``s = 0``: 1 / 0) and 1e-155 off it (``n s^2`` subnormal: 1 / it
+    overflows) the envelope is ``n``, silently, as documented (screened every epoch)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = envelope(np.array([0.0, 1e-155, -1e-155]), np.array([0.0]), 12)
+    assert np.array_equal(got, [12.0, 12.0, 12.0])
+
+
 @pytest.fixture(scope=shared_run_scope)  # per test under mutmut (tests/scopes.py)
 def block():
     scen = build_scenario(load_config(CONSTELLATION, ["run.duration_s=10"]))
