@@ -33,14 +33,54 @@ CONSTELLATION = "configs/constellation.toml"
 N_EPOCH = 2
 
 
-@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6))
-@example(u=0.2, n=12, k=5)  # a beam peak: the bound is n itself
-@example(u=-0.95, n=12, k=1)  # nearest to the beam at 0.9 through its grating lobe (at -1.1)
+def _beams(k, lo, hi):
+    """``k`` sorted beam cosines from ``lo`` to ``hi`` (one: ``hi``); asymmetric sets
+    have a first beam nearest to some ``u`` through its grating lobe."""
+    return np.sort(np.linspace(lo, hi, k)) if k > 1 else np.array([hi])
+
+
+_LO, _HI = st.floats(-1.0, 1.0), st.floats(-1.0, 1.0)
+
+
+@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6), lo=_LO, hi=_HI)
+@example(u=0.2, n=12, k=5, lo=-0.8, hi=0.8)  # a beam peak: the bound is n itself
+@example(u=-0.95, n=12, k=1, lo=0.0, hi=0.9)  # nearest to 0.9 through its grating lobe
+@example(u=0.95, n=12, k=2, lo=-0.9, hi=0.3)  # nearest to -0.9 through its grating lobe
 @settings(max_examples=300, deadline=None)
-def test_envelope_bounds_every_beam_kernel(u, n, k):
-    beams = np.linspace(-0.8, 0.8, k) if k > 1 else np.array([0.9])
+def test_envelope_bounds_every_beam_kernel(u, n, k, lo, hi):
+    beams = _beams(k, lo, hi)
     exact = max(float(ula_gain(u - b, n)) for b in beams)  # sin^2(n x) / (n sin^2 x)
     assert float(envelope(np.array([u]), beams, n)[0]) >= exact * (1.0 - 1e-12)
+
+
+@given(u=st.floats(-1.0, 1.0), n=st.integers(1, 64), k=st.integers(1, 6), lo=_LO, hi=_HI)
+@example(u=-0.95, n=12, k=1, lo=0.0, hi=0.9)  # nearest to 0.9 through its grating lobe
+@example(u=0.95, n=12, k=2, lo=-0.9, hi=0.3)  # nearest to -0.9 through its grating lobe
+@example(u=0.0, n=3, k=1, lo=0.0, hi=0.9)  # 0.9 away: the polynomial at its least accurate
+@settings(max_examples=300, deadline=None)
+def test_envelope_is_the_documented_minimum(u, n, k, lo, hi):
+    """Not only above the kernels: ``min(n, 1 / (n sin^2(pi d / 2)))`` with ``d`` the
+    distance to the nearest beam modulo 2 (brute force over the shifts -2, 0, 2), within
+    the Taylor polynomial's remainder: ``sin x - P_7(x) <= x^9 / 9! <= 1.6e-4`` at
+    ``x <= pi / 2``, so ``1 / s^2`` is at most 3.2e-4 above (4e-4 allowed)."""
+    beams = _beams(k, lo, hi)
+    d = min(abs(u - b + shift) for b in beams for shift in (-2.0, 0.0, 2.0))
+    s = np.sin(0.5 * np.pi * min(d, 1.0))
+    with np.errstate(divide="ignore", over="ignore"):  # tiny s: 1 / (n s^2) -> inf -> n
+        want = min(float(n), 1.0 / (n * s * s))
+    got = float(envelope(np.array([u]), beams, n)[0])
+    assert want * (1.0 - 1e-12) <= got <= want * (1.0 + 4e-4)
+
+
+def test_envelope_on_a_beam_is_n_without_a_warning():
+    """On a beam (``s = 0``: 1 / 0) and 1e-155 off it (``n s^2`` subnormal: 1 / it
+    overflows) the envelope is ``n``, silently, as documented (screened every epoch)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = envelope(np.array([0.0, 1e-155, -1e-155]), np.array([0.0]), 12)
+    assert np.array_equal(got, [12.0, 12.0, 12.0])
 
 
 @pytest.fixture(scope=shared_run_scope)  # per test under mutmut (tests/scopes.py)
@@ -70,10 +110,54 @@ def test_screening_bound_is_above_every_beam_and_visibility_agrees(block):
     vis = links.visible.reshape(code.shape)
     assert (code[vis] > 0).all() and not (code[~vis] == VISIBLE).any()
     assert (code == UNCERTAIN).sum() <= 10  # the band is 1e-9 of sin(elevation) wide
+    assert code.dtype == np.int8  # as documented: one byte per pair of the grid
     b, e = bound.reshape(-1)[links.visible], best[links.visible]
     assert (b >= e).all()
     # Tight where it matters: the best pair of a UT is bounded within 3 dB.
     assert np.median(b / e) < 30.0 and (b / e).min() < 1.0 + 1e-3
+
+
+def _variant(eng, kind):
+    """The constellation's engine (per-population UPAs, a fixed loss) or one with another
+    terminal / atmosphere: each path of the bound's ``G_rx / L_atm`` factor."""
+    from leolink.antenna.terminal import Metasurface
+    from leolink.link.atmosphere import AtmosphereTable
+
+    if kind == "groups":
+        return eng
+    terminal = Metasurface() if "metasurface" in kind else UPATerminal(24, 24, 10.0)
+    atm = eng.atmosphere
+    if "table" in kind:  # 0.3 dB at zenith, growing as 1 / sin(el): depends on it
+        atm = AtmosphereTable(lambda el: 0.3 / np.sin(np.maximum(el, 0.05)))
+    return LinkEngine(eng.codebook, terminal, eng.params, atm, eng.colors)
+
+
+@pytest.mark.parametrize("kind", ["groups", "upa", "upa_table", "metasurface_table"])
+def test_screening_bound_is_the_product_of_the_envelopes(block, kind):
+    """The bound of each pair is what engine/screening.py says, recomputed here from the
+    positions: the engine's ``K / rho^2 x G_rx / L_atm`` of the pair (its exact evaluation)
+    times ``E_x(u_x) E_y(u_y)`` at the direction cosines ``u = (ut - sat) . axis / rho``
+    of the satellite's body frame, times the two slacks (1 + 1e-6 each, ``BOUND_SLACK``
+    and the one of the dB gain). A bound only looser (wrong cosines: the envelope's
+    maximum ``n``) still bounds every beam; this sees it."""
+    eng, n_ut, mb, cones = block
+    eng = _variant(eng, kind)
+    cone = cones[0]
+    sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
+    axes = body_frame(sat_pos, sat_vel)
+    code, bound = screen(eng, mb.ut_pos_m[0], sat_pos, axes)
+    ut, sat = np.nonzero(np.ones(code.shape, bool))
+    links = eng.evaluate_pairs(mb.ut_pos_m[0], sat_pos, sat_vel, ut, sat)
+    rel = mb.ut_pos_m[0][:, None, :] - sat_pos[None, :, :]
+    rho = np.linalg.norm(rel, axis=2)
+    ux = np.einsum("usk,sk->us", rel, axes[:, 0]) / rho
+    uy = np.einsum("usk,sk->us", rel, axes[:, 1]) / rho
+    cb = eng.codebook
+    env = envelope(ux, eng.beam_ux, cb.n_sub_x) * envelope(uy, eng.beam_uy, cb.n_sub_y)
+    want = env * links.path_lin.reshape(code.shape) * (1.0 + screening.BOUND_SLACK) ** 2
+    on = code > 0
+    assert on.sum() > 10_000 and np.allclose(bound[on], want[on], rtol=1e-9, atol=0.0)
+    assert (env[on] < 0.5 * cb.n_sub_x * cb.n_sub_y).mean() > 0.9  # most pairs off-beam
 
 
 def _tables(eng, n_ut, mb, cones, window_db, prune, floor_db=-np.inf):
@@ -206,6 +290,18 @@ def test_screening_bound_holds_for_tilted_panels(block, tilted):
     vis = links.visible
     assert (bound.reshape(-1)[vis] >= best[vis]).all()
     assert (flat.reshape(-1)[vis] < best[vis]).sum() > 100
+    # The bound's terminal factor is the gain at the angle above the panel plane, pair by
+    # pair: tilted / flat = G(asin(n . d / |d|)) / G(el), d = satellite - UT (sphere: up
+    # is radial), recomputed here from the positions.
+    d = sat_pos[None, :, :] - mb.ut_pos_m[0][:, None, :]
+    dist = np.linalg.norm(d, axis=2)
+    up = mb.ut_pos_m[0] / np.linalg.norm(mb.ut_pos_m[0], axis=1)[:, None]
+    sin_p = np.einsum("usk,uk->us", d, normal[0]) / dist
+    sin_e = np.einsum("usk,uk->us", d, up) / dist
+    gain = scan.terminal.gain_db
+    want = 10.0 ** ((gain(np.arcsin(sin_p)) - gain(np.arcsin(sin_e))) / 10.0)
+    on = code > 0
+    assert on.sum() > 1000 and np.allclose(bound[on] / flat[on], want[on], rtol=1e-9)
 
 
 def test_pruned_tables_of_tilted_panels_are_the_exhaustive_tables(block, tilted):
@@ -259,3 +355,75 @@ def test_row_chunks_cut_only_between_rows(rows, size):
         assert hi - lo <= size or rows[lo + size - 1] == rows[hi - 1]
         if hi < rows.size:
             assert rows[hi - 1] != rows[hi]  # a row is never split
+
+
+def test_screening_of_per_population_terminals_follows_each_rows_ut(block):
+    """Per-population terminals (``TerminalGroups``): 10 dBi, 40 dBi and a metasurface
+    (its gain falls with the elevation: the per-pair factor) in one screen of 200 UTs
+    taken out of order, each row's UT given by ``ut_id``. The bound of every visible pair
+    is above its best beam's SNR evaluated exactly with that UT's own terminal, and
+    within 1e-3 of it at the best pair of each population: a row bounded with another
+    row's terminal is 30 dB (or 20 dB) off one way or the other."""
+    from leolink.antenna.terminal import FixedGain, Metasurface, TerminalGroups
+
+    eng, n_ut, mb, cones = block
+    group = np.arange(n_ut) % 3  # UT i has terminal i % 3
+    terms = TerminalGroups([FixedGain(10.0), FixedGain(40.0), Metasurface()], group)
+    multi = LinkEngine(eng.codebook, terms, eng.params, eng.atmosphere, eng.colors)
+    sel = np.random.default_rng(3).permutation(n_ut)[:200]  # rows != UTs
+    assert (group[sel] != group[np.arange(200)]).mean() > 0.5
+    cone = cones[0]
+    sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
+    ut_pos = mb.ut_pos_m[0][sel]
+    code, bound = screen(multi, ut_pos, sat_pos, body_frame(sat_pos, sat_vel), ut_id=sel)
+    ut, sat = np.nonzero(np.ones(code.shape, bool))
+    links = multi.evaluate_pairs(ut_pos, sat_pos, sat_vel, ut, sat, ut_id=sel)
+    vis = links.visible
+    # The reference takes each UT's own terminal: 10 / 40 dBi, 33 + 12 log10(sin el).
+    g = group[sel][ut]
+    el = links.elevation_rad
+    expect = np.choose(g, [np.full(el.shape, 10.0), np.full(el.shape, 40.0),
+                           33.0 + 12.0 * np.log10(np.abs(np.sin(el)))])  # fmt: skip
+    assert np.allclose(np.broadcast_to(links.rx_db, el.shape)[vis], expect[vis], atol=1e-9)
+    best = links.gain_tx_bm(multi.beam_ix, multi.beam_iy).max(axis=0) * links.path_snr_lin
+    b, e = bound.reshape(-1), best
+    assert (code.reshape(-1)[vis] > 0).all() and (b[vis] >= e[vis]).all()
+    for k in range(3):  # tight at the best pair of each population
+        mine = vis & (g == k)
+        assert mine.sum() > 100 and (b[mine] / e[mine]).min() < 1.0 + 1e-3
+
+
+def test_screening_of_satellites_at_the_zenith(block):
+    """Satellites straight above their UTs: ``sin(el)`` from dot products rounds to
+    above 1 for 119 of them (by up to 1.1e-14), the terminal's gain and the loss
+    are then taken at 90 deg (clipped), not NaN: the bound stays above the exact SNR."""
+    from leolink.antenna.terminal import Metasurface
+
+    eng, n_ut, mb, cones = block
+    eng = _variant(eng, "metasurface_table")
+    rng = np.random.default_rng(11)
+    u = rng.normal(size=(400, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    ut_pos, sat_pos = 6371e3 * u, (6371e3 + 1300e3) * u
+    sat_vel = np.cross(u, rng.normal(size=(400, 3)))  # orthogonal to the position
+    r = np.linalg.norm(ut_pos, axis=1)  # the screening's sin(el), for these inputs only
+    rho = np.sqrt(
+        r * r + np.einsum("sk,sk->s", sat_pos, sat_pos) - 2 * np.einsum("sk,sk->s", ut_pos, sat_pos)
+    )
+    assert ((np.einsum("sk,sk->s", ut_pos, sat_pos) / r - r) / rho > 1.0).any()
+    code, bound = screen(eng, ut_pos, sat_pos, body_frame(sat_pos, sat_vel))
+    pair = np.arange(400)
+    links = eng.evaluate_pairs(ut_pos, sat_pos, sat_vel, pair, pair)
+    best = links.gain_tx_bm(eng.beam_ix, eng.beam_iy).max(axis=0) * links.path_snr_lin
+    b = bound[pair, pair]
+    assert (code[pair, pair] == VISIBLE).all() and np.isfinite(b).all() and (b >= best).all()
+    assert np.allclose(links.rx_db, Metasurface().gain_db(np.pi / 2), atol=1e-6)
+    # The same with a scan-loss UPA lying flat (normal = up): the angle above the panel
+    # plane, from the normal's dot product, rounds above 1 too.
+    scan = LinkEngine(eng.codebook, UPATerminal(24, 24, 10.0, scan_loss=True), eng.params,
+                      eng.atmosphere, eng.colors)  # fmt: skip
+    code, bound = screen(scan, ut_pos, sat_pos, body_frame(sat_pos, sat_vel), ut_normal=u)
+    links = scan.evaluate_pairs(ut_pos, sat_pos, sat_vel, pair, pair, ut_normal=u)
+    best = links.gain_tx_bm(scan.beam_ix, scan.beam_iy).max(axis=0) * links.path_snr_lin
+    b = bound[pair, pair]
+    assert (code[pair, pair] == VISIBLE).all() and np.isfinite(b).all() and (b >= best).all()
