@@ -117,6 +117,15 @@ class _FullDisk(io.RawIOBase):
         super().close()
 
 
+def _assert_no_space_left(capsys, out):
+    """A run into ``out`` stops with the one-line ENOSPC message, exit 2, nothing left."""
+    code, _, err = cli(capsys, "run", PAPER, *SHORT, "--out", out, "--quiet")
+    assert code == EXIT_USAGE and err.count("\n") == 1
+    assert err == f"leolink: error: no space left on the device writing {out} (free some " \
+        "space or use another --out)\n"  # fmt: skip
+    assert [f for f in files_in(out) if ".partial" in f or f == "run.json"] == []
+
+
 def test_full_disk(tmp_path, monkeypatch, capsys):
     """Every output file gets 4 KiB of room: the trace overflows it mid-run."""
     import leolink.io.atomic as atomic
@@ -125,12 +134,7 @@ def test_full_disk(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(
         atomic.os, "fdopen", lambda fd, mode: _FullDisk(real_fdopen(fd, mode), room=4096)
     )
-    out = tmp_path / "run"
-    code, _, err = cli(capsys, "run", PAPER, *SHORT, "--out", out, "--quiet")
-    assert code == EXIT_USAGE and err.count("\n") == 1
-    assert err == f"leolink: error: no space left on the device writing {out} (free some " \
-        "space or use another --out)\n"  # fmt: skip
-    assert [f for f in files_in(out) if ".partial" in f or f == "run.json"] == []
+    _assert_no_space_left(capsys, tmp_path / "run")
 
 
 def test_full_disk_under_pyarrows_own_file(tmp_path, monkeypatch, capsys):
@@ -141,12 +145,7 @@ def test_full_disk_under_pyarrows_own_file(tmp_path, monkeypatch, capsys):
 
     assert os.path.exists("/dev/full")  # Linux's always-full device
     monkeypatch.setattr(atomic, "_reopen_path", lambda handle: "/dev/full")
-    out = tmp_path / "run"
-    code, _, err = cli(capsys, "run", PAPER, *SHORT, "--out", out, "--quiet")
-    assert code == EXIT_USAGE and err.count("\n") == 1
-    assert err == f"leolink: error: no space left on the device writing {out} (free some " \
-        "space or use another --out)\n"  # fmt: skip
-    assert [f for f in files_in(out) if ".partial" in f or f == "run.json"] == []
+    _assert_no_space_left(capsys, tmp_path / "run")
 
 
 def test_a_file_that_does_not_reopen_is_written_through_python(tmp_path, monkeypatch, capsys):

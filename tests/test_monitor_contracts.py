@@ -274,6 +274,17 @@ def _geodetic_frame(lat_rad, lon_rad, h_m):
     return pos, east, np.cross(up, east), up
 
 
+def _sphere_frames(rows):
+    """Each trace row with its UT's position (from its latitude, longitude and height) and
+    the radial frame there: ``(row, ut, east, north, up)``."""
+    lat, lon = np.radians(rows.lat_deg.to_numpy()), np.radians(rows.lon_deg.to_numpy())
+    ut = geodetic_to_ecef(lat, lon, rows.alt_m.to_numpy())
+    up = ut / np.linalg.norm(ut, axis=1)[:, None]
+    for i, r in enumerate(rows.itertuples()):
+        east = np.array([-math.sin(lon[i]), math.cos(lon[i]), 0.0])
+        yield r, ut[i], east, np.cross(up[i], east), up[i]
+
+
 def _check_row(r, powers, noise_w):
     """A trace row's SNR and SINR against the received powers ``(n_sat, n_beam)`` [W] of
     every beam (the serving one at the row's satellite and beam), 1e-9 dB, and its
@@ -545,16 +556,11 @@ def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path
     share = []
     for t, rows in tr.groupby("time_s"):
         pos, vel = (a[0] for a in eph(np.array([t]))[:2])
-        lat, lon = np.radians(rows.lat_deg.to_numpy()), np.radians(rows.lon_deg.to_numpy())
-        ut = geodetic_to_ecef(lat, lon, rows.alt_m.to_numpy())
-        up = ut / np.linalg.norm(ut, axis=1)[:, None]
-        assert (np.einsum("usk,uk->us", pos[None] - ut[:, None], up) > 0).all()  # both up
-        for i, r in enumerate(rows.itertuples()):
-            east = np.array([-math.sin(lon[i]), math.cos(lon[i]), 0.0])
-            north = np.cross(up[i], east)
+        for r, ut, east, north, up in _sphere_frames(rows):
+            assert ((pos - ut) @ up > 0).all()  # both satellites up
             lit = np.ones((len(pos), eng.n_beam), bool)
             s = r.sat_id
-            powers = _received_w(eng, cfg, ut[i], east, north, up[i], pos, vel, s, r.beam_id, lit)
+            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, s, r.beam_id, lit)
             i_w = _check_row(r, powers, noise_w)
             share.append(powers[1 - s].sum() / i_w)
     assert min(share) > 1e-5
@@ -753,13 +759,8 @@ def test_other_satellites_with_earth_fixed_beams_are_the_explicit_sum(tmp_path):
         pos, vel = (a[0] for a in eph(np.array([t]))[:2])
         beams, on = _earth_fixed_beams(eng.codebook, st.cells_m, pos, vel, st.sin_min_el,
                                        st.cos_for)  # fmt: skip
-        lat, lon = np.radians(rows.lat_deg.to_numpy()), np.radians(rows.lon_deg.to_numpy())
-        ut = geodetic_to_ecef(lat, lon, rows.alt_m.to_numpy())
-        up = ut / np.linalg.norm(ut, axis=1)[:, None]
-        for i, r in enumerate(rows.itertuples()):
-            east = np.array([-math.sin(lon[i]), math.cos(lon[i]), 0.0])
-            north = np.cross(up[i], east)
-            powers = _received_w(eng, cfg, ut[i], east, north, up[i], pos, vel, r.sat_id,
+        for r, ut, east, north, up in _sphere_frames(rows):
+            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, r.sat_id,
                                  r.beam_id, on, beams=beams)  # fmt: skip
             i_w = _check_row(r, powers, noise_w)
             other.append((powers.sum() - powers[r.sat_id].sum()) / i_w)
@@ -799,14 +800,9 @@ def test_precoded_sinr_with_other_satellites_is_the_explicit_sum(tmp_path):
     i_o = []
     for t, rows in tr.groupby("time_s"):
         pos, vel = (a[0] for a in eph(np.array([t]))[:2])
-        lat, lon = np.radians(rows.lat_deg.to_numpy()), np.radians(rows.lon_deg.to_numpy())
-        ut = geodetic_to_ecef(lat, lon, rows.alt_m.to_numpy())
-        up = ut / np.linalg.norm(ut, axis=1)[:, None]
-        for i, r in enumerate(rows.itertuples()):
-            east = np.array([-math.sin(lon[i]), math.cos(lon[i]), 0.0])
-            north = np.cross(up[i], east)
+        for r, ut, east, north, up in _sphere_frames(rows):
             lit = np.ones((len(pos), eng.n_beam), bool)
-            powers = _received_w(eng, cfg, ut[i], east, north, up[i], pos, vel, r.sat_id,
+            powers = _received_w(eng, cfg, ut, east, north, up, pos, vel, r.sat_id,
                                  r.beam_id, lit)  # fmt: skip
             i_o.append(powers[1 - r.sat_id].sum() / noise_w)
     i_o = np.array(i_o)
