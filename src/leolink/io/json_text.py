@@ -126,8 +126,6 @@ def _other(obj, nl, keys):
         return _text(list(obj), nl, keys)
     if isinstance(obj, np.generic):
         return _text(obj.item(), nl, keys)
-    if isinstance(obj, bool):  # pragma: no cover - bool has no subclasses
-        return "true" if obj else "false"
     if isinstance(obj, float):
         return _float(obj)
     if isinstance(obj, int):
