@@ -413,3 +413,20 @@ def test_an_epoch_where_nobody_moves_keeps_the_state_and_the_dtypes_of_the_table
     for field in ("pending", "pending_since_s", "serving_since_s", "interrupted_until_s",
                   "in_outage", "dwell_censored_start", "n_beam"):  # fmt: skip
         np.testing.assert_array_equal(getattr(quiet.state, field), getattr(first.state, field))
+
+
+def test_empty_tables_are_new_dicts_of_arrays_nobody_can_write():
+    """Most epochs return the empty event and dwell tables, whose arrays are shared: each
+    call gives its own dict (a caller may add or replace a column), and writing into a
+    shared array fails instead of reaching every later epoch's table."""
+    from leolink.sim.event_tables import DWELL_COLUMNS, EVENT_COLUMNS, no_dwells, no_events
+
+    for make, columns in ((no_events, EVENT_COLUMNS), (no_dwells, DWELL_COLUMNS)):
+        a, b = make(), make()
+        assert a is not b and list(a) == list(columns)
+        a["extra"] = np.zeros(0)
+        assert "extra" not in make()
+        for values in b.values():
+            assert values.size == 0 and not values.flags.writeable
+            with pytest.raises(ValueError, match="read-only"):
+                values[...] = 0
