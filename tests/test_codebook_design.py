@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from leolink.antenna.array import explicit_gain, steering_vector
-from leolink.antenna.codebook import build_codebook
+from leolink.antenna.array import beam_gain_lin, explicit_gain, steering_vector
+from leolink.antenna.codebook import Codebook, build_codebook
 from leolink.antenna.codebook_design import (
     HOLE_LOSS_DB,
     auto_design,
@@ -199,3 +199,23 @@ def test_validate_and_codebook_report_the_worst_loss(capsys):
     assert info["worst_roi_loss_db"] == pytest.approx(loss.loss_db)
     assert info["idle_rf_chains"] == 0 and info["holes"] is False
     assert math.hypot(*info["worst_roi_point_m"]) > RY_M
+
+
+@pytest.mark.parametrize("drop_centre", [False, True])
+def test_best_gain_is_the_best_of_every_beam_over_several_chunks(drop_centre):
+    """_best_gain_lin (a y-maximum per lattice column, in chunks of directions) against
+    the maximum over all beams of their closed-form gains: the codebook as built, and with
+    its centre beam removed (that column's rows no longer one run), on 2.5 chunks."""
+    from leolink.antenna.codebook_design import _CHUNK, _best_gain_lin
+
+    cb = build_codebook(6, 6, 2.166, 1402.5e3, 1402.5e3, 416e3)  # 113 beams, 13 columns
+    if drop_centre:
+        keep = np.arange(cb.n_beam) != np.argmin(np.abs(cb.u_xy).sum(axis=1))
+        cb = Codebook(cb.u_xy[keep], np.arange(keep.sum()), cb.oversampling, 6, 6)
+        ix = np.unique(cb.u_xy[:, 0], return_inverse=True)[1]
+        iy = np.unique(cb.u_xy[:, 1], return_inverse=True)[1]
+        runs = [np.ptp(iy[ix == i]) + 1 == np.sum(ix == i) for i in range(ix.max() + 1)]
+        assert not all(runs)  # the case of a column that is not a run of rows
+    u = np.random.default_rng(3).uniform(-0.5, 0.5, (5 * _CHUNK // 2, 2))
+    want = beam_gain_lin(u, cb.u_xy, 6, 6).max(axis=1)
+    np.testing.assert_allclose(_best_gain_lin(cb, u), want, rtol=1e-12, atol=0)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from leolink.arrays import nonzero_2d
 from leolink.errors import ConfigError, require_at_least
 
 # |sin(pi du / 2)| below which the Dirichlet kernel is replaced by its limit n: the
@@ -171,7 +172,7 @@ def dirichlet_kernels(u, beam_u, n, trig=None):
     g *= 1.0 / n
     np.minimum(g, n, out=g)  # rounding may overshoot the bound n by ~1 ulp
     if near.any():
-        kk, mm = np.nonzero(near)
+        kk, mm = nonzero_2d(near)
         g[kk, mm] = ula_gain(u[mm] - beam_u[kk], n)
     return g
 

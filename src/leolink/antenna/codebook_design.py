@@ -68,6 +68,8 @@ N_GRID, N_EDGE = 201, 5760
 #: Fractions of an O interval tried by ``auto`` (the ends are avoided: there a beam
 #: boresight lies exactly on the ROI boundary and rounding would change the count).
 _TRIES = np.linspace(0.1, 0.9, 9)
+#: Directions per chunk of :func:`_best_gain_lin`'s maxima (they then stay in cache).
+_CHUNK = 4096
 
 
 @dataclass(frozen=True)
@@ -172,11 +174,25 @@ def _best_gain_lin(codebook, u_xy, trig=(None, None)):
     directions' :func:`~leolink.antenna.array.dirichlet_trig` along x and y, if known)."""
     bx, ix = np.unique(codebook.u_xy[:, 0], return_inverse=True)
     by, iy = np.unique(codebook.u_xy[:, 1], return_inverse=True)
+    # max_b kx[ix_b] ky[iy_b] = max_i kx[i] max_{b: ix_b = i} ky[iy_b]: the kernels are
+    # >= 0 and rounding is monotone, so the y-maximum first gives the same bits, with one
+    # product per lattice column instead of one per beam.
+    columns = []
+    for i in range(bx.size):
+        rows = np.unique(iy[ix == i])
+        contiguous = rows[-1] - rows[0] + 1 == rows.size  # the usual case: a run of rows
+        columns.append(slice(rows[0], rows[-1] + 1) if contiguous else rows)
     kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x, trig[0])
     ky = dirichlet_kernels(u_xy[:, 1], by, codebook.n_sub_y, trig[1])
     best = np.zeros(u_xy.shape[0])
-    for b in range(codebook.n_beam):  # a few dozen beams: one vector product each
-        np.maximum(best, kx[ix[b]] * ky[iy[b]], out=best)
+    column = np.empty(min(best.size, _CHUNK))
+    for lo in range(0, best.size, _CHUNK):  # chunks of directions that stay in cache
+        part = slice(lo, lo + _CHUNK)
+        out, col = best[part], column[: best[part].size]
+        for i, rows in enumerate(columns):
+            np.max(ky[rows, part], axis=0, out=col)
+            col *= kx[i, part]
+            np.maximum(out, col, out=out)
     return best
 
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink.arrays import nonzero_2d
 from leolink.engine.links import rows_gain_db
 from leolink.engine.steered import steered_bound_lin
 
@@ -121,7 +122,7 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
         )
     rows = np.flatnonzero(np.isnan(factor))
     if rows.size:  # UTs whose gain or loss depends on the elevation: per pair
-        r, s = np.nonzero(code[rows] > 0)
+        r, s = nonzero_2d(code[rows] > 0)
         sin_rx = None
         if ut_normal is not None:  # the gain sees the angle above the panel plane
             d = sat_pos_m[s] - ut_pos_m[rows[r]]

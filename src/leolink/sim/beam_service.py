@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink.arrays import nonzero_2d
 from leolink.engine import precoded
 from leolink.geometry import direction_cosines
 from leolink.sim.beams import assign_chains
@@ -92,7 +93,7 @@ class BeamService:
         """Mean SE over each UT's scheduled slots after precoding (analog where never)."""
         eng, nb = self.engine, self.engine.n_beam
         gsat = ids // nb
-        slot, gi = np.nonzero(schedule >= 0)
+        slot, gi = nonzero_2d(schedule >= 0)
         ut = schedule[slot, gi]
         usat, sat_c = np.unique(gsat[gi], return_inverse=True)
         key = slot * usat.size + sat_c  # one problem per (slot, satellite)

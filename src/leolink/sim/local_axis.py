@@ -29,6 +29,8 @@ import functools
 
 import numpy as np
 
+from leolink.arrays import nonzero_2d
+
 __all__ = ["LocalAxis"]
 
 
@@ -81,7 +83,7 @@ class LocalAxis:
     @functools.cached_property
     def _index(self):
         """``(span, keys, slots)``: sorted keys ``row * span + sat`` of the occupied slots."""
-        rows, slots = np.nonzero(self.sats >= 0)  # row-major: by row, then ascending sat
+        rows, slots = nonzero_2d(self.sats >= 0)  # row-major: by row, then ascending sat
         span = int(self.sats.max(initial=0)) + 1
         return span, rows * span + self.sats[rows, slots], slots
 
@@ -116,7 +118,7 @@ class LocalAxis:
         """A :class:`~leolink.sim.candidates.Candidates` table on this axis, ``(n_ut,
         n_cand)``: its values at their local cells, ``fill`` where the table has none."""
         out = np.full((self.n_ut, self.n_cand), fill, float)
-        rows, slots = np.nonzero(table.cell >= 0)
+        rows, slots = nonzero_2d(table.cell >= 0)
         local = self._slot(rows, table.cell[rows, slots] // self.n_beam)
         ok = local >= 0
         beam = table.cell[rows, slots] % self.n_beam
@@ -144,7 +146,7 @@ class LocalAxis:
         inner = (self.n_beam,) if per_cell else ()
         old = values.reshape((self.n_ut, self.n_local) + inner + values.shape[2:])
         out = np.full((new.n_ut, new.n_local) + inner + values.shape[2:], fill, values.dtype)
-        rows, slots = np.nonzero(new.sats >= 0)
+        rows, slots = nonzero_2d(new.sats >= 0)
         src = self._slot(rows, new.sats[rows, slots])
         ok = src >= 0
         out[rows[ok], slots[ok]] = old[rows[ok], src[ok]]

@@ -38,6 +38,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from pydantic import Field
 
+from leolink.arrays import nonzero_2d
 from leolink.errors import ConfigError
 from leolink.registry import Params, Registry
 
@@ -216,7 +217,7 @@ def delivered_rate(schedule, rate):
     """
     s = np.asarray(schedule)
     rate = np.broadcast_to(np.asarray(rate, dtype=float), (s.shape[0], np.shape(rate)[-1]))
-    slot, _ = np.nonzero(s >= 0)
+    slot, _ = nonzero_2d(s >= 0)
     ut = s[s >= 0]
     return np.bincount(ut, weights=rate[slot, ut], minlength=rate.shape[1]) / s.shape[0]
 

@@ -32,6 +32,7 @@ import dataclasses
 
 import numpy as np
 
+from leolink.arrays import nonzero_2d
 from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
 from leolink.geometry import body_frame
@@ -177,7 +178,7 @@ class CandidateSearch:
             chosen = code == UNCERTAIN
             has = np.flatnonzero(bound[np.arange(n_ut), first] >= 0.0)
             chosen[has, first[has]] = True
-            r, s = np.nonzero(chosen)
+            r, s = nonzero_2d(chosen)
             rows1.append(rows[r])
             sats1.append(cone[s])
             screened.append((i, rows, cone, code, bound, chosen))
@@ -194,7 +195,7 @@ class CandidateSearch:
             low = np.maximum(reach[rows] * factor, floor_lin)
             with np.errstate(invalid="ignore"):
                 more = (code > 0) & (bound >= low[:, None]) & ~chosen
-            r, s = np.nonzero(more)
+            r, s = nonzero_2d(more)
             rows2.append(rows[r])
             sats2.append(cone[s])
             sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)

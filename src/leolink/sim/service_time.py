@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from leolink.arrays import nonzero_2d
+
 # Epoch times accumulate float rounding; 1 ns is far below any epoch length.
 TIME_TOL_S = 1e-9
 
@@ -98,7 +100,7 @@ class ServiceTimes:
             # an open end (beyond the last horizon) is looked ahead further
             open_end = np.isposinf(end_sat) | (per_cell & np.isposinf(cells).any(axis=2))
             extend = sat_now & open_end & (until < t_s + self.n_step * self.epoch_s - TIME_TOL_S)
-        rows, slots = np.nonzero(extend)
+        rows, slots = nonzero_2d(extend)
         if rows.size:
             got_cells, got_sat = self._scan(
                 t_s, rows, axis.sats[rows, slots], until[rows, slots],

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink.arrays import nonzero_2d
 from leolink.geometry import ray_to_ground
 from leolink.sim.handover import PolicyState
 from leolink.sim.local_axis import LocalAxis
@@ -88,12 +89,12 @@ class TriggerRun:
         live = np.zeros(axis.sats.shape, bool)
         for mask in arrays:  # per cell or per satellite: reduce to the satellite axis
             live |= mask.reshape(axis.n_ut, axis.n_local, -1).any(axis=2)
-        rows, slots = np.nonzero(live & (axis.sats >= 0))
+        rows, slots = nonzero_2d(live & (axis.sats >= 0))
         return rows, axis.sats[rows, slots]
 
     def _axis(self, table, serving):
         nb = self.n_beam
-        rows, slots = np.nonzero(table.cell >= 0)
+        rows, slots = nonzero_2d(table.cell >= 0)
         ut = [rows, np.arange(table.n_ut)]
         sat = [table.cell[rows, slots] // nb, np.where(serving >= 0, serving // nb, -1)]
         if self.axis is not None:

@@ -1,0 +1,49 @@
+"""Tests of leolink.arrays: the fast 2-D nonzero against numpy's own."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from leolink.arrays import FLAT_MIN_SIZE, nonzero_2d
+
+
+def _same_as_numpy(a):
+    rows, cols = nonzero_2d(a)
+    want_rows, want_cols = np.nonzero(a)
+    assert rows.dtype == want_rows.dtype and cols.dtype == want_cols.dtype
+    np.testing.assert_array_equal(rows, want_rows)
+    np.testing.assert_array_equal(cols, want_cols)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    n_row=st.integers(0, 300),
+    n_col=st.integers(0, 40),
+    density=st.floats(0.0, 1.0),
+    layout=st.sampled_from(["c", "transposed", "strided"]),
+    dtype=st.sampled_from([bool, np.int32, float]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_nonzero_2d_is_numpys_nonzero(n_row, n_col, density, layout, dtype, seed):
+    """Both paths (below and above FLAT_MIN_SIZE entries), any memory layout."""
+    rng = np.random.default_rng(seed)
+    a = (rng.random((n_row, n_col)) < density).astype(dtype)
+    if layout == "transposed":
+        a = a.T
+    elif layout == "strided":
+        a = a[::2, ::-1]
+    _same_as_numpy(a)
+
+
+@pytest.mark.parametrize("shape", [(1000, 16), (13, 37177), (FLAT_MIN_SIZE, 1), (1, FLAT_MIN_SIZE)])
+def test_nonzero_2d_on_the_tables_it_was_measured_on(shape):
+    a = np.random.default_rng(7).random(shape) < 0.2
+    assert a.size >= FLAT_MIN_SIZE  # the flat path
+    _same_as_numpy(a)
+
+
+@pytest.mark.parametrize("shape", [(5,), (2, 3, 4), ()])
+def test_nonzero_2d_refuses_other_ranks(shape):
+    with pytest.raises(ValueError, match=r"2-D array, not one of shape"):
+        nonzero_2d(np.ones(shape, bool))
