@@ -1,11 +1,14 @@
-"""The fixed mmap threshold of a run (leolink.app.heap), seen through glibc's own counters.
+"""The fixed heap thresholds of a run (leolink.app.heap), seen through glibc's own counters.
 
 ``mallinfo2().hblks`` counts the blocks glibc has mapped with ``mmap``. By default an
 8 MiB block is mapped, and once freed the dynamic threshold rises to 8 MiB, so the next
 one comes from the heap; with the threshold fixed at 4 MiB every 8 MiB block is mapped,
 and a 3 MiB block still comes from the heap (below the threshold: not a smaller one, nor
 the 128 KiB that a fixed trim threshold would leave).
-Each case runs in a fresh interpreter (the threshold is process-wide).
+``keepcost`` is the free space at the heap's top: with the trim threshold fixed at 32 MiB
+the freed 3 MiB block stays there for reuse; a mmap threshold fixed alone leaves the
+default trim threshold (128 KiB), and ``free`` hands the block back to the kernel.
+Each case runs in a fresh interpreter (the thresholds are process-wide).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ pytestmark = pytest.mark.skipif(
 
 CHILD = r"""
 import ctypes, sys
-from leolink.app.heap import fix_mmap_threshold
+from leolink.app.heap import M_MMAP_THRESHOLD, fix_heap_thresholds
 
 libc = ctypes.CDLL(None)
 info = getattr(libc, "mallinfo2", None)  # glibc >= 2.33; mallinfo (int fields) before
@@ -43,7 +46,9 @@ class Mallinfo(ctypes.Structure):
 info.restype = Mallinfo
 libc.malloc.restype, libc.malloc.argtypes = ctypes.c_void_p, (ctypes.c_size_t,)
 libc.free.argtypes = (ctypes.c_void_p,)
-fixed = fix_mmap_threshold() if sys.argv[1] == "fix" else False
+fixed = fix_heap_thresholds() if sys.argv[1] == "fix" else False
+if sys.argv[1] == "mmap_only":  # the mmap threshold alone: the default trim threshold
+    fixed = bool(libc.mallopt(M_MMAP_THRESHOLD, 4 * 2**20))
 if sys.argv[1] == "run":  # a short run of the paper's pass, its outputs in memory
     from leolink.app.run import run
     from leolink.config import load_config
@@ -54,7 +59,8 @@ for mib in (8, 8, 8, 3, 3):
     p = libc.malloc(mib * 2**20)
     mapped.append(info().hblks - before)
     libc.free(p)
-print(fixed, *mapped)
+kept = info().keepcost >= 3 * 2**20  # the last 3 MiB block's space, kept at the top
+print(fixed, *mapped, kept)
 """
 
 
@@ -69,22 +75,28 @@ def _child(mode, **env):
 
 def test_default_glibc_serves_the_second_large_block_from_the_heap():
     # The behaviour the module works around: what makes the test below able to fail.
-    assert _child("default") == ["False", "1", "0", "0", "0", "0"]
+    assert _child("default") == ["False", "1", "0", "0", "0", "0", "True"]
 
 
-def test_a_fixed_threshold_maps_every_large_block():
-    assert _child("fix") == ["True", "1", "1", "1", "0", "0"]
+def test_fixed_thresholds_map_every_large_block_and_keep_freed_heap_space():
+    assert _child("fix") == ["True", "1", "1", "1", "0", "0", "True"]
+
+
+def test_a_fixed_mmap_threshold_alone_hands_freed_heap_space_back():
+    # What the fixed trim threshold prevents: the test above able to fail.
+    assert _child("mmap_only") == ["True", "1", "1", "1", "0", "0", "False"]
 
 
 def test_the_environment_s_malloc_settings_are_left_alone():
     # A user's glibc tunable (here one with no effect on mapping) wins: nothing is set.
     tunables = "glibc.malloc.tcache_count=7"
-    assert _child("fix", GLIBC_TUNABLES=tunables) == ["False", "1", "0", "0", "0", "0"]
+    assert _child("fix", GLIBC_TUNABLES=tunables) == ["False", "1", "0", "0", "0", "0", "True"]
 
 
-def test_a_run_fixes_the_threshold():
-    assert _child("run")[1:] == ["1", "1", "1", "0", "0"]
+def test_a_run_fixes_the_thresholds():
+    assert _child("run")[1:] == ["1", "1", "1", "0", "0", "True"]
 
 
 def test_other_glibc_tunables_do_not_stop_the_fix():
-    assert _child("fix", GLIBC_TUNABLES="glibc.pthread.rseq=0") == ["True", "1", "1", "1", "0", "0"]
+    tunables = "glibc.pthread.rseq=0"
+    assert _child("fix", GLIBC_TUNABLES=tunables) == ["True", "1", "1", "1", "0", "0", "True"]

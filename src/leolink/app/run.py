@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import leolink
 from leolink.app.codebook import codebook_design_from_config
-from leolink.app.heap import fix_mmap_threshold
+from leolink.app.heap import fix_heap_thresholds
 from leolink.app.notes import track_coverage, track_notes
 from leolink.app.orbits import earth_orientation, roi_frame, tle_time_zero_utc
 from leolink.app.validate import checked_scenario, ephemeris_health
@@ -205,12 +205,13 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
 
     Notes
     -----
-    On glibc the process's mmap threshold is fixed at 4 MiB
-    (:func:`leolink.app.heap.fix_mmap_threshold`), unless the environment sets malloc's
-    tunables: it keeps the peak memory flat in run length.
+    On glibc the process's mmap threshold is fixed at 4 MiB and its trim threshold at
+    32 MiB (:func:`leolink.app.heap.fix_heap_thresholds`), unless the environment sets
+    malloc's tunables: the peak memory stays flat in run length, and the temporaries of
+    a few MiB reuse the heap's pages instead of faulting new ones in.
     """
     scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
-    fix_mmap_threshold()  # peak memory flat in run length (leolink.app.heap)
+    fix_heap_thresholds()  # memory flat in run length, few page faults (leolink.app.heap)
     if out_dir is not None:  # after the scenario built: a bad config removes nothing
         out_dir = claim_out_dir(out_dir, overwrite)
     summary, position = SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s), _Position()
