@@ -209,3 +209,29 @@ def test_best_beam_is_the_largest_linear_snr_and_ties_go_to_the_first_beam():
     tied = Links(*(getattr(links, f) for f in _PAIR_FIELDS), kx, links.ky, links.rx_db)
     first = np.argmax(np.where(eng.beam_ix == 0, 1, 0)[:, None] * links.ky[eng.beam_iy], axis=0)
     assert (tied.best_beam(eng.beam_ix, eng.beam_iy)[0][:400] == first[:400]).all()
+
+
+@pytest.mark.parametrize("jit_on", [True, False])
+@pytest.mark.parametrize("n_ut", [4, 500])  # 12 and 1,500 pairs: below and above JIT_MIN_PAIRS
+def test_snr_of_some_pairs_is_that_of_the_pairs_taken(n_ut, jit_on, monkeypatch):
+    """``snr_db_bm(ix, iy, pairs)`` (no copy of the geometry) against ``take(pairs)`` then
+    ``snr_db_bm`` bit for bit, and against the dB sum of each pair's kernels and path
+    SNR; the pairs unsorted, repeated, and some below the mask (NaN)."""
+    if not jit_on:
+        monkeypatch.setenv("LEOLINK_JIT", "0")
+    eng = _engine()
+    ut = _sphere_points(n_ut)
+    sat = 1.2 * ut[:3]  # at the zenith of the first three UTs
+    iu, js = np.meshgrid(np.arange(n_ut), np.arange(3), indexing="ij")
+    links = eng.evaluate_pairs(ut, sat, np.cross(sat, [0, 0, 1.0]), iu.ravel(), js.ravel())
+    assert 3 <= links.visible.sum() < links.n_pair
+    pairs = RNG.integers(0, links.n_pair, 2 * links.n_pair)
+    ix, iy = eng.beam_ix, eng.beam_iy
+    snr = links.snr_db_bm(ix, iy, pairs)
+    np.testing.assert_array_equal(snr, links.take(pairs).snr_db_bm(ix, iy))
+    with np.errstate(divide="ignore"):
+        want = 10 * np.log10(
+            links.kx[ix][:, pairs] * links.ky[iy][:, pairs] * links.path_lin[pairs]
+        )
+    want[:, ~links.visible[pairs]] = np.nan
+    np.testing.assert_allclose(snr, want, rtol=0, atol=1e-11)

@@ -93,12 +93,11 @@ def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
     return out
 
 
-def snr_db_bm(links, beam_ix, beam_iy):
-    """``Links.snr_db_bm`` by :func:`snr_kernel`."""
-    out = np.empty((len(beam_ix), links.n_pair))
-    k = kernels()
-    run_rows(k.snr_kernel, links.n_pair, links.kx, links.ky, links.path_snr_lin, beam_ix,
-             beam_iy, out)  # fmt: skip
+def snr_db_bm(kx, ky, path_snr_lin, beam_ix, beam_iy):
+    """``Links.snr_db_bm`` by :func:`snr_kernel`, of the pairs' kernels and path SNR."""
+    m = path_snr_lin.shape[0]
+    out = np.empty((len(beam_ix), m))
+    run_rows(kernels().snr_kernel, m, kx, ky, path_snr_lin, beam_ix, beam_iy, out)
     return out
 
 

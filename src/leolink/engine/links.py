@@ -114,17 +114,23 @@ class Links:
         """Linear TX gain of every beam, beam-major, shape (n_beam, m)."""
         return self.kx[beam_ix] * self.ky[beam_iy]
 
-    def snr_db_bm(self, beam_ix, beam_iy):
+    def snr_db_bm(self, beam_ix, beam_iy, pairs=None):
         """SNR of every beam [dB], beam-major, shape (n_beam, m); NaN where not visible.
 
         ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
-        ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products.
+        ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products. ``pairs``
+        (indices): those pairs only, shape (n_beam, len(pairs)), the values of
+        ``take(pairs).snr_db_bm`` without copying the pairs' geometry.
         """
-        if jit.use(self.n_pair):  # the same operations, fused
-            return jit.snr_db_bm(self, beam_ix, beam_iy)
+        kx, ky, path, visible = self.kx, self.ky, self.path_lin, self.visible
+        if pairs is not None:
+            kx, ky, path, visible = kx[:, pairs], ky[:, pairs], path[pairs], visible[pairs]
+        path_snr_lin = np.where(visible, path, np.nan)
+        if jit.use(path_snr_lin.size):  # the same operations, fused
+            return jit.snr_db_bm(kx, ky, path_snr_lin, beam_ix, beam_iy)
         with np.errstate(divide="ignore"):
-            lx, ly = 10.0 * np.log10(self.kx), 10.0 * np.log10(self.ky)
-            path_db = 10.0 * np.log10(self.path_snr_lin)
+            lx, ly = 10.0 * np.log10(kx), 10.0 * np.log10(ky)
+            path_db = 10.0 * np.log10(path_snr_lin)
         return lx[beam_ix] + ly[beam_iy] + path_db
 
     def best_beam(self, beam_ix, beam_iy, with_snr_db=False):

@@ -100,9 +100,8 @@ class BlockCandidates:
     def snr_db_of(self, pair, beam):
         """SNR [dB] of beam ``beam[i]`` of evaluated pair ``pair[i]``, and whether the
         pair is above the mask."""
-        links = self.links.take(pair)
-        snr = links.snr_db_bm(self.beam_ix, self.beam_iy)
-        return snr[beam, np.arange(pair.size)], links.visible
+        snr = self.links.snr_db_bm(self.beam_ix, self.beam_iy, pair)
+        return snr[beam, np.arange(pair.size)], self.links.visible[pair]
 
 
 class CandidateSearch:
@@ -158,7 +157,9 @@ class CandidateSearch:
         links = Links.concat([p[0] for p in parts])
         sure = np.concatenate([p[1] for p in parts])
         order = np.lexsort((links.sat, links.ut))
-        return self._tables(k0, n_ut, n_k, links.take(order), sure)
+        if (order != np.arange(order.size)).any():  # (often sorted already: no copy)
+            links = links.take(order)
+        return self._tables(k0, n_ut, n_k, links, sure)
 
     def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm=None):
         """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
@@ -259,7 +260,7 @@ class CandidateSearch:
         for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
             pairs = vis[lo:hi]
             rows, sat = rows_vis[lo:hi], links.sat[pairs]
-            snr = links.take(pairs).snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (m, nb)
+            snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs).T  # (m, nb)
             if rows.size:
                 start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
                 with np.errstate(invalid="ignore"):
