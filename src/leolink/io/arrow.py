@@ -41,13 +41,23 @@ def string_array(names):
     return pa.Array.from_buffers(pa.string(), len(raw), buffers)
 
 
+#: From this many codes on, :func:`decoded_array` gathers with Arrow's ``take``: 4.4x
+#: faster (64,000 codes: 2.84 -> 0.64 ms) once ``pyarrow.compute`` is imported (~50 ms,
+#: which a small run does not repay).
+TAKE_MIN_CODES = 50_000
+
+
 def decoded_array(codes, names):
-    """Strings ``names[codes]`` as a plain Arrow string array, gathered in numpy (a
-    dictionary cast would import ``pyarrow.compute``, ~0.2 s)."""
+    """Strings ``names[codes]`` as a plain Arrow string array: gathered in numpy, or for
+    many codes by ``pyarrow.compute.take`` (the same array)."""
     raw = [str(n).encode() for n in names]
     codes = np.asarray(codes, np.intp)
     if codes.size and (codes.min() < 0 or codes.max() >= len(raw)):
         raise ValueError(f"codes outside 0 .. {len(raw) - 1}: {codes.min()} .. {codes.max()}")
+    if codes.size >= TAKE_MIN_CODES:
+        import pyarrow.compute as pc
+
+        return pc.take(string_array(names), numeric_array(codes, pa.int64()))
     width = max([1, *map(len, raw)])
     lengths = np.array([len(r) for r in raw], np.int32)[codes]
     offsets = np.zeros(codes.size + 1, np.int32)
