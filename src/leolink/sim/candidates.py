@@ -90,12 +90,14 @@ class Candidates:
         """Slot of ``cells[i]`` in row ``i``, -1 where absent (or ``cells[i] < 0``); given
         ``more`` arrays of cells, a tuple of the slots of each (found in one search)."""
         arrays = np.array((cells, *more), np.int64) if more else np.asarray(cells, np.int64)[None]
-        c = arrays[..., None]
         if self.n_slot == 0:
-            slots = np.full(c.shape[:2], -1, np.int64)
+            slots = np.full(arrays.shape, -1, np.int64)
         else:
-            hit = (self.cell == c) & (c >= 0)  # (n_arrays, n_ut, n_slot)
-            slots = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
+            hit = self.cell == arrays[..., None]  # (n_arrays, n_ut, n_slot)
+            first = hit.argmax(axis=2)  # the first hit, or slot 0 where there is none
+            found = hit.reshape(-1, self.n_slot)[np.arange(first.size), first.ravel()]
+            # (a cell < 0 may meet an unused slot's -1: not a hit)
+            slots = np.where(found.reshape(first.shape) & (arrays >= 0), first, -1)
         return tuple(slots) if more else slots[0]
 
     def value_at(self, cells):
