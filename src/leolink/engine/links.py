@@ -122,10 +122,9 @@ class Links:
         (indices): those pairs only, shape (n_beam, len(pairs)), the values of
         ``take(pairs).snr_db_bm`` without copying the pairs' geometry.
         """
-        kx, ky, path, visible = self.kx, self.ky, self.path_lin, self.visible
+        kx, ky, path_snr_lin = self.kx, self.ky, self.path_snr_lin
         if pairs is not None:
-            kx, ky, path, visible = kx[:, pairs], ky[:, pairs], path[pairs], visible[pairs]
-        path_snr_lin = np.where(visible, path, np.nan)
+            kx, ky, path_snr_lin = kx[:, pairs], ky[:, pairs], path_snr_lin[pairs]
         if jit.use(path_snr_lin.size):  # the same operations, fused
             return jit.snr_db_bm(kx, ky, path_snr_lin, beam_ix, beam_iy)
         with np.errstate(divide="ignore"):
