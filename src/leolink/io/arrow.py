@@ -45,14 +45,14 @@ def decoded_array(codes, names, by_take=False):
     """Strings ``names[codes]`` as a plain Arrow string array: gathered in numpy, or with
     ``by_take`` by ``pyarrow.compute.take`` (the same array, 4.4x faster on 64,000 codes:
     2.84 -> 0.64 ms, once ``pyarrow.compute`` is imported: ~50 ms)."""
-    raw = [str(n).encode() for n in names]
     codes = np.asarray(codes, np.intp)
-    if codes.size and (codes.min() < 0 or codes.max() >= len(raw)):
-        raise ValueError(f"codes outside 0 .. {len(raw) - 1}: {codes.min()} .. {codes.max()}")
+    if codes.size and (codes.min() < 0 or codes.max() >= len(names)):
+        raise ValueError(f"codes outside 0 .. {len(names) - 1}: {codes.min()} .. {codes.max()}")
     if by_take:
         import pyarrow.compute as pc
 
         return pc.take(string_array(names), numeric_array(codes, pa.int64()))
+    raw = [str(n).encode() for n in names]
     width = max([1, *map(len, raw)])
     lengths = np.array([len(r) for r in raw], np.int32)[codes]
     offsets = np.zeros(codes.size + 1, np.int32)
