@@ -1,14 +1,19 @@
 """leolink.io.tables: contracts that mutation testing found unchecked (docs/testing.md).
 
 Row groups at exact multiples of ``chunk_rows``, an extra column, append after close,
-the messages of bad formats and chunk sizes, and a nested output folder.
+the messages of bad formats and chunk sizes, a nested output folder, and the switch of
+the string columns to Arrow's take.
 """
+
+import csv
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
 from leolink.errors import ConfigError
+from leolink.io import tables
+from leolink.io.arrow import decoded_array
 from leolink.io.tables import TRACE_SCHEMA, TableWriter, TraceWriter
 
 
@@ -64,3 +69,35 @@ def test_nested_output_folder_is_created(tmp_path):
     with TraceWriter(tmp_path / "a" / "b" / "c") as w:
         w.append(_rows(2))
     assert (tmp_path / "a" / "b" / "c" / "trace.csv").exists()
+
+
+@pytest.mark.parametrize("after", [0, 5, 10**9])  # take from the start, from row 6, never
+def test_a_writer_switching_to_take_writes_the_same_strings(tmp_path, monkeypatch, after):
+    """TableWriter gathers its string columns by Arrow's take once it has written
+    TAKE_AFTER_ROWS rows: the CSV and Parquet strings are those appended, either way."""
+    monkeypatch.setattr(tables, "TAKE_AFTER_ROWS", after)
+    flags = []  # by_take of each string column's gather, in order
+
+    def recorded(codes, names, by_take=False):
+        flags.append(by_take)
+        return decoded_array(codes, names, by_take)
+
+    monkeypatch.setattr(tables, "decoded_array", recorded)
+    rng = np.random.default_rng(after)
+    services = ["served", "handover", "outage"]
+    want = []
+    with tables.TraceWriter(tmp_path, formats=("parquet", "csv"), chunk_rows=3) as w:
+        for i in range(5):
+            cols = _rows(4, start=4 * i)
+            cols["service"] = np.array(rng.choice(services, 4))
+            want += cols["service"].tolist()
+            w.append(cols)
+    assert pq.read_table(tmp_path / "trace.parquet")["service"].to_pylist() == want
+    with open(tmp_path / "trace.csv", newline="") as f:
+        assert [row["service"] for row in csv.DictReader(f)] == want
+    # 20 rows in chunks of 3: 7 chunks, each gathering its string columns twice (CSV,
+    # Parquet); take from the first chunk that starts at or after `after` rows.
+    per_chunk = len(flags) // 7
+    starts = np.repeat(np.arange(7) * 3, per_chunk)
+    assert len(flags) == 7 * per_chunk and per_chunk > 0
+    np.testing.assert_array_equal(flags, starts >= after)
