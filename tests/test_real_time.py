@@ -65,6 +65,21 @@ def test_earth_orientation_is_stated_inside_and_outside_the_iers_table():
     assert "unknown on 2090-01-01" in outside.note and "0.42 km" in outside.note
 
 
+def test_ut1_minus_utc_is_that_of_skyfields_builtin_timescale():
+    """leolink builds skyfield's timescale without skyfield.api (start-up time): the same
+    UT1 - UTC, bit for bit, as the public ``load.timescale(builtin=True)`` over the table."""
+    from leolink.io import earth_orientation
+
+    ts = skyfield_api.load.timescale(builtin=True)
+    _, first, last = earth_orientation._table()
+    span_s = (last - first).total_seconds()
+    rng = np.random.default_rng(7)
+    for offset_s in [0.0, span_s, *rng.uniform(0.0, span_s, 300)]:
+        when = first + timedelta(seconds=float(offset_s))
+        got = earth_orientation.ut1_minus_utc(when)
+        assert got.known and got.ut1_minus_utc_s == float(ts.from_datetime(when).dut1), when
+
+
 def _bearing_deg(lat1, lon1, lat2, lon2):
     """Initial great-circle bearing (aviation formulary), from north clockwise [deg]."""
     p1, p2, dl = math.radians(lat1), math.radians(lat2), math.radians(lon2 - lon1)

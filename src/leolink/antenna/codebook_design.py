@@ -177,9 +177,11 @@ def _best_gain_lin(codebook, u_xy, trig=(None, None)):
     # max_b kx[ix_b] ky[iy_b] = max_i kx[i] max_{b: ix_b = i} ky[iy_b]: the kernels are
     # >= 0 and rounding is monotone, so the y-maximum first gives the same bits, with one
     # product per lattice column instead of one per beam.
+    present = np.zeros((bx.size, by.size), bool)  # beam at lattice column i, row j
+    present[ix, iy] = True
     columns = []
     for i in range(bx.size):
-        rows = np.unique(iy[ix == i])
+        rows = np.flatnonzero(present[i])  # sorted, as np.unique of iy[ix == i]
         contiguous = rows[-1] - rows[0] + 1 == rows.size  # the usual case: a run of rows
         columns.append(slice(rows[0], rows[-1] + 1) if contiguous else rows)
     kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x, trig[0])

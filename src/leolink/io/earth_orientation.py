@@ -37,17 +37,24 @@ class EarthOrientation:
 
 @functools.cache
 def _table():
-    """(skyfield timescale, first and last UTC day of its IERS table), or None."""
+    """(skyfield timescale, first and last UTC day of its IERS table), or None.
+
+    The timescale is built as ``skyfield.api.load.timescale(builtin=True)`` builds it
+    (skyfield's ``Loader.timescale``), from ``skyfield.timelib`` alone: ``skyfield.api``
+    would also import its loaders, ephemerides and star catalogues (~45 ms of a 10-UT
+    run's 0.8 s). tests/test_real_time.py checks the two give the same UT1 - UTC.
+    """
     try:
-        from skyfield.api import load
         from skyfield.functions import load_bundled_npy
+        from skyfield.timelib import Timescale
     except ImportError:
         return None
     arrays = load_bundled_npy("iers.npz")
     tt = arrays["tt_jd_minus_arange"] + np.arange(arrays["tt_jd_minus_arange"].size)
+    delta_t_s = (arrays["delta_t_1e7"] / 1e7).round(7)
     j2000 = datetime(2000, 1, 1, 12, tzinfo=UTC)  # JD 2451545.0 (TT; 64 s from UTC: irrelevant)
     first, last = (j2000 + timedelta(days=float(d) - 2451545.0) for d in (tt[0], tt[-1]))
-    return load.timescale(builtin=True), first, last
+    return Timescale((tt, delta_t_s), arrays["leap_dates"], arrays["leap_offsets"]), first, last
 
 
 def ut1_minus_utc(when_utc):
