@@ -83,6 +83,28 @@ def test_static_has_fixed_position_and_zero_velocity():
     assert s1.vel_m_s.shape == (2, 3) and s1.lat_rad.shape == (2,)
 
 
+def test_models_that_say_they_do_not_move_do_not_move():
+    """``moves = False`` lets the simulator run no motion process for a population (its
+    first state holds): it must be said by exactly the models whose states never change."""
+    from leolink.sim.mobility import OnWgs84
+
+    lat, lon = np.radians([10.0, -45.0]), np.radians([20.0, 170.0])
+    models = [
+        Static(lat, lon, [0.0, 500.0]),
+        ConstantVelocity(lat, lon, 0.0, np.radians([90.0, 200.0]), "pedestrian"),
+        Waypoints([TRACK_A, TRACK_B]),
+    ]
+    times = np.linspace(-600.0, 600.0, 7)
+    for model in [*models, *(OnWgs84(m) for m in models)]:
+        first = model.state(float(times[0]))
+        still = all(
+            np.array_equal(value, getattr(model.state(float(t)), name))
+            for t in times[1:]
+            for name, value in vars(first).items()
+        )
+        assert getattr(model, "moves", True) is not still, model
+
+
 # --- ConstantVelocity ---------------------------------------------------------------------
 
 lat_st = st.floats(np.radians(-80), np.radians(80))

@@ -112,6 +112,8 @@ class Static:
         Position [rad, rad, m].
     """
 
+    moves = False  # the simulator runs no motion process for these UTs
+
     def __init__(self, lat_rad, lon_rad, alt_m=0.0):
         n = np.broadcast(np.asarray(lat_rad), np.asarray(lon_rad), np.asarray(alt_m)).size
         self.lat_rad, self.lon_rad = _vec(lat_rad, n, "lat_rad"), _vec(lon_rad, n, "lon_rad")

@@ -38,6 +38,8 @@ class MotionModel(Protocol):
     A model may also have ``states(times_s)``: the states at many times in one call (each
     array with a leading time axis), equal to ``state`` time after time; the simulator
     uses it for a block of epochs where the class has it (:mod:`leolink.sim.motion`).
+    A model whose UTs never move says so with ``moves = False``: their first state then
+    holds for the whole run, and the simulator runs no motion process for them.
     """
 
     n_ut: int

@@ -4,7 +4,8 @@ Every epoch, in this order (SimPy runs same-time events first in, first out, and
 processes start together and wait one epoch each, so the order holds):
 
 1. :func:`satellite_motion` moves all satellites (ephemeris evaluated in blocks of epochs);
-2. :func:`ut_motion`, one per mobility population, moves that population's UTs;
+2. :func:`ut_motion`, one per mobility population that moves, moves that population's
+   UTs (static ones keep their first state: ``moves = False``, no process);
 3. :func:`beam_controller` finds every UT's candidate cells and re-picks the serving
    cell of every UT with the configured policy (:class:`leolink.sim.decide.Decider`);
 4. :func:`link_monitor` records the epoch; the serving links of a block of epochs are

@@ -166,7 +166,8 @@ def _processes(env, scen, state, motion, decide, monitor):
     env.process(satellite_motion(env, state, motion, epoch))
     lo = 0
     for _, pop in scen.populations:
-        env.process(ut_motion(env, state, motion, slice(lo, lo + pop.n_ut), epoch))
+        if getattr(pop, "moves", True):  # static UTs keep their first state: no process
+            env.process(ut_motion(env, state, motion, slice(lo, lo + pop.n_ut), epoch))
         lo += pop.n_ut
     env.process(beam_controller(env, state, decide, epoch))
     env.process(link_monitor(env, state, monitor, epoch))
