@@ -46,3 +46,38 @@ def test_slot_of_finds_each_rows_cell(n_ut, n_slot, n_more, seed):
         hit = slots >= 0
         np.testing.assert_array_equal(table.value_at(q)[hit], table.snr_db[hit, slots[hit]])
         assert np.isnan(table.value_at(q)[~hit]).all()
+
+
+def _best_loop(table):
+    """Best finite-or-+inf cell of each row, ties to the lowest cell id; -1/NaN if none."""
+    cells, values = [], []
+    for row_cell, row_snr in zip(table.cell, table.snr_db, strict=True):
+        ok = [(v, -c) for c, v in zip(row_cell, row_snr, strict=True) if c >= 0 and v > -np.inf]
+        v, c = max(ok) if ok else (np.nan, 1)
+        cells.append(-c)
+        values.append(v)
+    return np.array(cells, np.int64), np.array(values)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    n_ut=st.integers(1, 30),
+    n_slot=st.sampled_from([0, 1, 1, 2, 3, 7]),  # one slot per UT: the best cell only
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_best_and_at_against_a_loop_over_each_row(n_ut, n_slot, seed):
+    """NaN, -inf (a null) and +inf SNRs, ties; ``at`` of every slot and of -1."""
+    rng = np.random.default_rng(seed)
+    table = _table(rng, n_ut, n_slot, n_cell=15)
+    specials = rng.choice([np.nan, -np.inf, np.inf, 1.5, -0.0], table.snr_db.shape)
+    table.snr_db[:] = np.where(rng.random(table.snr_db.shape) < 0.4, specials, table.snr_db)
+    table.snr_db[table.cell < 0] = np.nan  # unused slots
+    cell, value = table.best()
+    want_cell, want_value = _best_loop(table)
+    assert cell.dtype == np.int64
+    np.testing.assert_array_equal(cell, want_cell)
+    np.testing.assert_array_equal(value, want_value)
+    for slot in [*(np.full(n_ut, j) for j in range(n_slot)), np.full(n_ut, -1)]:
+        slot = np.where(rng.random(n_ut) < 0.3, -1, slot)
+        want = np.array([table.snr_db[i, j] if j >= 0 else np.nan for i, j in enumerate(slot)])
+        np.testing.assert_array_equal(table.at(slot), want)

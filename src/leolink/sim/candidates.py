@@ -89,6 +89,10 @@ class Candidates:
     def slot_of(self, cells, *more):
         """Slot of ``cells[i]`` in row ``i``, -1 where absent (or ``cells[i] < 0``); given
         ``more`` arrays of cells, a tuple of the slots of each (found in one search)."""
+        if self.n_slot == 1:  # the best cell only (max-SNR's window): one comparison each
+            column = self.cell[:, 0]
+            found = [np.where((column == c) & (c >= 0), 0, -1) for c in (cells, *more)]
+            return tuple(found) if more else found[0]
         arrays = np.array((cells, *more), np.int64) if more else np.asarray(cells, np.int64)[None]
         if self.n_slot == 0:
             slots = np.full(arrays.shape, -1, np.int64)
@@ -109,6 +113,8 @@ class Candidates:
         slots of :meth:`slot_of`, for a table of the same cells)."""
         if self.n_slot == 0:
             return np.full(slot.shape, np.nan)
+        if self.n_slot == 1:
+            return np.where(slot >= 0, self.snr_db[:, 0], np.nan)
         val = self.snr_db[np.arange(slot.size), np.maximum(slot, 0)]
         return np.where(slot >= 0, val, np.nan)
 
@@ -118,6 +124,10 @@ class Candidates:
         -1 and NaN where a row has no finite value; ties go to the lowest cell id (as
         ``numpy.argmax`` over cells in id order).
         """
+        if self.n_slot == 1:  # (NaN > -inf is False: a row of NaN or -inf has none)
+            val = self.snr_db[:, 0]
+            ok = val > -np.inf
+            return np.where(ok, self.cell[:, 0], -1).astype(np.int64), np.where(ok, val, np.nan)
         filled = np.where(np.isnan(self.snr_db), -np.inf, self.snr_db)
         val = filled.max(axis=1, initial=-np.inf)
         ok = val > -np.inf
