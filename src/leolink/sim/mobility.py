@@ -87,12 +87,10 @@ def concat_states(states):
 
 def resolve_speed_m_s(speed):
     """A speed given as a number [m/s] or a preset name of :data:`SPEED_PRESETS_M_S`."""
-    if isinstance(speed, str):
-        if speed not in SPEED_PRESETS_M_S:
-            names = ", ".join(sorted(SPEED_PRESETS_M_S))
-            raise ConfigError(f"speed preset {speed!r} is unknown; use one of {names} or m/s")
-        return SPEED_PRESETS_M_S[speed]
-    return speed
+    if isinstance(speed, str) and speed not in SPEED_PRESETS_M_S:
+        names = ", ".join(sorted(SPEED_PRESETS_M_S))
+        raise ConfigError(f"speed preset {speed!r} is unknown; use one of {names} or m/s")
+    return SPEED_PRESETS_M_S[speed] if isinstance(speed, str) else speed
 
 
 def _vec(a, n, name):
@@ -118,8 +116,7 @@ class Static:
         n = np.broadcast(np.asarray(lat_rad), np.asarray(lon_rad), np.asarray(alt_m)).size
         self.lat_rad, self.lon_rad = _vec(lat_rad, n, "lat_rad"), _vec(lon_rad, n, "lon_rad")
         self.alt_m = _vec(alt_m, n, "alt_m")
-        self._pos_m = geodetic_to_ecef(self.lat_rad, self.lon_rad, self.alt_m)
-        self.n_ut = n
+        self._pos_m, self.n_ut = geodetic_to_ecef(self.lat_rad, self.lon_rad, self.alt_m), n
 
     def state(self, t_s):
         """State at ``t_s`` [s]: fixed position, zero velocity and acceleration."""
