@@ -1,4 +1,4 @@
-"""numpy -> Arrow without pandas, and a background writer thread.
+"""numpy -> Arrow without pandas.
 
 ``pyarrow.array()`` imports pandas on its first call (~0.5 s of a small run's start);
 these build Arrow arrays from numpy buffers (``pyarrow.Array.from_buffers``, zero-copy
@@ -8,13 +8,10 @@ for numbers) instead. Arrays hold no nulls: a float NaN stays a NaN value (writt
 
 from __future__ import annotations
 
-import queue
-import threading
-
 import numpy as np
 import pyarrow as pa
 
-__all__ = ["BackgroundWriter", "Vocabulary", "decoded_array", "numeric_array", "string_array"]
+__all__ = ["Vocabulary", "decoded_array", "numeric_array", "string_array"]
 
 _NUMPY_TYPES = {
     pa.int8(): np.int8,
@@ -96,39 +93,3 @@ class Vocabulary:
             self._code[name] = len(self.names)
             self.names.append(name)
         return self._code[name]
-
-
-class BackgroundWriter:
-    """Runs ``write(item)`` on one thread, in order; ``put`` blocks while one item waits.
-
-    An error on the thread is raised by the next ``put`` or by ``close``.
-    """
-
-    def __init__(self, write):
-        self._write, self._error = write, None
-        self._queue = queue.Queue(maxsize=1)
-        self._thread = threading.Thread(target=self._run, name="leolink-writer", daemon=True)
-        self._thread.start()
-
-    def _run(self):
-        while (item := self._queue.get()) is not None:
-            if self._error is None:
-                try:
-                    self._write(item)
-                except BaseException as exc:  # handed to the main thread
-                    self._error = exc
-
-    def put(self, item):
-        self._raise()
-        self._queue.put(item)
-
-    def close(self):
-        if self._thread.is_alive():
-            self._queue.put(None)
-            self._thread.join()
-        self._raise()
-
-    def _raise(self):
-        if self._error is not None:
-            error, self._error = self._error, None
-            raise error

@@ -32,9 +32,10 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa  # core only (~0.1 s); pyarrow.csv / .parquet when a format needs them
 
+from leolink.background import BackgroundWorker
 from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.errors import ConfigError, require_at_least
-from leolink.io.arrow import BackgroundWriter, Vocabulary, decoded_array, numeric_array
+from leolink.io.arrow import Vocabulary, decoded_array, numeric_array
 from leolink.io.atomic import PendingFiles, atomic_file
 from leolink.link.acm import FIGURE_COLUMNS
 from leolink.link.modcod import modcod_table
@@ -214,7 +215,7 @@ class TableWriter:
         self._csv = self._parquet = self._thread = None
         try:
             self._open()
-            self._thread = BackgroundWriter(self._write) if background else None
+            self._thread = BackgroundWorker(self._write, "leolink-writer") if background else None
         except BaseException:
             self.abort()
             raise
@@ -330,7 +331,7 @@ class TableWriter:
         self._done = True
         if self._thread is not None:
             with contextlib.suppress(BaseException):
-                self._thread.close()
+                self._thread.cancel()  # the chunks still waiting are not written
         with contextlib.suppress(Exception):
             self._close_writers()
         self._pending.abort()

@@ -203,7 +203,7 @@ def run_simulation(
     -------
     RunStats
     """
-    sink = SinkGroup(sinks)
+    sink = SinkGroup(sinks, background=True)  # the sinks take a block while the next is computed
     state = _initial_state(scen, scen.populations)
     n_ut = state.ut_pos_m.shape[0]
 

@@ -12,7 +12,8 @@ as one :class:`BlockFrame` (consecutive epochs, in order). A sink with a ``block
 takes it whole (one call per block instead of one per epoch: the fixed cost of an epoch);
 :class:`SinkGroup` splits it into the same :class:`EpochFrame` s, in order, for the others.
 A sink's ``block(frame)`` must leave it in the state that ``epoch`` over
-``frame.frames()`` would.
+``frame.frames()`` would. In a run the frames reach the sinks on a background thread
+(:class:`SinkGroup` with ``background``): the simulator computes the next block meanwhile.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ import dataclasses
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from leolink.background import BackgroundWorker
 
 __all__ = ["BlockFrame", "EpochFrame", "FinalFrame", "RunInfo", "Sink", "SinkGroup", "deliver"]
 
@@ -148,7 +151,9 @@ class Sink(Protocol):
     Optionally ``block(frame)``: a :class:`BlockFrame` instead of its epochs' ``epoch``
     calls (:func:`deliver`); ``epoch`` is still needed (runs with radio link failure
     monitoring send epoch frames). Sinks get a block one after the other: a sink must not
-    read another's state before ``finish``.
+    read another's state before ``finish``. The simulator's :class:`SinkGroup` calls
+    ``epoch`` and ``block`` on a thread of its own (one, in order), ``start``, ``finish``
+    and ``abort`` on the caller's.
     """
 
     def start(self, info: RunInfo) -> None: ...
@@ -182,11 +187,22 @@ def _owner(sink, name):
 
 
 class SinkGroup:
-    """Forward the stream to several sinks, in order; on error abort all of them."""
+    """Forward the stream to several sinks, in order; on error abort all of them.
 
-    def __init__(self, sinks):
+    With ``background``, the frames reach the sinks on a thread of their own
+    (:class:`~leolink.background.BackgroundWorker`), in order, while the simulator goes
+    on with the next block: its arrays are never written after the call that carried
+    them (:class:`EpochFrame`). ``start``, ``finish`` and ``abort`` stay on the caller's
+    thread; ``finish`` first waits until every frame has been handed over, ``abort``
+    drops the frames still waiting. A sink's error is raised by the next frame or by
+    ``finish``.
+    """
+
+    def __init__(self, sinks, background=False):
         self.sinks = list(sinks)
+        self.background = bool(background)
         self._started: list = []
+        self._worker: BackgroundWorker | None = None
         for sink in self.sinks:
             if not isinstance(sink, Sink):
                 raise TypeError(f"{type(sink).__name__} does not follow the Sink protocol")
@@ -199,21 +215,42 @@ class SinkGroup:
         for sink in self.sinks:
             self._started.append(sink)
             sink.start(info)
+        if self.background:
+            self._worker = BackgroundWorker(self._hand, "leolink-sinks")
 
     def epoch(self, frame):
-        for sink in self.sinks:
-            sink.epoch(frame)
+        self._send((False, frame))
 
     def block(self, frame):
         """A :class:`BlockFrame` to each sink, in order (:func:`deliver`)."""
+        self._send((True, frame))
+
+    def _send(self, item):
+        if self._worker is None:
+            self._hand(item)
+        else:
+            self._worker.put(item)
+
+    def _hand(self, item):
+        whole, frame = item
         for sink in self.sinks:
-            deliver(sink, frame)
+            if whole:
+                deliver(sink, frame)
+            else:
+                sink.epoch(frame)
 
     def finish(self, final):
+        if self._worker is not None:
+            worker, self._worker = self._worker, None
+            worker.close()
         for sink in self.sinks:
             sink.finish(final)
 
     def abort(self):
-        """Abort every sink whose ``start`` was entered (all of them after a full start)."""
+        """Abort every sink whose ``start`` was entered (all of them after a full start),
+        once the frame a sink has in hand is done (the frames still waiting are dropped)."""
+        if self._worker is not None:
+            worker, self._worker = self._worker, None
+            worker.cancel()
         for sink in self._started:
             sink.abort()

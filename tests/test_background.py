@@ -1,0 +1,137 @@
+"""The sinks' background thread: leolink.background.BackgroundWorker, and a run whose sinks
+take each block on that thread while the simulator computes the next one."""
+
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from frame_helpers import BlockCapture
+from leolink.background import BackgroundWorker
+from leolink.config import load_config
+
+ROOT = Path(__file__).resolve().parents[1]
+# The paper's pass at 0.5 s for 70 s: 140 epochs, blocks of 64, 64 and 12 epochs.
+SETS = ["run.epoch_s=0.5", "run.duration_s=70.0"]
+
+
+def test_a_worker_handles_every_item_in_order_on_its_own_thread():
+    seen, threads = [], set()
+
+    def handle(item):
+        seen.append(item)
+        threads.add(threading.current_thread().name)
+
+    worker = BackgroundWorker(handle, "test-worker")
+    for i in range(50):
+        worker.put(i)
+    worker.close()  # waits for all of them
+    assert seen == list(range(50)) and threads == {"test-worker"}
+
+
+def test_a_workers_error_is_raised_on_the_callers_thread_and_stops_its_work():
+    seen, gate = [], threading.Event()
+
+    def handle(item):
+        if item == 3:
+            gate.wait(5.0)  # item 4 waits in the queue meanwhile: it must not be handled
+            raise ValueError("item 3 is bad")
+        seen.append(item)
+
+    worker = BackgroundWorker(handle)
+    with pytest.raises(ValueError, match="item 3 is bad"):
+        for i in range(10):
+            worker.put(i)
+            if i == 4:
+                gate.set()
+        worker.close()
+    worker.cancel()
+    assert seen == [0, 1, 2]
+
+
+def test_cancel_drops_what_waits_once_the_item_in_hand_is_done():
+    seen, started, release = [], threading.Event(), threading.Event()
+
+    def handle(item):
+        started.set()
+        release.wait(5.0)
+        seen.append(item)
+
+    worker = BackgroundWorker(handle)
+    worker.put("in hand")
+    started.wait(5.0)
+    worker.put("waiting")  # the queue holds one
+    threading.Timer(0.05, release.set).start()
+    worker.cancel()
+    assert seen == ["in hand"]
+
+
+class _ThreadLog(BlockCapture):
+    """BlockCapture that also notes the thread of each call and what finish saw."""
+
+    def start(self, info):
+        super().start(info)
+        self.threads = {"start": threading.current_thread().name}
+
+    def block(self, frame):
+        super().block(frame)
+        self.threads.setdefault("block", set()).add(threading.current_thread().name)
+
+    def finish(self, final):
+        super().finish(final)
+        self.threads["finish"] = threading.current_thread().name
+        self.blocks_at_finish = len(self.blocks)
+
+
+def _run(sinks, background=True, monkeypatch=None):
+    from leolink.app.scenario import build_scenario
+    from leolink.sim import runner, streams
+
+    if not background:  # the same run with the sinks on the simulator's thread
+        monkeypatch.setattr(runner, "SinkGroup", lambda s, background: streams.SinkGroup(s))
+    cfg = load_config(ROOT / "configs/paper.toml", SETS)
+    return runner.run_simulation(build_scenario(cfg), sinks)
+
+
+def test_a_runs_sinks_take_its_blocks_on_one_other_thread_in_order(monkeypatch):
+    log = _ThreadLog()
+    _run([log])
+    main = threading.current_thread().name
+    assert log.threads["start"] == log.threads["finish"] == main
+    assert log.threads["block"] == {"leolink-sinks"}
+    assert [len(b.t_s) for b in log.blocks] == [64, 64, 12]  # all of them before finish
+    assert log.blocks_at_finish == 3
+    times = np.concatenate([b.t_s for b in log.blocks])
+    np.testing.assert_array_equal(np.diff(times), 0.5)  # in order
+
+    same = BlockCapture()
+    _run([same], background=False, monkeypatch=monkeypatch)
+    for a, b in zip(log.blocks, same.blocks, strict=True):
+        assert a.columns.keys() == b.columns.keys()
+        for name in a.columns:
+            np.testing.assert_array_equal(a.columns[name], b.columns[name], err_msg=name)
+
+
+class _Fails(BlockCapture):
+    def block(self, frame):
+        if self.blocks:
+            raise RuntimeError("the second block is bad")
+        super().block(frame)
+
+
+class _Aborts(BlockCapture):
+    aborted = finished = False
+
+    def finish(self, final):
+        self.finished = True
+
+    def abort(self):
+        self.aborted = True
+
+
+def test_a_sinks_error_on_the_thread_fails_the_run_and_aborts_every_sink():
+    other = _Aborts()
+    with pytest.raises(RuntimeError, match="the second block is bad"):
+        _run([_Fails(), other])
+    assert other.aborted and not other.finished
