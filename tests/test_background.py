@@ -1,6 +1,7 @@
 """The sinks' background thread: leolink.background.BackgroundWorker, and a run whose sinks
 take each block on that thread while the simulator computes the next one."""
 
+import sys
 import threading
 from pathlib import Path
 
@@ -65,6 +66,56 @@ def test_cancel_drops_what_waits_once_the_item_in_hand_is_done():
     threading.Timer(0.05, release.set).start()
     worker.cancel()
     assert seen == ["in hand"]
+
+
+class _Interrupt(BaseException):
+    """What a signal handler raises (Ctrl-C, SIGTERM: leolink.app.guard.Stopped)."""
+
+
+def _interrupted_at(k, call, *args):
+    """``call(*args)`` with :class:`_Interrupt` raised at its ``k``-th bytecode (in every
+    Python frame it enters: queue, threading); True if ``call`` ran fewer."""
+    count = 0
+
+    def trace(frame, event, arg):
+        nonlocal count
+        frame.f_trace_opcodes = True
+        if event == "opcode":
+            count += 1
+            if count == k:
+                raise _Interrupt
+        return trace
+
+    sys.settrace(trace)
+    try:
+        call(*args)
+    except _Interrupt:
+        return False
+    finally:
+        sys.settrace(None)
+    return True
+
+
+def test_an_interrupted_put_never_keeps_cancel_from_returning():
+    """A signal handler that raises may do so between any two bytecodes of the caller,
+    also inside ``put``: ``cancel`` must still return (with ``queue.Queue`` it waited for
+    ever when ``Condition.notify`` was interrupted before it woke the worker, and a
+    stopped sweep worker was killed with its partial files left)."""
+    for k in range(1, 1000):
+        seen = []
+        worker = BackgroundWorker(seen.append)
+        worker.put("before")
+        while not seen:  # the worker is done with it and waits for the next item
+            threading.Event().wait(0.001)
+        ran_whole = _interrupted_at(k, worker.put, "interrupted")
+        stopper = threading.Thread(target=worker.cancel, daemon=True)
+        stopper.start()
+        stopper.join(5.0)
+        assert not stopper.is_alive(), f"cancel hangs after put was interrupted at bytecode {k}"
+        assert seen in (["before"], ["before", "interrupted"])
+        if ran_whole:  # every bytecode of put was tried
+            return
+    raise AssertionError("put takes more than 1000 bytecodes")
 
 
 class _ThreadLog(BlockCapture):
@@ -135,3 +186,39 @@ def test_a_sinks_error_on_the_thread_fails_the_run_and_aborts_every_sink():
     with pytest.raises(RuntimeError, match="the second block is bad"):
         _run([_Fails(), other])
     assert other.aborted and not other.finished
+
+
+class _Slow(BlockCapture):
+    """Takes 2 ms a block; notes whether ``abort`` came while a block was in hand."""
+
+    busy = aborted_while_busy = False
+
+    def block(self, frame):
+        self.busy = True
+        threading.Event().wait(0.002)
+        self.busy = False
+
+    def abort(self):
+        self.aborted_while_busy |= self.busy
+
+
+def test_an_interrupted_finish_leaves_abort_to_stop_the_thread_first():
+    """A signal during ``finish`` (waiting for the frames in flight): the ``abort`` that
+    follows must wait for the block in hand before any sink aborts."""
+    from leolink.sim.streams import SinkGroup
+
+    real = BlockCapture()
+    _run([real])
+    for k in range(1, 2000):
+        slow = _Slow()
+        group = SinkGroup([slow], background=True)
+        group.start(real.info)
+        for frame in real.blocks:
+            group.block(frame)
+        ran_whole = _interrupted_at(k, group.finish, real.final)
+        if not ran_whole:
+            group.abort()
+        assert not slow.aborted_while_busy, f"a sink aborted during a block (bytecode {k})"
+        if ran_whole:
+            return
+    raise AssertionError("finish takes more than 2000 bytecodes")

@@ -240,9 +240,9 @@ class SinkGroup:
                 sink.epoch(frame)
 
     def finish(self, final):
-        if self._worker is not None:
-            worker, self._worker = self._worker, None
-            worker.close()
+        if self._worker is not None:  # kept until closed: an abort must still stop it
+            self._worker.close()
+            self._worker = None
         for sink in self.sinks:
             sink.finish(final)
 
