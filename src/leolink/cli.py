@@ -12,6 +12,7 @@ some of whose points failed writes its table (their ``error`` column) and exits 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import sys
 from pathlib import Path
@@ -374,5 +375,17 @@ def main(argv=None) -> int:
         return EXIT_BUG
 
 
+def console(argv=None):
+    """The ``leolink`` command (and ``python -m leolink.cli``): :func:`main`, then exit
+    with its code."""
+    code = main(argv)
+    # The process ends: its objects go with their reference counts at the interpreter's
+    # teardown; the collector's last passes over every object (0.10-0.12 s of a 10-UT
+    # run's 0.6-0.7 s, measured) would find only cycles, whose files are closed by then
+    # (outputs are written and closed before they are renamed into place).
+    gc.freeze()
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()
