@@ -149,3 +149,23 @@ def test_validate_derived_roi_covers_but_the_papers_codebook_cannot(capsys):
     assert _coverage_value(534.1, 272.4) <= 1.0
     assert "534.1 x 272.4 km covers the Earth" in out
     assert "13 beams for 15 RF chains (2 idle)" in out
+
+
+def test_the_command_is_console_and_exits_with_mains_code_collector_frozen():
+    """The installed ``leolink`` script is :func:`leolink.cli.console`: main's exit code,
+    with the collector's objects frozen for the interpreter's teardown (the exit's speed,
+    README "Speed")."""
+    import tomllib
+
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts["leolink"] == "leolink.cli:console"
+    probe = (
+        "import atexit, gc, sys\n"
+        "atexit.register(lambda: print('frozen', gc.get_freeze_count() > 0))\n"
+        "from leolink.cli import console\n"
+        "console(sys.argv[1:])\n"
+    )
+    cmd = [sys.executable, "-c", probe, "validate", PAPER, "--set", "link.bandwith_hz=1"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    _check_one_error_line(proc.returncode, proc.stderr, "link.bandwith_hz is not a known key")
+    assert proc.stdout.strip() == "frozen True"
