@@ -309,6 +309,7 @@ def test_compiled_kernels_give_the_same_bits_with_environments(tmp_path, monkeyp
 
     cfg = _config(tmp_path, _crowd(20, speed_m_s=14.0), ["run.duration_s=6"])
     monkeypatch.setattr(jit, "JIT_MIN_PAIRS", 1)
+    monkeypatch.setattr(jit, "MIN_RUN_PAIRS", 0)  # (a small run: the kernels all the same)
     fused = run(cfg).trace
     monkeypatch.setenv("LEOLINK_JIT", "0")
     plain = run(cfg).trace

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -239,6 +240,22 @@ def test_turned_off_by_the_environment(monkeypatch):
         monkeypatch.delenv("LEOLINK_JIT")
         jit.enabled.cache_clear()
     assert jit.use(jit.JIT_MIN_PAIRS) and not jit.use(jit.JIT_MIN_PAIRS - 1)
+
+
+def test_a_run_too_small_to_repay_numbas_start_takes_the_numpy_path(monkeypatch):
+    """Below MIN_RUN_PAIRS a run's calls take the numpy path, however large each call,
+    unless the kernels are loaded already; the flag is restored on leaving."""
+    big = 10 * jit.JIT_MIN_PAIRS
+    monkeypatch.delitem(sys.modules, "leolink.engine.kernels", raising=False)
+    with jit.sized_run(jit.MIN_RUN_PAIRS - 1):
+        assert not jit.use(big)
+        with jit.sized_run(jit.MIN_RUN_PAIRS):
+            assert jit.use(big)
+        assert not jit.use(big)
+    assert jit.use(big)
+    monkeypatch.setitem(sys.modules, "leolink.engine.kernels", jit.kernels())
+    with jit.sized_run(1):
+        assert jit.use(big)
 
 
 def test_tilted_panel_gains_are_the_numpy_bits(epoch, monkeypatch):

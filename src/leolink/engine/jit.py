@@ -1,7 +1,8 @@
 """Compiled kernels (numba), optional: the same numbers as the numpy code they replace.
 
-numba is imported on first use only, and only for work large enough to repay its start-up
-(``JIT_MIN_PAIRS``); ``LEOLINK_JIT=0`` in the environment turns every kernel off (the
+numba is imported on first use only, and only for work large enough to repay its start-up:
+a call over at least ``JIT_MIN_PAIRS`` pairs, within a run of at least ``MIN_RUN_PAIRS``
+(:func:`sized_run`); ``LEOLINK_JIT=0`` in the environment turns every kernel off (the
 numpy code then runs everywhere). Kernels compile once per machine (``cache=True``).
 
 The kernels (:mod:`leolink.engine.kernels`) repeat the numpy code's operations one for
@@ -14,18 +15,31 @@ an output, so it may (and does) round differently; both of its bounds are rigoro
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
+import sys
 
 import numpy as np
 
 from leolink.compiled import enabled, n_threads
 
-__all__ = ["JIT_MIN_PAIRS", "best_beam", "enabled", "links_arrays", "screen_kernel"]
-__all__ += ["n_threads", "run_rows", "serve_columns", "serve_pairs", "use"]
+__all__ = ["JIT_MIN_PAIRS", "MIN_RUN_PAIRS", "best_beam", "enabled", "links_arrays"]
+__all__ += ["n_threads", "run_rows", "screen_kernel", "serve_columns", "serve_pairs"]
+__all__ += ["sized_run", "use"]
 
 #: Smallest number of (UT, satellite) pairs per call worth a compiled kernel.
 JIT_MIN_PAIRS = 1_000
+
+#: Smallest run, in (UT, satellite) pairs over its epochs, whose kernels repay numba's
+#: start (its import and the kernels' cache load: 0.8-0.9 s on the 2-core machine of
+#: ``benchmarks/``). One satellite, numpy against the kernels, process wall time: 100 UTs x
+#: 600 epochs 1.22-1.37 against 1.89-2.15 s, 1,000 UTs x 600 epochs 3.71-3.75 against
+#: 4.08-4.15 s; ``bench_sim`` (1,000 UTs x 3,600 epochs) 8.7-8.8 against 7.9-8.6 s.
+MIN_RUN_PAIRS = 2_000_000
+
+#: Set by :func:`sized_run`: the current run is too small for the kernels.
+_small_run = False
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
@@ -70,7 +84,23 @@ def kernels():
 
 def use(n):
     """Whether a call over ``n`` pairs or rows runs a compiled kernel."""
-    return n >= JIT_MIN_PAIRS and enabled()
+    return n >= JIT_MIN_PAIRS and not _small_run and enabled()
+
+
+@contextlib.contextmanager
+def sized_run(n_pairs):
+    """Within: the calls of a run of at most ``n_pairs`` (UT, satellite) pairs over its
+    epochs take the numpy path if ``n_pairs < MIN_RUN_PAIRS`` and the kernels are not
+    loaded yet (once loaded, their start is paid). Only the time changes: the kernels give
+    the numpy path's numbers (module docstring). One flag for the process: runs in
+    concurrent threads may see each other's choice, which again changes only the time."""
+    global _small_run
+    before = _small_run
+    _small_run = n_pairs < MIN_RUN_PAIRS and "leolink.engine.kernels" not in sys.modules
+    try:
+        yield
+    finally:
+        _small_run = before
 
 
 def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
