@@ -15,6 +15,17 @@ import pytest
 _unexpected: list[str] = []
 
 
+@pytest.fixture
+def blocks_of_64(monkeypatch):
+    """Motion blocks of at most 64 epochs whatever the UT count, as every run had before
+    small runs got longer blocks (``leolink.sim.motion.BLOCK_UT_EPOCHS``): for the tests
+    whose short run must be cut into several blocks."""
+    from leolink.sim import motion
+
+    monkeypatch.setattr(motion, "MAX_BLOCK_EPOCHS", 64)
+    return 64
+
+
 def pytest_configure(config):
     config.addinivalue_line(
         "markers", "optional_extra(name): needs an opt-in extra; may skip when it is missing"

@@ -13,7 +13,8 @@ from leolink.background import BackgroundWorker
 from leolink.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
-# The paper's pass at 0.5 s for 70 s: 140 epochs, blocks of 64, 64 and 12 epochs.
+# The paper's pass at 0.5 s for 70 s: 140 epochs, blocks of 64, 64 and 12 epochs (with
+# conftest.blocks_of_64; 7 UTs alone would take one block).
 SETS = ["run.epoch_s=0.5", "run.duration_s=70.0"]
 
 
@@ -145,7 +146,7 @@ def _run(sinks, background=True, monkeypatch=None):
     return runner.run_simulation(build_scenario(cfg), sinks)
 
 
-def test_a_runs_sinks_take_its_blocks_on_one_other_thread_in_order(monkeypatch):
+def test_a_runs_sinks_take_its_blocks_on_one_other_thread_in_order(monkeypatch, blocks_of_64):
     log = _ThreadLog()
     _run([log])
     main = threading.current_thread().name
@@ -181,7 +182,7 @@ class _Aborts(BlockCapture):
         self.aborted = True
 
 
-def test_a_sinks_error_on_the_thread_fails_the_run_and_aborts_every_sink():
+def test_a_sinks_error_on_the_thread_fails_the_run_and_aborts_every_sink(blocks_of_64):
     other = _Aborts()
     with pytest.raises(RuntimeError, match="the second block is bad"):
         _run([_Fails(), other])

@@ -5,7 +5,8 @@ dwells censored, the sinks' block methods (progress, plots, link statistics) aga
 sums and positions recomputed from the captured rows one epoch at a time.
 
 The run: the paper's pass at 0.5 s after a 13.5 s warm-up (27 epochs, so recording starts
-inside the first motion block of 64 epochs), 51 s recorded: blocks of 37, 64 and 1 epochs
+inside the first motion block of 64 epochs, the tests' block length: a run of 7 UTs
+alone would take blocks of 1,024), 51 s recorded: blocks of 37, 64 and 1 epochs
 (a block of one epoch is a block too).
 """
 
@@ -32,11 +33,14 @@ SETS = [f"run.epoch_s={EPOCH_S}", f"run.warmup_s={WARMUP_S}", f"run.duration_s={
 @pytest.fixture(scope="module")
 def run():
     from leolink.app.scenario import build_scenario
+    from leolink.sim import motion
     from leolink.sim.runner import run_simulation
 
     cfg = load_config(ROOT / "configs/paper.toml", SETS)
     cap = BlockCapture()
-    run_simulation(build_scenario(cfg), [cap])
+    with pytest.MonkeyPatch.context() as mp:  # blocks of 64 epochs (conftest.blocks_of_64)
+        mp.setattr(motion, "MAX_BLOCK_EPOCHS", 64)
+        run_simulation(build_scenario(cfg), [cap])
     return cfg, cap
 
 

@@ -22,7 +22,7 @@ from leolink.app.run import run
 from leolink.config import load_config
 from leolink.io import sinks as io_sinks
 from leolink.io import summary as io_summary
-from leolink.sim import monitor, streams
+from leolink.sim import monitor, motion, streams
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ["run.duration_s=30.0", "run.start_s=45.0"]
@@ -51,6 +51,7 @@ def _run(name, out, epoch_by_epoch, monkeypatch):
     path, sets = RUNS[name]
     with monkeypatch.context() as m:
         m.setattr(io_summary, "_POOL_BUFFER", 50)  # the summary folds its rows many times
+        m.setattr(motion, "MAX_BLOCK_EPOCHS", 64)  # several blocks (conftest.blocks_of_64)
         if epoch_by_epoch:
             m.setattr(streams, "deliver", _split)
             m.setattr(monitor, "deliver", _split)
@@ -98,7 +99,9 @@ def captured():
 
     cfg = load_config(ROOT / "configs/paper.toml", ["run.epoch_s=0.5"])
     cap = BlockCapture()
-    run_simulation(build_scenario(cfg), [cap])
+    with pytest.MonkeyPatch.context() as mp:  # blocks of 64 epochs (conftest.blocks_of_64)
+        mp.setattr(motion, "MAX_BLOCK_EPOCHS", 64)
+        run_simulation(build_scenario(cfg), [cap])
     assert len(cap.blocks) > 2 and len(set(cap.info.population)) > 1
     return cap
 
@@ -189,7 +192,7 @@ def test_a_sink_without_block_gets_the_epoch_frames_in_order(captured):
     assert len(ev["ut_id"]) > 0
 
 
-def test_the_monitor_assembles_a_block_as_its_epochs_one_by_one(monkeypatch):
+def test_the_monitor_assembles_a_block_as_its_epochs_one_by_one(monkeypatch, blocks_of_64):
     """``Monitor._columns`` of a block's records equals the same function over each epoch's
     slice of the links (the monitor's code before blocks), joined: beam sharing, fading,
     a SINR service threshold and a handover time make every branch of it run."""

@@ -67,7 +67,9 @@ def test_codebook_footprint_of_central_beam_is_the_roi_centre(capsys):
     assert centre["lon_deg"] == pytest.approx(-8.72, abs=1e-9)
 
 
-def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch, capsys):
+def test_interrupted_run_leaves_no_complete_looking_file(
+    tmp_path, monkeypatch, capsys, blocks_of_64
+):
     import leolink.sim.decide
 
     calls = {"n": 0}

@@ -467,6 +467,32 @@ def test_motion_blocks_take_a_wrapped_models_own_states():
     assert not np.allclose(wgs84.state(10.0).pos_m, sphere.state(10.0).pos_m, atol=1e3)
 
 
+def test_motion_blocks_are_longer_for_fewer_uts_within_the_state_budget():
+    """A block aims at BLOCK_UT_EPOCHS = 64,000 UT-epochs (each block's vectorized calls
+    cost the same few microseconds whatever their size): 64 epochs of 1,000 UTs, 640 of
+    100, never fewer than 64 epochs nor more than 1,024, and never more than 4 Mi float
+    states (9 a satellite, 12 a UT per epoch): 105 epochs of 4,399 satellites and 10 UTs,
+    3 of 100,000 UTs."""
+    from leolink.sim import motion
+
+    def n_block(n_sat, n_ut, n_epoch=5000):
+        return motion.MotionBlocks(None, [], np.arange(n_epoch) * 1.0, n_sat, n_ut).n_block
+
+    assert motion.BLOCK_UT_EPOCHS == 64_000 and motion.MAX_BLOCK_EPOCHS == 1024
+    assert [n_block(1, n) for n in (1, 10, 62, 100, 999, 1000, 5000)] == [
+        1024, 1024, 1024, 640, 64, 64, 64]  # fmt: skip
+    assert n_block(4399, 10) == (1 << 22) // (9 * 4399 + 12 * 10) == 105
+    assert n_block(4399, 1000) == 64 and n_block(1, 100_000) == 3
+
+    def no_satellites(t_s):
+        return (np.zeros((len(t_s), 0, 3)),) * 3
+
+    ut = _block_models()["great circle"]  # 257 UTs: blocks of 64,000 // 257 = 249 epochs
+    blocks = motion.MotionBlocks(no_satellites, [("ut", ut)], np.arange(600.0), 0, ut.n_ut)
+    spans = {(b.k0, b.k1) for b in map(blocks.block_of, range(600))}
+    assert spans == {(0, 249), (249, 498), (498, 600)}
+
+
 def test_motion_blocks_are_c_contiguous_whatever_the_models_layout():
     """A static population's states are broadcast views; the block's arrays must still be
     C-contiguous, the layout of stacked per-epoch states: with other strides the engine's

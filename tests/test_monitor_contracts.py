@@ -528,7 +528,9 @@ y_m = [5000.0, 0.0, 20000.0, -30000.0, 30000.0]
 
 
 @pytest.mark.parametrize("start_s", [292.0, 229.0], ids=["one_block", "two_blocks"])
-def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(tmp_path, start_s):
+def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(
+    tmp_path, start_s, blocks_of_64
+):
     """A Walker constellation of 2 satellites (2 planes at 53 deg, phasing 1: they cross
     at the nodes), every satellite interfering, 292 s after they met at the ascending
     node: 25 deg of arc apart, both 34 deg above the UTs near the equator between them
@@ -623,7 +625,7 @@ def test_one_beam_two_satellites_interfering_and_a_ut_without_any(tmp_path):
         np.testing.assert_array_equal(near[col].to_numpy(), alone[col].to_numpy())
 
 
-def test_serving_pairs_the_pruned_search_left_out_get_their_own_links(monkeypatch):
+def test_serving_pairs_the_pruned_search_left_out_get_their_own_links(monkeypatch, blocks_of_64):
     """Hysteresis (window 0 dB: the pruned search keeps only the pairs that can hold a
     UT's best cell) on a rotating Walker with moving UTs: the controller keeps serving
     satellites whose pairs the search left out, 3 rows of one block and 2 of another,
@@ -693,7 +695,7 @@ def test_with_rlf_each_epoch_frame_is_numbered_from_the_recording_at_its_time():
     assert all(r.tolist() == [t] for r, t in zip(rows_t, want, strict=True))
 
 
-def test_fading_in_a_block_whose_only_link_is_its_first_pair():
+def test_fading_in_a_block_whose_only_link_is_its_first_pair(blocks_of_64):
     """One UT, 65 epochs: the second motion block holds the last epoch alone, whose only
     link is the block's pair 0. Its row too gets its Rician draw, as every other row: SNR
     with fading minus without is ``10 log10(|sqrt(N) + g / sqrt(K)|^2 / (N + 1/K))`` with

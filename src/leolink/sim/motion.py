@@ -5,7 +5,9 @@ time (:class:`~leolink.sim.populations.MotionModel`), so the states of a whole b
 epochs are known before the block starts: the SimPy processes move the shared state one
 epoch at a time from the block, and the controller and the monitor evaluate the engine
 over the whole block in one vectorized call (:mod:`leolink.sim.search`,
-:mod:`leolink.sim.monitor`). The block length keeps the arrays to a few tens of MiB.
+:mod:`leolink.sim.monitor`). A block aims at :data:`BLOCK_UT_EPOCHS` UT-epochs (64 epochs
+of 1,000 UTs, up to 1,024 epochs of a few UTs: a call's fixed cost is paid once a block),
+and its states stay within a few tens of MiB.
 """
 
 from __future__ import annotations
@@ -16,10 +18,13 @@ import numpy as np
 
 from leolink.sim.mobility import UTState
 
-__all__ = ["MAX_BLOCK_EPOCHS", "MotionBlock", "MotionBlocks"]
+__all__ = ["BLOCK_UT_EPOCHS", "MAX_BLOCK_EPOCHS", "MotionBlock", "MotionBlocks"]
 
 #: Longest block [epochs].
-MAX_BLOCK_EPOCHS = 64
+MAX_BLOCK_EPOCHS = 1024
+#: UT-epochs a block aims at: 64 epochs of 1,000 UTs, longer blocks for fewer UTs, since
+#: each block's vectorized calls cost the same few microseconds whatever their size.
+BLOCK_UT_EPOCHS = 64_000
 #: Float values of one block's states (32 MiB): the block is shorter for many UTs.
 _BLOCK_VALUES = 1 << 22
 
@@ -70,7 +75,8 @@ class MotionBlocks:
         self.ephemeris, self.populations = ephemeris, populations
         self.times_s = np.asarray(times_s, float)
         per_epoch = 9 * n_sat + 12 * n_ut
-        self.n_block = int(np.clip(_BLOCK_VALUES // max(per_epoch, 1), 1, MAX_BLOCK_EPOCHS))
+        most = min(_BLOCK_VALUES // max(per_epoch, 1), max(64, BLOCK_UT_EPOCHS // max(n_ut, 1)))
+        self.n_block = int(np.clip(most, 1, MAX_BLOCK_EPOCHS))
         self._block = None
 
     def block_of(self, k):
