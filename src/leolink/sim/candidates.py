@@ -52,12 +52,14 @@ class Candidates:
         """Table of the entries ``(ut[k], cell[k], snr_db[k])`` (at most one per UT and cell)."""
         counts = np.bincount(ut, minlength=n_ut)
         n_slot = int(counts.max(initial=0))
-        order = np.argsort(ut, kind="stable")
+        if ut.size > 1 and (ut[1:] < ut[:-1]).any():  # (the search's entries are sorted)
+            order = np.argsort(ut, kind="stable")
+            ut, cell, snr_db = ut[order], cell[order], snr_db[order]
         start = np.cumsum(counts) - counts
-        slot = np.arange(ut.size) - start[ut[order]]
+        slot = np.arange(ut.size) - start[ut]
         table = cls(np.full((n_ut, n_slot), -1, np.int64), np.full((n_ut, n_slot), np.nan))
-        table.cell[ut[order], slot] = cell[order]
-        table.snr_db[ut[order], slot] = snr_db[order]
+        table.cell[ut, slot] = cell
+        table.snr_db[ut, slot] = snr_db
         return table
 
     @property

@@ -256,9 +256,10 @@ class CandidateSearch:
         n_visible = sure + np.bincount(rows_vis, minlength=n_rows)
         best_db = np.full(n_rows, np.nan)
         best_cell = np.full(n_rows, -1, np.int64)
+        every = vis.size == links.n_pair  # every pair visible: slices, not gathers
         entries = []
         for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
-            pairs = vis[lo:hi]
+            pairs = slice(lo, hi) if every else vis[lo:hi]
             rows, sat = rows_vis[lo:hi], links.sat[pairs]
             snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs).T  # (m, nb)
             if rows.size:
@@ -266,15 +267,16 @@ class CandidateSearch:
                 with np.errstate(invalid="ignore"):
                     pair_best = np.fmax.reduce(snr, axis=1)
                     best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
-            cell = sat[:, None] * nb + np.arange(nb)[None, :]
             with np.errstate(invalid="ignore"):
                 keep = snr >= (best_db[rows] - self.window_db)[:, None]
             if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
-                _best_cells(rows, cell, snr, best_db, best_cell)
+                cells = sat[:, None] * nb + np.arange(nb)[None, :]
+                _best_cells(rows, cells, snr, best_db, best_cell)
                 with np.errstate(invalid="ignore"):
                     keep &= snr >= self.floor_db
-            r = np.broadcast_to(rows[:, None], cell.shape)
-            entries.append((r[keep], cell[keep], snr[keep]))
+            # the kept entries in (pair, beam) order, as boolean indexing gives them
+            pair, beam = np.divmod(np.flatnonzero(keep), nb)
+            entries.append((rows[pair], sat[pair] * nb + beam, snr[pair, beam]))
         ut, cell, snr = (np.concatenate(e) for e in zip(*entries, strict=True))
         table = Candidates.from_entries(n_rows, ut, cell, snr)
         if self.floor_db == -np.inf:
