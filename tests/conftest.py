@@ -19,11 +19,19 @@ _unexpected: list[str] = []
 def blocks_of_64(monkeypatch):
     """Motion blocks of at most 64 epochs whatever the UT count, as every run had before
     small runs got longer blocks (``leolink.sim.motion.BLOCK_UT_EPOCHS``): for the tests
-    whose short run must be cut into several blocks."""
+    whose short run must be cut into several blocks. Returns the ``(k0, k1)`` epoch spans
+    of the blocks computed, in order (the tests assert the cuts they rely on)."""
     from leolink.sim import motion
 
+    spans, compute = [], motion.MotionBlocks._compute
+
+    def recorded(self, k0, k1):
+        spans.append((k0, k1))
+        return compute(self, k0, k1)
+
     monkeypatch.setattr(motion, "MAX_BLOCK_EPOCHS", 64)
-    return 64
+    monkeypatch.setattr(motion.MotionBlocks, "_compute", recorded)
+    return spans
 
 
 def pytest_configure(config):

@@ -549,6 +549,7 @@ def test_other_satellites_with_exactly_two_in_view_are_the_explicit_sum(
             "roi.center_lat_deg=0.0", "roi.center_lon_deg=9.615"]  # fmt: skip
     cfg = load_config(path, over)
     scen, tr = _run_in_memory(cfg)
+    assert blocks_of_64 == ([(0, 64), (64, 66)] if start_s == 229.0 else [(0, 3)])
     tr = tr[tr.time_s >= 292.0]
     assert tr.time_s.nunique() == 3
     eng, eph = scen.engine, ephemeris_from_config(cfg)
@@ -657,6 +658,7 @@ def test_serving_pairs_the_pruned_search_left_out_get_their_own_links(monkeypatc
         traces.append(sink.trace())
         if prune:
             assert max(left_out) >= 2  # several left-out rows in one block
+            assert len(left_out) == 2 and blocks_of_64 == [(0, 64), (64, 120)]
             left_out.clear()
     assert sum(left_out) == 0
     assert (traces[0].sat_id >= 0).sum() > 500
@@ -709,6 +711,7 @@ def test_fading_in_a_block_whose_only_link_is_its_first_pair(blocks_of_64):
     cfg_f = load_config(PAPER, [*over, 'link.fading="rician"'])
     fading = run(cfg_f.model_copy(update={"population": cfg_f.population[:1]})).trace
     assert len(mean) == 65 and mean.snr_db.notna().all() and fading.snr_db.notna().all()
+    assert blocks_of_64 == [(0, 64), (64, 65)] * 2
     keys = ut_keys(cfg.run.seed, 1)
     g = np.array([complex_normal(keys, k)[0] for k in range(65)])
     n, k = 10 ** (mean.gain_rx_db.to_numpy() / 10), cfg.link.rician_k

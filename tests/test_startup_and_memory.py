@@ -32,8 +32,10 @@ def test_a_run_too_small_to_repay_numbas_start_never_imports_numba():
     """20 UTs x 120 epochs, one satellite: each block's engine calls cover more than
     JIT_MIN_PAIRS pairs, the run far fewer than MIN_RUN_PAIRS, so numba's start (0.8-0.9
     s, more than the whole run) is not paid (a fresh process, as the leolink command)."""
+    import numpy as np
+
     from leolink.engine import jit
-    from leolink.sim.motion import MAX_BLOCK_EPOCHS
+    from leolink.sim.motion import MotionBlocks
 
     sets = ["run.duration_s=120", "run.epoch_s=1.0", "population.1.count=17",
             'population.1.placement="random"', "population.1.x_m=[]", "population.1.y_m=[]",
@@ -49,7 +51,8 @@ def test_a_run_too_small_to_repay_numbas_start_never_imports_numba():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True, env=env)  # fmt: skip
     assert json.loads(done.stdout) == [20 * 120, False]
-    assert 20 * MAX_BLOCK_EPOCHS >= jit.JIT_MIN_PAIRS > 0  # (the premise: large calls)
+    n_block = MotionBlocks(None, [], np.arange(120.0), 1, 20).n_block
+    assert 20 * min(n_block, 120) >= jit.JIT_MIN_PAIRS > 0  # (the premise: large calls)
     assert 20 * 120 < jit.MIN_RUN_PAIRS
 
 
