@@ -1,9 +1,10 @@
 """Compiled kernels (numba), optional: the same numbers as the numpy code they replace.
 
 numba is imported on first use only, and only for work large enough to repay its start-up:
-a call over at least ``JIT_MIN_PAIRS`` pairs, within a run of at least ``MIN_RUN_PAIRS``
-(:func:`sized_run`); ``LEOLINK_JIT=0`` in the environment turns every kernel off (the
-numpy code then runs everywhere). Kernels compile once per machine (``cache=True``).
+a run of at least ``MIN_RUN_PAIRS`` (:func:`sized_run`), where every call of at least
+``JIT_MIN_PAIRS`` pairs (any non-empty one) takes the kernels; ``LEOLINK_JIT=0`` in the
+environment turns every kernel off (the numpy code then runs everywhere). Kernels compile
+once per machine (``cache=True``).
 
 The kernels (:mod:`leolink.engine.kernels`) repeat the numpy code's operations one for
 one: a pair gets the same bits from either where numpy's transcendental loops are the C
@@ -28,8 +29,15 @@ __all__ = ["JIT_MIN_PAIRS", "MIN_RUN_PAIRS", "best_beam", "enabled", "links_arra
 __all__ += ["n_threads", "run_rows", "screen_kernel", "serve_columns", "serve_pairs"]
 __all__ += ["sized_run", "use"]
 
-#: Smallest number of (UT, satellite) pairs per call worth a compiled kernel.
-JIT_MIN_PAIRS = 1_000
+#: Smallest call [(UT, satellite) pairs] that takes a compiled kernel: any non-empty one,
+#: so that a run's bits do not depend on how its work is cut into calls (its motion blocks,
+#: chunks, left-out pairs): where the two paths are a few ulp apart (numpy's SVML functions
+#: on AVX-512), a threshold of 1,000 changed the last bits of 14 trace columns (<= 1.4e-14
+#: dB) of a 10-UT constellation run between blocks of 64 and 105 epochs; none with 1. Small
+#: calls cost the same either way: bench_sim 714/737/710 against 722/714/712 k UT-epochs/s,
+#: the constellation 8.34/8.27 against 9.42/8.42 s (7.60/7.67 against 7.44/7.59 s, plots
+#: off), threshold 1,000 against 1, alternating.
+JIT_MIN_PAIRS = 1
 
 #: Smallest run, in (UT, satellite) pairs over its epochs, whose kernels repay numba's
 #: start (its import and the kernels' cache load: 0.8-0.9 s on the 2-core machine of
