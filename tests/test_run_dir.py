@@ -221,3 +221,19 @@ def test_a_relative_output_folder_works_as_the_readme_writes_it(command, tmp_pat
     assert written and written <= listed  # every file of the folder (sweeps: and each run's)
     if command[0] == "run":
         assert _leolink("report", "out/x", "--no-animation", "--quiet") == 0
+
+
+def test_the_manifest_takes_a_known_digest_only_for_a_file_of_that_size(tmp_path):
+    """``write_manifest(digests=...)``: a writer's digest stands for a file that still has
+    its size; a file that changed size since is hashed again."""
+    from leolink.io.run_dir import write_manifest
+
+    kept, grown = tmp_path / "kept.csv", tmp_path / "grown.csv"
+    kept.write_bytes(b"a,b\n1,2\n")
+    grown.write_bytes(b"a,b\n1,2\n3,4\n")
+    told = {kept: (kept.stat().st_size, "k" * 64), grown: (9, "g" * 64)}
+    path = write_manifest(tmp_path, [kept, grown], "run", "x = 1", version="0", digests=told)
+    files = {f["path"]: f for f in json.loads(path.read_text())["files"]}
+    assert files["kept.csv"]["sha256"] == "k" * 64  # taken as told (the size matches)
+    assert files["grown.csv"]["sha256"] == hashlib.sha256(grown.read_bytes()).hexdigest()
+    assert files["grown.csv"]["bytes"] == 12

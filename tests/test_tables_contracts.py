@@ -6,6 +6,7 @@ the string columns to Arrow's take.
 """
 
 import csv
+import hashlib
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -101,3 +102,29 @@ def test_a_writer_switching_to_take_writes_the_same_strings(tmp_path, monkeypatc
     starts = np.repeat(np.arange(7) * 3, per_chunk)
     assert len(flags) == 7 * per_chunk and per_chunk > 0
     np.testing.assert_array_equal(flags, starts >= after)
+
+
+@pytest.mark.parametrize("background", [False, True], ids=["inline", "thread"])
+@pytest.mark.parametrize("n_rows", [0, 5, 2000])
+def test_the_digests_of_a_closed_writer_are_its_files_sha256(tmp_path, n_rows, background):
+    """A writer hashes its files as they grow (``GrowingDigest``, read back after each
+    chunk): once closed, each file's size and the SHA-256 of its bytes read anew."""
+    w = TableWriter(tmp_path, "t", TRACE_SCHEMA, formats=("csv", "parquet"), chunk_rows=64,
+                    background=background)  # fmt: skip
+    for start in range(0, n_rows, 37):  # chunks cut across appends
+        w.append(_rows(min(37, n_rows - start), start=start))
+    paths = w.close()
+    assert sorted(w.digests) == sorted(paths.values()) and len(paths) == 2
+    for path in paths.values():
+        data = path.read_bytes()
+        assert w.digests[path] == (len(data), hashlib.sha256(data).hexdigest())
+    if n_rows:
+        assert pq.ParquetFile(paths["parquet"]).metadata.num_row_groups == -(-n_rows // 64)
+
+
+def test_a_stopped_writer_leaves_no_file_and_no_digest(tmp_path):
+    w = TableWriter(tmp_path, "t", TRACE_SCHEMA, formats=("csv", "parquet"), chunk_rows=8)
+    w.append(_rows(20))
+    w.abort()
+    assert list(tmp_path.iterdir()) == [] and w.digests == {}
+    assert all(g._file.closed for g in w._growing.values())

@@ -255,5 +255,7 @@ def _write(cfg, scen, out_dir, summary, sinks, stats):
         if hasattr(sink, "after_run"):
             sink.after_run(result_summary, config_text)
     files += [p for s in sinks for p in getattr(s, "files", [])]
-    files.append(write_manifest(out_dir, files, "run", config_text, version=leolink.__version__))
+    digests = {p: d for s in sinks for p, d in getattr(s, "digests", {}).items()}
+    files.append(write_manifest(out_dir, files, "run", config_text, version=leolink.__version__,
+                                digests=digests))  # fmt: skip
     return Result(result_summary, out_dir, files, None, report, per_ut)

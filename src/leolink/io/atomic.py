@@ -90,6 +90,10 @@ class PendingFiles:
             return handle
         return native
 
+    def partial_path(self, path) -> Path:
+        """The temporary file that becomes ``path`` on commit."""
+        return next(tmp for tmp, final, *_ in self._items if final == Path(path))
+
     @property
     def targets(self) -> list[Path]:
         """Final paths, in the order opened."""

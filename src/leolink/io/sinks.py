@@ -65,7 +65,7 @@ class TraceSink:
 
     def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
         self.out_dir, self.formats, self.chunk_rows = Path(out_dir), tuple(formats), chunk_rows
-        self.writer, self.files = None, []
+        self.writer, self.files, self.digests = None, [], {}
 
     def start(self, info):
         self.schema = trace_schema(info)
@@ -79,6 +79,7 @@ class TraceSink:
 
     def finish(self, final):
         self.files = list(self.writer.close().values())
+        self.digests = self.writer.digests
 
     def abort(self):
         if self.writer is not None:
@@ -91,7 +92,7 @@ class EventSink:
 
     def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
         self.out_dir, self.formats, self.chunk_rows = Path(out_dir), tuple(formats), chunk_rows
-        self.writer, self.files = None, []
+        self.writer, self.files, self.digests = None, [], {}
 
     def start(self, info):
         self.writer = EventLog(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows)
@@ -104,6 +105,7 @@ class EventSink:
 
     def finish(self, final):
         self.files = list(self.writer.close().values())
+        self.digests = self.writer.digests
 
     def abort(self):
         if self.writer is not None:

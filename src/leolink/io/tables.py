@@ -37,6 +37,7 @@ from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.errors import ConfigError, require_at_least
 from leolink.io.arrow import Vocabulary, decoded_array, numeric_array
 from leolink.io.atomic import PendingFiles, atomic_file
+from leolink.io.run_dir import GrowingDigest
 from leolink.link.acm import FIGURE_COLUMNS
 from leolink.link.modcod import modcod_table
 from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES
@@ -191,6 +192,9 @@ class TableWriter:
     parquet_schema : pyarrow.Schema, optional: the Parquet file's types (default
         ``schema``), e.g. :func:`float32_schema`.
     background : bool, write on a background thread.
+
+    Once closed, ``digests`` holds ``{path: (size [bytes], SHA-256 hex)}`` of the files,
+    hashed as they grew (the manifest's, :func:`~leolink.io.run_dir.write_manifest`).
     """
 
     def __init__(
@@ -213,6 +217,7 @@ class TableWriter:
             n: Vocabulary(_CODED_COLUMNS.get(n, ())) for n in schema.names if n in _STRING_COLUMNS
         }
         self._csv = self._parquet = self._thread = None
+        self._growing, self.digests = {}, {}
         try:
             self._open()
             self._thread = BackgroundWorker(self._write, "leolink-writer") if background else None
@@ -228,6 +233,7 @@ class TableWriter:
             csv_file.write((",".join(self.schema.names) + "\n").encode())
             options = pacsv.WriteOptions(include_header=False, quoting_style="none")
             self._csv = pacsv.CSVWriter(csv_file, self.schema, write_options=options)
+            self._growing["csv"] = GrowingDigest(self._pending.partial_path(self.paths["csv"]))
         if "parquet" in self.paths:
             import pyarrow.parquet as pq
 
@@ -239,6 +245,8 @@ class TableWriter:
                 self.parquet_schema,
                 use_dictionary=strings,
             )
+            parquet_tmp = self._pending.partial_path(self.paths["parquet"])
+            self._growing["parquet"] = GrowingDigest(parquet_tmp)
 
     def append(self, columns):
         """Buffer a dict of equal-length 1-D arrays; writes every full chunk.
@@ -302,6 +310,8 @@ class TableWriter:
             self._csv.write_table(csv)
         if parquet is not None:
             self._parquet.write_table(parquet, row_group_size=self.chunk_rows)
+        for growing in self._growing.values():  # (on the writer's thread when it has one)
+            growing.update()
 
     def close(self):
         """Write what is buffered and rename the partial files to their final names."""
@@ -313,11 +323,12 @@ class TableWriter:
             if self._thread is not None:
                 self._thread.close()
             self._close_writers()
+            digests = {self.paths[f]: g.finish() for f, g in self._growing.items()}
             self._pending.commit()
         except BaseException:
             self.abort()
             raise
-        self._done = True
+        self._done, self.digests = True, digests
         return self.paths
 
     def _close_writers(self):
@@ -334,6 +345,8 @@ class TableWriter:
                 self._thread.cancel()  # the chunks still waiting are not written
         with contextlib.suppress(Exception):
             self._close_writers()
+        for growing in self._growing.values():
+            growing.close()
         self._pending.abort()
 
     def __enter__(self):
