@@ -18,10 +18,13 @@ import numpy as np
 
 from leolink.sim.mobility import UTState
 
-__all__ = ["BLOCK_UT_EPOCHS", "MAX_BLOCK_EPOCHS", "MotionBlock", "MotionBlocks"]
+__all__ = ["BLOCK_UT_EPOCHS", "MAX_BLOCK_EPOCHS", "MIN_BLOCK_EPOCHS", "MotionBlock"]
+__all__ += ["MotionBlocks"]
 
 #: Longest block [epochs].
 MAX_BLOCK_EPOCHS = 1024
+#: Shortest block [epochs] but where the states' budget needs fewer (many UTs).
+MIN_BLOCK_EPOCHS = 64
 #: UT-epochs a block aims at: 64 epochs of 1,000 UTs, longer blocks for fewer UTs, since
 #: each block's vectorized calls cost the same few microseconds whatever their size.
 BLOCK_UT_EPOCHS = 64_000
@@ -75,7 +78,8 @@ class MotionBlocks:
         self.ephemeris, self.populations = ephemeris, populations
         self.times_s = np.asarray(times_s, float)
         per_epoch = 9 * n_sat + 12 * n_ut
-        most = min(_BLOCK_VALUES // max(per_epoch, 1), max(64, BLOCK_UT_EPOCHS // max(n_ut, 1)))
+        aim = max(MIN_BLOCK_EPOCHS, BLOCK_UT_EPOCHS // max(n_ut, 1))
+        most = min(_BLOCK_VALUES // max(per_epoch, 1), aim)
         self.n_block = int(np.clip(most, 1, MAX_BLOCK_EPOCHS))
         self._block = None
 
