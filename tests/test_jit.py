@@ -259,6 +259,16 @@ def test_a_run_too_small_to_repay_numbas_start_takes_the_numpy_path(monkeypatch)
         assert jit.use(big)
 
 
+def test_in_a_large_run_every_call_takes_the_kernels_outside_only_large_ones():
+    """A one-pair call outside a run (a link budget) takes numpy: it would load numba for
+    nothing; within a large run every non-empty call takes the kernels (one path: the
+    run's bits do not depend on how its work is cut into calls)."""
+    assert not jit.use(1) and not jit.use(jit.JIT_MIN_PAIRS - 1) and jit.use(jit.JIT_MIN_PAIRS)
+    with jit.sized_run(jit.MIN_RUN_PAIRS):
+        assert jit.use(1) and not jit.use(0)
+    assert not jit.use(1)
+
+
 def test_tilted_panel_gains_are_the_numpy_bits(epoch, monkeypatch):
     """A scan-loss terminal on tilted panels takes the angle above the panel plane: the
     compiled geometry gives the numpy bits of it (and the tilt changes the gains)."""
@@ -319,7 +329,7 @@ def test_thread_count_from_the_environment(monkeypatch):
 
 def test_a_large_runs_bits_do_not_depend_on_its_motion_blocks(monkeypatch):
     """Every non-empty call of a run large enough for the kernels takes them
-    (``JIT_MIN_PAIRS`` = 1): 10 UTs of the paper's constellation for 200 s (8.8 M pairs)
+    (``engine.jit.use``): 10 UTs of the paper's constellation for 200 s (8.8 M pairs)
     in blocks of 105 epochs (its own) or of 64 give the same trace, bit for bit. With a
     threshold of 1,000 pairs the monitor's calls of 640 rows took numpy and those of
     1,050 the kernels: on an AVX-512 CPU 14 columns differed, by up to 1.4e-14 dB."""

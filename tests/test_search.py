@@ -325,14 +325,17 @@ def test_pruned_tables_of_tilted_panels_are_the_exhaustive_tables(block, tilted)
 def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_db):
     """The tables are built in chunks of whole rows (bounded memory): chunks of one pair
     (every row longer than a chunk), of 37 pairs (cuts inside rows moved to the next row)
-    and of 1024 give the tables of one chunk, bit for bit (every chunk takes the same
-    path, compiled or numpy, whatever its size: jit.JIT_MIN_PAIRS = 1)."""
+    and of 1024 give the tables of one chunk, bit for bit (in a run every chunk takes the
+    same path, compiled or numpy, whatever its size: engine.jit.use)."""
+    from leolink.engine import jit
+
     eng, n_ut, mb, cones = block
     window_db = np.inf if floor_db > -np.inf else 3.0
-    cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
-    assert ref.links.visible.sum() > 4 * 1024  # several chunks of every size
-    monkeypatch.setattr(search, "TABLE_PAIRS", pairs)
-    cells, snr, blk = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
+    with jit.sized_run(jit.MIN_RUN_PAIRS):  # as in a large run: every call one path
+        cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
+        assert ref.links.visible.sum() > 4 * 1024  # several chunks of every size
+        monkeypatch.setattr(search, "TABLE_PAIRS", pairs)
+        cells, snr, blk = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
     assert np.array_equal(cells, cells_ref) and np.array_equal(snr, snr_ref, equal_nan=True)
     assert np.array_equal(blk.best_cell, ref.best_cell)
     assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)

@@ -104,11 +104,19 @@ def test_a_writer_switching_to_take_writes_the_same_strings(tmp_path, monkeypatc
     np.testing.assert_array_equal(flags, starts >= after)
 
 
+@pytest.mark.parametrize("python_file", [False, True], ids=["pyarrow_file", "python_file"])
 @pytest.mark.parametrize("background", [False, True], ids=["inline", "thread"])
 @pytest.mark.parametrize("n_rows", [0, 5, 2000])
-def test_the_digests_of_a_closed_writer_are_its_files_sha256(tmp_path, n_rows, background):
+def test_the_digests_of_a_closed_writer_are_its_files_sha256(
+    tmp_path, monkeypatch, n_rows, background, python_file
+):
     """A writer hashes its files as they grow (``GrowingDigest``, read back after each
-    chunk): once closed, each file's size and the SHA-256 of its bytes read anew."""
+    chunk): once closed, each file's size and the SHA-256 of its bytes read anew, also
+    through the buffered Python file of a system without ``/proc/self/fd``."""
+    if python_file:
+        from leolink.io import atomic
+
+        monkeypatch.setattr(atomic, "_reopen_path", lambda handle: None)
     w = TableWriter(tmp_path, "t", TRACE_SCHEMA, formats=("csv", "parquet"), chunk_rows=64,
                     background=background)  # fmt: skip
     for start in range(0, n_rows, 37):  # chunks cut across appends

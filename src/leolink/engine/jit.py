@@ -1,8 +1,9 @@
 """Compiled kernels (numba), optional: the same numbers as the numpy code they replace.
 
 numba is imported on first use only, and only for work large enough to repay its start-up:
-a run of at least ``MIN_RUN_PAIRS`` (:func:`sized_run`), where every call of at least
-``JIT_MIN_PAIRS`` pairs (any non-empty one) takes the kernels; ``LEOLINK_JIT=0`` in the
+within a run (:func:`sized_run`), every non-empty call of a run of at least
+``MIN_RUN_PAIRS``, so that the run's bits do not depend on how its work is cut into calls;
+outside a run, calls of at least ``JIT_MIN_PAIRS`` pairs. ``LEOLINK_JIT=0`` in the
 environment turns every kernel off (the numpy code then runs everywhere). Kernels compile
 once per machine (``cache=True``).
 
@@ -29,15 +30,15 @@ __all__ = ["JIT_MIN_PAIRS", "MIN_RUN_PAIRS", "best_beam", "enabled", "links_arra
 __all__ += ["n_threads", "run_rows", "screen_kernel", "serve_columns", "serve_pairs"]
 __all__ += ["sized_run", "use"]
 
-#: Smallest call [(UT, satellite) pairs] that takes a compiled kernel: any non-empty one,
-#: so that a run's bits do not depend on how its work is cut into calls (its motion blocks,
-#: chunks, left-out pairs): where the two paths are a few ulp apart (numpy's SVML functions
-#: on AVX-512), a threshold of 1,000 changed the last bits of 14 trace columns (<= 1.4e-14
-#: dB) of a 10-UT constellation run between blocks of 64 and 105 epochs; none with 1. Small
-#: calls cost the same either way: bench_sim 714/737/710 against 722/714/712 k UT-epochs/s,
-#: the constellation 8.34/8.27 against 9.42/8.42 s (7.60/7.67 against 7.44/7.59 s, plots
-#: off), threshold 1,000 against 1, alternating.
-JIT_MIN_PAIRS = 1
+#: Outside a run, the smallest call [(UT, satellite) pairs] that takes (and may load) the
+#: kernels: a one-pair link budget would load numba (0.4 s) for nothing. Within a large run
+#: every non-empty call takes them: where the two paths are a few ulp apart (numpy's SVML
+#: functions on AVX-512), this threshold inside runs changed the last bits of 14 trace
+#: columns (<= 1.4e-14 dB) of a 10-UT constellation run between blocks of 64 and 105
+#: epochs; none without it. Small calls cost the same either way: bench_sim 714/737/710
+#: with the threshold against 722/714/712 k UT-epochs/s without, the constellation
+#: 8.34/8.27 against 9.42/8.42 s (7.60/7.67 against 7.44/7.59 s, plots off), alternating.
+JIT_MIN_PAIRS = 1_000
 
 #: Smallest run, in (UT, satellite) pairs over its epochs, whose kernels repay numba's
 #: start (its import and the kernels' cache load: 0.8-0.9 s on the 2-core machine of
@@ -46,8 +47,8 @@ JIT_MIN_PAIRS = 1
 #: 4.08-4.15 s; ``bench_sim`` (1,000 UTs x 3,600 epochs) 8.7-8.8 against 7.9-8.6 s.
 MIN_RUN_PAIRS = 2_000_000
 
-#: Set by :func:`sized_run`: the current run is too small for the kernels.
-_small_run = False
+#: Set by :func:`sized_run`: whether the current run takes the kernels (None: no run).
+_run_kernels: bool | None = None
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
@@ -91,24 +92,27 @@ def kernels():
 
 
 def use(n):
-    """Whether a call over ``n`` pairs or rows runs a compiled kernel."""
-    return n >= JIT_MIN_PAIRS and not _small_run and enabled()
+    """Whether a call over ``n`` pairs or rows runs a compiled kernel (module docstring)."""
+    wanted = _run_kernels if _run_kernels is not None else n >= JIT_MIN_PAIRS
+    return n >= 1 and wanted and enabled()  # (enabled() imports numba: last)
 
 
 @contextlib.contextmanager
 def sized_run(n_pairs):
     """Within: the calls of a run of at most ``n_pairs`` (UT, satellite) pairs over its
     epochs take the numpy path if ``n_pairs < MIN_RUN_PAIRS`` and the kernels are not
-    loaded yet (once loaded, their start is paid). Only the time changes: the kernels give
-    the numpy path's numbers (module docstring). One flag for the process: runs in
-    concurrent threads may see each other's choice, which again changes only the time."""
-    global _small_run
-    before = _small_run
-    _small_run = n_pairs < MIN_RUN_PAIRS and "leolink.engine.kernels" not in sys.modules
+    loaded yet (once loaded, their start is paid), else the kernels, every non-empty one.
+    Only the time changes: the kernels give the numpy path's numbers (module docstring).
+    One flag for the process: runs in concurrent threads may see each other's choice,
+    which again changes only the time."""
+    global _run_kernels
+    before = _run_kernels
+    small = n_pairs < MIN_RUN_PAIRS and "leolink.engine.kernels" not in sys.modules
+    _run_kernels = not small
     try:
         yield
     finally:
-        _small_run = before
+        _run_kernels = before
 
 
 def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):

@@ -90,6 +90,12 @@ class PendingFiles:
             return handle
         return native
 
+    def flush(self) -> None:
+        """Write out what the Python files hold in their buffers (a pyarrow file has none)."""
+        for _, _, handle, native in self._items:
+            if native is None and handle is not None:
+                handle.flush()
+
     def partial_path(self, path) -> Path:
         """The temporary file that becomes ``path`` on commit."""
         return next(tmp for tmp, final, *_ in self._items if final == Path(path))

@@ -323,6 +323,7 @@ class TableWriter:
             if self._thread is not None:
                 self._thread.close()
             self._close_writers()
+            self._pending.flush()  # (the Python file of a system without /proc/self/fd)
             digests = {self.paths[f]: g.finish() for f, g in self._growing.items()}
             self._pending.commit()
         except BaseException:
