@@ -87,11 +87,7 @@ class OutputFolderError(LeolinkError):
 
 def file_sha256(path):
     """SHA-256 (hex) of a file, read in 1 MiB blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        while block := f.read(_CHUNK):
-            digest.update(block)
-    return digest.hexdigest()
+    return GrowingDigest(path).finish()[1]
 
 
 class GrowingDigest:
@@ -114,8 +110,10 @@ class GrowingDigest:
 
     def finish(self):
         """``(size [bytes], SHA-256 hex)`` of the whole (closed) file."""
-        self.update()
-        self.close()
+        try:
+            self.update()
+        finally:
+            self.close()
         return self.n_bytes, self._sha.hexdigest()
 
     def close(self):
