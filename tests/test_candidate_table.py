@@ -1,10 +1,30 @@
-"""leolink.sim.candidates.Candidates: slot lookups against a loop over each row."""
+"""leolink.sim.candidates.Candidates: slot lookups against a loop over each row, on the
+numpy path and on the compiled one (leolink.sim.table_kernels, taken within a large run)."""
+
+import contextlib
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from leolink.engine import jit
 from leolink.sim.candidates import Candidates
+
+PATHS = ["numpy", "kernels"]
+
+
+@contextlib.contextmanager
+def _path(name, table):
+    """Within: ``table``'s lookups take the path ``name`` (asserted)."""
+    if name == "numpy":
+        assert not table._compiled()  # a small table outside any run
+        yield
+        return
+    pytest.importorskip("numba")
+    with jit.sized_run(10**12):  # a run large enough for the kernels: every call takes them
+        assert table._compiled() or table.cell.size == 0
+        yield
 
 
 def _table(rng, n_ut, n_slot, n_cell):
@@ -24,6 +44,7 @@ def _slot_loop(table, cells):
     return np.array(out, np.int64)
 
 
+@pytest.mark.parametrize("path", PATHS)
 @settings(max_examples=150, deadline=None)
 @given(
     n_ut=st.integers(1, 40),
@@ -31,13 +52,14 @@ def _slot_loop(table, cells):
     n_more=st.integers(0, 2),
     seed=st.integers(0, 2**32 - 1),
 )
-def test_slot_of_finds_each_rows_cell(n_ut, n_slot, n_more, seed):
+def test_slot_of_finds_each_rows_cell(path, n_ut, n_slot, n_more, seed):
     """Cells present, absent, -1 (which unused slots also hold) and other negatives; one
     array or several searched at once."""
     rng = np.random.default_rng(seed)
     table = _table(rng, n_ut, n_slot, n_cell=15)
     queries = [rng.integers(-2, 18, n_ut) for _ in range(1 + n_more)]
-    got = table.slot_of(*queries)
+    with _path(path, table):
+        got = table.slot_of(*queries)
     got = got if n_more else (got,)
     assert len(got) == 1 + n_more
     for q, slots in zip(queries, got, strict=True):
@@ -59,20 +81,22 @@ def _best_loop(table):
     return np.array(cells, np.int64), np.array(values)
 
 
+@pytest.mark.parametrize("path", PATHS)
 @settings(max_examples=150, deadline=None)
 @given(
     n_ut=st.integers(1, 30),
     n_slot=st.sampled_from([0, 1, 1, 2, 3, 7]),  # one slot per UT: the best cell only
     seed=st.integers(0, 2**32 - 1),
 )
-def test_best_and_at_against_a_loop_over_each_row(n_ut, n_slot, seed):
+def test_best_and_at_against_a_loop_over_each_row(path, n_ut, n_slot, seed):
     """NaN, -inf (a null) and +inf SNRs, ties; ``at`` of every slot and of -1."""
     rng = np.random.default_rng(seed)
     table = _table(rng, n_ut, n_slot, n_cell=15)
     specials = rng.choice([np.nan, -np.inf, np.inf, 1.5, -0.0], table.snr_db.shape)
     table.snr_db[:] = np.where(rng.random(table.snr_db.shape) < 0.4, specials, table.snr_db)
     table.snr_db[table.cell < 0] = np.nan  # unused slots
-    cell, value = table.best()
+    with _path(path, table):
+        cell, value = table.best()
     want_cell, want_value = _best_loop(table)
     assert cell.dtype == np.int64
     np.testing.assert_array_equal(cell, want_cell)
@@ -80,4 +104,6 @@ def test_best_and_at_against_a_loop_over_each_row(n_ut, n_slot, seed):
     for slot in [*(np.full(n_ut, j) for j in range(n_slot)), np.full(n_ut, -1)]:
         slot = np.where(rng.random(n_ut) < 0.3, -1, slot)
         want = np.array([table.snr_db[i, j] if j >= 0 else np.nan for i, j in enumerate(slot)])
-        np.testing.assert_array_equal(table.at(slot), want)
+        with _path(path, table):
+            got = table.at(slot)
+        np.testing.assert_array_equal(got, want)
