@@ -1,11 +1,11 @@
-"""Tests of leolink.arrays: the fast 2-D nonzero against numpy's own."""
+"""Tests of leolink.arrays: the fast 2-D nonzero and row gathers against numpy's own."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from leolink.arrays import FLAT_MIN_SIZE, nonzero_2d
+from leolink.arrays import FLAT_MIN_SIZE, nonzero_2d, take_rows
 
 
 def _same_as_numpy(a):
@@ -47,3 +47,25 @@ def test_nonzero_2d_on_the_tables_it_was_measured_on(shape):
 def test_nonzero_2d_refuses_other_ranks(shape):
     with pytest.raises(ValueError, match=r"2-D array, not one of shape"):
         nonzero_2d(np.ones(shape, bool))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    lead=st.lists(st.integers(1, 6), min_size=1, max_size=3),
+    trail=st.lists(st.integers(1, 4), min_size=0, max_size=2),
+    n_index=st.integers(1, 3),
+    n_pick=st.integers(0, 20),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_take_rows_is_numpys_advanced_indexing(lead, trail, n_index, n_pick, seed):
+    """Over one, two or three leading axes, rows repeated, in any order, also of a
+    non-contiguous array (a transposed view)."""
+    rng = np.random.default_rng(seed)
+    shape = (*lead, *trail)
+    n_index = min(n_index, len(lead))
+    a = rng.normal(size=shape[::-1]).T if rng.random() < 0.5 else rng.normal(size=shape)
+    index = [rng.integers(0, size, n_pick) for size in lead[:n_index]]
+    got = take_rows(a, *index)
+    want = a[tuple(index)]
+    assert got.shape == want.shape and got.dtype == want.dtype
+    np.testing.assert_array_equal(got, want)

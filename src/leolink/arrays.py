@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["nonzero_2d"]
+__all__ = ["nonzero_2d", "take_rows"]
 
 #: From this many entries on, the flat path of :func:`nonzero_2d` is faster (measured on
 #: numpy 2.4: the two break even near 1,000 entries).
@@ -36,3 +36,28 @@ def nonzero_2d(mask):
         return np.nonzero(mask)
     rows, cols = np.divmod(np.flatnonzero(mask), mask.shape[1])
     return rows, cols
+
+
+def take_rows(a, *index):
+    """``a[index[0], index[1], ...]`` for non-negative integer arrays over ``a``'s leading
+    axes: one ``np.take`` along the flattened leading axes.
+
+    numpy's advanced indexing copies each selected row through its general iterator;
+    ``np.take`` along axis 0 copies whole rows at once (numpy 2.4 here: 64,000 rows of 3
+    floats out of a (64, 1, 3) array, 0.63 -> 0.12 ms).
+
+    Parameters
+    ----------
+    a : ndarray, at least ``len(index)`` axes
+    *index : arrays of int, one per leading axis, broadcast together, each within its axis
+        (no negative indices: they would select other rows)
+
+    Returns
+    -------
+    ndarray, shape ``broadcast(index).shape + a.shape[len(index):]``
+    """
+    lead = a.shape[: len(index)]
+    flat = np.asarray(index[0], np.intp)
+    for size, idx in zip(lead[1:], index[1:], strict=True):
+        flat = flat * size + np.asarray(idx, np.intp)
+    return np.take(a.reshape(-1, *a.shape[len(index) :]), flat, axis=0)

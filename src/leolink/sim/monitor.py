@@ -29,6 +29,7 @@ import dataclasses
 
 import numpy as np
 
+from leolink.arrays import take_rows
 from leolink.engine.links import Links
 from leolink.link.acm import LinkFigureParams
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
@@ -186,7 +187,7 @@ class Monitor:
                 none["n_sharing"] = np.zeros(rows.size, np.int64)
             return self._finish(none, geo_beam)
         pl = self._pair_links(rows, geo_sat, served, n_ut)
-        up_enu = None if dec.enu is None else dec.enu.reshape(-1, 3, 3)[rows]
+        up_enu = None if dec.enu is None else take_rows(dec.enu.reshape(-1, 3, 3), rows)
         lit = None
         if recs[0].lit is not None:  # active beams: the lit beams of each row's satellite
             lit = np.concatenate([r.lit[np.maximum(r.geo_sat, 0)] for r in recs])
@@ -196,13 +197,13 @@ class Monitor:
         if pl.rx_lin is not None:
             rx = pl.rx_lin if rx is None else rx * pl.rx_lin
         i_other = self._other_satellites(recs, geo_sat, geo_beam)
-        ut_pos = mb.ut_pos_m.reshape(-1, 3)[rows]
+        ut_pos = take_rows(mb.ut_pos_m.reshape(-1, 3), rows)
         cols = eng.serve_pairs(
             pl.links,
             pl.pair,
             geo_beam,
-            mb.ut_vel_m_s.reshape(-1, 3)[rows],
-            mb.ut_acc_m_s2.reshape(-1, 3)[rows],
+            take_rows(mb.ut_vel_m_s.reshape(-1, 3), rows),
+            take_rows(mb.ut_acc_m_s2.reshape(-1, 3), rows),
             pl.sat_vel_m_s,
             pl.sat_acc_m_s2,
             rx_fading_lin=rx,
@@ -232,8 +233,8 @@ class Monitor:
             links = Links.concat([links, dec.evaluate(rows[miss], geo_sat[miss])])
             pair[miss] = blk.links.n_pair + np.arange(miss.size)
         epoch, s = rows // n_ut, np.where(served, geo_sat, 0)
-        return PairLinks(links, pair, mb.sat_pos_m[epoch, s], mb.sat_vel_m_s[epoch, s],
-                         mb.sat_acc_m_s2[epoch, s])  # fmt: skip
+        states = (take_rows(x, epoch, s) for x in (mb.sat_pos_m, mb.sat_vel_m_s, mb.sat_acc_m_s2))
+        return PairLinks(links, pair, *states)
 
     def _finish(self, cols, geo_beam, pair_links=None):
         """The columns of the rows (``pair_links`` None: no row has a link)."""

@@ -32,7 +32,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink.arrays import nonzero_2d
+from leolink.arrays import nonzero_2d, take_rows
 from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
 from leolink.geometry import body_frame
@@ -235,8 +235,8 @@ class CandidateSearch:
             sats = np.concatenate(sats) if sats else np.zeros(0, np.int64)
         n_sat = sat_pos_m.shape[1]
         key, inverse = np.unique((rows // n_ut) * n_sat + sats, return_inverse=True)
-        flat_pos = sat_pos_m.reshape(-1, 3)[key]
-        flat_vel = sat_vel_m_s.reshape(-1, 3)[key]
+        flat_pos = take_rows(sat_pos_m.reshape(-1, 3), key)
+        flat_vel = take_rows(sat_vel_m_s.reshape(-1, 3), key)
         ut_id = np.arange(pos.shape[0]) % n_ut
         links = self.engine.evaluate_pairs(
             pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id,
