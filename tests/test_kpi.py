@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from leolink.sim.kpi import (
     PERCENTILES,
@@ -233,6 +235,33 @@ def test_grouped_histogram_percentiles_match_numpy_per_group_within_half_a_bin()
     finite = np.arange(n_group) != 5
     np.testing.assert_allclose(got[finite, 3], expected[finite, 3], rtol=0, atol=res / 2 + 1e-9)
     np.testing.assert_array_equal(acc.counts(), [len(s) for s in samples])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n_group=st.integers(1, 30),
+    n_add=st.integers(1, 25),
+    min_pending=st.sampled_from([1, 7, 100]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_grouped_histogram_table_is_the_count_of_every_key(n_group, n_add, min_pending, seed):
+    """However often it is compacted, the sparse table holds each occupied (group, slot)
+    key once, sorted, with its number of samples: np.unique over every sample's key."""
+    rng = np.random.default_rng(seed)
+    acc = GroupedPercentileHistogram(n_group, -5.0, 5.0, 0.5)
+    acc.MIN_PENDING = min_pending
+    keys = []
+    for _ in range(n_add):
+        g = rng.integers(0, n_group, rng.integers(0, 40))
+        v = rng.choice([np.nan, -np.inf, np.inf, -9.0, 9.0, 0.0, 4.99], g.size)
+        v = np.where(rng.random(g.size) < 0.5, rng.normal(0, 3, g.size), v)
+        acc.add(g, v)
+        keys.append(g * acc._n_slot + acc.grid.slots(v))
+    acc._compact()
+    want_keys, want_counts = np.unique(np.concatenate(keys), return_counts=True)
+    np.testing.assert_array_equal(acc._keys, want_keys)
+    np.testing.assert_array_equal(acc._counts, want_counts)
+    assert acc._keys.dtype == np.int32 and acc._counts.dtype == np.int64
 
 
 def test_grouped_histogram_empty_groups_are_nan():
