@@ -342,6 +342,26 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
     assert np.array_equal(blk.n_visible, ref.n_visible)
 
 
+@pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
+def test_compiled_window_tables_are_the_numpy_tables(block, monkeypatch, window_db):
+    """Without a floor, a large run's tables take leolink.sim.table_kernels.window_entries:
+    the same table slot for slot, the same diagnostics, as the numpy path's."""
+    from leolink.engine import jit
+
+    eng, n_ut, mb, cones = block
+    with jit.sized_run(jit.MIN_RUN_PAIRS):  # as in a large run: the kernels
+        _, _, blk = _tables(eng, n_ut, mb, cones, window_db, True)
+        with monkeypatch.context() as m:
+            m.setattr(search, "_window_kernel", lambda n: None)  # the engine's path kept
+            _, _, ref = _tables(eng, n_ut, mb, cones, window_db, True)
+    assert ref.table.n_slot >= (3 if window_db > 0.0 else 1)
+    assert np.array_equal(blk.table.cell, ref.table.cell)
+    assert np.array_equal(blk.table.snr_db, ref.table.snr_db, equal_nan=True)
+    assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
+    assert np.array_equal(blk.best_cell, ref.best_cell)
+    assert np.array_equal(blk.n_visible, ref.n_visible)
+
+
 @given(
     rows=st.lists(st.integers(0, 6), max_size=40).map(lambda r: np.sort(np.array(r, int))),
     size=st.integers(1, 12),

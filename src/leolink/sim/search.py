@@ -33,6 +33,7 @@ import dataclasses
 import numpy as np
 
 from leolink.arrays import nonzero_2d, take_rows
+from leolink.engine import jit
 from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
 from leolink.geometry import body_frame
@@ -257,10 +258,15 @@ class CandidateSearch:
         best_db = np.full(n_rows, np.nan)
         best_cell = np.full(n_rows, -1, np.int64)
         every = vis.size == links.n_pair  # every pair visible: slices, not gathers
+        window = _window_kernel(vis.size) if self.floor_db == -np.inf else None
         entries = []
         for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
             pairs = slice(lo, hi) if every else vis[lo:hi]
             rows, sat = rows_vis[lo:hi], links.sat[pairs]
+            if window is not None:  # the same entries and best_db, no (pairs, beams) temporaries
+                snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
+                entries.append(window(snr_bm, rows, sat, nb, float(self.window_db), best_db))
+                continue
             snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs).T  # (m, nb)
             if rows.size:
                 start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
@@ -284,6 +290,16 @@ class CandidateSearch:
         return BlockCandidates(
             k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
         )
+
+
+def _window_kernel(n_pairs):
+    """:func:`leolink.sim.table_kernels.window_entries` where the kernels run
+    (:func:`leolink.engine.jit.use`), else None (the numpy code of ``_tables``)."""
+    if not jit.use(n_pairs):
+        return None
+    from leolink.sim import table_kernels
+
+    return table_kernels.window_entries
 
 
 def _row_chunks(rows, size):

@@ -54,3 +54,42 @@ def values_at(snr_db, slot, out):
     NaN where ``slot[i] < 0``."""
     for i in range(slot.shape[0]):
         out[i] = snr_db[i, slot[i]] if slot[i] >= 0 else np.nan
+
+
+@numba.njit(cache=True, nogil=True)
+def window_entries(snr_bm, rows, sat, n_beam, window_db, best_db):
+    """The window entries of :meth:`CandidateSearch._tables` for a search without a floor:
+    writes ``best_db`` of ``rows`` (the largest SNR of their pairs' beams, NaN ignored as
+    ``np.fmax``) and returns ``(row, cell, snr_db)`` of every beam within ``window_db`` of
+    its row's best, in (pair, beam) order.
+
+    ``snr_bm`` (n_beam, m): the pairs' SNR [dB]; ``rows`` (m,) sorted (a row's pairs
+    consecutive), ``sat`` (m,) their satellites' global ids."""
+    m = rows.shape[0]
+    p = 0
+    while p < m:  # the rows' best
+        q, top = p, np.nan
+        while q < m and rows[q] == rows[p]:
+            for b in range(n_beam):
+                v = snr_bm[b, q]
+                if top != top or v > top:  # np.fmax: a NaN loses (NaN for NaN is the same)
+                    top = v
+            q += 1
+        best_db[rows[p]] = top
+        p = q
+    n = 0
+    for p in range(m):  # how many entries (a comparison with NaN is False)
+        low = best_db[rows[p]] - window_db
+        for b in range(n_beam):
+            n += snr_bm[b, p] >= low
+    out_row, out_cell = np.empty(n, np.int64), np.empty(n, np.int64)
+    out_db = np.empty(n)
+    k = 0
+    for p in range(m):
+        low = best_db[rows[p]] - window_db
+        for b in range(n_beam):
+            v = snr_bm[b, p]
+            if v >= low:
+                out_row[k], out_cell[k], out_db[k] = rows[p], sat[p] * n_beam + b, v
+                k += 1
+    return out_row, out_cell, out_db
