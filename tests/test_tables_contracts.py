@@ -1,8 +1,8 @@
 """leolink.io.tables: contracts that mutation testing found unchecked (docs/testing.md).
 
 Row groups at exact multiples of ``chunk_rows``, an extra column, append after close,
-the messages of bad formats and chunk sizes, a nested output folder, and the switch of
-the string columns to Arrow's take.
+the messages of bad formats and chunk sizes, a nested output folder, required Parquet
+columns, and the switch of the string columns to Arrow's take.
 """
 
 import csv
@@ -136,3 +136,19 @@ def test_a_stopped_writer_leaves_no_file_and_no_digest(tmp_path):
     w.abort()
     assert list(tmp_path.iterdir()) == [] and w.digests == {}
     assert all(g._file.closed for g in w._growing.values())
+
+
+def test_parquet_columns_are_required_and_keep_their_nans(tmp_path):
+    """The writers' arrays hold no nulls (a missing value is a NaN): the Parquet columns
+    say so (REQUIRED, no definition levels to write), and a NaN reads back as a NaN."""
+    cols = _rows(5)
+    cols["snr_db"] = np.array([1.0, np.nan, 3.0, np.nan, 5.0])
+    with TraceWriter(tmp_path, formats=("parquet",)) as w:
+        w.append(cols)
+    path = tmp_path / "trace.parquet"
+    schema = pq.read_metadata(path).schema
+    assert {schema.column(i).max_definition_level for i in range(len(schema))} == {0}
+    assert not any(f.nullable for f in pq.read_schema(path))
+    got = pq.read_table(path, columns=["snr_db"]).column(0)
+    assert got.null_count == 0
+    np.testing.assert_array_equal(got.to_numpy(), np.float32(cols["snr_db"]))

