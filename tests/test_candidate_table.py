@@ -107,3 +107,16 @@ def test_best_and_at_against_a_loop_over_each_row(path, n_ut, n_slot, seed):
         with _path(path, table):
             got = table.at(slot)
         np.testing.assert_array_equal(got, want)
+
+
+def test_a_query_of_another_length_is_numpys_on_both_paths():
+    """A one-cell query broadcasts over the rows as numpy's comparison does; the kernel,
+    which reads one query per row, is not given it (found in review)."""
+    cell = np.array([[3, 4], [4, 5], [6, 4]], np.int64)
+    table = Candidates(cell, np.zeros(cell.shape))
+    want = np.array([1, 0, 1])
+    np.testing.assert_array_equal(table.slot_of(np.array([4])), want)
+    pytest.importorskip("numba")
+    with jit.sized_run(10**12):
+        assert table._compiled()
+        np.testing.assert_array_equal(table.slot_of(np.array([4])), want)

@@ -348,8 +348,10 @@ def test_compiled_window_tables_are_the_numpy_tables(block, monkeypatch, window_
     the same table slot for slot, the same diagnostics, as the numpy path's."""
     from leolink.engine import jit
 
+    pytest.importorskip("numba")
     eng, n_ut, mb, cones = block
     with jit.sized_run(jit.MIN_RUN_PAIRS):  # as in a large run: the kernels
+        assert search._window_kernel(1) is not None  # (the path compared)
         _, _, blk = _tables(eng, n_ut, mb, cones, window_db, True)
         with monkeypatch.context() as m:
             m.setattr(search, "_window_kernel", lambda n: None)  # the engine's path kept

@@ -48,7 +48,8 @@ def take_rows(a, *index):
 
     Parameters
     ----------
-    a : ndarray, at least ``len(index)`` axes
+    a : ndarray, at least ``len(index)`` axes (not C-contiguous: numpy's indexing, as
+        flattening its leading axes would copy it whole)
     *index : arrays of int, one per leading axis, broadcast together, each within its axis
         (no negative indices: they would select other rows)
 
@@ -56,6 +57,8 @@ def take_rows(a, *index):
     -------
     ndarray, shape ``broadcast(index).shape + a.shape[len(index):]``
     """
+    if not a.flags.c_contiguous:  # (flattening would copy the whole array first)
+        return a[tuple(index)]
     lead = a.shape[: len(index)]
     flat = np.asarray(index[0], np.intp)
     for size, idx in zip(lead[1:], index[1:], strict=True):

@@ -112,7 +112,7 @@ class Candidates:
         arrays = np.array((cells, *more), np.int64) if more else np.asarray(cells, np.int64)[None]
         if self.n_slot == 0:
             slots = np.full(arrays.shape, -1, np.int64)
-        elif self._compiled():
+        elif arrays.shape[1:] == (self.n_ut,) and self._compiled():
             slots = np.empty(arrays.shape, np.int64)
             _kernels().slots(self.cell, np.ascontiguousarray(arrays), slots)
         else:

@@ -18,7 +18,9 @@ _NO_CELL = np.iinfo(np.int64).max
 @numba.njit(cache=True, nogil=True)
 def best(cell, snr_db, out_cell, out_db):
     """:meth:`Candidates.best` into ``out_cell``, ``out_db`` (n_ut,): each row's highest
-    SNR ignoring NaN, ties to the lowest cell id; -1 and NaN where none exceeds -inf."""
+    SNR ignoring NaN, ties to the lowest cell id; -1 and NaN where none exceeds -inf.
+    (A tie of -0.0 and +0.0 gives the first zero; numpy's maximum may give the other:
+    the same cell, a zero of the other sign. No SNR of the simulator is a signed zero.)"""
     for i in range(cell.shape[0]):
         top_db, top_cell = -np.inf, _NO_CELL
         for j in range(cell.shape[1]):
