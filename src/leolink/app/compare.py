@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from leolink.app.guard import raise_pending
 from leolink.app.sweep import _base_overrides, _progress_bar, _run_point
 from leolink.errors import ConfigError
 
@@ -217,6 +218,7 @@ def _manifest(out_dir, cfg_path, base, policies, seeds, files, run_dirs):
 
     runs = [Path(d) / MANIFEST for d in run_dirs]
     arguments = {"policies": policies, "seeds": seeds, "base_overrides": base}
+    raise_pending()  # a stop caught inside a library: no manifest (leolink.app.guard)
     write_manifest(out_dir, [*files, *runs], "compare",
                    dump_toml(load_config(cfg_path, base)), arguments,
                    version=leolink.__version__)  # fmt: skip

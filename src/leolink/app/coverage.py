@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from leolink.app.guard import raise_pending
 from leolink.app.scenario import build_engine, overhead_satellite
 from leolink.coverage import evaluate_points
 from leolink.geometry import ecef_to_geodetic, roi_to_ground
@@ -120,6 +121,7 @@ def run_coverage(cfg, out_dir, n_grid=201, margin=1.1, plots=True, overwrite=Fal
     )
     arguments = {"n_grid": int(n_grid), "margin": float(margin), "plots": bool(plots)}
     version = leolink.__version__
+    raise_pending()  # a stop caught inside a library: no manifest (leolink.app.guard)
     paths.append(
         write_manifest(out_dir, paths, "coverage", config_text, arguments, version=version)
     )

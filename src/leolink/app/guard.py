@@ -31,6 +31,7 @@ __all__ = [
     "environment_error",
     "interruptible",
     "quiet_warnings",
+    "raise_pending",
     "worker_init",
 ]
 
@@ -70,10 +71,26 @@ class Stopped(KeyboardInterrupt):
         self.signal_name = signal_name
 
 
+#: The stop a signal raised, kept until it reaches the command: library code may catch the
+#: exception where the handler raised it (pydantic's serializer does, inside its union
+#: discriminator callback, and only warns), so the command checks again.
+_pending: list[Stopped] = []
+
+
 def _raise_stopped(signum, frame):
     for sig in _SIGNALS:  # a second signal must not interrupt the cleanup
         signal.signal(sig, signal.SIG_IGN)
-    raise Stopped(_SIGNALS.get(signum, str(signum)))
+    stop = Stopped(_SIGNALS.get(signum, str(signum)))
+    _pending[:] = [stop]
+    raise stop
+
+
+def raise_pending():
+    """Raise again, once, the stop of a signal whose exception library code caught
+    (:data:`_pending`): where a command commits its work (a run folder's ``run.json``)
+    and at the end of :func:`interruptible`."""
+    if _pending:
+        raise _pending.pop()
 
 
 @contextlib.contextmanager
@@ -83,16 +100,20 @@ def interruptible():
         yield
         return
     previous = {sig: signal.getsignal(sig) for sig in _SIGNALS}
+    _pending.clear()
     for sig in _SIGNALS:
         signal.signal(sig, _raise_stopped)
     try:
         yield
+        raise_pending()  # a stop caught on the way still stops the command
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 
 
 def _show(message, category, filename, lineno, file=None, line=None):
+    if _pending:  # after a stop, the line that says where it stopped is the last word
+        return
     text = str(message).strip().splitlines()[0] if str(message).strip() else ""
     print(f"leolink: warning: {category.__name__}: {text}", file=sys.stderr)
 

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 import leolink
 from leolink.app.codebook import codebook_design_from_config
+from leolink.app.guard import raise_pending
 from leolink.app.heap import fix_heap_thresholds
 from leolink.app.notes import track_coverage, track_notes
 from leolink.app.orbits import earth_orientation, roi_frame, tle_time_zero_utc
@@ -256,6 +257,7 @@ def _write(cfg, scen, out_dir, summary, sinks, stats):
             sink.after_run(result_summary, config_text)
     files += [p for s in sinks for p in getattr(s, "files", [])]
     digests = {p: d for s in sinks for p, d in getattr(s, "digests", {}).items()}
+    raise_pending()  # a stop caught inside a library: no run.json (leolink.app.guard)
     files.append(write_manifest(out_dir, files, "run", config_text, version=leolink.__version__,
                                 digests=digests))  # fmt: skip
     return Result(result_summary, out_dir, files, None, report, per_ut)

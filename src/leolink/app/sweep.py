@@ -333,6 +333,7 @@ def _write(table, out_dir, cfg_path, spec, names, plot):
     """``sweep.json``, ``sweep.csv``, the plot (one parameter), ``report.html``, and last
     ``run.json`` (the tables, the page and every point's own ``run.json``)."""
     import leolink
+    from leolink.app.guard import raise_pending
     from leolink.config import dump_toml, load_config
     from leolink.io.atomic import write_csv_atomic, write_json_atomic
     from leolink.io.report import build_table_report
@@ -356,6 +357,7 @@ def _write(table, out_dir, cfg_path, spec, names, plot):
         out_dir / "runs" / name / "run.json" for name, good in zip(names, ok, strict=True) if good
     ]
     arguments = {"params": list(params), "base_overrides": base}
+    raise_pending()  # a stop caught inside a library: no manifest (leolink.app.guard)
     write_manifest(
         out_dir, [*files, page, *runs], "sweep", config_text, arguments, version=leolink.__version__
     )
