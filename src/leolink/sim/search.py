@@ -263,11 +263,11 @@ class CandidateSearch:
         for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
             pairs = slice(lo, hi) if every else vis[lo:hi]
             rows, sat = rows_vis[lo:hi], links.sat[pairs]
+            snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
             if window is not None:  # the same entries and best_db, no (pairs, beams) temporaries
-                snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
                 entries.append(window(snr_bm, rows, sat, nb, float(self.window_db), best_db))
                 continue
-            snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs).T  # (m, nb)
+            snr = snr_bm.T  # (m, nb)
             if rows.size:
                 start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
                 with np.errstate(invalid="ignore"):
