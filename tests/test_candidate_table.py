@@ -120,3 +120,25 @@ def test_a_query_of_another_length_is_numpys_on_both_paths():
     with jit.sized_run(10**12):
         assert table._compiled()
         np.testing.assert_array_equal(table.slot_of(np.array([4])), want)
+
+
+@settings(max_examples=100, deadline=None)
+@given(n_ut=st.integers(1, 12), n_entry=st.integers(0, 40), sort=st.booleans(),
+       seed=st.integers(0, 2**32 - 1))  # fmt: skip
+def test_from_entries_puts_each_uts_entries_in_its_row_in_order(n_ut, n_entry, sort, seed):
+    """Entries sorted by UT (as the search gives them) or in any order: row ``i`` holds
+    UT ``i``'s entries in the order given, -1/NaN after them (a loop over the entries)."""
+    rng = np.random.default_rng(seed)
+    ut = rng.integers(0, n_ut, n_entry)
+    if sort:
+        ut = np.sort(ut)
+    cell = rng.permutation(10 * n_entry + 1)[:n_entry].astype(np.int64)  # distinct
+    snr = rng.normal(size=n_entry)
+    table = Candidates.from_entries(n_ut, ut, cell, snr)
+    rows = [[(c, v) for u, c, v in zip(ut, cell, snr, strict=True) if u == i] for i in range(n_ut)]
+    assert table.n_slot == max([len(r) for r in rows], default=0)
+    for i, row in enumerate(rows):
+        want_cell = [c for c, _ in row] + [-1] * (table.n_slot - len(row))
+        want_snr = [v for _, v in row] + [np.nan] * (table.n_slot - len(row))
+        np.testing.assert_array_equal(table.cell[i], want_cell)
+        np.testing.assert_array_equal(table.snr_db[i], want_snr)
