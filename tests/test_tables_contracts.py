@@ -1,8 +1,9 @@
 """leolink.io.tables: contracts that mutation testing found unchecked (docs/testing.md).
 
-Row groups at exact multiples of ``chunk_rows``, an extra column, append after close,
-the messages of bad formats and chunk sizes, a nested output folder, required Parquet
-columns, and the switch of the string columns to Arrow's take.
+Row groups at exact multiples of ``chunk_rows``, appends of any size copied once in the
+written types, an extra column, append after close, the messages of bad formats and
+chunk sizes, a nested output folder, required Parquet columns, and the switch of the
+string columns to Arrow's take.
 """
 
 import csv
@@ -11,10 +12,12 @@ import hashlib
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from leolink.errors import ConfigError
 from leolink.io import tables
-from leolink.io.arrow import decoded_array
+from leolink.io.arrow import NUMPY_TYPES, decoded_array
 from leolink.io.tables import TRACE_SCHEMA, TableWriter, TraceWriter
 
 
@@ -40,6 +43,56 @@ def test_row_groups_follow_chunk_rows_exactly(tmp_path, n_rows, chunk, groups):
     assert [meta.row_group(i).num_rows for i in range(meta.num_row_groups)] == groups
     assert (tmp_path / "trace.csv").read_text().count("\n") == n_rows + 1
     np.testing.assert_array_equal(pq.read_table(tmp_path / "trace.parquet")["ut_id"], range(n_rows))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    sizes=st.lists(st.integers(0, 9), max_size=8),
+    chunk=st.integers(1, 6),
+    both=st.booleans(),
+    background=st.booleans(),
+)
+def test_appends_of_any_size_write_each_row_once_in_the_written_types(
+    tmp_path_factory, sizes, chunk, both, background
+):
+    """Appends of 0 .. 9 rows into chunks of 1 .. 6 rows: the Parquet file holds every row
+    once, in order, cast to its types (float32 but for the positions and times, int32
+    ids, the service names), in row groups of ``chunk`` rows but the last; and the rows
+    are copied at append: overwriting an appended array afterwards changes nothing."""
+    tmp = tmp_path_factory.mktemp("t")
+    rng = np.random.default_rng(len(sizes) * 7 + chunk)
+    formats = ("csv", "parquet") if both else ("parquet",)
+    appended = []
+    with TraceWriter(tmp, formats=formats, chunk_rows=chunk, background=background) as w:
+        for size in sizes:
+            cols = {
+                f.name: rng.normal(size=size) * 1e3 if str(f.type) == "double"
+                else rng.integers(-(2**20), 2**20, size) for f in TRACE_SCHEMA
+            }  # fmt: skip
+            for name, names in tables._CODED_COLUMNS.items():
+                cols[name] = rng.integers(0, len(names), size)
+            cols["population"] = rng.choice(["car", "ship"], size)
+            w.append(cols)
+            appended.append({n: v.copy() for n, v in cols.items()})
+            for v in cols.values():  # the writer must have taken its copy already
+                v[...] = 0
+    got = pq.read_table(tmp / "trace.parquet")
+    n_rows = sum(sizes)
+    meta = pq.ParquetFile(tmp / "trace.parquet").metadata
+    groups = [meta.row_group(i).num_rows for i in range(meta.num_row_groups)]
+    want_groups = [chunk] * (n_rows // chunk) + ([n_rows % chunk] if n_rows % chunk else [])
+    assert groups == want_groups and got.num_rows == n_rows
+    for f in got.schema:
+        want = np.concatenate([a[f.name] for a in appended]) if appended else np.zeros(0)
+        if f.name in tables._CODED_COLUMNS:
+            names = np.array(tables._CODED_COLUMNS[f.name], object)
+            assert got[f.name].to_pylist() == names[want.astype(int)].tolist()
+        elif f.name == "population":
+            assert got[f.name].to_pylist() == want.astype(str).tolist()
+        else:
+            dtype = NUMPY_TYPES[f.type]
+            np.testing.assert_array_equal(got[f.name].to_numpy(), want.astype(dtype))
+            assert got[f.name].to_numpy().dtype == dtype
 
 
 def test_an_extra_column_or_append_after_close_is_refused(tmp_path):

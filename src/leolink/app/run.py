@@ -28,12 +28,11 @@ from leolink.app.orbits import earth_orientation, roi_frame, tle_time_zero_utc
 from leolink.app.validate import checked_scenario, ephemeris_health
 from leolink.config import dump_toml
 from leolink.errors import LeolinkError
-from leolink.io.atomic import write_json_atomic, write_text_atomic
+from leolink.io.atomic import write_json_atomic, write_parquet_atomic, write_text_atomic
 from leolink.io.notebook import ResultViews
 from leolink.io.run_dir import claim_out_dir, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary import SummaryAccumulator
-from leolink.io.tables import write_parquet_atomic
 from leolink.sim.runner import run_simulation
 
 if TYPE_CHECKING:  # pandas is imported when a table is asked for (~0.5 s of start-up)

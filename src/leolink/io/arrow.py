@@ -11,9 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
-__all__ = ["Vocabulary", "decoded_array", "numeric_array", "string_array"]
+__all__ = ["NUMPY_TYPES", "Vocabulary", "decoded_array", "numeric_array", "string_array"]
 
-_NUMPY_TYPES = {
+#: numpy dtype of each Arrow numeric type the writers use.
+NUMPY_TYPES = {
     pa.int8(): np.int8,
     pa.int32(): np.int32,
     pa.int64(): np.int64,
@@ -25,7 +26,7 @@ _NUMPY_TYPES = {
 def numeric_array(values, arrow_type):
     """An Arrow array of ``arrow_type`` (int8/32/64, float32/64) from numbers, cast as
     numpy casts (no copy when the dtype is already that type)."""
-    data = np.ascontiguousarray(values, _NUMPY_TYPES[arrow_type])
+    data = np.ascontiguousarray(values, NUMPY_TYPES[arrow_type])
     return pa.Array.from_buffers(arrow_type, data.size, [None, pa.py_buffer(data)])
 
 

@@ -32,6 +32,7 @@ __all__ = [
     "to_jsonable",
     "write_csv_atomic",
     "write_json_atomic",
+    "write_parquet_atomic",
     "write_text_atomic",
 ]
 
@@ -212,4 +213,16 @@ def write_csv_atomic(df, path):
     """Write a DataFrame as CSV (no index) atomically; return the path."""
     with atomic_file(path) as f:
         df.to_csv(f, index=False)
+    return Path(path)
+
+
+def write_parquet_atomic(columns, path):
+    """Write a dict of equal-length 1-D arrays as one Parquet table, atomically (types
+    as the arrays'); return the path (e.g. ``per_ut.parquet``)."""
+    import pyarrow as pa  # (imported here: a run without Parquet output never needs it)
+    import pyarrow.parquet as pq
+
+    table = pa.table({name: np.asarray(values) for name, values in columns.items()})
+    with atomic_file(path) as f:
+        pq.write_table(table, f)
     return Path(path)

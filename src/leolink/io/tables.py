@@ -6,8 +6,9 @@ Tables are written chunk by chunk under temporary names (``trace.csv.<random>.pa
 a failed or interrupted run never leaves a file that looks complete. The bytes of
 ``trace.csv`` do not depend on the chunking.
 
-Memory: a writer buffers at most ``min(chunk_rows, CHUNK_BYTES / (8 B x columns))`` rows
-(~35,000 trace rows, 8 MiB) before it writes them as one chunk, on a background thread
+Memory: a writer copies what it is given, once and cast to the written types, into a
+chunk preallocated for ``min(chunk_rows, CHUNK_BYTES / (8 B x columns))`` rows (~35,000
+trace rows, at most 8 MiB) and writes each full chunk, on a background thread
 (pyarrow releases the GIL while it encodes; at most one more chunk waits), so its memory
 does not grow with the run.
 
@@ -35,8 +36,8 @@ import pyarrow as pa  # core only (~0.1 s); pyarrow.csv / .parquet when a format
 from leolink.background import BackgroundWorker
 from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.errors import ConfigError, require_at_least
-from leolink.io.arrow import Vocabulary, decoded_array, numeric_array
-from leolink.io.atomic import PendingFiles, atomic_file
+from leolink.io.arrow import NUMPY_TYPES, Vocabulary, decoded_array, numeric_array
+from leolink.io.atomic import PendingFiles
 from leolink.io.run_dir import GrowingDigest
 from leolink.link.acm import FIGURE_COLUMNS
 from leolink.link.modcod import modcod_table
@@ -58,7 +59,6 @@ __all__ = [
     "schema_for",
     "trace_schema",
     "to_table",
-    "write_parquet_atomic",
 ]
 
 TRACE_COLUMNS = (
@@ -216,10 +216,12 @@ class TableWriter:
         out_dir.mkdir(parents=True, exist_ok=True)
         self.paths = {f: out_dir / f"{stem}.{f}" for f in formats}
         self._pending = PendingFiles()
-        self._buffer, self._n_buffered, self._n_written, self._done = [], 0, 0, False
+        self._n_written, self._done = 0, False
         self._vocab = {
             n: Vocabulary(_CODED_COLUMNS.get(n, ())) for n in schema.names if n in _STRING_COLUMNS
         }
+        self._dtypes = self._chunk_dtypes(formats)
+        self._chunk, self._n_filled = self._new_chunk(), 0
         self._csv = self._parquet = self._thread = None
         self._growing, self.digests = {}, {}
         try:
@@ -252,11 +254,21 @@ class TableWriter:
             parquet_tmp = self._pending.partial_path(self.paths["parquet"])
             self._growing["parquet"] = GrowingDigest(parquet_tmp)
 
-    def append(self, columns):
-        """Buffer a dict of equal-length 1-D arrays; writes every full chunk.
+    def _chunk_dtypes(self, formats):
+        """numpy dtype of each column's chunk: the written type (int32 codes for strings),
+        the CSV's when there is a CSV (Parquet's float32 is then cast from it per chunk)."""
+        written = self.schema if "csv" in formats else self.parquet_schema
+        return {f.name: np.int32 if f.name in self._vocab else NUMPY_TYPES[f.type] for f in written}
 
-        The arrays are kept as given until the chunk is written (one Arrow conversion
-        per column per chunk, not per call): do not modify them after appending.
+    def _new_chunk(self):
+        return {n: np.empty(self.chunk_rows, dtype) for n, dtype in self._dtypes.items()}
+
+    def append(self, columns):
+        """Copy a dict of equal-length 1-D arrays into the chunk; writes every full chunk.
+
+        Each value is copied once, cast to the written type, into a chunk preallocated
+        for ``chunk_rows`` rows, which Arrow then wraps without a copy: the arrays may be
+        reused as soon as ``append`` returns.
         """
         if self._done:
             raise ValueError("append() after close() or abort()")
@@ -270,10 +282,16 @@ class TableWriter:
             arrays[n] = self._vocab[n].codes(values) if n in self._vocab else values
         if len({a.shape for a in arrays.values()}) > 1:
             to_table(columns, self.schema)  # raises naming the lengths
-        self._buffer.append(arrays)
-        self._n_buffered += len(arrays[names[0]])
-        if self._n_buffered >= self.chunk_rows:
-            self._flush(final=False)
+        n_rows, start = len(arrays[names[0]]), 0
+        while start < n_rows:
+            take = min(n_rows - start, self.chunk_rows - self._n_filled)
+            for n in names:
+                self._chunk[n][self._n_filled : self._n_filled + take] = arrays[n][
+                    start : start + take
+                ]
+            start, self._n_filled = start + take, self._n_filled + take
+            if self._n_filled == self.chunk_rows:
+                self._flush()
 
     def _arrow(self, cols, schema):
         # Past TAKE_AFTER_ROWS rows the run is large: Arrow's take repays its import.
@@ -286,27 +304,18 @@ class TableWriter:
         ]
         return pa.Table.from_arrays(arrays, schema=schema)
 
-    def _flush(self, final):
-        names = self.schema.names
-        merged = {n: np.concatenate([b[n] for b in self._buffer]) for n in names}
-        n_rows, start = self._n_buffered, 0
-        while n_rows - start >= self.chunk_rows or (final and start < n_rows):
-            stop = min(start + self.chunk_rows, n_rows)
-            cols = {n: merged[n][start:stop] for n in names}
-            csv = self._arrow(cols, self.schema) if self._csv is not None else None
-            parquet = None
-            if self._parquet is not None:
-                parquet = self._arrow(cols, self.parquet_schema)
-            if self._thread is None:
-                self._write((csv, parquet))
-            else:
-                self._thread.put((csv, parquet))
-            self._n_written += stop - start
-            start = stop
-        # Copy the remainder: a view would keep the whole merged buffer alive.
-        rest = {n: merged[n][start:].copy() for n in names}
-        self._buffer = [rest] if start < n_rows else []
-        self._n_buffered = n_rows - start
+    def _flush(self):
+        """Hand the filled part of the chunk to the writer and start a new chunk (the
+        tables hold the old one's memory until they are written)."""
+        cols = {n: column[: self._n_filled] for n, column in self._chunk.items()}
+        csv = self._arrow(cols, self.schema) if self._csv is not None else None
+        parquet = self._arrow(cols, self.parquet_schema) if self._parquet is not None else None
+        if self._thread is None:
+            self._write((csv, parquet))
+        else:
+            self._thread.put((csv, parquet))
+        self._n_written += self._n_filled
+        self._chunk, self._n_filled = self._new_chunk(), 0
 
     def _write(self, tables):
         csv, parquet = tables
@@ -322,8 +331,8 @@ class TableWriter:
         if self._done:
             return self.paths
         try:
-            if self._buffer:
-                self._flush(final=True)
+            if self._n_filled:
+                self._flush()
             if self._thread is not None:
                 self._thread.close()
             self._close_writers()
@@ -385,14 +394,3 @@ class EventLog(TableWriter):
 
     def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
         super().__init__(out_dir, "events", EVENT_SCHEMA, formats, chunk_rows)
-
-
-def write_parquet_atomic(columns, path):
-    """Write a dict of equal-length 1-D arrays as one Parquet table, atomically (types
-    as the arrays'); return the path (e.g. ``per_ut.parquet``)."""
-    import pyarrow.parquet as pq
-
-    table = pa.table({name: np.asarray(values) for name, values in columns.items()})
-    with atomic_file(path) as f:
-        pq.write_table(table, f)
-    return Path(path)
