@@ -111,14 +111,15 @@ class StepResult:
     beam_id: np.ndarray
 
 
-def _time_to_trigger(t_s, target, state, wants, immediate, ttt_s):
-    """Pending bookkeeping. Returns (fire, pending, pending_since_s)."""
+def _time_to_trigger(t_s, target, was_pending, was_since_s, wants, immediate, ttt_s):
+    """Pending bookkeeping (``was_*``: the state's ``pending`` and ``pending_since_s``).
+    Returns (fire, pending, pending_since_s)."""
     if not wants.any():  # (most epochs: nothing fires, nothing pends)
         n = wants.shape
         return np.zeros(n, bool), np.full(n, -1, np.int64), np.full(n, np.nan)
     pending = np.where(wants & ~immediate, target, -1)
-    same = (pending >= 0) & (pending == state.pending)
-    since = np.where(same, state.pending_since_s, np.where(pending >= 0, t_s, np.nan))
+    same = (pending >= 0) & (pending == was_pending)
+    since = np.where(same, was_since_s, np.where(pending >= 0, t_s, np.nan))
     with np.errstate(invalid="ignore"):
         waited = t_s - since >= ttt_s - TIME_TOL_S
     fire = wants & (immediate | waited)
@@ -199,13 +200,21 @@ def step(
     wants = has_usable & (old >= 0) & ~interrupted & (target != old)
     outage_start = ~has_usable & ~state.in_outage
     outage_end = has_usable & state.in_outage
-    if not (wants | first | outage_start | outage_end).any():  # (most epochs of small runs)
-        return _unchanged(t_s, state, current_db, n_beam)
+    res = _unchanged(t_s, state, current_db, n_beam)
+    u = np.flatnonzero(wants | first | outage_start | outage_end)
+    if u.size == 0:  # (most epochs of small runs)
+        return res
+    # Every rule below is per UT: applied to the UTs ``u`` that change, written over what
+    # the rules give the others (:func:`_unchanged`'s result).
+    old, target, wants = old[u], target[u], wants[u]
+    first, outage_start, outage_end = first[u], outage_start[u], outage_end[u]
     ttt_s = float(policy.time_to_trigger_s)
-    handover, pending, pending_since = _time_to_trigger(t_s, target, state, wants, immediate, ttt_s)
+    handover, pending, pending_since = _time_to_trigger(
+        t_s, target, state.pending[u], state.pending_since_s[u], wants, immediate[u], ttt_s
+    )
     adopt = handover | outage_end | first
     new = np.where(adopt, target, np.where(outage_start, -1, old))
-    slot_new = np.where(adopt, slot_target, np.where(outage_start, -1, slot_old))
+    slot_new = np.where(adopt, slot_target[u], np.where(outage_start, -1, slot_old[u]))
     old_split, new_split = split_cells(old, n_beam), split_cells(new, n_beam)
 
     # A handover adopts the target: its satellite is the new one's.
@@ -214,38 +223,59 @@ def step(
     kind[handover] = np.where(same_sat[handover], 0, 1)
     kind[outage_start] = 2
     kind[outage_end] = 3
-    last_db = _last_serving_db(state, current_db)
-    new_db = snr_db.at(slot_new)
-    events = events_table(t_s, kind, old, old_split, new_split, new_db, last_db)
+    last_db = _last_serving_db(state, current_db[u], u)
+    new_db = snr_db.rows(u).at(slot_new)
+    res.events = events_table(t_s, kind, old, old_split, new_split, new_db, last_db, ut_id=u)
     closing = np.flatnonzero((handover | outage_start) & (old >= 0))
-    dwells = dwells_table(closing, old[closing], state.serving_since_s[closing], t_s,
-                          state.dwell_censored_start[closing], False, n_beam,
-                          (old_split[0][closing], old_split[1][closing]))  # fmt: skip
-    new_state = ControllerState(
-        serving=new,
-        pending=np.where(adopt | outage_start, -1, pending),
-        pending_since_s=np.where(adopt | outage_start, np.nan, pending_since),
-        interrupted_until_s=np.where(
+    res.dwells = dwells_table(u[closing], old[closing], state.serving_since_s[u[closing]], t_s,
+                              state.dwell_censored_start[u[closing]], False, n_beam,
+                              (old_split[0][closing], old_split[1][closing]))  # fmt: skip
+    new_state = res.state  # its arrays that are not the state's own are written in place
+    new_state.pending[u] = np.where(adopt | outage_start, -1, pending)
+    new_state.pending_since_s[u] = np.where(adopt | outage_start, np.nan, pending_since)
+    new_state.serving_snr_db[u] = _serving_db(old, new, new_db, last_db)
+    new_state.serving = _scattered(state.serving, u, new)
+    new_state.interrupted_until_s = _scattered(
+        state.interrupted_until_s,
+        u,
+        np.where(
             handover,
             t_s + handover_time_s,
-            np.where(outage_start, -np.inf, state.interrupted_until_s),
+            np.where(outage_start, -np.inf, state.interrupted_until_s[u]),
         ),
-        serving_since_s=np.where(adopt, t_s, np.where(outage_start, np.nan, state.serving_since_s)),
-        in_outage=(state.in_outage & ~outage_end) | outage_start,
-        dwell_censored_start=np.where(
-            first, True, np.where(adopt, False, state.dwell_censored_start)
-        ),
-        n_beam=int(n_beam),
-        serving_snr_db=_serving_db(old, new, new_db, last_db),
     )
-    return StepResult(new_state, events, dwells, service_codes(t_s, new_state), *new_split)
+    new_state.serving_since_s = _scattered(
+        state.serving_since_s,
+        u,
+        np.where(adopt, t_s, np.where(outage_start, np.nan, state.serving_since_s[u])),
+    )
+    new_state.in_outage = _scattered(
+        state.in_outage, u, (state.in_outage[u] & ~outage_end) | outage_start
+    )
+    new_state.dwell_censored_start = _scattered(
+        state.dwell_censored_start,
+        u,
+        np.where(first, True, np.where(adopt, False, state.dwell_censored_start[u])),
+    )
+    res.sat_id[u], res.beam_id[u] = new_split
+    res.service = service_codes(t_s, new_state)
+    return res
+
+
+def _scattered(values, idx, new):
+    """A copy of ``values`` with ``new`` at ``idx``."""
+    out = values.copy()
+    out[idx] = new
+    return out
 
 
 def _unchanged(t_s, state, current_db, n_beam):
     """:func:`step`'s result where no UT wants another cell, is assigned a first one,
     starts or ends an outage: every cell kept, nothing pending (a target no longer
     wanted stops pending, as in :func:`_time_to_trigger`), no events, no dwells; only the
-    serving links' last SNR moves."""
+    serving links' last SNR moves. Its ``pending``, ``pending_since_s``,
+    ``serving_snr_db``, ``sat_id`` and ``beam_id`` are new arrays (:func:`step` writes the
+    UTs that change into them); the other state arrays are the state's own."""
     n = state.serving.shape
     last_db = _last_serving_db(state, current_db)
     new_state = ControllerState(  # (not dataclasses.replace: ~5 us of introspection)
@@ -269,12 +299,13 @@ def _as_table(snr_db):
     return snr_db if isinstance(snr_db, Candidates) else Candidates.dense(snr_db)
 
 
-def _last_serving_db(state, current_db):
-    """The serving link's SNR now if finite, else its last recorded value."""
+def _last_serving_db(state, current_db, ut=slice(None)):
+    """The serving link's SNR now if finite, else its last recorded value (of the UTs
+    ``ut``, ``current_db`` theirs)."""
     last = state.serving_snr_db
     if last is None:
         last = np.full(state.n_ut, np.nan)
-    return np.where(np.isfinite(current_db), current_db, last)
+    return np.where(np.isfinite(current_db), current_db, last[ut])
 
 
 def _serving_db(old, new, new_db, last_db):

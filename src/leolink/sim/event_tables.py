@@ -55,14 +55,15 @@ def split_cells(cand, n_beam):
     return sat, beam
 
 
-def events_table(t_s, kind_code, old, old_split, new_split, new_db, before_db):
+def events_table(t_s, kind_code, old, old_split, new_split, new_db, before_db, ut_id=None):
     """Events of UTs with ``kind_code >= 0`` (at most one per UT per epoch);
-    ``old_split``, ``new_split``: ``split_cells`` of the old and new serving cells (n_ut,);
-    ``new_db``, ``before_db`` (n_ut,): the new serving cell's SNR, the old link's last."""
+    ``old_split``, ``new_split``: ``split_cells`` of the old and new serving cells (n,);
+    ``new_db``, ``before_db`` (n,): the new serving cell's SNR, the old link's last;
+    ``ut_id`` (n,) ascending: the UTs of the rows (default: row ``i`` is UT ``i``)."""
     ut = np.flatnonzero(kind_code >= 0)
     return {
         "time_s": np.full(ut.size, float(t_s)),
-        "ut_id": ut.astype(np.int64),
+        "ut_id": (ut if ut_id is None else ut_id[ut]).astype(np.int64),
         "kind": _KIND_NAMES[kind_code[ut]],
         "from_sat": old_split[0][ut],
         "from_beam": old_split[1][ut],
