@@ -202,64 +202,78 @@ def step(
     outage_end = has_usable & state.in_outage
     res = _unchanged(t_s, state, current_db, n_beam)
     u = np.flatnonzero(wants | first | outage_start | outage_end)
-    if u.size == 0:  # (most epochs of small runs)
-        return res
-    # Every rule below is per UT: applied to the UTs ``u`` that change, written over what
-    # the rules give the others (:func:`_unchanged`'s result).
-    old, target, wants = old[u], target[u], wants[u]
-    first, outage_start, outage_end = first[u], outage_start[u], outage_end[u]
-    ttt_s = float(policy.time_to_trigger_s)
+    if u.size:  # (none in most epochs of small runs)
+        # Every rule is per UT: applied to the UTs ``u`` that change, written over what the
+        # rules give the others (:func:`_unchanged`'s result).
+        sub = _Subset(old[u], target[u], wants[u], first[u], outage_start[u], outage_end[u],
+                      immediate[u], slot_old[u], slot_target[u], current_db[u])  # fmt: skip
+        ttt_s = float(policy.time_to_trigger_s)
+        _apply_changes(res, t_s, state, u, snr_db, sub, ttt_s, handover_time_s, n_beam)
+    return res
+
+
+@dataclasses.dataclass
+class _Subset:
+    """:func:`step`'s per-UT arrays of the UTs that change."""
+
+    old: np.ndarray
+    target: np.ndarray
+    wants: np.ndarray
+    first: np.ndarray
+    outage_start: np.ndarray
+    outage_end: np.ndarray
+    immediate: np.ndarray
+    slot_old: np.ndarray
+    slot_target: np.ndarray
+    current_db: np.ndarray
+
+
+def _apply_changes(res, t_s, state, u, snr_db, sub, ttt_s, handover_time_s, n_beam):
+    """The rules of :func:`step` for the UTs ``u`` (their arrays ``sub``), written into
+    ``res``, :func:`_unchanged`'s result: events, dwells, state, cells and service."""
+    old, target = sub.old, sub.target
     handover, pending, pending_since = _time_to_trigger(
-        t_s, target, state.pending[u], state.pending_since_s[u], wants, immediate[u], ttt_s
+        t_s, target, state.pending[u], state.pending_since_s[u], sub.wants, sub.immediate, ttt_s
     )
-    adopt = handover | outage_end | first
-    new = np.where(adopt, target, np.where(outage_start, -1, old))
-    slot_new = np.where(adopt, slot_target[u], np.where(outage_start, -1, slot_old[u]))
+    adopt = handover | sub.outage_end | sub.first
+    new = np.where(adopt, target, np.where(sub.outage_start, -1, old))
+    slot_new = np.where(adopt, sub.slot_target, np.where(sub.outage_start, -1, sub.slot_old))
     old_split, new_split = split_cells(old, n_beam), split_cells(new, n_beam)
 
     # A handover adopts the target: its satellite is the new one's.
     same_sat = new_split[0] == old_split[0]
     kind = np.full(old.shape, -1, np.int64)
     kind[handover] = np.where(same_sat[handover], 0, 1)
-    kind[outage_start] = 2
-    kind[outage_end] = 3
-    last_db = _last_serving_db(state, current_db[u], u)
+    kind[sub.outage_start] = 2
+    kind[sub.outage_end] = 3
+    last_db = _last_serving_db(state, sub.current_db, u)
     new_db = snr_db.rows(u).at(slot_new)
     res.events = events_table(t_s, kind, old, old_split, new_split, new_db, last_db, ut_id=u)
-    closing = np.flatnonzero((handover | outage_start) & (old >= 0))
+    closing = np.flatnonzero((handover | sub.outage_start) & (old >= 0))
     res.dwells = dwells_table(u[closing], old[closing], state.serving_since_s[u[closing]], t_s,
                               state.dwell_censored_start[u[closing]], False, n_beam,
                               (old_split[0][closing], old_split[1][closing]))  # fmt: skip
+    dropped = adopt | sub.outage_start  # nothing pends for these
     new_state = res.state  # its arrays that are not the state's own are written in place
-    new_state.pending[u] = np.where(adopt | outage_start, -1, pending)
-    new_state.pending_since_s[u] = np.where(adopt | outage_start, np.nan, pending_since)
+    new_state.pending[u] = np.where(dropped, -1, pending)
+    new_state.pending_since_s[u] = np.where(dropped, np.nan, pending_since)
     new_state.serving_snr_db[u] = _serving_db(old, new, new_db, last_db)
     new_state.serving = _scattered(state.serving, u, new)
+    until = np.where(sub.outage_start, -np.inf, state.interrupted_until_s[u])
     new_state.interrupted_until_s = _scattered(
-        state.interrupted_until_s,
-        u,
-        np.where(
-            handover,
-            t_s + handover_time_s,
-            np.where(outage_start, -np.inf, state.interrupted_until_s[u]),
-        ),
+        state.interrupted_until_s, u, np.where(handover, t_s + handover_time_s, until)
     )
-    new_state.serving_since_s = _scattered(
-        state.serving_since_s,
-        u,
-        np.where(adopt, t_s, np.where(outage_start, np.nan, state.serving_since_s[u])),
-    )
+    since = np.where(sub.outage_start, np.nan, state.serving_since_s[u])
+    new_state.serving_since_s = _scattered(state.serving_since_s, u, np.where(adopt, t_s, since))
     new_state.in_outage = _scattered(
-        state.in_outage, u, (state.in_outage[u] & ~outage_end) | outage_start
+        state.in_outage, u, (state.in_outage[u] & ~sub.outage_end) | sub.outage_start
     )
+    censored = np.where(adopt, False, state.dwell_censored_start[u])
     new_state.dwell_censored_start = _scattered(
-        state.dwell_censored_start,
-        u,
-        np.where(first, True, np.where(adopt, False, state.dwell_censored_start[u])),
+        state.dwell_censored_start, u, np.where(sub.first, True, censored)
     )
     res.sat_id[u], res.beam_id[u] = new_split
     res.service = service_codes(t_s, new_state)
-    return res
 
 
 def _scattered(values, idx, new):
