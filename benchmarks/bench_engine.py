@@ -136,7 +136,7 @@ def engine_throughput(cfg, engine, n_ut=1000, n_epoch=640, block=64):
 
 def main(quick=False, argv=None):
     """Figures: ``closed_vs_explicit_x``, ``coverage_wall_s``, ``ut_epochs_per_s`` (the
-    default path: compiled kernels where numba is installed), ``numpy_ut_epochs_per_s``."""
+    default path: the compiled kernels, leolink._kernels), ``numpy_ut_epochs_per_s``."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=100_000 if quick else 1_000_000)
     args = ap.parse_args([] if argv is None else argv)

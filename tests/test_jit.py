@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import sys
 
 import numpy as np
 import pandas as pd
 import pytest
 
-pytest.importorskip("numba")
+pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
 
 from leolink.antenna.panel import oriented_panel_basis  # noqa: E402
 from leolink.antenna.terminal import UPATerminal  # noqa: E402
@@ -240,33 +241,14 @@ def test_turned_off_by_the_environment(monkeypatch):
     finally:
         monkeypatch.delenv("LEOLINK_JIT")
         jit.enabled.cache_clear()
-    assert jit.use(jit.JIT_MIN_PAIRS) and not jit.use(jit.JIT_MIN_PAIRS - 1)
+    assert jit.use(10**9)
 
 
-def test_a_run_too_small_to_repay_numbas_start_takes_the_numpy_path(monkeypatch):
-    """Below MIN_RUN_PAIRS a run's calls take the numpy path, however large each call,
-    unless the kernels are loaded already; the flag is restored on leaving."""
-    big = 10 * jit.JIT_MIN_PAIRS
-    monkeypatch.delitem(sys.modules, "leolink.engine.kernels", raising=False)
-    with jit.sized_run(jit.MIN_RUN_PAIRS - 1):
-        assert not jit.use(big)
-        with jit.sized_run(jit.MIN_RUN_PAIRS):
-            assert jit.use(big)
-        assert not jit.use(big)
-    assert jit.use(big)
-    monkeypatch.setitem(sys.modules, "leolink.engine.kernels", jit.kernels())
-    with jit.sized_run(1):
-        assert jit.use(big)
-
-
-def test_in_a_large_run_every_call_takes_the_kernels_outside_only_large_ones():
-    """A one-pair call outside a run (a link budget) takes numpy: it would load numba for
-    nothing; within a large run every non-empty call takes the kernels (one path: the
-    run's bits do not depend on how its work is cut into calls)."""
-    assert not jit.use(1) and not jit.use(jit.JIT_MIN_PAIRS - 1) and jit.use(jit.JIT_MIN_PAIRS)
-    with jit.sized_run(jit.MIN_RUN_PAIRS):
-        assert jit.use(1) and not jit.use(0)
-    assert not jit.use(1)
+def test_every_non_empty_call_takes_the_kernels():
+    """No size threshold: the extension loads in a millisecond, so a one-pair call (a link
+    budget) takes the kernels as a run's calls do, and a run's bits do not depend on how
+    its work is cut into calls."""
+    assert jit.use(1) and not jit.use(0)
 
 
 def test_tilted_panel_gains_are_the_numpy_bits(epoch, monkeypatch):
@@ -328,21 +310,56 @@ def test_thread_count_from_the_environment(monkeypatch):
 
 
 def test_a_large_runs_bits_do_not_depend_on_its_motion_blocks(monkeypatch):
-    """Every non-empty call of a run large enough for the kernels takes them
-    (``engine.jit.use``): 10 UTs of the paper's constellation for 200 s (8.8 M pairs)
-    in blocks of 105 epochs (its own) or of 64 give the same trace, bit for bit. With a
-    threshold of 1,000 pairs the monitor's calls of 640 rows took numpy and those of
-    1,050 the kernels: on an AVX-512 CPU 14 columns differed, by up to 1.4e-14 dB."""
+    """Every non-empty call takes the kernels (``engine.jit.use``): 10 UTs of the paper's
+    constellation for 200 s in blocks of 105 epochs (its own) or of 64 give the same
+    trace, bit for bit. With a threshold of 1,000 pairs (numba's, once) the monitor's calls
+    of 640 rows took numpy and those of 1,050 the kernels: on an AVX-512 CPU 14 columns
+    differed, by up to 1.4e-14 dB."""
     from leolink.app.run import run
     from leolink.sim import motion
 
     cfg = load_config(CONSTELLATION, ["population.0.count=10", "run.duration_s=200",
                                       "output.plots.enabled=false"])  # fmt: skip
     cfg = cfg.model_copy(update={"population": cfg.population[:1]})
-    assert 10 * 4399 * 200 >= jit.MIN_RUN_PAIRS
     own = run(cfg).trace
     monkeypatch.setattr(motion, "MAX_BLOCK_EPOCHS", 64)
     cut = run(cfg).trace
     assert len(own) == 10 * 200 and own.snr_db.notna().sum() > 1000
     assert "leolink.engine.kernels" in sys.modules or not jit.enabled()
     pd.testing.assert_frame_equal(own, cut, check_exact=True)
+
+
+def test_without_the_extension_a_run_takes_numpy_and_writes_the_same_trace(tmp_path):
+    """Where leolink was installed without a C compiler (setup.py: the extension is
+    optional) the import of ``leolink._kernels`` fails: a run then takes the numpy path
+    everywhere and writes the trace the kernels write (within tests/platform_math.py)."""
+    import json
+    import subprocess
+
+    sets = ["run.duration_s=20", "population.1.count=17", 'population.1.placement="random"',
+            "population.1.x_m=[]", "population.1.y_m=[]"]  # fmt: skip
+    code = (
+        "import sys, json; {block}"
+        "import leolink.app.run, leolink.compiled; "
+        "from leolink.config import load_config; "
+        f"res = leolink.app.run.run(load_config('configs/paper.toml', {sets!r})); "
+        "res.trace.to_parquet(sys.argv[1]); "
+        "print(json.dumps([leolink.compiled.enabled(), 'leolink.engine.kernels' in sys.modules]))"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("LEOLINK_JIT",)}
+    seen, traces = [], []
+    for block in ("sys.modules['leolink._kernels'] = None; ", ""):
+        path = tmp_path / f"{len(traces)}.parquet"
+        done = subprocess.run([sys.executable, "-c", code.format(block=block), str(path)],
+                              capture_output=True, text=True, check=True, env=env)  # fmt: skip
+        seen.append(json.loads(done.stdout))
+        traces.append(pd.read_parquet(path))
+    assert seen == [[False, False], [True, True]]
+    plain, fused = traces
+    assert len(plain) == 20 * 20 and plain.snr_db.notna().sum() > 300
+    assert list(plain.columns) == list(fused.columns)
+    for c in plain.columns:
+        if plain[c].dtype.kind == "f":
+            assert _same_column(c, plain[c].to_numpy(), fused[c].to_numpy()), c
+        else:
+            assert plain[c].equals(fused[c]), c

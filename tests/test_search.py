@@ -327,15 +327,12 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
     (every row longer than a chunk), of 37 pairs (cuts inside rows moved to the next row)
     and of 1024 give the tables of one chunk, bit for bit (in a run every chunk takes the
     same path, compiled or numpy, whatever its size: engine.jit.use)."""
-    from leolink.engine import jit
-
     eng, n_ut, mb, cones = block
     window_db = np.inf if floor_db > -np.inf else 3.0
-    with jit.sized_run(jit.MIN_RUN_PAIRS):  # as in a large run: every call one path
-        cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
-        assert ref.links.visible.sum() > 4 * 1024  # several chunks of every size
-        monkeypatch.setattr(search, "TABLE_PAIRS", pairs)
-        cells, snr, blk = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
+    cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
+    assert ref.links.visible.sum() > 4 * 1024  # several chunks of every size
+    monkeypatch.setattr(search, "TABLE_PAIRS", pairs)
+    cells, snr, blk = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
     assert np.array_equal(cells, cells_ref) and np.array_equal(snr, snr_ref, equal_nan=True)
     assert np.array_equal(blk.best_cell, ref.best_cell)
     assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
@@ -344,18 +341,17 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
 
 @pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
 def test_compiled_window_tables_are_the_numpy_tables(block, monkeypatch, window_db):
-    """Without a floor, a large run's tables take leolink.sim.table_kernels.window_entries:
+    """Without a floor, the tables take leolink.sim.table_kernels.window_entries:
     the same table slot for slot, the same diagnostics, as the numpy path's."""
     from leolink.engine import jit
 
-    pytest.importorskip("numba")
+    pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
     eng, n_ut, mb, cones = block
-    with jit.sized_run(jit.MIN_RUN_PAIRS):  # as in a large run: the kernels
-        assert search._window_kernel(1) is not None  # (the path compared)
-        _, _, blk = _tables(eng, n_ut, mb, cones, window_db, True)
-        with monkeypatch.context() as m:
-            m.setattr(search, "_window_kernel", lambda n: None)  # the engine's path kept
-            _, _, ref = _tables(eng, n_ut, mb, cones, window_db, True)
+    assert search._window_kernel(1) is not None and jit.use(1)  # (the path compared)
+    _, _, blk = _tables(eng, n_ut, mb, cones, window_db, True)
+    with monkeypatch.context() as m:
+        m.setattr(search, "_window_kernel", lambda n: None)  # the engine's path kept
+        _, _, ref = _tables(eng, n_ut, mb, cones, window_db, True)
     assert ref.table.n_slot >= (3 if window_db > 0.0 else 1)
     assert np.array_equal(blk.table.cell, ref.table.cell)
     assert np.array_equal(blk.table.snr_db, ref.table.snr_db, equal_nan=True)

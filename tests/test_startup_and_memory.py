@@ -3,7 +3,6 @@ wall time is mostly start-up: pandas alone is ~0.5 s, matplotlib ~0.7 s); the pl
 memory stays bounded in run length without losing rows."""
 
 import json
-import os
 import subprocess
 import sys
 
@@ -26,34 +25,6 @@ def test_importing_the_cli_and_run_loads_no_heavy_library():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert json.loads(done.stdout) == [[], ["pyarrow.parquet"]]
-
-
-def test_a_run_too_small_to_repay_numbas_start_never_imports_numba():
-    """20 UTs x 120 epochs, one satellite: each block's engine calls cover more than
-    JIT_MIN_PAIRS pairs, the run far fewer than MIN_RUN_PAIRS, so numba's start (0.8-0.9
-    s, more than the whole run) is not paid (a fresh process, as the leolink command)."""
-    import numpy as np
-
-    from leolink.engine import jit
-    from leolink.sim.motion import MotionBlocks
-
-    sets = ["run.duration_s=120", "run.epoch_s=1.0", "population.1.count=17",
-            'population.1.placement="random"', "population.1.x_m=[]", "population.1.y_m=[]",
-            "output.plots.enabled=false", "output.report.enabled=false"]  # fmt: skip
-    code = (
-        "import sys, json, tempfile, leolink.app.run; "
-        "from leolink.config import load_config; "
-        f"res = leolink.app.run.run(load_config('configs/paper.toml', {sets!r}), "
-        "tempfile.mkdtemp()); "
-        "print(json.dumps([len(res.trace), 'numba' in sys.modules]))"
-    )
-    env = {k: v for k, v in os.environ.items() if k != "LEOLINK_JIT"}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          check=True, env=env)  # fmt: skip
-    assert json.loads(done.stdout) == [20 * 120, False]
-    n_block = MotionBlocks(None, [], np.arange(120.0), 1, 20).n_block
-    assert 20 * min(n_block, 120) >= jit.JIT_MIN_PAIRS > 0  # (the premise: large calls)
-    assert 20 * 120 < jit.MIN_RUN_PAIRS
 
 
 def test_plot_sink_keeps_exactly_the_chosen_uts_rows_across_compactions(monkeypatch):

@@ -8,7 +8,8 @@ test). For each, the working tree's ``src``, ``tests``, ``configs``, ``examples`
 there (it must match exactly once), and the tests that should see it are run with that
 copy first on ``PYTHONPATH``. A mutation is *killed* when pytest fails; the script prints
 the failing tests. ``--full`` runs the whole suite per mutation instead (slow: ~2 min
-each). Exit status 1 when a mutation survives or an edit no longer applies.
+each). An edit of the C loops (``src/leolink/_kernels.c``) rebuilds the copy's extension
+first. Exit status 1 when a mutation survives or an edit no longer applies.
 """
 
 from __future__ import annotations
@@ -24,7 +25,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-COPIED = ("src", "tests", "configs", "examples", "docs", "analysis", "pyproject.toml", "README.md")
+COPIED = (
+    "src",
+    "tests",
+    "configs",
+    "examples",
+    "docs",
+    "analysis",
+    "pyproject.toml",
+    "README.md",
+    "setup.py",
+)
 
 
 @dataclass(frozen=True)
@@ -119,17 +130,17 @@ MUTATIONS = (
         ("tests/test_trace_independent.py",),
     ),
     Mutation(
-        "kernel_fspl_at_twice_the_frequency",  # the compiled path of runs >= 1,000 pairs/call
-        "src/leolink/engine/kernels.py",
-        "out[4, r] = (20.0 * np.log10(((_C4PI * rho) * freq) / c)) * nan",
-        "out[4, r] = (20.0 * np.log10(((_C4PI * rho) * 2.0 * freq) / c)) * nan",
+        "kernel_fspl_at_twice_the_frequency",  # the compiled path (leolink._kernels)
+        "src/leolink/_kernels.c",
+        "E2(out, double, 4, r) = (20.0 * log10(((C4PI * rho) * freq) / c)) * nan;",
+        "E2(out, double, 4, r) = (20.0 * log10(((C4PI * rho) * 2.0 * freq) / c)) * nan;",
         ("tests/test_jit.py",),
     ),
     Mutation(
         "kernel_elevation_from_cosine",
-        "src/leolink/engine/kernels.py",
-        "el = np.arcsin(s_el)",
-        "el = np.arccos(s_el)",
+        "src/leolink/_kernels.c",
+        "double el = asin(s_el);",
+        "double el = acos(s_el);",
         ("tests/test_jit.py",),
     ),
     Mutation(
@@ -338,6 +349,9 @@ def check(m: Mutation, full: bool) -> tuple[bool, list[str]]:
         tree = Path(tmp)
         _copy_tree(tree)
         _apply(tree, m)
+        if m.path.endswith(".c"):  # the compiled loops: the copy's extension, rebuilt
+            subprocess.run([sys.executable, "setup.py", "-q", "build_ext", "--inplace"],
+                           cwd=tree, check=True, capture_output=True)  # fmt: skip
         env = dict(os.environ, PYTHONPATH=str(tree / "src"), PYTHONDONTWRITEBYTECODE="1")
         env.pop("MPLBACKEND", None)
         args = [sys.executable, "-m", "pytest", "-q", "-rf", "-p", "no:cacheprovider", "-x"]

@@ -38,9 +38,9 @@ BLOCK_TESTS = ["tests/test_block_frames.py", "tests/test_block_frame_contracts.p
 #: module -> the fast tests that exercise it (the whole suite would cost ~2 min per mutant
 #: batch; these run in seconds).
 MODULES = {
-    # The engine package, file by file; its numba kernels (engine/kernels.py) are not
-    # mutated (mutmut's trampolines cannot run inside jitted code): every run here sets
-    # LEOLINK_JIT=0, so the numpy reference path is what is measured.
+    # The engine package, file by file; its compiled kernels (src/leolink/_kernels.c) are
+    # not mutated (mutmut edits Python): every run here sets LEOLINK_JIT=0, so the numpy
+    # reference path is what is measured.
     # serve_pairs' paths that the engine files above never take: active beams' lit
     # beams, tilted panels and a given ENU, fading, other satellites' interference.
     "engine/__init__": [
@@ -195,8 +195,8 @@ def score(module: str, workdir: Path, children: int, root: Path = ROOT) -> dict:
     dest = workdir / module.replace("/", "_")
     _prepare(dest, module, root)
     # One run per test, not per module: mutmut credits each check (tests/scopes.py).
-    # The numpy path of the engine (LEOLINK_JIT=0): mutants inside numba kernels are not
-    # meaningful, and the kernels give the numpy path's bits (tests/test_jit.py).
+    # The numpy path of the engine (LEOLINK_JIT=0): the compiled kernels are C, which
+    # mutmut does not edit, and they give the numpy path's bits (tests/test_jit.py).
     env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function", LEOLINK_JIT="0")
     subprocess.run([*MUTMUT, "run", "--max-children", str(children)], cwd=dest, check=False,
                    stdout=subprocess.DEVNULL, env=env)  # fmt: skip

@@ -1,8 +1,10 @@
-"""Whether compiled kernels (numba) run, and on how many threads: one answer for every
-layer (:mod:`leolink.engine.jit` for the engine, :mod:`leolink.visibility`).
+"""Whether the compiled kernels (``leolink._kernels``, C) run, and on how many threads: one
+answer for every layer (:mod:`leolink.engine.jit` for the engine, :mod:`leolink.visibility`).
 
-``LEOLINK_JIT=0`` in the environment turns every kernel off (the numpy code then runs
-everywhere); ``LEOLINK_THREADS=N`` sets the threads a large call is split over.
+The extension is built when leolink is installed (``setup.py``; optional: without a C
+compiler leolink installs without it). ``LEOLINK_JIT=0`` in the environment turns every
+kernel off (the numpy code then runs everywhere); ``LEOLINK_THREADS=N`` sets the threads a
+large call is split over.
 """
 
 from __future__ import annotations
@@ -15,11 +17,11 @@ __all__ = ["enabled", "n_threads"]
 
 @functools.cache
 def enabled():
-    """Whether numba is installed and not turned off (``LEOLINK_JIT=0``)."""
+    """Whether the compiled extension is built and not turned off (``LEOLINK_JIT=0``)."""
     if os.environ.get("LEOLINK_JIT", "1").strip() in ("0", "false", "no", "off"):
         return False
     try:
-        import numba  # noqa: F401
+        import leolink._kernels  # noqa: F401
     except ImportError:
         return False
     return True

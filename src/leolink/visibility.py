@@ -9,7 +9,7 @@ angle between the site-to-satellite vector ``d = r - s`` and the ellipsoid norma
 Rounding: < 1e-12 rad, but within ~0.1 deg of the zenith, where the arcsine of a value
 near 1 leaves ~1e-8 rad (6e-7 deg).
 
-With numba (and ``LEOLINK_JIT`` not 0) the elevations are computed by a compiled kernel
+With the compiled extension (and ``LEOLINK_JIT`` not 0) the elevations are computed by a kernel
 (:mod:`leolink.visibility_kernel`) split over the CPUs (``LEOLINK_THREADS``), with no
 temporaries; its ``sin(elevation)`` has the bits of the numpy code's, its arcsine
 (fdlibm's, vectorized) is within 1 ulp of numpy's (2.2e-16 rad; the bits do not depend on
@@ -129,37 +129,38 @@ def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
     """The compiled path, every site at once (the kernel keeps no temporaries), in at
     least :data:`PIPELINE_BLOCKS` blocks of times: sgp4, which holds the GIL, propagates
     the next block on a thread while the kernel, which releases it, fills this one (so two
-    blocks' states are alive at once: twice ``block_bytes``), on :func:`n_threads`
-    threads (the caller's numba setting is restored). The kernel on one thread fewer
-    while sgp4 runs (sgp4 then has a CPU of its own) was slower on a busy 2-CPU machine:
-    91, 114, 52x against 109, 116, 83x for this, alternating, 5 other processes running."""
+    blocks' states are alive at once: twice ``block_bytes``), its sites split over
+    :func:`n_threads` threads (each site is one thread's: the bits do not depend on the
+    split)."""
     from concurrent.futures import ThreadPoolExecutor
-
-    import numba
 
     t_step = max(1, min(t_step, -(-jd.size // PIPELINE_BLOCKS)))
     blocks = [slice(t0, t0 + t_step) for t0 in range(0, jd.size, t_step)]
-    caller_threads = numba.get_num_threads()
-    try:
-        with ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as pool:
+    k = max(1, min(n_threads(), len(site)))
+    edges = [len(site) * i // k for i in range(k + 1)]
+    with (
+        ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as sgp4,
+        ThreadPoolExecutor(max(1, k - 1), thread_name_prefix="leolink-elevations") as pool,
+    ):
 
-            def states(t):
-                return pool.submit(_earth_fixed_states, sats, jd[t], fr[t], ut1[t])
+        def states(t):
+            return sgp4.submit(_earth_fixed_states, sats, jd[t], fr[t], ut1[t])
 
-            numba.set_num_threads(min(n_threads(), numba.config.NUMBA_NUM_THREADS))
-            pending = states(blocks[0]) if blocks else None
-            for i, t in enumerate(blocks):  # (no block: no time, nothing to fill)
-                r = pending.result()
-                if i + 1 < len(blocks):
-                    pending = states(blocks[i + 1])
-                kernel(r, site, normal, out, t.start)
-    finally:
-        numba.set_num_threads(caller_threads)
+        pending = states(blocks[0]) if blocks else None
+        for i, t in enumerate(blocks):  # (no block: no time, nothing to fill)
+            r = pending.result()
+            if i + 1 < len(blocks):
+                pending = states(blocks[i + 1])
+            shares = [pool.submit(kernel, r, site, normal, out, t.start, lo, hi)
+                      for lo, hi in zip(edges[1:-1], edges[2:], strict=True)]  # fmt: skip
+            kernel(r, site, normal, out, t.start, 0, edges[1])  # this thread's share
+            for share in shares:
+                share.result()
 
 
 def _kernel():
-    """The compiled :func:`leolink.visibility_kernel.elevations`, or None (numba missing
-    or ``LEOLINK_JIT=0``: the numpy code below)."""
+    """The compiled :func:`leolink.visibility_kernel.elevations`, or None (the extension
+    not built, or ``LEOLINK_JIT=0``: the numpy code below)."""
     if not enabled():
         return None
     from leolink.visibility_kernel import elevations

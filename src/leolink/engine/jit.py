@@ -1,11 +1,10 @@
-"""Compiled kernels (numba), optional: the same numbers as the numpy code they replace.
+"""Compiled kernels (``leolink._kernels``, C), optional: the same numbers as the numpy
+code they replace.
 
-numba is imported on first use only, and only for work large enough to repay its start-up:
-within a run (:func:`sized_run`), every non-empty call of a run of at least
-``MIN_RUN_PAIRS``, so that the run's bits do not depend on how its work is cut into calls;
-outside a run, calls of at least ``JIT_MIN_PAIRS`` pairs. ``LEOLINK_JIT=0`` in the
-environment turns every kernel off (the numpy code then runs everywhere). Kernels compile
-once per machine (``cache=True``).
+Every non-empty call takes the kernels when the extension is built (it loads in about a
+millisecond: no start-up to repay) and ``LEOLINK_JIT`` is not 0 in the environment; else
+the numpy code runs everywhere. So a run's bits do not depend on how its work is cut into
+calls.
 
 The kernels (:mod:`leolink.engine.kernels`) repeat the numpy code's operations one for
 one: a pair gets the same bits from either where numpy's transcendental loops are the C
@@ -17,38 +16,15 @@ an output, so it may (and does) round differently; both of its bounds are rigoro
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import os
-import sys
 
 import numpy as np
 
 from leolink.compiled import enabled, n_threads
 
-__all__ = ["JIT_MIN_PAIRS", "MIN_RUN_PAIRS", "best_beam", "enabled", "links_arrays"]
-__all__ += ["n_threads", "run_rows", "screen_kernel", "serve_columns", "serve_pairs"]
-__all__ += ["sized_run", "use"]
-
-#: Outside a run, the smallest call [(UT, satellite) pairs] that takes (and may load) the
-#: kernels: a one-pair link budget would load numba (0.4 s) for nothing. Within a large run
-#: every non-empty call takes them: where the two paths are a few ulp apart (numpy's SVML
-#: functions on AVX-512), this threshold inside runs changed the last bits of 14 trace
-#: columns (<= 1.4e-14 dB) of a 10-UT constellation run between blocks of 64 and 105
-#: epochs; none without it. Small calls cost the same either way: bench_sim 714/737/710
-#: with the threshold against 722/714/712 k UT-epochs/s without, the constellation
-#: 8.34/8.27 against 9.42/8.42 s (7.60/7.67 against 7.44/7.59 s, plots off), alternating.
-JIT_MIN_PAIRS = 1_000
-
-#: Smallest run, in (UT, satellite) pairs over its epochs, whose kernels repay numba's
-#: start (its import and the kernels' cache load: 0.8-0.9 s on the 2-core machine of
-#: ``benchmarks/``). One satellite, numpy against the kernels, process wall time: 100 UTs x
-#: 600 epochs 1.22-1.37 against 1.89-2.15 s, 1,000 UTs x 600 epochs 3.71-3.75 against
-#: 4.08-4.15 s; ``bench_sim`` (1,000 UTs x 3,600 epochs) 8.7-8.8 against 7.9-8.6 s.
-MIN_RUN_PAIRS = 2_000_000
-
-#: Set by :func:`sized_run`: whether the current run takes the kernels (None: no run).
-_run_kernels: bool | None = None
+__all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
+__all__ += ["serve_columns", "serve_pairs", "use"]
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
@@ -85,7 +61,7 @@ def run_rows(kernel, n, *args, row_size=1):
 
 
 def kernels():
-    """The compiled kernels (:mod:`leolink.engine.kernels`; compiled or loaded on first use)."""
+    """The compiled kernels (:mod:`leolink.engine.kernels`)."""
     from leolink.engine import kernels as k
 
     return k
@@ -93,26 +69,7 @@ def kernels():
 
 def use(n):
     """Whether a call over ``n`` pairs or rows runs a compiled kernel (module docstring)."""
-    wanted = _run_kernels if _run_kernels is not None else n >= JIT_MIN_PAIRS
-    return n >= 1 and wanted and enabled()  # (enabled() imports numba: last)
-
-
-@contextlib.contextmanager
-def sized_run(n_pairs):
-    """Within: the calls of a run of at most ``n_pairs`` (UT, satellite) pairs over its
-    epochs take the numpy path if ``n_pairs < MIN_RUN_PAIRS`` and the kernels are not
-    loaded yet (once loaded, their start is paid), else the kernels, every non-empty one.
-    Only the time changes: the kernels give the numpy path's numbers (module docstring).
-    One flag for the process: runs in concurrent threads may see each other's choice,
-    which again changes only the time."""
-    global _run_kernels
-    before = _run_kernels
-    small = n_pairs < MIN_RUN_PAIRS and "leolink.engine.kernels" not in sys.modules
-    _run_kernels = not small
-    try:
-        yield
-    finally:
-        _run_kernels = before
+    return n >= 1 and enabled()
 
 
 def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
@@ -126,9 +83,10 @@ def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
     cx, cy = engine.kernel_coefficients
     run_rows(
         kernels().links_kernel, m, np.ascontiguousarray(ut_pos_m, float),
-        np.zeros((0, 3)) if sphere else ut_up, sphere, r_ut,
+        np.zeros((0, 3)) if sphere else np.asarray(ut_up, float), sphere, r_ut,
         np.ascontiguousarray(sat_pos_m, float), np.ascontiguousarray(axes[:, 0, :]),
-        np.ascontiguousarray(axes[:, 1, :]), ut, sat, engine.params.min_elevation_rad,
+        np.ascontiguousarray(axes[:, 1, :]), np.asarray(ut, np.int64), np.asarray(sat, np.int64),
+        engine.params.min_elevation_rad,
         engine.beam_ux, cx, engine.codebook.n_sub_x, engine.beam_uy, cy,
         engine.codebook.n_sub_y, *out,
     )  # fmt: skip

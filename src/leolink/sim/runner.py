@@ -15,7 +15,7 @@ import numpy as np
 import simpy
 
 from leolink.antenna.panel import PanelOrientation
-from leolink.engine import LinkEngine, jit
+from leolink.engine import LinkEngine
 from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
 from leolink.sim.active_beams import BeamSelector
@@ -243,8 +243,7 @@ def run_simulation(
     t_wall = time.perf_counter()
     try:  # start inside: a signal while the later sinks start aborts the earlier ones
         sink.start(info)
-        with jit.sized_run(len(times) * n_ut * scen.ephemeris.n_sat):  # (at most the pairs)
-            _advance(env, times, scen.epoch_s, progress)
+        _advance(env, times, scen.epoch_s, progress)
         t_end = float(times[-1]) + scen.epoch_s
         sink.finish(FinalFrame(t_end, final_dwells(state, t_end, scen.engine.n_beam)))
     except BaseException:
