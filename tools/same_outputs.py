@@ -4,9 +4,10 @@
 
 Runs ``leolink run CONFIG --parquet`` for ``configs/paper.toml`` and every
 ``configs/examples/*.toml`` twice: with the code and configs of ``REV`` (a temporary git
-worktree) and with those of the working tree; then compares ``trace.csv``,
-``trace.parquet`` (as tables), ``events.csv`` and ``summary.json`` (without the wall
-time). Prints one line per config and exits 1 if anything differs. Speed aside, a
+worktree, its compiled extension built when it has one) and with those of the working
+tree (its extension as built: ``python setup.py build_ext --inplace`` after an edit);
+then compares ``trace.csv``, ``trace.parquet`` (as tables), ``events.csv`` and
+``summary.json`` (without the wall time). Prints one line per config and exits 1 if anything differs. Speed aside, a
 refactoring must pass this.
 
 ``--common``: when the output contract grew (new trace columns, summary keys), compare
@@ -123,6 +124,9 @@ def main(argv=None):
             capture_output=True,
         )
     try:
+        if (base_tree / "setup.py").exists():  # the compiled loops of that revision, built
+            subprocess.run([sys.executable, "setup.py", "-q", "build_ext", "--inplace"],
+                           cwd=base_tree, check=True, capture_output=True)  # fmt: skip
         run_all(base_tree, work / "base")
         run_all(ROOT, work / "head")
     finally:
