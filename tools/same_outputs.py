@@ -7,8 +7,8 @@ Runs ``leolink run CONFIG --parquet`` for ``configs/paper.toml`` and every
 worktree, its compiled extension built when it has one) and with those of the working
 tree (its extension as built: ``python setup.py build_ext --inplace`` after an edit);
 then compares ``trace.csv``, ``trace.parquet`` (as tables), ``events.csv`` and
-``summary.json`` (without the wall time). Prints one line per config and exits 1 if anything differs. Speed aside, a
-refactoring must pass this.
+``summary.json`` (without the wall time). Prints one line per config and exits 1 if
+anything differs. Speed aside, a refactoring must pass this.
 
 ``--common``: when the output contract grew (new trace columns, summary keys), compare
 only what ``REV`` wrote: its trace columns, cell by cell as text (CSV) or exactly
