@@ -15,6 +15,21 @@ import pytest
 _unexpected: list[str] = []
 
 
+@pytest.fixture(params=["compiled", "numpy"])
+def compiled_and_numpy(request, monkeypatch):
+    """The test on the compiled loops (``leolink._kernels``: every call where the extension
+    is built) and on the numpy code (as ``LEOLINK_JIT=0``): for the modules with both
+    paths (``pytestmark = pytest.mark.usefixtures("compiled_and_numpy")``)."""
+    from leolink.engine import jit
+
+    if request.param == "numpy":
+        monkeypatch.setattr(jit, "use", lambda n: False)
+    else:
+        pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
+        assert jit.use(1)
+    return request.param
+
+
 @pytest.fixture
 def blocks_of_64(monkeypatch):
     """Motion blocks of at most 64 epochs whatever the UT count, as every run had before

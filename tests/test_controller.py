@@ -17,6 +17,9 @@ from leolink.sim.controller import (
 )
 from leolink.sim.policies import Hysteresis, MaxSnr, Predictive
 
+# Every test on the compiled step (leolink.sim.step_kernel) and on the numpy one.
+pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
+
 HANDOVER_KINDS = ("beam_handover", "sat_handover")
 
 
@@ -249,8 +252,9 @@ def test_policies_from_the_config_tables():
 
 
 def test_a_policy_returning_an_unusable_candidate_is_an_error():
-    class Bad:
+    class Bad:  # (the Policy protocol's attributes: the compiled step reads them all)
         lookahead_s = 0.0
+        time_to_trigger_s = 0.0
 
         def choose(self, t_s, snr_db, state, future_snr_db=None):
             return np.zeros(snr_db.shape[0], np.int64)

@@ -28,6 +28,9 @@ from leolink.sim.controller import (
 )
 from leolink.sim.policies import Hysteresis, MaxSnr
 
+# Every test on the compiled step (leolink.sim.step_kernel) and on the numpy one.
+pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
+
 TOL_S = 1e-9  # the documented epoch-time tolerance (1 ns)
 
 

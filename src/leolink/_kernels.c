@@ -775,6 +775,153 @@ static PyObject *window_fill(PyObject *self, PyObject *args)
     return PyLong_FromSsize_t(k);
 }
 
+/* ---- the controller's step (leolink.sim.controller.step) ---- */
+
+/* The first slot of row i of ``cell`` holding ``c`` (c >= 0), else -1: Candidates.slot_of. */
+static inline int64_t slot_in(const Arr *cell, Py_ssize_t i, int64_t c)
+{
+    if (c < 0)
+        return -1;
+    for (Py_ssize_t j = 0; j < cell->n[1]; j++) {
+        if (E2(*cell, int64_t, i, j) == c)
+            return j;
+    }
+    return -1;
+}
+
+/* step_rules(cell, snr, target, serving, pending, pending_since, until, serving_since,
+ *            in_outage, censored, serving_snr, t_s, min_snr, handover_s, ttt_s, tol,
+ *            n_beam, o_serving, o_pending, o_since, o_until, o_serving_since, o_in_outage,
+ *            o_censored, o_serving_snr, o_sat, o_beam, o_service, o_kind, o_new_db,
+ *            o_last_db, o_closing) -> (n_bad, first_bad, n_events, n_closing)
+ *
+ * controller.step's rules for every UT, given the policy's target (the numpy code's
+ * comparisons and selections, UT by UT: nothing is rounded but t_s + handover_s, which the
+ * numpy code computes alike). The state's arrays in, the new state's out; per UT the event
+ * kind (-1: none), the new serving cell's SNR and the old link's last (the event's
+ * columns) and whether a dwell closes. n_bad: UTs whose target is not usable where one is
+ * needed (the caller raises), first_bad the first of them (-1). */
+static PyObject *step_rules(PyObject *self, PyObject *args)
+{
+    PyObject *o[26];
+    double t_s, min_snr, handover_s, ttt_s, tol;
+    Py_ssize_t n_beam;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOdddddnOOOOOOOOOOOOOOO", &o[0], &o[1], &o[2], &o[3],
+                          &o[4], &o[5], &o[6], &o[7], &o[8], &o[9], &o[10], &t_s, &min_snr,
+                          &handover_s, &ttt_s, &tol, &n_beam, &o[11], &o[12], &o[13], &o[14],
+                          &o[15], &o[16], &o[17], &o[18], &o[19], &o[20], &o[21], &o[22], &o[23],
+                          &o[24], &o[25]))
+        return NULL;
+    static const Spec spec[26] = {
+        {"cell", 'q', 2, 0},           {"snr", 'd', 2, 0},          {"target", 'q', 1, 0},
+        {"serving", 'q', 1, 0},        {"pending", 'q', 1, 0},      {"pending_since", 'd', 1, 0},
+        {"until", 'd', 1, 0},          {"serving_since", 'd', 1, 0}, {"in_outage", '?', 1, 0},
+        {"censored", '?', 1, 0},       {"serving_snr", 'd', 1, 0},  {"o_serving", 'q', 1, 1},
+        {"o_pending", 'q', 1, 1},      {"o_since", 'd', 1, 1},      {"o_until", 'd', 1, 1},
+        {"o_serving_since", 'd', 1, 1}, {"o_in_outage", '?', 1, 1}, {"o_censored", '?', 1, 1},
+        {"o_serving_snr", 'd', 1, 1},  {"o_sat", 'q', 1, 1},        {"o_beam", 'q', 1, 1},
+        {"o_service", 'b', 1, 1},      {"o_kind", 'b', 1, 1},       {"o_new_db", 'd', 1, 1},
+        {"o_last_db", 'd', 1, 1},      {"o_closing", '?', 1, 1}};
+    Arr a[26];
+    if (take_all(o, a, spec, 26) < 0)
+        return NULL;
+    if (n_beam < 1) {
+        release(a, 26);
+        PyErr_SetString(PyExc_ValueError, "leolink._kernels.step_rules: n_beam must be >= 1");
+        return NULL;
+    }
+    Arr cell = a[0], snr = a[1], target = a[2], serving = a[3], pending = a[4];
+    Arr pending_since = a[5], until = a[6], serving_since = a[7], in_outage = a[8];
+    Arr censored = a[9], serving_snr = a[10];
+    Py_ssize_t n = target.n[0], n_bad = 0, first_bad = -1, n_events = 0, n_closing = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int64_t old = E1(serving, int64_t, i), tgt = E1(target, int64_t, i);
+        int was_out = E1(in_outage, char, i) != 0;
+        double was_until = E1(until, double, i);
+        int has_usable = 0; /* a finite SNR at or above the threshold */
+        for (Py_ssize_t j = 0; j < snr.n[1]; j++) {
+            double v = E2(snr, double, i, j);
+            has_usable |= isfinite(v) && v >= min_snr;
+        }
+        int64_t slot_old = slot_in(&cell, i, old), slot_target = slot_in(&cell, i, tgt);
+        int first = has_usable && old < 0 && !was_out;
+        int interrupted = old >= 0 && t_s < was_until - tol;
+        double target_db = slot_target >= 0 ? E2(snr, double, i, slot_target) : NAN;
+        int target_ok = isfinite(target_db) && target_db >= min_snr;
+        if (has_usable && !interrupted && !target_ok) {
+            if (first_bad < 0)
+                first_bad = i;
+            n_bad++;
+        }
+        double current_db = slot_old >= 0 ? E2(snr, double, i, slot_old) : NAN;
+        int immediate = !(isfinite(current_db) && current_db >= min_snr);
+        int wants = has_usable && old >= 0 && !interrupted && tgt != old;
+        int outage_start = !has_usable && !was_out;
+        int outage_end = has_usable && was_out;
+        double last = E1(serving_snr, double, i);
+        double last_db = isfinite(current_db) ? current_db : last;
+        /* what the rules give a UT that changes nothing (controller._unchanged) */
+        int64_t new = old, p_out = -1;
+        double since_out = NAN, new_db = current_db, o_until = was_until;
+        double o_start = E1(serving_since, double, i);
+        int o_out = was_out, o_cens = E1(censored, char, i) != 0;
+        int kind = -1, closing = 0;
+        if (wants || first || outage_start || outage_end) {
+            /* time to trigger */
+            int64_t p = wants && !immediate ? tgt : -1;
+            int same = p >= 0 && p == E1(pending, int64_t, i);
+            double since = same ? E1(pending_since, double, i) : (p >= 0 ? t_s : NAN);
+            int waited = t_s - since >= ttt_s - tol;
+            int handover = wants && (immediate || waited);
+            int adopt = handover || outage_end || first;
+            int dropped = adopt || outage_start;
+            p_out = dropped ? -1 : (handover ? -1 : p);
+            since_out = (dropped || handover || p < 0) ? NAN : since;
+            new = adopt ? tgt : (outage_start ? -1 : old);
+            int64_t slot_new = adopt ? slot_target : (outage_start ? -1 : slot_old);
+            new_db = slot_new >= 0 ? E2(snr, double, i, slot_new) : NAN;
+            if (handover)
+                kind = (new / n_beam == old / n_beam) ? 0 : 1;
+            if (outage_start)
+                kind = 2;
+            if (outage_end)
+                kind = 3;
+            closing = (handover || outage_start) && old >= 0;
+            o_until = handover ? t_s + handover_s : (outage_start ? -INFINITY : was_until);
+            o_start = adopt ? t_s : (outage_start ? NAN : o_start);
+            o_out = (was_out && !outage_end) || outage_start;
+            o_cens = first ? 1 : (adopt ? 0 : o_cens);
+        }
+        n_events += kind >= 0;
+        n_closing += closing;
+        /* serving_snr_db of the new state (controller._serving_db) */
+        double kept = new == old ? last_db : NAN;
+        E1(a[18], double, i) = new < 0 ? NAN : (isfinite(new_db) ? new_db : kept);
+        E1(a[11], int64_t, i) = new;
+        E1(a[12], int64_t, i) = p_out;
+        E1(a[13], double, i) = since_out;
+        E1(a[14], double, i) = o_until;
+        E1(a[15], double, i) = o_start;
+        E1(a[16], char, i) = (char)o_out;
+        E1(a[17], char, i) = (char)o_cens;
+        E1(a[19], int64_t, i) = new >= 0 ? new / n_beam : -1;
+        E1(a[20], int64_t, i) = new >= 0 ? new % n_beam : -1;
+        /* controller.service_codes: served, handover (executing), outage */
+        int8_t code = 0;
+        if (new >= 0 && t_s < o_until - tol)
+            code = 1;
+        if (o_out || new < 0)
+            code = 2;
+        E1(a[21], int8_t, i) = code;
+        E1(a[22], int8_t, i) = (int8_t)kind;
+        E1(a[23], double, i) = new_db;
+        E1(a[24], double, i) = last_db;
+        E1(a[25], char, i) = (char)closing;
+    }
+    release(a, 26);
+    return Py_BuildValue("nnnn", n_bad, first_bad, n_events, n_closing);
+}
+
 /* ---- the visibility search (leolink.visibility) ---- */
 
 /* FreeBSD msun e_asin.c (fdlibm 5.3; Copyright (C) 1993 by Sun Microsystems, Inc.:
@@ -912,6 +1059,7 @@ static PyMethodDef methods[] = {
     {"table_values_at", table_values_at, METH_VARARGS, "Candidates.at."},
     {"window_best", window_best, METH_VARARGS, "The window tables' best and size."},
     {"window_fill", window_fill, METH_VARARGS, "The window tables' entries."},
+    {"step_rules", step_rules, METH_VARARGS, "controller.step's rules, UT by UT."},
     {"asin_of", asin_of, METH_VARARGS, "fdlibm's arcsine of every value."},
     {"elevations", elevations, METH_VARARGS, "Elevations of sites x satellites x times."},
     {NULL, NULL, 0, NULL}};

@@ -18,10 +18,12 @@ the simulator removes from the epoch's throughput. An interruption may span epoc
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 
 import numpy as np
 
+from leolink.engine import jit
 from leolink.sim.candidates import Candidates
 from leolink.sim.event_tables import (  # noqa: F401  (the tables' names, re-exported)
     DWELL_COLUMNS,
@@ -132,10 +134,14 @@ def _check_targets(policy, target, target_db, needs):
     ok = np.isfinite(target_db)
     bad = np.flatnonzero(needs & ~ok)
     if bad.size:
-        raise ValueError(
-            f"policy {policy!r} returned an unusable candidate for {bad.size} UT(s), "
-            f"first ut_id {bad[0]} -> {target[bad[0]]}"
-        )
+        _raise_unusable(policy, target, bad.size, bad[0])
+
+
+def _raise_unusable(policy, target, n_bad, first):
+    raise ValueError(
+        f"policy {policy!r} returned an unusable candidate for {n_bad} UT(s), "
+        f"first ut_id {first} -> {target[first]}"
+    )
 
 
 def step(
@@ -186,6 +192,11 @@ def step(
     if target is None:
         target = policy.choose(t_s, usable_db, state, future_db)
     target = np.asarray(target, np.int64)
+    if jit.use(state.n_ut):  # the same rules, UT by UT in one compiled loop
+        from leolink.sim.step_kernel import compiled_step
+
+        return compiled_step(t_s, snr_db, state, policy, target, min_snr_db, handover_time_s,
+                             n_beam)  # fmt: skip
     old = state.serving
     # The usable table has the cells of the full one: each cell's slot is found once.
     slot_old, slot_target = snr_db.slot_of(old, target)
@@ -212,20 +223,9 @@ def step(
     return res
 
 
-@dataclasses.dataclass
-class _Subset:
-    """:func:`step`'s per-UT arrays of the UTs that change."""
-
-    old: np.ndarray
-    target: np.ndarray
-    wants: np.ndarray
-    first: np.ndarray
-    outage_start: np.ndarray
-    outage_end: np.ndarray
-    immediate: np.ndarray
-    slot_old: np.ndarray
-    slot_target: np.ndarray
-    current_db: np.ndarray
+#: :func:`step`'s per-UT arrays of the UTs that change.
+_Subset = collections.namedtuple("_Subset", "old target wants first outage_start outage_end "
+                                 "immediate slot_old slot_target current_db")  # fmt: skip
 
 
 def _apply_changes(res, t_s, state, u, snr_db, sub, ttt_s, handover_time_s, n_beam):
