@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
-__all__ = ["NUMPY_TYPES", "Vocabulary", "decoded_array", "numeric_array", "string_array"]
+__all__ = ["NUMPY_TYPES", "Vocabulary", "decoded_array", "dictionary_array", "numeric_array"]
+__all__ += ["string_array"]
 
 #: numpy dtype of each Arrow numeric type the writers use.
 NUMPY_TYPES = {
@@ -39,13 +40,26 @@ def string_array(names):
     return pa.Array.from_buffers(pa.string(), len(raw), buffers)
 
 
+def _check_codes(codes, names):
+    if codes.size and (codes.min() < 0 or codes.max() >= len(names)):
+        raise ValueError(f"codes outside 0 .. {len(names) - 1}: {codes.min()} .. {codes.max()}")
+
+
+def dictionary_array(codes, names):
+    """Strings ``names[codes]`` as an Arrow dictionary array: the int32 codes and the
+    names, not the strings they stand for (what Parquet's dictionary encoding stores:
+    written without gathering, hashing and re-coding each row's string)."""
+    codes = np.asarray(codes, np.int32)
+    _check_codes(codes, names)
+    return pa.DictionaryArray.from_arrays(numeric_array(codes, pa.int32()), string_array(names))
+
+
 def decoded_array(codes, names, by_take=False):
     """Strings ``names[codes]`` as a plain Arrow string array: gathered in numpy, or with
     ``by_take`` by ``pyarrow.compute.take`` (the same array, 4.4x faster on 64,000 codes:
     2.84 -> 0.64 ms, once ``pyarrow.compute`` is imported: ~50 ms)."""
     codes = np.asarray(codes, np.intp)
-    if codes.size and (codes.min() < 0 or codes.max() >= len(names)):
-        raise ValueError(f"codes outside 0 .. {len(names) - 1}: {codes.min()} .. {codes.max()}")
+    _check_codes(codes, names)
     if by_take:
         import pyarrow.compute as pc
 
