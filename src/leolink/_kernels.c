@@ -27,6 +27,15 @@
 #define M_PI 3.14159265358979323846
 #endif
 
+/* fma() is exact wherever it is computed: as the FMA instruction where the CPU has one (a
+ * clone of the loop for it, chosen when the module loads), else by the C library. Nothing
+ * else is contracted (-ffp-contract=off), so the clones give the same bits. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__linux__)
+#define FMA_CLONES __attribute__((target_clones("fma", "default")))
+#else
+#define FMA_CLONES
+#endif
+
 typedef struct {
     Py_buffer view;
     char *p;
@@ -190,33 +199,15 @@ static inline void dirichlet(double u, const Arr *beam_u, const Arr *coef, doubl
 /* links_kernel(ut_pos, ut_up, sphere, r_ut, sat_pos, ax_x, ax_y, ut, sat, min_el, bx, cx,
  *              nx, by, cy, ny, rel, rho2, rho, elevation, visible, kx, ky, lo, hi,
  *              sin_recompute, sin_tiny) */
-static PyObject *links_kernel(PyObject *self, PyObject *args)
+/* The rows lo .. hi - 1 of links_kernel (a[] its 19 arrays, in its order). */
+FMA_CLONES static void links_rows(const Arr *a, int sphere, double min_el, double nx, double ny,
+                                  double sin_recompute, double sin_tiny, Py_ssize_t lo,
+                                  Py_ssize_t hi)
 {
-    PyObject *o[20];
-    int sphere;
-    double min_el, nx, ny, sin_recompute, sin_tiny;
-    Py_ssize_t lo, hi;
-    if (!PyArg_ParseTuple(args, "OOpOOOOOOdOOdOOdOOOOOOOnndd", &o[0], &o[1], &sphere, &o[2],
-                          &o[3], &o[4], &o[5], &o[6], &o[7], &min_el, &o[8], &o[9], &nx, &o[10],
-                          &o[11], &ny, &o[12], &o[13], &o[14], &o[15], &o[16], &o[17], &o[18],
-                          &lo, &hi, &sin_recompute, &sin_tiny))
-        return NULL;
-    static const Spec spec[19] = {
-        {"ut_pos", 'd', 2, 0}, {"ut_up", 'd', 2, 0},    {"r_ut", 'd', 1, 0},
-        {"sat_pos", 'd', 2, 0}, {"ax_x", 'd', 2, 0},    {"ax_y", 'd', 2, 0},
-        {"ut", 'q', 1, 0},      {"sat", 'q', 1, 0},     {"bx", 'd', 1, 0},
-        {"cx", 'd', 2, 0},      {"by", 'd', 1, 0},      {"cy", 'd', 2, 0},
-        {"rel", 'd', 2, 1},     {"rho2", 'd', 1, 1},    {"rho", 'd', 1, 1},
-        {"elevation", 'd', 1, 1}, {"visible", '?', 1, 1}, {"kx", 'd', 2, 1},
-        {"ky", 'd', 2, 1}};
-    Arr a[19];
-    if (take_all(o, a, spec, 19) < 0)
-        return NULL;
     Arr ut_pos = a[0], ut_up = a[1], r_ut = a[2], sat_pos = a[3], ax_x = a[4], ax_y = a[5];
     Arr ut = a[6], sat = a[7], bx = a[8], cx = a[9], by = a[10], cy = a[11];
     Arr rel = a[12], rho2 = a[13], rho = a[14], elevation = a[15], visible = a[16];
     Arr kx = a[17], ky = a[18];
-    Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t p = lo; p < hi; p++) {
         int64_t i = E1(ut, int64_t, p), j = E1(sat, int64_t, p);
         double r0 = E2(ut_pos, double, i, 0) - E2(sat_pos, double, j, 0);
@@ -256,6 +247,32 @@ static PyObject *links_kernel(PyObject *self, PyObject *args)
         dirichlet(ux, &bx, &cx, nx, &kx, p, sin_recompute, sin_tiny);
         dirichlet(uy, &by, &cy, ny, &ky, p, sin_recompute, sin_tiny);
     }
+}
+
+static PyObject *links_kernel(PyObject *self, PyObject *args)
+{
+    PyObject *o[20];
+    int sphere;
+    double min_el, nx, ny, sin_recompute, sin_tiny;
+    Py_ssize_t lo, hi;
+    if (!PyArg_ParseTuple(args, "OOpOOOOOOdOOdOOdOOOOOOOnndd", &o[0], &o[1], &sphere, &o[2],
+                          &o[3], &o[4], &o[5], &o[6], &o[7], &min_el, &o[8], &o[9], &nx, &o[10],
+                          &o[11], &ny, &o[12], &o[13], &o[14], &o[15], &o[16], &o[17], &o[18],
+                          &lo, &hi, &sin_recompute, &sin_tiny))
+        return NULL;
+    static const Spec spec[19] = {
+        {"ut_pos", 'd', 2, 0}, {"ut_up", 'd', 2, 0},    {"r_ut", 'd', 1, 0},
+        {"sat_pos", 'd', 2, 0}, {"ax_x", 'd', 2, 0},    {"ax_y", 'd', 2, 0},
+        {"ut", 'q', 1, 0},      {"sat", 'q', 1, 0},     {"bx", 'd', 1, 0},
+        {"cx", 'd', 2, 0},      {"by", 'd', 1, 0},      {"cy", 'd', 2, 0},
+        {"rel", 'd', 2, 1},     {"rho2", 'd', 1, 1},    {"rho", 'd', 1, 1},
+        {"elevation", 'd', 1, 1}, {"visible", '?', 1, 1}, {"kx", 'd', 2, 1},
+        {"ky", 'd', 2, 1}};
+    Arr a[19];
+    if (take_all(o, a, spec, 19) < 0)
+        return NULL;
+    Py_BEGIN_ALLOW_THREADS;
+    links_rows(a, sphere, min_el, nx, ny, sin_recompute, sin_tiny, lo, hi);
     Py_END_ALLOW_THREADS;
     release(a, 19);
     Py_RETURN_NONE;
@@ -775,6 +792,39 @@ static PyObject *window_fill(PyObject *self, PyObject *args)
     return PyLong_FromSsize_t(k);
 }
 
+/* ---- the summary's histograms (leolink.sim.kpi) ---- */
+
+/* histogram_slots(values, lo, resolution, hi, n_bins, unserved, out): PercentileHistogram.slots,
+ * the slot of every value: 0 below lo, 1 .. n_bins the bins, n_bins + 1 at or above hi (NaN
+ * read as unserved); floor((x - lo) / resolution) as numpy computes it, clipped alike (a
+ * value just below hi whose quotient rounds to n_bins is in slot n_bins + 1 on both). */
+static PyObject *histogram_slots(PyObject *self, PyObject *args)
+{
+    PyObject *o[2];
+    double lo, res, hi, unserved;
+    Py_ssize_t n_bins;
+    if (!PyArg_ParseTuple(args, "OdddndO", &o[0], &lo, &res, &hi, &n_bins, &unserved, &o[1]))
+        return NULL;
+    static const Spec spec[2] = {{"values", 'd', 1, 0}, {"out", 'q', 1, 1}};
+    Arr a[2];
+    if (take_all(o, a, spec, 2) < 0)
+        return NULL;
+    Arr values = a[0], out = a[1];
+    Py_BEGIN_ALLOW_THREADS;
+    for (Py_ssize_t i = 0; i < values.n[0]; i++) {
+        double x = E1(values, double, i);
+        if (x != x)
+            x = unserved;
+        double d = floor((x - lo) / res);
+        d = x < lo ? -1.0 : (x >= hi ? (double)n_bins : d);
+        d = d < -1.0 ? -1.0 : (d > (double)n_bins ? (double)n_bins : d);
+        E1(out, int64_t, i) = (int64_t)d + 1;
+    }
+    Py_END_ALLOW_THREADS;
+    release(a, 2);
+    Py_RETURN_NONE;
+}
+
 /* ---- the controller's step (leolink.sim.controller.step) ---- */
 
 /* The first slot of row i of ``cell`` holding ``c`` (c >= 0), else -1: Candidates.slot_of. */
@@ -1060,6 +1110,7 @@ static PyMethodDef methods[] = {
     {"window_best", window_best, METH_VARARGS, "The window tables' best and size."},
     {"window_fill", window_fill, METH_VARARGS, "The window tables' entries."},
     {"step_rules", step_rules, METH_VARARGS, "controller.step's rules, UT by UT."},
+    {"histogram_slots", histogram_slots, METH_VARARGS, "PercentileHistogram.slots."},
     {"asin_of", asin_of, METH_VARARGS, "fdlibm's arcsine of every value."},
     {"elevations", elevations, METH_VARARGS, "Elevations of sites x satellites x times."},
     {NULL, NULL, 0, NULL}};

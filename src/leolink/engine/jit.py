@@ -24,7 +24,7 @@ import numpy as np
 from leolink.compiled import enabled, n_threads
 
 __all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
-__all__ += ["serve_columns", "serve_pairs", "use"]
+__all__ += ["histogram_slots", "serve_columns", "serve_pairs", "use"]
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
@@ -159,3 +159,13 @@ def serve_pairs(engine, links, pr, served, b, rows):
 def screen_kernel():
     """The compiled screening loop (:func:`leolink.engine.kernels.screen_kernel`)."""
     return kernels().screen_kernel
+
+
+def histogram_slots(values, lo, resolution, hi, n_bins, unserved_value):
+    """``leolink.sim.kpi.PercentileHistogram.slots`` of float64 ``values`` (1-D) by its
+    compiled loop: the same slots (``floor((x - lo) / resolution)``, clipped alike)."""
+    from leolink import _kernels
+
+    out = np.empty(values.size, np.int64)
+    _kernels.histogram_slots(values, lo, resolution, hi, n_bins, unserved_value, out)
+    return out

@@ -36,6 +36,8 @@ import math
 
 import numpy as np
 
+from leolink.engine import jit
+
 HANDOVER_KINDS = ("beam_handover", "sat_handover")
 #: The percentiles reported for SINR and throughput.
 PERCENTILES = (1, 5, 10, 50, 90, 95, 99)
@@ -230,6 +232,9 @@ class PercentileHistogram:
         """Slot of every value: 0 below ``lo``, ``1 .. n_bins`` the bins, ``n_bins + 1``
         at or above ``hi`` (NaN read as ``unserved_value``)."""
         x = np.asarray(values, float).reshape(-1)
+        if jit.use(x.size):  # the compiled loop: the same slots, one pass instead of seven
+            bins = (self.lo, self.resolution, self.hi, self.n_bins, self.unserved_value)
+            return jit.histogram_slots(x, *bins)
         x = np.where(np.isnan(x), self.unserved_value, x)
         with np.errstate(invalid="ignore"):
             idx = np.floor((x - self.lo) / self.resolution)
