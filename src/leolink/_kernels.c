@@ -798,6 +798,15 @@ static PyObject *window_fill(PyObject *self, PyObject *args)
  * the slot of every value: 0 below lo, 1 .. n_bins the bins, n_bins + 1 at or above hi (NaN
  * read as unserved); floor((x - lo) / resolution) as numpy computes it, clipped alike (a
  * value just below hi whose quotient rounds to n_bins is in slot n_bins + 1 on both). */
+/* The slot of x (PercentileHistogram.slots, one value; x not NaN). */
+static inline int64_t hist_slot(double x, double lo, double res, double hi, Py_ssize_t n_bins)
+{
+    double d = floor((x - lo) / res);
+    d = x < lo ? -1.0 : (x >= hi ? (double)n_bins : d);
+    d = d < -1.0 ? -1.0 : (d > (double)n_bins ? (double)n_bins : d);
+    return (int64_t)d + 1;
+}
+
 static PyObject *histogram_slots(PyObject *self, PyObject *args)
 {
     PyObject *o[2];
@@ -813,16 +822,50 @@ static PyObject *histogram_slots(PyObject *self, PyObject *args)
     Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t i = 0; i < values.n[0]; i++) {
         double x = E1(values, double, i);
-        if (x != x)
-            x = unserved;
-        double d = floor((x - lo) / res);
-        d = x < lo ? -1.0 : (x >= hi ? (double)n_bins : d);
-        d = d < -1.0 ? -1.0 : (d > (double)n_bins ? (double)n_bins : d);
-        E1(out, int64_t, i) = (int64_t)d + 1;
+        E1(out, int64_t, i) = hist_slot(x != x ? unserved : x, lo, res, hi, n_bins);
     }
     Py_END_ALLOW_THREADS;
     release(a, 2);
     Py_RETURN_NONE;
+}
+
+/* db_stats_add(ut, values, count, total, pooled, p_lo, p_res, p_hi, p_nbins, g_lo, g_res,
+ *              g_hi, g_nbins, keys) -> n_keys: DbStats.add of rows (ut[i], values[i]), the
+ * finite values only, in their order: count[u] += 1 and total[u] += v (the running sum
+ * of leolink.io.summary_stats.running_sum: the same additions in the same order), the
+ * pooled histogram's count of the value's slot, and the value's key in the per-UT
+ * histogram, u * (g_nbins + 2) + slot, into keys (its first n_keys entries). */
+static PyObject *db_stats_add(PyObject *self, PyObject *args)
+{
+    PyObject *o[6];
+    double p_lo, p_res, p_hi, g_lo, g_res, g_hi;
+    Py_ssize_t p_nbins, g_nbins;
+    if (!PyArg_ParseTuple(args, "OOOOOdddndddnO", &o[0], &o[1], &o[2], &o[3], &o[4], &p_lo,
+                          &p_res, &p_hi, &p_nbins, &g_lo, &g_res, &g_hi, &g_nbins, &o[5]))
+        return NULL;
+    static const Spec spec[6] = {{"ut", 'q', 1, 0},    {"values", 'd', 1, 0},
+                                 {"count", 'q', 1, 1}, {"total", 'd', 1, 1},
+                                 {"pooled", 'q', 1, 1}, {"keys", 'q', 1, 1}};
+    Arr a[6];
+    if (take_all(o, a, spec, 6) < 0)
+        return NULL;
+    Arr ut = a[0], values = a[1], count = a[2], total = a[3], pooled = a[4], keys = a[5];
+    Py_ssize_t n_keys = 0, g_slots = g_nbins + 2;
+    Py_BEGIN_ALLOW_THREADS;
+    for (Py_ssize_t i = 0; i < values.n[0]; i++) {
+        double v = E1(values, double, i);
+        if (!isfinite(v))
+            continue;
+        int64_t u = E1(ut, int64_t, i);
+        E1(count, int64_t, u) += 1;
+        E1(total, double, u) += v;
+        E1(pooled, int64_t, hist_slot(v, p_lo, p_res, p_hi, p_nbins)) += 1;
+        E1(keys, int64_t, n_keys) = u * g_slots + hist_slot(v, g_lo, g_res, g_hi, g_nbins);
+        n_keys++;
+    }
+    Py_END_ALLOW_THREADS;
+    release(a, 6);
+    return PyLong_FromSsize_t(n_keys);
 }
 
 /* ---- the controller's step (leolink.sim.controller.step) ---- */
@@ -1111,6 +1154,7 @@ static PyMethodDef methods[] = {
     {"window_fill", window_fill, METH_VARARGS, "The window tables' entries."},
     {"step_rules", step_rules, METH_VARARGS, "controller.step's rules, UT by UT."},
     {"histogram_slots", histogram_slots, METH_VARARGS, "PercentileHistogram.slots."},
+    {"db_stats_add", db_stats_add, METH_VARARGS, "summary_stats.DbStats.add."},
     {"asin_of", asin_of, METH_VARARGS, "fdlibm's arcsine of every value."},
     {"elevations", elevations, METH_VARARGS, "Elevations of sites x satellites x times."},
     {NULL, NULL, 0, NULL}};

@@ -24,7 +24,7 @@ import numpy as np
 from leolink.compiled import enabled, n_threads
 
 __all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
-__all__ += ["histogram_slots", "serve_columns", "serve_pairs", "use"]
+__all__ += ["db_stats_add", "histogram_slots", "serve_columns", "serve_pairs", "use"]
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
@@ -169,3 +169,14 @@ def histogram_slots(values, lo, resolution, hi, n_bins, unserved_value):
     out = np.empty(values.size, np.int64)
     _kernels.histogram_slots(values, lo, resolution, hi, n_bins, unserved_value, out)
     return out
+
+
+def db_stats_add(ut, values, count, total, pooled, pooled_bins, per_ut_bins, keys):
+    """``leolink.io.summary_stats.DbStats.add`` by its compiled loop: the finite values'
+    per-UT counts and sums (added in order, as its running sum) and pooled histogram
+    counts, in place; their per-UT histogram keys into ``keys``, whose number it returns.
+    ``*_bins``: ``(lo, resolution, hi, n_bins)`` of each histogram."""
+    from leolink import _kernels
+
+    return _kernels.db_stats_add(ut, values, count, total, pooled, *pooled_bins, *per_ut_bins,
+                                 keys)  # fmt: skip

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink.engine import jit
 from leolink.io.summary_records import STAT_KEYS
-from leolink.sim.kpi import GroupedPercentileHistogram, PercentileHistogram
+from leolink.sim.histograms import GroupedPercentileHistogram, PercentileHistogram
 
 __all__ = [
     "DB_RANGE",
@@ -86,6 +87,15 @@ class DbStats:
         self.per_ut = GroupedPercentileHistogram(n_ut, *DB_RANGE, PER_UT_RESOLUTION_DB)
 
     def add(self, ut, values):
+        """Add the finite ``values`` (1-D float) of UTs ``ut`` (1-D int)."""
+        if jit.use(values.size):  # the compiled loop: the same counts and sums, one pass
+            keys = np.empty(values.size, np.int64)
+            p, g = self.pooled, self.per_ut.grid
+            n = jit.db_stats_add(np.asarray(ut, np.int64), np.asarray(values, float), self.count,
+                                 self.sum, p.counts, (p.lo, p.resolution, p.hi, p.n_bins),
+                                 (g.lo, g.resolution, g.hi, g.n_bins), keys)  # fmt: skip
+            self.per_ut.add_keys(keys[:n])
+            return
         ok = np.isfinite(values)
         ut, values = ut[ok], values[ok]
         self.count += np.bincount(ut, minlength=self.count.size)
