@@ -792,6 +792,89 @@ static PyObject *window_fill(PyObject *self, PyObject *args)
     return PyLong_FromSsize_t(k);
 }
 
+/* The first slot of row i of ``cell`` holding ``c`` (c >= 0), else -1: Candidates.slot_of. */
+static inline int64_t slot_in(const Arr *cell, Py_ssize_t i, int64_t c)
+{
+    if (c < 0)
+        return -1;
+    for (Py_ssize_t j = 0; j < cell->n[1]; j++) {
+        if (E2(*cell, int64_t, i, j) == c)
+            return j;
+    }
+    return -1;
+}
+
+/* serving_column(cell, serving, n_beam, row0, pair_key, n_key, kx, ky, path_snr, visible,
+ *                ix, iy, out_cell, out_snr, missing) -> (n_need, n_missing):
+ * Decider._with_serving's column, UT by UT: where UT i's serving cell c >= 0 is not in
+ * its table row (Candidates.slot_of), its pair (row0 + i, c // n_beam) is looked up among
+ * the block's evaluated pairs (BlockCandidates.find_pairs: pair_key sorted, row * n_key +
+ * sat); found and above the mask, out_cell = c and out_snr its beam's SNR,
+ * (10 log10 k_x + 10 log10 k_y) + 10 log10 p as snr_kernel computes it; found below the
+ * mask, -1 and NaN; not found, missing (the caller evaluates those pairs). n_need: the UTs
+ * whose serving cell is not in their row. */
+static PyObject *serving_column(PyObject *self, PyObject *args)
+{
+    PyObject *o[13];
+    Py_ssize_t n_beam, row0, n_key;
+    if (!PyArg_ParseTuple(args, "OOnnOnOOOOOOOOO", &o[0], &o[1], &n_beam, &row0, &o[2], &n_key,
+                          &o[3], &o[4], &o[5], &o[6], &o[7], &o[8], &o[9], &o[10], &o[11]))
+        return NULL;
+    static const Spec spec[12] = {
+        {"cell", 'q', 2, 0},     {"serving", 'q', 1, 0},   {"pair_key", 'q', 1, 0},
+        {"kx", 'd', 2, 0},       {"ky", 'd', 2, 0},        {"path_snr", 'd', 1, 0},
+        {"visible", '?', 1, 0},  {"ix", 'q', 1, 0},        {"iy", 'q', 1, 0},
+        {"out_cell", 'q', 1, 1}, {"out_snr", 'd', 1, 1},   {"missing", '?', 1, 1}};
+    Arr a[12];
+    if (take_all(o, a, spec, 12) < 0)
+        return NULL;
+    if (n_beam < 1) {
+        release(a, 12);
+        PyErr_SetString(PyExc_ValueError, "leolink._kernels.serving_column: n_beam must be >= 1");
+        return NULL;
+    }
+    Arr cell = a[0], serving = a[1], pair_key = a[2], kx = a[3], ky = a[4], path = a[5];
+    Arr visible = a[6], ix = a[7], iy = a[8], out_cell = a[9], out_snr = a[10], missing = a[11];
+    Py_ssize_t n = serving.n[0], m = pair_key.n[0], n_need = 0, n_missing = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int64_t c = E1(serving, int64_t, i);
+        E1(out_cell, int64_t, i) = -1;
+        E1(out_snr, double, i) = NAN;
+        E1(missing, char, i) = 0;
+        if (c < 0 || slot_in(&cell, i, c) >= 0)
+            continue;
+        n_need++;
+        int64_t sat = c / n_beam, beam = c % n_beam;
+        int64_t key = (row0 + i) * n_key + sat, found = -1;
+        if (sat < n_key) {
+            Py_ssize_t lo = 0, hi = m; /* the first pair_key >= key */
+            while (lo < hi) {
+                Py_ssize_t mid = lo + (hi - lo) / 2;
+                if (E1(pair_key, int64_t, mid) < key)
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            if (lo < m && E1(pair_key, int64_t, lo) == key)
+                found = lo;
+        }
+        if (found < 0) {
+            E1(missing, char, i) = 1;
+            n_missing++;
+            continue;
+        }
+        if (!E1(visible, char, found))
+            continue;
+        double snr = (10.0 * log10(E2(kx, double, E1(ix, int64_t, beam), found)) +
+                      10.0 * log10(E2(ky, double, E1(iy, int64_t, beam), found))) +
+                     10.0 * log10(E1(path, double, found));
+        E1(out_cell, int64_t, i) = c;
+        E1(out_snr, double, i) = snr;
+    }
+    release(a, 12);
+    return Py_BuildValue("nn", n_need, n_missing);
+}
+
 /* ---- the summary's histograms (leolink.sim.kpi) ---- */
 
 /* histogram_slots(values, lo, resolution, hi, n_bins, unserved, out): PercentileHistogram.slots,
@@ -869,18 +952,6 @@ static PyObject *db_stats_add(PyObject *self, PyObject *args)
 }
 
 /* ---- the controller's step (leolink.sim.controller.step) ---- */
-
-/* The first slot of row i of ``cell`` holding ``c`` (c >= 0), else -1: Candidates.slot_of. */
-static inline int64_t slot_in(const Arr *cell, Py_ssize_t i, int64_t c)
-{
-    if (c < 0)
-        return -1;
-    for (Py_ssize_t j = 0; j < cell->n[1]; j++) {
-        if (E2(*cell, int64_t, i, j) == c)
-            return j;
-    }
-    return -1;
-}
 
 /* step_rules(cell, snr, target, serving, pending, pending_since, until, serving_since,
  *            in_outage, censored, serving_snr, t_s, min_snr, handover_s, ttt_s, tol,
@@ -1155,6 +1226,7 @@ static PyMethodDef methods[] = {
     {"step_rules", step_rules, METH_VARARGS, "controller.step's rules, UT by UT."},
     {"histogram_slots", histogram_slots, METH_VARARGS, "PercentileHistogram.slots."},
     {"db_stats_add", db_stats_add, METH_VARARGS, "summary_stats.DbStats.add."},
+    {"serving_column", serving_column, METH_VARARGS, "Decider._with_serving's column."},
     {"asin_of", asin_of, METH_VARARGS, "fdlibm's arcsine of every value."},
     {"elevations", elevations, METH_VARARGS, "Elevations of sites x satellites x times."},
     {NULL, NULL, 0, NULL}};

@@ -24,7 +24,8 @@ import numpy as np
 from leolink.compiled import enabled, n_threads
 
 __all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
-__all__ += ["db_stats_add", "histogram_slots", "serve_columns", "serve_pairs", "use"]
+__all__ += ["db_stats_add", "histogram_slots", "serve_columns", "serve_pairs", "serving_column"]
+__all__ += ["use"]
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
@@ -180,3 +181,21 @@ def db_stats_add(ut, values, count, total, pooled, pooled_bins, per_ut_bins, key
 
     return _kernels.db_stats_add(ut, values, count, total, pooled, *pooled_bins, *per_ut_bins,
                                  keys)  # fmt: skip
+
+
+def serving_column(table, serving, row0, block):
+    """``leolink.sim.decide.Decider._with_serving``'s column by its compiled loop: each UT's
+    serving cell where its table row lacks it, from the block's evaluated pairs
+    (``BlockCandidates``: its beam's SNR as ``snr_kernel`` computes it; -1 and NaN below the
+    mask). Returns (cell, snr_db, missing, n_need): ``missing`` the UTs whose pair the
+    search left out (the caller evaluates them), ``n_need`` the UTs lacking their cell."""
+    from leolink import _kernels
+
+    n, links = table.n_ut, block.links
+    cell, snr_db, missing = np.empty(n, np.int64), np.empty(n), np.empty(n, bool)
+    n_need, _ = _kernels.serving_column(
+        table.cell, np.asarray(serving, np.int64), block.n_beam, row0, block.pair_key,
+        block.n_key, links.kx, links.ky, links.path_snr_lin, links.visible, block.beam_ix,
+        block.beam_iy, cell, snr_db, missing,
+    )  # fmt: skip
+    return cell, snr_db, missing, n_need

@@ -79,8 +79,8 @@ class BlockCandidates:
     beam_iy: np.ndarray
 
     def __post_init__(self):
-        self._n_key = int(self.links.sat.max(initial=0)) + 1
-        self._pair_key = self.links.ut * self._n_key + self.links.sat  # sorted
+        self.n_key = int(self.links.sat.max(initial=0)) + 1
+        self.pair_key = self.links.ut * self.n_key + self.links.sat  # sorted
 
     def rows(self, k):
         """Rows of epoch ``k``."""
@@ -92,10 +92,10 @@ class BlockCandidates:
         n = self.links.n_pair
         if n == 0:
             return np.full(np.shape(rows), -1, np.int64)
-        ok = (sats >= 0) & (sats < self._n_key)
-        key = rows * self._n_key + np.where(ok, sats, 0)
-        i = np.minimum(np.searchsorted(self._pair_key, key), n - 1)
-        ok &= self._pair_key[i] == key
+        ok = (sats >= 0) & (sats < self.n_key)
+        key = rows * self.n_key + np.where(ok, sats, 0)
+        i = np.minimum(np.searchsorted(self.pair_key, key), n - 1)
+        ok &= self.pair_key[i] == key
         return np.where(ok, i, -1)
 
     def snr_db_of(self, pair, beam):
