@@ -446,3 +446,32 @@ def test_screening_of_satellites_at_the_zenith(block):
     best = links.gain_tx_bm(scan.beam_ix, scan.beam_iy).max(axis=0) * links.path_snr_lin
     b = bound[pair, pair]
     assert (code[pair, pair] == VISIBLE).all() and np.isfinite(b).all() and (b >= best).all()
+
+
+def test_compiled_find_pairs_is_numpys(block, monkeypatch):
+    """BlockCandidates.find_pairs by the compiled loop (galloping over ascending queries,
+    bisection otherwise) against the numpy code: the block's own pairs, row after row as the
+    monitor asks and shuffled, pairs never evaluated, satellites out of range."""
+    from leolink.engine import jit
+
+    pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
+    eng, n_ut, mb, cones = block
+    _, _, blk = _tables(eng, n_ut, mb, cones, 3.0, True)
+    rng = np.random.default_rng(4)
+    n_rows = blk.best_cell.size
+    rows = np.sort(rng.integers(0, n_rows, 20_000))
+    own = rng.integers(0, blk.links.n_pair, 20_000)
+    sats = np.where(
+        rng.random(rows.size) < 0.5, blk.links.sat[own], rng.integers(-3, 5000, rows.size)
+    )
+    rows = np.where(rng.random(rows.size) < 0.5, blk.links.ut[own], rows)
+    order = np.argsort(rows, kind="stable")
+    cases = [(rows[order], sats[order]), (rows, sats), (rows[::-1], sats[::-1])]
+    for r, s in cases:
+        assert jit.use(r.size)
+        got = blk.find_pairs(r, s)
+        with monkeypatch.context() as m:
+            m.setattr(jit, "use", lambda n: False)
+            want = blk.find_pairs(r, s)
+        np.testing.assert_array_equal(got, want)
+        assert (got >= 0).sum() > 5000 and (got < 0).sum() > 1000

@@ -875,6 +875,60 @@ static PyObject *serving_column(PyObject *self, PyObject *args)
     return Py_BuildValue("nn", n_need, n_missing);
 }
 
+/* find_pairs(pair_key, n_key, rows, sats, out): BlockCandidates.find_pairs, the index of
+ * each pair (rows[i], sats[i]) among the block's evaluated pairs (pair_key: row * n_key +
+ * sat, sorted ascending, unique), -1 where it was not evaluated or 0 <= sat < n_key fails.
+ * Ascending queries (the monitor's: row after row) are found by galloping on from the last
+ * one, O(n + m); others by bisection. Either finds the first key >= the query. */
+static PyObject *find_pairs(PyObject *self, PyObject *args)
+{
+    PyObject *o[4];
+    Py_ssize_t n_key;
+    if (!PyArg_ParseTuple(args, "OnOOO", &o[0], &n_key, &o[1], &o[2], &o[3]))
+        return NULL;
+    static const Spec spec[4] = {{"pair_key", 'q', 1, 0}, {"rows", 'q', 1, 0},
+                                 {"sats", 'q', 1, 0},     {"out", 'q', 1, 1}};
+    Arr a[4];
+    if (take_all(o, a, spec, 4) < 0)
+        return NULL;
+    Arr pair_key = a[0], rows = a[1], sats = a[2], out = a[3];
+    Py_ssize_t m = pair_key.n[0], at = 0;
+    int64_t last = INT64_MIN;
+    Py_BEGIN_ALLOW_THREADS;
+    for (Py_ssize_t i = 0; i < rows.n[0]; i++) {
+        int64_t sat = E1(sats, int64_t, i);
+        if (sat < 0 || sat >= n_key) {
+            E1(out, int64_t, i) = -1;
+            continue;
+        }
+        int64_t key = E1(rows, int64_t, i) * n_key + sat;
+        Py_ssize_t lo = 0, hi = m; /* the first index whose key >= key lies in [lo, hi] */
+        if (key >= last) {         /* gallop from the last answer */
+            lo = at;
+            Py_ssize_t step = 1;
+            hi = lo;
+            while (hi < m && E1(pair_key, int64_t, hi) < key) {
+                lo = hi + 1;
+                hi = lo + step < m ? lo + step : m;
+                step *= 2;
+            }
+        }
+        while (lo < hi) {
+            Py_ssize_t mid = lo + (hi - lo) / 2;
+            if (E1(pair_key, int64_t, mid) < key)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        at = lo;
+        last = key;
+        E1(out, int64_t, i) = lo < m && E1(pair_key, int64_t, lo) == key ? lo : -1;
+    }
+    Py_END_ALLOW_THREADS;
+    release(a, 4);
+    Py_RETURN_NONE;
+}
+
 /* ---- the summary's histograms (leolink.sim.kpi) ---- */
 
 /* histogram_slots(values, lo, resolution, hi, n_bins, unserved, out): PercentileHistogram.slots,
@@ -1227,6 +1281,7 @@ static PyMethodDef methods[] = {
     {"histogram_slots", histogram_slots, METH_VARARGS, "PercentileHistogram.slots."},
     {"db_stats_add", db_stats_add, METH_VARARGS, "summary_stats.DbStats.add."},
     {"serving_column", serving_column, METH_VARARGS, "Decider._with_serving's column."},
+    {"find_pairs", find_pairs, METH_VARARGS, "BlockCandidates.find_pairs."},
     {"asin_of", asin_of, METH_VARARGS, "fdlibm's arcsine of every value."},
     {"elevations", elevations, METH_VARARGS, "Elevations of sites x satellites x times."},
     {NULL, NULL, 0, NULL}};

@@ -25,7 +25,7 @@ from leolink.compiled import enabled, n_threads
 
 __all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
 __all__ += ["db_stats_add", "histogram_slots", "serve_columns", "serve_pairs", "serving_column"]
-__all__ += ["use"]
+__all__ += ["find_pairs", "use"]
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
@@ -199,3 +199,15 @@ def serving_column(table, serving, row0, block):
         block.beam_iy, cell, snr_db, missing,
     )  # fmt: skip
     return cell, snr_db, missing, n_need
+
+
+def find_pairs(pair_key, n_key, rows, sats):
+    """``leolink.sim.search.BlockCandidates.find_pairs`` by its compiled loop: the index of
+    each pair ``(rows[i], sats[i])`` in the sorted ``pair_key`` (``row * n_key + sat``),
+    -1 where absent."""
+    from leolink import _kernels
+
+    rows, sats = np.broadcast_arrays(np.asarray(rows, np.int64), np.asarray(sats, np.int64))
+    out = np.empty(rows.shape, np.int64)
+    _kernels.find_pairs(pair_key, n_key, rows.reshape(-1), sats.reshape(-1), out.reshape(-1))
+    return out

@@ -92,6 +92,8 @@ class BlockCandidates:
         n = self.links.n_pair
         if n == 0:
             return np.full(np.shape(rows), -1, np.int64)
+        if jit.use(np.size(rows)):  # the same indices, ascending queries by galloping
+            return jit.find_pairs(self.pair_key, self.n_key, rows, sats)
         ok = (sats >= 0) & (sats < self.n_key)
         key = rows * self.n_key + np.where(ok, sats, 0)
         i = np.minimum(np.searchsorted(self.pair_key, key), n - 1)
