@@ -8,6 +8,7 @@ computation of the same float32 values, and the bound ``n`` of a normalized gain
 import warnings
 
 import numpy as np
+import pytest
 
 from leolink.antenna.array import dirichlet_coefficients, dirichlet_kernels, ula_gain
 
@@ -69,3 +70,20 @@ def test_kernels_at_the_beam_and_grating_lobes_are_n_without_a_warning():
     np.testing.assert_allclose(np.diag(g[:, :4]), 8.0, rtol=1e-12)
     assert g[0, 4] == 8.0
     np.testing.assert_allclose(g_ula, 8.0, rtol=0)
+
+
+@pytest.mark.parametrize("n", [10, 12, 24, 72])
+def test_compiled_kernels_are_the_numpy_bits(n):
+    """dirichlet_kernels(..., compiled=True) (leolink._kernels, the codebook design's ROI
+    search) against the numpy code: random directions, the beams' peaks and grating lobes
+    and their neighbours (the recomputed entries), bit for bit."""
+    pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
+    beams = np.linspace(-0.7, 0.7, 9)
+    peaks = np.concatenate([beams, beams + 2.0 / n, beams - 2.0])
+    u = np.concatenate([RNG.uniform(-1, 1, 20_000), peaks, np.nextafter(peaks, 2.0),
+                        peaks + 1e-7])  # fmt: skip
+    u = u[np.abs(u) <= 1.0]
+    want = dirichlet_kernels(u, beams, n)
+    got = dirichlet_kernels(u, beams, n, compiled=True)
+    assert np.array_equal(got, want)
+    assert (want == n).sum() >= beams.size  # the peaks were met (and recomputed)

@@ -175,13 +175,10 @@ static inline double ula_gain(double du, double n, double sin_tiny)
 
 /* dirichlet_kernels of direction u into out[:, p] (coef: (2k, 4), the angle-subtraction
  * coefficients of dirichlet_kernels). */
-static inline void dirichlet(double u, const Arr *beam_u, const Arr *coef, double n, Arr *out,
-                             Py_ssize_t p, double sin_recompute, double sin_tiny)
+static inline void dirichlet_of(double u, double s, double c, double sn, double cn,
+                                const Arr *beam_u, const Arr *coef, double n, Arr *out,
+                                Py_ssize_t p, double sin_recompute, double sin_tiny)
 {
-    double x = HALF_PI * u;
-    double s = sin(x), c = cos(x);
-    double xn = x * n;
-    double sn = sin(xn), cn = cos(xn);
     Py_ssize_t k = beam_u->n[0];
     double inv_n = 1.0 / n;
     for (Py_ssize_t j = 0; j < k; j++) {
@@ -194,6 +191,52 @@ static inline void dirichlet(double u, const Arr *beam_u, const Arr *coef, doubl
         g = (g * g) * inv_n;
         E2(*out, double, j, p) = g > n ? n : g; /* np.minimum, which keeps NaN */
     }
+}
+
+/* dirichlet_of, the sines and cosines of dirichlet_trig computed here. */
+static inline void dirichlet(double u, const Arr *beam_u, const Arr *coef, double n, Arr *out,
+                             Py_ssize_t p, double sin_recompute, double sin_tiny)
+{
+    double x = HALF_PI * u;
+    double s = sin(x), c = cos(x);
+    double xn = x * n;
+    double sn = sin(xn), cn = cos(xn);
+    dirichlet_of(u, s, c, sn, cn, beam_u, coef, n, out, p, sin_recompute, sin_tiny);
+}
+
+/* The directions lo .. hi - 1 of dirichlet_kernels (a[]: u, trig, beam_u, coef, out). */
+FMA_CLONES static void dirichlet_rows(const Arr *a, double n, double sin_recompute,
+                                      double sin_tiny, Py_ssize_t lo, Py_ssize_t hi)
+{
+    Arr u = a[0], trig = a[1], beam_u = a[2], coef = a[3], out = a[4];
+    for (Py_ssize_t p = lo; p < hi; p++) {
+        dirichlet_of(E1(u, double, p), E2(trig, double, 0, p), E2(trig, double, 1, p),
+                     E2(trig, double, 2, p), E2(trig, double, 3, p), &beam_u, &coef, n, &out,
+                     p, sin_recompute, sin_tiny);
+    }
+}
+
+/* dirichlet_kernels(u, trig, beam_u, coef, n, sin_recompute, sin_tiny, out):
+ * leolink.antenna.array.dirichlet_kernels of the directions u (m,) against the beams
+ * beam_u (k,), given their dirichlet_trig (4, m) and dirichlet_coefficients (2k, 4), into
+ * out (k, m): fma(c1, t1, c0 t0) as its BLAS product, the same recomputation near a peak. */
+static PyObject *dirichlet_kernels(PyObject *self, PyObject *args)
+{
+    PyObject *o[5];
+    double n, sin_recompute, sin_tiny;
+    if (!PyArg_ParseTuple(args, "OOOOdddO", &o[0], &o[1], &o[2], &o[3], &n, &sin_recompute,
+                          &sin_tiny, &o[4]))
+        return NULL;
+    static const Spec spec[5] = {{"u", 'd', 1, 0},    {"trig", 'd', 2, 0}, {"beam_u", 'd', 1, 0},
+                                 {"coef", 'd', 2, 0}, {"out", 'd', 2, 1}};
+    Arr a[5];
+    if (take_all(o, a, spec, 5) < 0)
+        return NULL;
+    Py_BEGIN_ALLOW_THREADS;
+    dirichlet_rows(a, n, sin_recompute, sin_tiny, 0, a[0].n[0]);
+    Py_END_ALLOW_THREADS;
+    release(a, 5);
+    Py_RETURN_NONE;
 }
 
 /* links_kernel(ut_pos, ut_up, sphere, r_ut, sat_pos, ax_x, ax_y, ut, sat, min_el, bx, cx,
@@ -1268,6 +1311,7 @@ static PyObject *elevations(PyObject *self, PyObject *args)
 
 static PyMethodDef methods[] = {
     {"links_kernel", links_kernel, METH_VARARGS, "The pair geometry and beam kernels."},
+    {"dirichlet_kernels", dirichlet_kernels, METH_VARARGS, "array.dirichlet_kernels."},
     {"snr_kernel", snr_kernel, METH_VARARGS, "Links.snr_db_bm of the pairs lo .. hi - 1."},
     {"best_beam_kernel", best_beam_kernel, METH_VARARGS, "Links.best_beam of the pairs."},
     {"serve_kernel", serve_kernel, METH_VARARGS, "LinkEngine.serve_pairs, per row."},

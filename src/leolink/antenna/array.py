@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from leolink.arrays import nonzero_2d
+from leolink.compiled import enabled
 from leolink.errors import ConfigError, require_at_least
 
 # |sin(pi du / 2)| below which the Dirichlet kernel is replaced by its limit n: the
@@ -145,7 +146,7 @@ def dirichlet_trig(u, n):
     return trig
 
 
-def dirichlet_kernels(u, beam_u, n, trig=None):
+def dirichlet_kernels(u, beam_u, n, trig=None, compiled=False):
     """Dirichlet kernels of ``u (m,)`` against each ``beam_u (k,)`` -> (k, m).
 
     ``sin(n (x - b)) / sin(x - b)`` by angle subtraction, with ``x = pi u / 2``: four
@@ -153,13 +154,22 @@ def dirichlet_kernels(u, beam_u, n, trig=None):
     ``trig`` if given: those of ``u`` and ``n``), and one small matrix product for all
     ``k`` beams. Where ``|sin(x - b)|`` is tiny (at a beam peak or a grating lobe)
     cancellation would cost accuracy, so those few entries are recomputed directly with
-    :func:`ula_gain`.
+    :func:`ula_gain`. ``compiled``: by the compiled loop where it is built
+    (``leolink._kernels``: the same operations, ``fma(c1, t1, c0 t0)`` as the product's,
+    so the same bits; the ROI searches of :mod:`leolink.antenna.codebook_design`); this
+    numpy code is the engine's reference, which its own kernels are tested against.
     """
     u = np.asarray(u, dtype=float)
     beam_u = np.asarray(beam_u, dtype=float)
     k = beam_u.size
     trig = dirichlet_trig(u, n) if trig is None else trig
     coef = dirichlet_coefficients(beam_u, n)
+    if compiled and u.ndim == 1 and k and enabled():
+        from leolink import _kernels
+
+        g = np.empty((k, u.size))
+        _kernels.dirichlet_kernels(u, trig, beam_u, coef, float(n), _SIN_RECOMPUTE, _SIN_TINY, g)
+        return g
     # BLAS computes a 1-column product on another path (matrix-vector), which rounds
     # differently: a second column keeps every direction's kernel the same bit for bit
     # whatever the number of directions in the call.
