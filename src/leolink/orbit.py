@@ -239,10 +239,14 @@ def eci_to_ecef(pos_m, vel_m_s, acc_m_s2, t_s, gmst0_rad=0.0, rotation_rad_s=EAR
             [c * v[..., 0] + s * v[..., 1], -s * v[..., 0] + c * v[..., 1], v[..., 2]], -1
         )
 
-    w = np.array([0.0, 0.0, rotation_rad_s])
+    def w_cross(v):  # np.cross((0, 0, w), v), its operations one for one, without its copies
+        x, y, z = v[..., 0], v[..., 1], v[..., 2]
+        w = rotation_rad_s
+        return np.stack([0.0 * z - w * y, w * x - 0.0 * z, 0.0 * y - 0.0 * x], -1)
+
     pos_f = rot(pos)
-    vel_f = rot(vel - np.cross(w, pos))
-    acc_f = rot(acc) - 2.0 * np.cross(w, vel_f) - np.cross(w, np.cross(w, pos_f))
+    vel_f = rot(vel - w_cross(pos))
+    acc_f = rot(acc) - 2.0 * w_cross(vel_f) - w_cross(w_cross(pos_f))
     return pos_f, vel_f, acc_f
 
 

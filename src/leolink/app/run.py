@@ -149,7 +149,8 @@ def run_notes(cfg, scen):
     """The notes of a run (:mod:`leolink.app.notes`) and its track coverage."""
     design = codebook_design_from_config(cfg)
     notes = [f"codebook: {design.describe()}"]
-    notes.append(roi_frame(cfg, scen.ephemeris).describe(scen.ephemeris.names))
+    frame = scen.roi_frame if scen.roi_frame is not None else roi_frame(cfg, scen.ephemeris)
+    notes.append(frame.describe(scen.ephemeris.names))
     orientation = earth_orientation(cfg)
     if orientation is not None:
         notes.append(orientation.note)

@@ -225,7 +225,8 @@ def build_scenario(cfg):
     """The :class:`~leolink.sim.runner.Scenario` of a validated config."""
     codebook = codebook_from_config(cfg)
     ephemeris = ephemeris_from_config(cfg)
-    heading = track_heading_rad(cfg, ephemeris)
+    frame = roi_frame(cfg, ephemeris)
+    heading = frame.heading_rad
     rng = np.random.default_rng(np.random.SeedSequence(cfg.run.seed))
     r = cfg.run
     times, n_warm = epoch_times(r.start_s, r.epoch_s, r.warmup_s, r.duration_s)
@@ -254,6 +255,7 @@ def build_scenario(cfg):
         link=service_link(cfg, engine),
         panels=panel_orientation(cfg, populations),
         estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
+        roi_frame=frame,
     )
 
 

@@ -88,6 +88,8 @@ class Scenario:
     estimated_ephemeris : callable or None, the ephemeris the controller believes
         (:mod:`leolink.ephemeris_error`); the links are evaluated on ``ephemeris``
         (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
+    roi_frame : leolink.app.orbits.RoiFrame or None, the ROI frame the populations were
+        placed in (the run's notes say it); None: not known (a scenario built by hand).
     """
 
     engine: LinkEngine
@@ -112,6 +114,7 @@ class Scenario:
     selector: BeamSelector | None = None
     service: BeamService | None = None
     estimated_ephemeris: Callable | None = None
+    roi_frame: object | None = None
 
 
 @dataclasses.dataclass(frozen=True)
