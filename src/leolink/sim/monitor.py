@@ -177,7 +177,13 @@ class Monitor:
         """``serve_pairs`` of every UT of every kept epoch, in one call."""
         eng, dec, mb = self.engine, self.decider, self.decider.mb
         n_ut = len(recs[0].geo_sat)
-        rows = np.concatenate([(r.k - mb.k0) * n_ut + np.arange(n_ut) for r in recs])
+        epochs = np.array([r.k - mb.k0 for r in recs])
+        rows = (epochs[:, None] * n_ut + np.arange(n_ut)).reshape(-1)
+
+        def per_row(x):  # a block array's rows (n, ...): all of them, if every epoch is kept
+            flat = x.reshape(-1, *x.shape[2:])
+            return flat if epochs.size == mb.n_k else take_rows(flat, rows)
+
         geo_sat = np.concatenate([r.geo_sat for r in recs])
         geo_beam = np.concatenate([r.geo_beam for r in recs])
         served = geo_sat >= 0
@@ -187,7 +193,7 @@ class Monitor:
                 none["n_sharing"] = np.zeros(rows.size, np.int64)
             return self._finish(none, geo_beam)
         pl = self._pair_links(rows, geo_sat, served, n_ut)
-        up_enu = None if dec.enu is None else take_rows(dec.enu.reshape(-1, 3, 3), rows)
+        up_enu = None if dec.enu is None else per_row(dec.enu)
         lit = None
         if recs[0].lit is not None:  # active beams: the lit beams of each row's satellite
             lit = np.concatenate([r.lit[np.maximum(r.geo_sat, 0)] for r in recs])
@@ -197,13 +203,13 @@ class Monitor:
         if pl.rx_lin is not None:
             rx = pl.rx_lin if rx is None else rx * pl.rx_lin
         i_other = self._other_satellites(recs, geo_sat, geo_beam)
-        ut_pos = take_rows(mb.ut_pos_m.reshape(-1, 3), rows)
+        ut_pos = per_row(mb.ut_pos_m)
         cols = eng.serve_pairs(
             pl.links,
             pl.pair,
             geo_beam,
-            take_rows(mb.ut_vel_m_s.reshape(-1, 3), rows),
-            take_rows(mb.ut_acc_m_s2.reshape(-1, 3), rows),
+            per_row(mb.ut_vel_m_s),
+            per_row(mb.ut_acc_m_s2),
             pl.sat_vel_m_s,
             pl.sat_acc_m_s2,
             rx_fading_lin=rx,
