@@ -475,3 +475,21 @@ def test_compiled_find_pairs_is_numpys(block, monkeypatch):
             want = blk.find_pairs(r, s)
         np.testing.assert_array_equal(got, want)
         assert (got >= 0).sum() > 5000 and (got < 0).sum() > 1000
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    k0=st.integers(0, 5), n_k=st.integers(1, 6), n_ut=st.integers(1, 5),
+    sizes=st.lists(st.integers(0, 3), min_size=6, max_size=6), same=st.booleans(),
+)  # fmt: skip
+def test_dense_pairs_are_every_ut_with_every_satellite_of_its_epochs_cone(k0, n_k, n_ut, sizes,
+                                                                           same):  # fmt: skip
+    """The dense search's pairs (one cone size: built at once; several: epoch by epoch),
+    against their definition, pair by pair in order."""
+    ks = range(k0, k0 + n_k)
+    sizes = [sizes[0]] * 6 if same else sizes
+    cones = {k: np.arange(10 * k, 10 * k + sizes[k - k0]) for k in ks}
+    rows, sats = search._dense_pairs(ks, n_ut, cones)
+    want = [(k * n_ut + u, s) for k in ks for u in range(n_ut) for s in cones[k]]
+    assert list(zip(rows.tolist(), sats.tolist(), strict=True)) == want
+    assert rows.dtype == sats.dtype == np.int64

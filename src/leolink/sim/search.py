@@ -167,16 +167,14 @@ class CandidateSearch:
     def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm=None):
         """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
         global id) and the rows' visible satellites that were not evaluated."""
-        dense = not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks)
-        rows1, sats1, rows2, sats2, sure = [], [], [], [], np.zeros(len(ks) * n_ut, np.int64)
-        screened = []
+        sure = np.zeros(len(ks) * n_ut, np.int64)
+        if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
+            rows, sats = _dense_pairs(ks, n_ut, cones)
+            return self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm), sure
+        rows1, sats1, rows2, sats2, screened = [], [], [], [], []
         for i, k in enumerate(ks):
             rows = k * n_ut + np.arange(n_ut)
             cone = cones[k]
-            if dense:
-                rows1.append(np.repeat(rows, len(cone)))
-                sats1.append(np.tile(cone, n_ut))
-                continue
             code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone, nrm)
             first = np.argmax(bound, axis=1)
             chosen = code == UNCERTAIN
@@ -187,8 +185,6 @@ class CandidateSearch:
             sats1.append(cone[s])
             screened.append((i, rows, cone, code, bound, chosen))
         links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1, nrm)
-        if dense:
-            return links1, sure
         reach = np.zeros(pos.shape[0])
         gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
         lin = np.where(links1.visible, gain, 0.0)
@@ -292,6 +288,19 @@ class CandidateSearch:
         return BlockCandidates(
             k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
         )
+
+
+def _dense_pairs(ks, n_ut, cones):
+    """Every (row, satellite) pair of the epochs ``ks`` (a range): each UT of an epoch with
+    each satellite of its cone, epoch after epoch, UT after UT (rows ``k n_ut + u``)."""
+    if len({len(cones[k]) for k in ks}) == 1:  # one cone size (the usual): at once
+        cone = np.array([cones[k] for k in ks])  # (n_k, n_cone)
+        rows = np.arange(ks.start * n_ut, ks.stop * n_ut)
+        sats = np.broadcast_to(cone[:, None, :], (len(ks), n_ut, cone.shape[1]))
+        return np.repeat(rows, cone.shape[1]), sats.reshape(-1)
+    rows = [np.repeat(k * n_ut + np.arange(n_ut), len(cones[k])) for k in ks]
+    sats = [np.tile(cones[k], n_ut) for k in ks]
+    return np.concatenate(rows), np.concatenate(sats)
 
 
 def _window_kernel(n_pairs):
