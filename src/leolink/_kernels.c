@@ -32,8 +32,12 @@
  * else is contracted (-ffp-contract=off), so the clones give the same bits. */
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__linux__)
 #define FMA_CLONES __attribute__((target_clones("fma", "default")))
+/* The visibility loops' lanes: 8 doubles where the CPU has AVX-512, 4 with AVX2, 2
+ * elsewhere; every lane does the same operations, so the width changes no bit. */
+#define VECTOR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define FMA_CLONES
+#define VECTOR_CLONES
 #endif
 
 typedef struct {
@@ -1209,7 +1213,8 @@ static inline double fdlibm_asin(double x)
 {
     double a = fabs(x);
     int small = a < 0.5;
-    double z = small ? a * a : (1.0 - a) * 0.5;
+    double z_small = a * a, z_large = (1.0 - a) * 0.5; /* (both: selects, no branch) */
+    double z = small ? z_small : z_large;
     double p = z * (P0 + z * (P1 + z * (P2 + z * (P3 + z * (P4 + z * P5)))));
     double q = 1.0 + z * (Q1 + z * (Q2 + z * (Q3 + z * Q4)));
     double r = p / q;
@@ -1219,7 +1224,8 @@ static inline double fdlibm_asin(double x)
     double f = hi - (hi - s);
     double c = (z - f * f) / (s + f);
     double middle = PIO4_HI - ((2.0 * s * r - (PIO2_LO - 2.0 * c)) - (PIO4_HI - 2.0 * f));
-    double y = small ? a + a * r : (a >= 0.975 ? near_one : middle);
+    double direct = a + a * r;
+    double y = small ? direct : (a >= 0.975 ? near_one : middle);
     return copysign(y, x); /* asin(-0.0) = -0.0, as the C library's */
 }
 
@@ -1241,19 +1247,41 @@ static PyObject *asin_of(PyObject *self, PyObject *args)
 
 /* The elevations of one site: row[k] = asin(n . d / |d|), d = r[:, p0 + k] - site. The
  * sums start from 0.0 as numpy's accumulators do; every lane does the same operations, so
- * neither the thread count nor the vector width changes a bit. */
+ * neither the thread count nor the vector width changes a bit. Chunk by chunk, the sines
+ * (sin_elevations) then their arcsines (asin_row): two small loops, each vectorized with
+ * its constants in registers, 3.5 ns an elevation here against 6.5 as one loop. */
+enum { ELEVATION_CHUNK = 256 };
+
+VECTOR_CLONES static void sin_elevations(const double *restrict r0,
+                                         const double *restrict r1,
+                                         const double *restrict r2, Py_ssize_t n, double s0,
+                                         double s1, double s2, double u0, double u1,
+                                         double u2, double *restrict out)
+{
+    for (Py_ssize_t k = 0; k < n; k++) {
+        double d0 = r0[k] - s0, d1 = r1[k] - s1, d2 = r2[k] - s2;
+        double rho = sqrt(((0.0 + d0 * d0) + d1 * d1) + d2 * d2);
+        double up = (((0.0 + d0 * u0) + d1 * u1) + d2 * u2) / rho;
+        out[k] = up > 1.0 ? 1.0 : (up < -1.0 ? -1.0 : up); /* np.clip, keeps NaN */
+    }
+}
+
 #define ELEVATION_ROW(T)                                                                  \
-    static void elevation_row_##T(const double *restrict r0, const double *restrict r1,   \
-                                  const double *restrict r2, Py_ssize_t n_t, double s0,   \
-                                  double s1, double s2, double u0, double u1, double u2,  \
-                                  T *restrict row)                                        \
+    VECTOR_CLONES static void asin_row_##T(const double *restrict x, Py_ssize_t n,        \
+                                           T *restrict row)                               \
     {                                                                                     \
-        for (Py_ssize_t k = 0; k < n_t; k++) {                                            \
-            double d0 = r0[k] - s0, d1 = r1[k] - s1, d2 = r2[k] - s2;                     \
-            double rho = sqrt(((0.0 + d0 * d0) + d1 * d1) + d2 * d2);                     \
-            double up = (((0.0 + d0 * u0) + d1 * u1) + d2 * u2) / rho;                    \
-            up = up > 1.0 ? 1.0 : (up < -1.0 ? -1.0 : up); /* np.clip, keeps NaN */       \
-            row[k] = (T)fdlibm_asin(up);                                                  \
+        for (Py_ssize_t k = 0; k < n; k++)                                                \
+            row[k] = (T)fdlibm_asin(x[k]);                                                \
+    }                                                                                     \
+    static void elevation_row_##T(const double *r0, const double *r1, const double *r2,   \
+                                  Py_ssize_t n_t, double s0, double s1, double s2,        \
+                                  double u0, double u1, double u2, T *row)                \
+    {                                                                                     \
+        double up[ELEVATION_CHUNK];                                                       \
+        for (Py_ssize_t lo = 0; lo < n_t; lo += ELEVATION_CHUNK) {                        \
+            Py_ssize_t n = n_t - lo < ELEVATION_CHUNK ? n_t - lo : ELEVATION_CHUNK;       \
+            sin_elevations(r0 + lo, r1 + lo, r2 + lo, n, s0, s1, s2, u0, u1, u2, up);     \
+            asin_row_##T(up, n, row + lo);                                                \
         }                                                                                 \
     }
 ELEVATION_ROW(double)

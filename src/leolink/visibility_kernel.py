@@ -8,8 +8,11 @@ without AVX-512) but :func:`asin`, fdlibm's, which has no branch, so the loop is
 vectorized (the C library's scalar ``asin`` took ~70 % of the kernel's time): the two
 differ by at most 1 ulp (2.2e-16 rad, ``tests/test_visibility.py``). Each site is one
 thread's and every lane does the same operations (no contraction into FMA), so neither
-the thread count nor the vector width changes a bit. No temporaries: the work is the
-arithmetic, not the memory.
+the thread count nor the vector width (8 doubles with AVX-512, 4 with AVX2, 2 elsewhere:
+the loop's clone is chosen when the module loads) changes a bit. The sines and the
+arcsines of a row are two loops over chunks of 256 times (3.5 ns an elevation on one
+thread here, 6.5 as one loop, 4.2 with the numba kernel it replaced). No temporaries
+beyond a chunk: the work is the arithmetic, not the memory.
 """
 
 from __future__ import annotations
