@@ -12,9 +12,14 @@ centred in the run), 10 static UTs, 600 s at 1 s epochs: 6,000 UT-epochs.
   .compute_pass`` then ``SimpleWorldSim.run``, DVB-S2 ACM modem) for the same TLE, start
   time and UT positions; the loop alone is timed in-process, and the whole process.
 
-The figure that counts: ``ratio_peer_loop_over_leolink_process`` (> 1: leolink's whole
-process is faster than the peer's loop alone). Skips cleanly, with a message, when the
-peer is not installed. The driver below is ours; none of the peer's code is copied.
+Two figures have an aim (>= 1): ``ratio_peer_loop_over_leolink_process`` (leolink's whole
+process faster than the peer's loop alone, the issue's words; the interpreter with numpy
+imported alone takes about as long as that loop), and
+``ratio_peer_process_over_leolink_process`` (whole process against whole process; the
+issue's "~15 k UT-epochs/s" of the peer is its whole process's rate here). Run both from
+a virtual environment (as the peer's), not an interpreter whose site-packages load more
+at start. Skips cleanly, with a message, when the peer is not installed. The driver below
+is ours; none of the peer's code is copied.
 
 Run: ``python benchmarks/bench_peer.py [--repeat N] [--quick]`` (quick: 1 repeat).
 Prints figures only.
@@ -212,7 +217,7 @@ def main(argv=None):
     row("peer loop / leolink process", figures["ratio_peer_loop_over_leolink_process"], "x",
         aim=1.0)  # fmt: skip
     row("peer process / leolink process", figures["ratio_peer_process_over_leolink_process"],
-        "x")  # fmt: skip
+        "x", aim=1.0)  # fmt: skip
     return figures
 
 
