@@ -64,6 +64,14 @@ def pytest_runtest_makereport(item, call):
         _unexpected.append(f"{item.nodeid}: {reason}")
 
 
+def pytest_collectreport(report):
+    # A module-level ``importorskip`` skips a whole file at collection, before any item
+    # (and so before ``pytest_runtest_makereport``) exists: count it here.
+    if report.skipped:
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else report.longrepr
+        _unexpected.append(f"{report.nodeid}: {reason}")
+
+
 def pytest_sessionfinish(session, exitstatus):
     if _unexpected and not os.environ.get("LEOLINK_ALLOW_SKIPS"):
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
