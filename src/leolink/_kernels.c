@@ -12,8 +12,9 @@
  *
  * Arrays come through the buffer protocol, with their strides (a column slice of a
  * (k, m) matrix is read in place); each is checked for its element type and number of
- * dimensions, never for its extent: the Python callers pass consistent shapes, as they
- * did to the numba kernels these replace. Every loop runs without the GIL over the rows
+ * dimensions, its extents against the rows asked for and against each other (REQUIRE),
+ * and the indices it holds against what they index (INDICES): a caller's mistake raises
+ * ValueError instead of reading or writing outside a buffer. Every loop runs without the GIL over the rows
  * lo .. hi - 1 given to it, so that callers split large calls over threads
  * (leolink.engine.jit.run_rows); a row's values do not depend on the split.
  */
@@ -30,7 +31,8 @@
 /* fma() is exact wherever it is computed: as the FMA instruction where the CPU has one (a
  * clone of the loop for it, chosen when the module loads), else by the C library. Nothing
  * else is contracted (-ffp-contract=off), so the clones give the same bits. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__linux__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__linux__) && \
+    defined(__GLIBC__)
 #define FMA_CLONES __attribute__((target_clones("fma", "default")))
 /* The visibility loops' lanes: 8 doubles where the CPU has AVX-512, 4 with AVX2, 2
  * elsewhere; every lane does the same operations, so the width changes no bit. */
@@ -151,6 +153,50 @@ static int take_all(PyObject **objs, Arr *a, const Spec *spec, int n)
     return 0;
 }
 
+/* The arguments of kernel ``fn`` do not satisfy ``cond``: ValueError naming both. */
+static PyObject *misfit(const char *fn, const char *cond)
+{
+    PyErr_Format(PyExc_ValueError, "leolink._kernels.%s: the arguments must satisfy %s", fn,
+                 cond);
+    return NULL;
+}
+
+/* Whether idx[lo .. hi - 1] all lie in 0 .. bound - 1; else ValueError naming the first
+ * that does not. */
+static int indices_in(const char *fn, const char *name, const Arr *idx, Py_ssize_t lo,
+                      Py_ssize_t hi, Py_ssize_t bound)
+{
+    for (Py_ssize_t p = lo; p < hi; p++) {
+        int64_t v = E1(*idx, int64_t, p);
+        if (v < 0 || v >= bound) {
+            PyErr_Format(PyExc_ValueError,
+                         "leolink._kernels.%s: %s[%zd] = %lld is outside 0 .. %zd - 1", fn, name,
+                         p, (long long)v, bound);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* In a kernel whose buffers are ``Arr a[N]``, taken: on a failed check, release them and
+ * raise. ROWS: lo .. hi - 1 a range of rows within n. */
+#define N_ARR(a) ((int)(sizeof(a) / sizeof((a)[0])))
+#define REQUIRE(cond)                                                                     \
+    do {                                                                                  \
+        if (!(cond)) {                                                                    \
+            release(a, N_ARR(a));                                                         \
+            return misfit(__func__, #cond);                                               \
+        }                                                                                 \
+    } while (0)
+#define INDICES(idx, lo, hi, bound)                                                       \
+    do {                                                                                  \
+        if (!indices_in(__func__, #idx, &(idx), (lo), (hi), (bound))) {                   \
+            release(a, N_ARR(a));                                                         \
+            return NULL;                                                                  \
+        }                                                                                 \
+    } while (0)
+#define ROWS(lo, hi, n) REQUIRE(0 <= (lo) && (lo) <= (hi) && (hi) <= (n))
+
 static const double HALF_PI = 0.5 * M_PI;
 static const double SCREEN_HALF_PI = 1.5707963267948966;
 static const double DEG = 180.0 / M_PI; /* numpy.degrees multiplies by this constant */
@@ -236,6 +282,10 @@ static PyObject *dirichlet_kernels(PyObject *self, PyObject *args)
     Arr a[5];
     if (take_all(o, a, spec, 5) < 0)
         return NULL;
+    Arr u = a[0], trig = a[1], beam_u = a[2], coef = a[3], out = a[4];
+    REQUIRE(trig.n[0] >= 4 && trig.n[1] == u.n[0]);
+    REQUIRE(coef.n[0] == 2 * beam_u.n[0] && coef.n[1] >= 4);
+    REQUIRE(out.n[0] == beam_u.n[0] && out.n[1] == u.n[0]);
     Py_BEGIN_ALLOW_THREADS;
     dirichlet_rows(a, n, sin_recompute, sin_tiny, 0, a[0].n[0]);
     Py_END_ALLOW_THREADS;
@@ -318,6 +368,21 @@ static PyObject *links_kernel(PyObject *self, PyObject *args)
     Arr a[19];
     if (take_all(o, a, spec, 19) < 0)
         return NULL;
+    Arr ut_pos = a[0], ut_up = a[1], r_ut = a[2], sat_pos = a[3], ax_x = a[4], ax_y = a[5];
+    Arr ut = a[6], sat = a[7], bx = a[8], cx = a[9], by = a[10], cy = a[11];
+    Arr rel = a[12], rho2 = a[13], rho = a[14], elevation = a[15], visible = a[16];
+    Arr kx = a[17], ky = a[18];
+    Py_ssize_t n_ut = ut_pos.n[0], n_sat = sat_pos.n[0];
+    ROWS(lo, hi, ut.n[0]);
+    REQUIRE(sat.n[0] >= hi && rel.n[0] >= hi && rho2.n[0] >= hi && rho.n[0] >= hi);
+    REQUIRE(elevation.n[0] >= hi && visible.n[0] >= hi && kx.n[1] >= hi && ky.n[1] >= hi);
+    REQUIRE(ut_pos.n[1] >= 3 && sat_pos.n[1] >= 3 && rel.n[1] >= 3);
+    REQUIRE(ax_x.n[0] >= n_sat && ax_x.n[1] >= 3 && ax_y.n[0] >= n_sat && ax_y.n[1] >= 3);
+    REQUIRE(sphere ? r_ut.n[0] >= n_ut : ut_up.n[0] >= n_ut && ut_up.n[1] >= 3);
+    REQUIRE(cx.n[0] == 2 * bx.n[0] && cx.n[1] >= 4 && kx.n[0] == bx.n[0]);
+    REQUIRE(cy.n[0] == 2 * by.n[0] && cy.n[1] >= 4 && ky.n[0] == by.n[0]);
+    INDICES(ut, lo, hi, n_ut);
+    INDICES(sat, lo, hi, n_sat);
     Py_BEGIN_ALLOW_THREADS;
     links_rows(a, sphere, min_el, nx, ny, sin_recompute, sin_tiny, lo, hi);
     Py_END_ALLOW_THREADS;
@@ -340,6 +405,11 @@ static PyObject *snr_kernel(PyObject *self, PyObject *args)
         return NULL;
     Arr kx = a[0], ky = a[1], path = a[2], ix = a[3], iy = a[4], out = a[5];
     Py_ssize_t nkx = kx.n[0], nky = ky.n[0], nb = ix.n[0];
+    ROWS(lo, hi, path.n[0]);
+    REQUIRE(kx.n[1] >= hi && ky.n[1] >= hi && out.n[1] >= hi);
+    REQUIRE(iy.n[0] == nb && out.n[0] == nb);
+    INDICES(ix, 0, nb, nkx);
+    INDICES(iy, 0, nb, nky);
     double *lx = malloc(sizeof(double) * (size_t)(nkx + nky + 1));
     if (lx == NULL) {
         release(a, 6);
@@ -411,6 +481,11 @@ static PyObject *best_beam_kernel(PyObject *self, PyObject *args)
         return NULL;
     Arr kx = a[0], ky = a[1], path_snr = a[2], ix = a[3], iy = a[4], best = a[5], best_db = a[6];
     Py_ssize_t nb = ix.n[0];
+    ROWS(lo, hi, path_snr.n[0]);
+    REQUIRE(kx.n[1] >= hi && ky.n[1] >= hi && best.n[0] >= hi && best_db.n[0] >= hi);
+    REQUIRE(iy.n[0] == nb);
+    INDICES(ix, 0, nb, kx.n[0]);
+    INDICES(iy, 0, nb, ky.n[0]);
     Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t p = lo; p < hi; p++) {
         double path = E1(path_snr, double, p);
@@ -496,6 +571,22 @@ static PyObject *serve_kernel(PyObject *self, PyObject *args)
     Arr pair = a[6], beam = a[7], served = a[8], ix = a[9], iy = a[10], fading = a[11];
     Arr i_other = a[12], ut_vel = a[13], ut_acc = a[14], sat_vel = a[15], sat_acc = a[16];
     Arr ut_pos = a[17], enu = a[18], rx = a[19], atm = a[20], out = a[21];
+    Py_ssize_t n_pair = path_snr.n[0], n_beam = ix.n[0];
+    ROWS(lo, hi, pair.n[0]);
+    REQUIRE(beam.n[0] >= hi && served.n[0] >= hi && fading.n[0] >= hi && i_other.n[0] >= hi);
+    REQUIRE(rx.n[0] >= hi && atm.n[0] >= hi && out.n[0] >= 16 && out.n[1] >= hi);
+    REQUIRE(ut_vel.n[0] >= hi && ut_acc.n[0] >= hi && sat_vel.n[0] >= hi && sat_acc.n[0] >= hi);
+    REQUIRE(ut_vel.n[1] >= 3 && ut_acc.n[1] >= 3 && sat_vel.n[1] >= 3 && sat_acc.n[1] >= 3);
+    REQUIRE(has_enu ? enu.n[0] >= hi && enu.n[1] >= 2 && enu.n[2] >= 3
+                    : ut_pos.n[0] >= hi && ut_pos.n[1] >= 3);
+    REQUIRE(kx.n[0] >= 1 && ky.n[0] >= 1 && kx.n[1] >= n_pair && ky.n[1] >= n_pair);
+    REQUIRE(rel.n[0] >= n_pair && rel.n[1] >= 3 && slant.n[0] >= n_pair &&
+            elevation.n[0] >= n_pair);
+    REQUIRE(iy.n[0] == n_beam);
+    INDICES(pair, lo, hi, n_pair);
+    INDICES(beam, lo, hi, n_beam);
+    INDICES(ix, 0, n_beam, kx.n[0]);
+    INDICES(iy, 0, n_beam, ky.n[0]);
     Py_BEGIN_ALLOW_THREADS;
     const double c = 299792458.0;
     const double ln2 = log(2.0);
@@ -613,8 +704,15 @@ static PyObject *screen_kernel(PyObject *self, PyObject *args)
         return NULL;
     Arr ut_pos = a[0], ut_up = a[1], sat_pos = a[2], ax_x = a[3], ax_y = a[4], bx = a[5];
     Arr by = a[6], ut_factor = a[7], code = a[8], bound = a[9], sin_out = a[10];
-    Py_BEGIN_ALLOW_THREADS;
     Py_ssize_t n_s = code.n[1];
+    ROWS(lo, hi, code.n[0]);
+    REQUIRE(ut_pos.n[0] >= hi && ut_pos.n[1] >= 3 && ut_factor.n[0] >= hi);
+    REQUIRE(sphere || (ut_up.n[0] >= hi && ut_up.n[1] >= 3));
+    REQUIRE(bound.n[0] >= hi && bound.n[1] >= n_s && sin_out.n[0] >= hi && sin_out.n[1] >= n_s);
+    REQUIRE(sat_pos.n[0] >= n_s && ax_x.n[0] >= n_s && ax_y.n[0] >= n_s);
+    REQUIRE(sat_pos.n[1] >= 3 && ax_x.n[1] >= 3 && ax_y.n[1] >= 3);
+    REQUIRE(bx.n[0] >= 1 && by.n[0] >= 1);
+    Py_BEGIN_ALLOW_THREADS;
     double s_lo = s_min - band, s_hi = s_min + band;
     for (Py_ssize_t i = lo; i < hi; i++) {
         double px = E2(ut_pos, double, i, 0), py = E2(ut_pos, double, i, 1);
@@ -676,6 +774,8 @@ static PyObject *table_best(PyObject *self, PyObject *args)
     if (take_all(o, a, spec, 4) < 0)
         return NULL;
     Arr cell = a[0], snr = a[1], out_cell = a[2], out_db = a[3];
+    REQUIRE(snr.n[0] == cell.n[0] && snr.n[1] == cell.n[1]);
+    REQUIRE(out_cell.n[0] >= cell.n[0] && out_db.n[0] >= cell.n[0]);
     Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t i = 0; i < cell.n[0]; i++) {
         double top_db = -INFINITY;
@@ -715,6 +815,7 @@ static PyObject *table_slots(PyObject *self, PyObject *args)
     if (take_all(o, a, spec, 3) < 0)
         return NULL;
     Arr cell = a[0], wanted = a[1], out = a[2];
+    REQUIRE(cell.n[0] >= wanted.n[1] && out.n[0] == wanted.n[0] && out.n[1] == wanted.n[1]);
     Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t q = 0; q < wanted.n[0]; q++) {
         for (Py_ssize_t i = 0; i < wanted.n[1]; i++) {
@@ -747,6 +848,9 @@ static PyObject *table_values_at(PyObject *self, PyObject *args)
     if (take_all(o, a, spec, 3) < 0)
         return NULL;
     Arr snr = a[0], slot = a[1], out = a[2];
+    REQUIRE(snr.n[0] >= slot.n[0] && out.n[0] >= slot.n[0]);
+    for (Py_ssize_t i = 0; i < slot.n[0]; i++) /* (a negative slot reads nothing) */
+        REQUIRE(E1(slot, int64_t, i) < snr.n[1]);
     for (Py_ssize_t i = 0; i < slot.n[0]; i++) {
         int64_t s = E1(slot, int64_t, i);
         E1(out, double, i) = s >= 0 ? E2(snr, double, i, s) : NAN;
@@ -772,6 +876,8 @@ static PyObject *window_best(PyObject *self, PyObject *args)
         return NULL;
     Arr snr = a[0], rows = a[1], best_db = a[2];
     Py_ssize_t nb = snr.n[0], m = rows.n[0], n = 0;
+    REQUIRE(snr.n[1] == m);
+    INDICES(rows, 0, m, best_db.n[0]);
     Py_BEGIN_ALLOW_THREADS;
     Py_ssize_t p = 0;
     while (p < m) { /* the rows' best */
@@ -820,6 +926,9 @@ static PyObject *window_fill(PyObject *self, PyObject *args)
     Arr snr = a[0], rows = a[1], sat = a[2], best_db = a[3], out_row = a[4], out_cell = a[5];
     Arr out_db = a[6];
     Py_ssize_t m = rows.n[0], cap = out_row.n[0], k = 0;
+    REQUIRE(0 <= n_beam && n_beam <= snr.n[0] && snr.n[1] == m && sat.n[0] == m);
+    REQUIRE(out_cell.n[0] == cap && out_db.n[0] == cap);
+    INDICES(rows, 0, m, best_db.n[0]);
     Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t p = 0; p < m; p++) {
         int64_t row = E1(rows, int64_t, p);
@@ -883,6 +992,11 @@ static PyObject *serving_column(PyObject *self, PyObject *args)
     Arr cell = a[0], serving = a[1], pair_key = a[2], kx = a[3], ky = a[4], path = a[5];
     Arr visible = a[6], ix = a[7], iy = a[8], out_cell = a[9], out_snr = a[10], missing = a[11];
     Py_ssize_t n = serving.n[0], m = pair_key.n[0], n_need = 0, n_missing = 0;
+    REQUIRE(cell.n[0] >= n && out_cell.n[0] >= n && out_snr.n[0] >= n && missing.n[0] >= n);
+    REQUIRE(kx.n[1] >= m && ky.n[1] >= m && path.n[0] >= m && visible.n[0] >= m);
+    REQUIRE(ix.n[0] >= n_beam && iy.n[0] >= n_beam);
+    INDICES(ix, 0, n_beam, kx.n[0]);
+    INDICES(iy, 0, n_beam, ky.n[0]);
     for (Py_ssize_t i = 0; i < n; i++) {
         int64_t c = E1(serving, int64_t, i);
         E1(out_cell, int64_t, i) = -1;
@@ -939,6 +1053,7 @@ static PyObject *find_pairs(PyObject *self, PyObject *args)
     if (take_all(o, a, spec, 4) < 0)
         return NULL;
     Arr pair_key = a[0], rows = a[1], sats = a[2], out = a[3];
+    REQUIRE(sats.n[0] == rows.n[0] && out.n[0] >= rows.n[0]);
     Py_ssize_t m = pair_key.n[0], at = 0;
     int64_t last = INT64_MIN;
     Py_BEGIN_ALLOW_THREADS;
@@ -1003,6 +1118,7 @@ static PyObject *histogram_slots(PyObject *self, PyObject *args)
     if (take_all(o, a, spec, 2) < 0)
         return NULL;
     Arr values = a[0], out = a[1];
+    REQUIRE(out.n[0] >= values.n[0] && n_bins >= 0);
     Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t i = 0; i < values.n[0]; i++) {
         double x = E1(values, double, i);
@@ -1035,6 +1151,9 @@ static PyObject *db_stats_add(PyObject *self, PyObject *args)
         return NULL;
     Arr ut = a[0], values = a[1], count = a[2], total = a[3], pooled = a[4], keys = a[5];
     Py_ssize_t n_keys = 0, g_slots = g_nbins + 2;
+    REQUIRE(ut.n[0] >= values.n[0] && keys.n[0] >= values.n[0] && total.n[0] == count.n[0]);
+    REQUIRE(p_nbins >= 0 && g_nbins >= 0 && pooled.n[0] >= p_nbins + 2);
+    INDICES(ut, 0, values.n[0], count.n[0]);
     Py_BEGIN_ALLOW_THREADS;
     for (Py_ssize_t i = 0; i < values.n[0]; i++) {
         double v = E1(values, double, i);
@@ -1099,6 +1218,9 @@ static PyObject *step_rules(PyObject *self, PyObject *args)
     Arr pending_since = a[5], until = a[6], serving_since = a[7], in_outage = a[8];
     Arr censored = a[9], serving_snr = a[10];
     Py_ssize_t n = target.n[0], n_bad = 0, first_bad = -1, n_events = 0, n_closing = 0;
+    REQUIRE(cell.n[0] == n && snr.n[0] == n && snr.n[1] == cell.n[1]);
+    for (int q = 3; q < N_ARR(a); q++) /* every other array: one value a UT */
+        REQUIRE(a[q].n[0] == n);
     for (Py_ssize_t i = 0; i < n; i++) {
         int64_t old = E1(serving, int64_t, i), tgt = E1(target, int64_t, i);
         int was_out = E1(in_outage, char, i) != 0;
@@ -1239,6 +1361,7 @@ static PyObject *asin_of(PyObject *self, PyObject *args)
     Arr a[2];
     if (take_all(o, a, spec, 2) < 0)
         return NULL;
+    REQUIRE(a[1].n[0] >= a[0].n[0]);
     for (Py_ssize_t i = 0; i < a[0].n[0]; i++)
         E1(a[1], double, i) = fdlibm_asin(E1(a[0], double, i));
     release(a, 2);
@@ -1314,6 +1437,9 @@ static PyObject *elevations(PyObject *self, PyObject *args)
         return NULL;
     }
     Py_ssize_t n_sat = out.n[1], n_t = n_sat ? r.n[1] / n_sat : 0;
+    ROWS(lo, hi, out.n[0]);
+    REQUIRE(site.n[0] >= hi && site.n[1] >= 3 && normal.n[0] >= hi && normal.n[1] >= 3);
+    REQUIRE(r.n[0] >= 3 && r.n[1] == n_sat * n_t && 0 <= t0 && t0 + n_t <= out.n[2]);
     Py_BEGIN_ALLOW_THREADS;
     const double *r0 = (const double *)r.p, *r1 = (const double *)(r.p + r.s[0]);
     const double *r2 = (const double *)(r.p + 2 * r.s[0]);
