@@ -5,7 +5,8 @@
  * one, in the same order, so that a value gets the same bits from either wherever
  * numpy's loops are the C library's: a sum of three products is (p0 + p2) + p1 (what
  * numpy.einsum does over a length-3 axis), the Dirichlet angle subtraction is
- * fma(c1, t1, c0 t0) (what the BLAS product of dirichlet_kernels does), the
+ * fma(c1, t1, c0 t0) (what the BLAS product of dirichlet_kernels does for up to 16
+ * beams; see its docstring for more), the
  * transcendental functions are the C library's. Build flags (setup.py): no contraction
  * of a * b + c into an FMA (-ffp-contract=off) and no value-changing optimisation (no
  * -ffast-math); -fno-math-errno only lets sqrt be one instruction.

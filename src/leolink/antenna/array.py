@@ -155,9 +155,14 @@ def dirichlet_kernels(u, beam_u, n, trig=None, compiled=False):
     ``k`` beams. Where ``|sin(x - b)|`` is tiny (at a beam peak or a grating lobe)
     cancellation would cost accuracy, so those few entries are recomputed directly with
     :func:`ula_gain`. ``compiled``: by the compiled loop where it is built
-    (``leolink._kernels``: the same operations, ``fma(c1, t1, c0 t0)`` as the product's,
-    so the same bits; the ROI searches of :mod:`leolink.antenna.codebook_design`); this
-    numpy code is the engine's reference, which its own kernels are tested against.
+    (``leolink._kernels``; the ROI searches of :mod:`leolink.antenna.codebook_design`):
+    every entry as ``fma(c1, t1, c0 t0)``, which is how OpenBLAS's product rounds it for
+    up to 16 beams, so the same bits there. With more beams OpenBLAS computes the last
+    ``m mod 4`` directions on another path, without the fused multiply-add: those entries
+    differ by up to ~1e-13 relative (here: 17 to 64 beams), and the numpy result of a
+    direction then depends on its position in the call, the compiled one's does not
+    (``tests/test_array_kernels.py``). This numpy code is the engine's reference, which
+    its own kernels are tested against.
     """
     u = np.asarray(u, dtype=float)
     beam_u = np.asarray(beam_u, dtype=float)

@@ -5,7 +5,9 @@ Each kernel is the fused loop of a numpy function of the engine and repeats its 
 point operations one for one, in the same order (``src/leolink/_kernels.c``), so that a
 pair gets the same bits from either: a sum of three products is ``(p0 + p2) + p1`` (what
 ``numpy.einsum`` does over a length-3 axis), the Dirichlet angle subtraction
-``fma(c1, t1, c0 t0)`` (what the BLAS product of ``dirichlet_kernels`` does), the
+``fma(c1, t1, c0 t0)`` (what the BLAS product of ``dirichlet_kernels`` does for up to 16
+beams an axis; with more, OpenBLAS rounds the last ``m mod 4`` pairs without the fused
+multiply-add: ~1e-13 relative apart, ``leolink.antenna.array.dirichlet_kernels``), the
 transcendental functions are the C library's (as numpy's float64 loops on x86-64 without
 AVX-512; with AVX-512 numpy takes ``arcsin``, ``arctan2``, ``log10``, ``log1p``, ``exp``
 and ``power`` from Intel's SVML, a few ulp away, so that the two paths then differ in the
