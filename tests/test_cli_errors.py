@@ -5,6 +5,7 @@ the paper's own coverage condition of Sec. 3.1, the derived 534.1 x 272.4 km one
 """
 
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -169,3 +170,29 @@ def test_the_command_is_console_and_exits_with_mains_code_collector_frozen():
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
     _check_one_error_line(proc.returncode, proc.stderr, "link.bandwith_hz is not a known key")
     assert proc.stdout.strip() == "frozen True"
+
+
+@pytest.mark.parametrize(
+    ("given", "expected"),
+    [({}, "1"), ({"OMP_NUM_THREADS": "2"}, None), ({"OPENBLAS_NUM_THREADS": "4"}, "4")],
+)
+def test_the_command_gives_blas_one_thread_unless_the_environment_says(given, expected):
+    """OpenBLAS's idle threads spin on the cores leolink's kernels use (README "Speed"):
+    ``console`` sets ``OPENBLAS_NUM_THREADS=1`` before numpy loads, and leaves a count the
+    user chose (by any of the variables BLAS reads) alone."""
+    from leolink.compiled import BLAS_THREAD_VARIABLES
+
+    env = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARIABLES}
+    probe = (  # (numpy is not loaded yet when console starts: OpenBLAS reads it then)
+        "import atexit, os, sys\n"
+        "atexit.register(lambda: print('blas', os.environ.get('OPENBLAS_NUM_THREADS')))\n"
+        "from leolink.cli import console\n"
+        "assert 'numpy' not in sys.modules\n"
+        "console(sys.argv[1:])\n"
+    )
+    cmd = [sys.executable, "-c", probe, "validate", PAPER]
+    proc = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, env=env | given
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[-1].split() == ["blas", str(expected)]

@@ -378,6 +378,9 @@ def main(argv=None) -> int:
 def console(argv=None):
     """The ``leolink`` command (and ``python -m leolink.cli``): :func:`main`, then exit
     with its code."""
+    from leolink.compiled import single_threaded_blas
+
+    single_threaded_blas()  # (before numpy's import: main() imports what it runs)
     code = main(argv)
     # The process ends: its objects go with their reference counts at the interpreter's
     # teardown; the collector's last passes over every object (a 10-UT run's exit: 106-136

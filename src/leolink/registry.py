@@ -51,7 +51,12 @@ class Params(BaseModel):
     """Base of every entry's parameter model: unknown keys, NaN/inf and coercions refused."""
 
     model_config = ConfigDict(
-        extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False, strict=True
+        extra="forbid",
+        frozen=True,
+        validate_default=True,
+        allow_inf_nan=False,
+        strict=True,
+        defer_build=True,
     )
 
 

@@ -59,7 +59,12 @@ class Section(BaseModel):
     """A config table: unknown keys, NaN/inf and type coercions are refused."""
 
     model_config = ConfigDict(
-        extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False, strict=True
+        extra="forbid",
+        frozen=True,
+        validate_default=True,
+        allow_inf_nan=False,
+        strict=True,
+        defer_build=True,
     )
 
 

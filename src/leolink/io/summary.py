@@ -35,6 +35,7 @@ from leolink.io.summary_stats import (
 )
 from leolink.sim.controller import EVENT_KINDS, SERVICE_HANDOVER, SERVICE_NAMES, SERVICE_OUTAGE
 from leolink.sim.processes import OUTAGE_REASONS
+from leolink.sim.quantiles import median
 
 __all__ = [
     "DB_RANGE",
@@ -323,7 +324,7 @@ class SummaryAccumulator:
             dwell["complete_s"] = done.tolist()
         dwell["n_censored"] = int((~complete).sum())
         dwell["mean_s"] = done.mean() if done.size else None
-        dwell["median_s"] = np.median(done) if done.size else None
+        dwell["median_s"] = median(done) if done.size else None
         counts = {k: self.event_counts[i].sum() for i, k in enumerate(EVENT_KINDS)}
         return {
             "n_ut": self.n_ut,
