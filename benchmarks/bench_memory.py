@@ -66,7 +66,7 @@ def child_run(config, overrides, tmp, name):
         env=env, cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
     lines = done.stdout.strip().splitlines()
-    code, maxrss_kib, _ = lines[-1].split() if lines else ("1", "0", "0")
+    code, maxrss_kib = lines[-1].split()[:2] if lines else ("1", "0")
     if done.returncode != 0 or int(code) != 0:
         raise RuntimeError(f"{name}: the run failed:\n{done.stderr[-2000:]}")
     return json.loads(lines[-2]) | {"peak_rss_bytes": int(maxrss_kib) * 1024}
