@@ -4,6 +4,7 @@ Also ``leolink validate`` on the paper's config: the Table's ROI (534.1 x 170.5 
 the paper's own coverage condition of Sec. 3.1, the derived 534.1 x 272.4 km one meets it.
 """
 
+import json
 import math
 import os
 import subprocess
@@ -196,3 +197,34 @@ def test_the_command_gives_blas_one_thread_unless_the_environment_says(given, ex
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[-1].split() == ["blas", str(expected)]
+
+
+def _console(probe, *args, env=None):
+    base = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}  # as a shell's
+    cmd = [sys.executable, "-c", probe, *args]
+    return subprocess.run(
+        cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, env=base | (env or {})
+    )
+
+
+def test_the_command_ends_with_its_output_whole_and_its_threads_done(tmp_path):
+    """console ends the process without the interpreter's teardown: buffered output still
+    reaches a pipe, exit functions still run (test above), and a thread still running
+    (here one that finishes a file after main returned) is waited for as Python would."""
+    probe = "import sys\nfrom leolink.cli import console\nconsole(sys.argv[1:])\n"
+    proc = _console(probe, "budget", PAPER, "--elevation-deg", "70", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["elevation_deg"] == 70.0
+    done = tmp_path / "done"
+    late = (
+        "import sys, threading, time\n"
+        "def finish():\n"
+        "    time.sleep(0.3)\n"
+        f"    open({str(done)!r}, 'w').write('ok')\n"
+        "threading.Thread(target=finish).start()\n"
+        "from leolink.cli import console\n"
+        "console(sys.argv[1:])\n"
+    )
+    proc = _console(late, "validate", PAPER, "--set", "link.bandwith_hz=1")
+    assert proc.returncode == 2, proc.stderr
+    assert done.read_text() == "ok"

@@ -12,7 +12,6 @@ some of whose points failed writes its table (their ``error`` column) and exits 
 from __future__ import annotations
 
 import argparse
-import gc
 import json
 import sys
 from pathlib import Path
@@ -376,18 +375,13 @@ def main(argv=None) -> int:
 
 
 def console(argv=None):
-    """The ``leolink`` command (and ``python -m leolink.cli``): :func:`main`, then exit
-    with its code."""
+    """The ``leolink`` command (and ``python -m leolink.cli``): :func:`main`, then the
+    process's end with its code (:func:`leolink.app.process.end`)."""
+    from leolink.app.process import end
     from leolink.compiled import single_threaded_blas
 
     single_threaded_blas()  # (before numpy's import: main() imports what it runs)
-    code = main(argv)
-    # The process ends: its objects go with their reference counts at the interpreter's
-    # teardown; the collector's last passes over every object (a 10-UT run's exit: 106-136
-    # ms, 21-32 ms frozen, measured) would find only cycles, whose files are closed by
-    # then (outputs are written and closed before they are renamed into place).
-    gc.freeze()
-    sys.exit(code)
+    end(main(argv))
 
 
 if __name__ == "__main__":
