@@ -7,6 +7,7 @@ the paper's own coverage condition of Sec. 3.1, the derived 534.1 x 272.4 km one
 import json
 import math
 import os
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -228,3 +229,50 @@ def test_the_command_ends_with_its_output_whole_and_its_threads_done(tmp_path):
     proc = _console(late, "validate", PAPER, "--set", "link.bandwith_hz=1")
     assert proc.returncode == 2, proc.stderr
     assert done.read_text() == "ok"
+
+
+CONSOLE = "import sys\nfrom leolink.cli import console\nconsole(sys.argv[1:])\n"
+
+
+def test_the_command_says_when_its_output_could_not_be_written():
+    """A full disk under a redirection (/dev/full): one line and the environment's exit
+    code, not a silent success; a closed standard output (>&-) is no error."""
+    cmd = f"exec {shlex.quote(sys.executable)} -c {shlex.quote(CONSOLE)} validate {PAPER}"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    full = subprocess.run(["sh", "-c", cmd + " > /dev/full"], capture_output=True,
+                          text=True, timeout=120, cwd=ROOT, env=env)  # fmt: skip
+    _check_one_error_line(full.returncode, full.stderr, "cannot write the standard output")
+    closed = subprocess.run(["sh", "-c", cmd + " >&-"], capture_output=True, text=True,
+                            timeout=120, cwd=ROOT, env=env)  # fmt: skip
+    assert (closed.returncode, closed.stderr) == (0, "")
+
+
+def test_a_profiler_gets_the_commands_end(tmp_path):
+    """Under ``python -m cProfile -o FILE`` the process ends as Python's does, so the
+    profiler writes its file."""
+    out = tmp_path / "run.prof"
+    cmd = [sys.executable, "-m", "cProfile", "-o", str(out), "-m", "leolink.cli", "validate",
+           str(PAPER)]  # fmt: skip
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert out.stat().st_size > 0
+
+
+def test_only_the_command_builds_its_models_at_their_first_use():
+    """pydantic builds a deferred model without a lock: the command (its models used on
+    its main thread) defers them; a library import, which may have threads, does not."""
+    probe = (
+        "import atexit, sys\n"
+        "def report():\n"
+        "    from leolink.config.schema import Section\n"
+        "    from leolink.registry import Params\n"
+        "    print('deferred', Params.model_config['defer_build'],"
+        " Section.model_config['defer_build'])\n"
+        "atexit.register(report)\n" + CONSOLE
+    )
+    proc = _console(probe, "validate", PAPER)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[-1] == "deferred True True"
+    library = "import leolink.registry as r; print(r.Params.model_config['defer_build'])"
+    proc = _console(library)
+    assert proc.stdout.strip() == "False", proc.stderr

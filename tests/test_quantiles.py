@@ -1,6 +1,7 @@
 """leolink.sim.quantiles against numpy.median and numpy.percentile, bit for bit."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -43,6 +44,13 @@ def test_percentile_of_sorted_is_numpys(values, q_percent):
     with np.errstate(all="ignore"):
         expected = np.percentile(s, q_percent)
     _same_bits(percentile_of_sorted(s, q_percent), expected)
+
+
+@pytest.mark.parametrize("values", [[-0.0], [-1.0, -0.0], [-2.0, -1.0, -0.0], [-0.0, 3.0]])
+@pytest.mark.parametrize("q_percent", [0.0, 10.0, 50.0, 90.0, 100.0])
+def test_percentile_of_sorted_gives_numpys_signed_zeros(values, q_percent):
+    s = np.array(values)
+    _same_bits(percentile_of_sorted(s, q_percent), np.percentile(s, q_percent))
 
 
 def test_a_run_of_dwells_gives_numpys_statistics():

@@ -377,10 +377,9 @@ def main(argv=None) -> int:
 def console(argv=None):
     """The ``leolink`` command (and ``python -m leolink.cli``): :func:`main`, then the
     process's end with its code (:func:`leolink.app.process.end`)."""
-    from leolink.app.process import end
-    from leolink.compiled import single_threaded_blas
+    from leolink.app.process import end, start
 
-    single_threaded_blas()  # (before numpy's import: main() imports what it runs)
+    start()  # (before numpy's and the models' import: main() imports what it runs)
     end(main(argv))
 
 

@@ -30,6 +30,7 @@ from typing import Any, Generic, TypeVar
 
 from pydantic import BaseModel, ConfigDict
 
+from leolink.compiled import models_on_first_use
 from leolink.errors import ConfigError
 
 __all__ = ["REGISTRIES", "Entry", "Params", "Registry", "generation"]
@@ -56,7 +57,7 @@ class Params(BaseModel):
         validate_default=True,
         allow_inf_nan=False,
         strict=True,
-        defer_build=True,
+        defer_build=models_on_first_use(),  # the leolink command's
     )
 
 

@@ -11,6 +11,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from leolink.compiled import models_on_first_use
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2
 from leolink.link.acm import ROLLOFFS
 from leolink.link.figures import system_noise_temp_k
@@ -64,7 +65,7 @@ class Section(BaseModel):
         validate_default=True,
         allow_inf_nan=False,
         strict=True,
-        defer_build=True,
+        defer_build=models_on_first_use(),  # the leolink command's
     )
 
 

@@ -49,9 +49,13 @@ def percentile_of_sorted(sorted_values, q_percent):
     """
     s = np.asarray(sorted_values, np.float64)
     rank = (s.size - 1) * (q_percent / 100)
-    below = math.floor(rank)
     if rank >= s.size - 1:
-        return float(s[-1])
-    a, b = float(s[below]), float(s[below + 1])
-    t = rank - below
+        # numpy's index of the last value is -1, and its weight the rank's distance from
+        # it: rank + 1 (which decides the zero's sign of a last value -0.0).
+        a = b = float(s[-1])
+        t = rank + 1
+    else:
+        below = math.floor(rank)
+        a, b = float(s[below]), float(s[below + 1])
+        t = rank - below
     return b - (b - a) * (1 - t) if t >= 0.5 else a + (b - a) * t
