@@ -33,7 +33,7 @@ from pydantic import BaseModel, ConfigDict
 from leolink.compiled import models_on_first_use
 from leolink.errors import ConfigError
 
-__all__ = ["REGISTRIES", "Entry", "Params", "Registry", "generation"]
+__all__ = ["REGISTRIES", "STRICT_MODEL", "Entry", "Params", "Registry", "generation"]
 
 T = TypeVar("T")
 
@@ -48,17 +48,22 @@ def generation() -> int:
     return _current
 
 
+#: The pydantic settings of every config table and parameter model: unknown keys, NaN/inf
+#: and type coercions refused; validators built at first use in the ``leolink`` command.
+STRICT_MODEL = ConfigDict(
+    extra="forbid",
+    frozen=True,
+    validate_default=True,
+    allow_inf_nan=False,
+    strict=True,
+    defer_build=models_on_first_use(),
+)
+
+
 class Params(BaseModel):
     """Base of every entry's parameter model: unknown keys, NaN/inf and coercions refused."""
 
-    model_config = ConfigDict(
-        extra="forbid",
-        frozen=True,
-        validate_default=True,
-        allow_inf_nan=False,
-        strict=True,
-        defer_build=models_on_first_use(),  # the leolink command's
-    )
+    model_config = STRICT_MODEL
 
 
 class NoParams(Params):

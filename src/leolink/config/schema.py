@@ -9,12 +9,12 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
-from leolink.compiled import models_on_first_use
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2
 from leolink.link.acm import ROLLOFFS
 from leolink.link.figures import system_noise_temp_k
+from leolink.registry import STRICT_MODEL
 
 _ISO_EXAMPLE = "e.g. 2019-12-09T16:37:29.363Z"
 
@@ -59,14 +59,7 @@ EPOCH_TOLERANCE = 1e-6
 class Section(BaseModel):
     """A config table: unknown keys, NaN/inf and type coercions are refused."""
 
-    model_config = ConfigDict(
-        extra="forbid",
-        frozen=True,
-        validate_default=True,
-        allow_inf_nan=False,
-        strict=True,
-        defer_build=models_on_first_use(),  # the leolink command's
-    )
+    model_config = STRICT_MODEL
 
 
 def _f(default, *, gt=None, ge=None, le=None, lt=None, doc=""):
