@@ -21,6 +21,7 @@ import pytest
 
 pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
 
+from leolink import compiled  # noqa: E402
 from leolink.antenna.panel import oriented_panel_basis  # noqa: E402
 from leolink.antenna.terminal import UPATerminal  # noqa: E402
 from leolink.app.scenario import build_scenario  # noqa: E402
@@ -33,7 +34,7 @@ from platform_math import ATOL_ANGLE_DB, NUMPY_IS_LIBM, close, same  # noqa: E40
 
 CONSTELLATION = "configs/constellation.toml"
 COLUMNS = SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS
-_N_THREADS = jit.n_threads
+_N_THREADS = compiled.n_threads
 
 
 @pytest.fixture(scope="module")
@@ -58,8 +59,8 @@ def split(request, monkeypatch):
     """Each test as the machine runs it, and with every large call split over 3 threads
     into uneven shares (a row is one thread's: the bits must not change)."""
     if request.param is not None:
-        monkeypatch.setattr(jit, "n_threads", lambda: request.param)
-        monkeypatch.setattr(jit, "SPLIT_MIN_ROWS", 997)
+        monkeypatch.setattr(compiled, "n_threads", lambda: request.param)
+        monkeypatch.setattr(compiled, "SPLIT_MIN_ROWS", 997)
     return request.param
 
 
@@ -292,7 +293,7 @@ def test_screening_kernel_agrees_with_numpy_on_every_row(epoch, monkeypatch):
 def test_thread_count_from_the_environment(monkeypatch):
     from leolink.errors import ConfigError
 
-    n_threads = _N_THREADS  # the real one (the split fixture replaces jit.n_threads)
+    n_threads = _N_THREADS  # the real one (the split fixture replaces compiled.n_threads)
 
     try:
         for value, expected in (("3", 3), (" 1 ", 1)):

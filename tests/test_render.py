@@ -14,8 +14,8 @@ import time
 import numpy as np
 import pytest
 
+from leolink import compiled
 from leolink.config import load_config
-from leolink.engine import jit
 from leolink.errors import LeolinkError
 from leolink.io import plots, render
 from leolink.io.atomic import PendingFiles
@@ -129,15 +129,15 @@ def test_a_child_splits_kernel_calls_over_its_own_threads(monkeypatch):
     its own (the pool is dropped at fork), instead of waiting forever on the parent's."""
     monkeypatch.setenv("LEOLINK_FORK", "1")
     monkeypatch.setenv("LEOLINK_THREADS", "2")
-    jit.n_threads.cache_clear()
-    monkeypatch.setattr(jit, "SPLIT_MIN_ROWS", 4)
+    compiled.n_threads.cache_clear()
+    monkeypatch.setattr(compiled, "SPLIT_MIN_ROWS", 4)
 
     def fill(out, lo, hi):
         out[lo:hi] = np.arange(lo, hi)
 
     def split():
         out = np.zeros(64)
-        jit.run_rows(fill, 64, out)
+        compiled.run_rows(fill, 64, out)
         return out
 
     def deadlocked(signum, frame):
@@ -151,7 +151,7 @@ def test_a_child_splits_kernel_calls_over_its_own_threads(monkeypatch):
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, previous)
-        jit.n_threads.cache_clear()
+        compiled.n_threads.cache_clear()
 
 
 def test_a_failing_picture_fails_the_run_and_leaves_no_temporary_file(tmp_path, monkeypatch):

@@ -79,6 +79,7 @@ def _walker_elevations(monkeypatch, compiled, threads="2", **kw):
 
     monkeypatch.setenv("LEOLINK_JIT", "1" if compiled else "0")
     monkeypatch.setenv("LEOLINK_THREADS", threads)
+    monkeypatch.setattr(flags, "SPLIT_MIN_ROWS", 97)  # (the sites split even at this size)
     flags.enabled.cache_clear()
     flags.n_threads.cache_clear()
     try:

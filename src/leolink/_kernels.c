@@ -17,7 +17,7 @@
  * and the indices it holds against what they index (INDICES): a caller's mistake raises
  * ValueError instead of reading or writing outside a buffer. Every loop runs without the GIL over the rows
  * lo .. hi - 1 given to it, so that callers split large calls over threads
- * (leolink.engine.jit.run_rows); a row's values do not depend on the split.
+ * (leolink.compiled.run_rows); a row's values do not depend on the split.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -1092,7 +1092,7 @@ static PyObject *find_pairs(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* ---- the summary's histograms (leolink.sim.kpi) ---- */
+/* ---- the summary's histograms (leolink.sim.histograms, leolink.io.summary_stats) ---- */
 
 /* histogram_slots(values, lo, resolution, hi, n_bins, unserved, out): PercentileHistogram.slots,
  * the slot of every value: 0 below lo, 1 .. n_bins the bins, n_bins + 1 at or above hi (NaN

@@ -4,7 +4,7 @@ answer for every layer (:mod:`leolink.engine.jit` for the engine, :mod:`leolink.
 The extension is built when leolink is installed (``setup.py``; optional: without a C
 compiler leolink installs without it). ``LEOLINK_JIT=0`` in the environment turns every
 kernel off (the numpy code then runs everywhere); ``LEOLINK_THREADS=N`` sets the threads a
-large call is split over. The ``leolink`` command gives BLAS one thread
+large call is split over (:func:`run_rows`). The ``leolink`` command gives BLAS one thread
 (:func:`single_threaded_blas`) and builds its pydantic models at their first use
 (:func:`models_on_first_use`).
 """
@@ -14,7 +14,8 @@ from __future__ import annotations
 import functools
 import os
 
-__all__ = ["enabled", "models_on_first_use", "n_threads", "single_threaded_blas"]
+__all__ = ["SPLIT_MIN_ROWS", "enabled", "models_on_first_use", "n_threads", "run_rows"]
+__all__ += ["single_threaded_blas"]
 
 #: The variables BLAS libraries take their thread count from (OpenBLAS, numpy's own, reads
 #: the first three in this order; MKL its own).
@@ -52,6 +53,40 @@ def n_threads():
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
+
+
+#: Rows per thread below which a kernel call is not split (a task costs ~50 us).
+SPLIT_MIN_ROWS = 16_384
+
+
+@functools.cache
+def _pool():
+    from concurrent.futures import ThreadPoolExecutor
+
+    return ThreadPoolExecutor(max(1, n_threads() - 1), thread_name_prefix="leolink-kernel")
+
+
+# A forked child (leolink.io.render) has none of the pool's threads: it starts its own.
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_pool.cache_clear)
+
+
+def run_rows(kernel, n, *args, row_size=1):
+    """``kernel(*args, lo, hi)`` over the rows ``0 .. n - 1``, split over
+    :func:`n_threads` threads when large (the kernels release the GIL). Each row is
+    computed by one thread with the same operations: the bits of a single call.
+    ``row_size``: the work of a row, in units of a pair (a UT's row of satellites)."""
+    k = min(n_threads(), n * row_size // SPLIT_MIN_ROWS, n)
+    if k <= 1:
+        kernel(*args, 0, n)
+        return
+    edges = [n * i // k for i in range(k + 1)]
+    pool = _pool()
+    shares = zip(edges[1:-1], edges[2:], strict=True)
+    tasks = [pool.submit(kernel, *args, lo, hi) for lo, hi in shares]
+    kernel(*args, 0, edges[1])  # this thread's share
+    for task in tasks:
+        task.result()
 
 
 def single_threaded_blas(environ=os.environ):

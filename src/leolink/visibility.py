@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.compiled import enabled, n_threads
+from leolink.compiled import enabled, run_rows
 from leolink.geodesy import wgs84_to_ecef
 
 __all__ = ["gmst82_rad", "teme_to_ecef_m", "tle_elevations_rad"]
@@ -130,18 +130,13 @@ def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
     least :data:`PIPELINE_BLOCKS` blocks of times: sgp4, which holds the GIL, propagates
     the next block on a thread while the kernel, which releases it, fills this one (so two
     blocks' states are alive at once: twice ``block_bytes``), its sites split over
-    :func:`n_threads` threads (each site is one thread's: the bits do not depend on the
-    split)."""
+    threads by :func:`~leolink.compiled.run_rows` (each site is one thread's: the bits do
+    not depend on the split)."""
     from concurrent.futures import ThreadPoolExecutor
 
     t_step = max(1, min(t_step, -(-jd.size // PIPELINE_BLOCKS)))
     blocks = [slice(t0, t0 + t_step) for t0 in range(0, jd.size, t_step)]
-    k = max(1, min(n_threads(), len(site)))
-    edges = [len(site) * i // k for i in range(k + 1)]
-    with (
-        ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as sgp4,
-        ThreadPoolExecutor(max(1, k - 1), thread_name_prefix="leolink-elevations") as pool,
-    ):
+    with ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as sgp4:
 
         def states(t):
             return sgp4.submit(_earth_fixed_states, sats, jd[t], fr[t], ut1[t])
@@ -151,11 +146,7 @@ def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
             r = pending.result()
             if i + 1 < len(blocks):
                 pending = states(blocks[i + 1])
-            shares = [pool.submit(kernel, r, site, normal, out, t.start, lo, hi)
-                      for lo, hi in zip(edges[1:-1], edges[2:], strict=True)]  # fmt: skip
-            kernel(r, site, normal, out, t.start, 0, edges[1])  # this thread's share
-            for share in shares:
-                share.result()
+            run_rows(kernel, len(site), r, site, normal, out, t.start, row_size=r.shape[1])
 
 
 def _kernel():

@@ -17,48 +17,14 @@ an output, so it may (and does) round differently; both of its bounds are rigoro
 from __future__ import annotations
 
 import functools
-import os
 
 import numpy as np
 
-from leolink.compiled import enabled, n_threads
+from leolink.compiled import SPLIT_MIN_ROWS, enabled, n_threads, run_rows
 
 __all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
 __all__ += ["db_stats_add", "histogram_slots", "serve_columns", "serve_pairs", "serving_column"]
-__all__ += ["find_pairs", "use"]
-
-#: Rows per thread below which a kernel call is not split (a task costs ~50 us).
-SPLIT_MIN_ROWS = 16_384
-
-
-@functools.cache
-def _pool():
-    from concurrent.futures import ThreadPoolExecutor
-
-    return ThreadPoolExecutor(max(1, n_threads() - 1), thread_name_prefix="leolink-kernel")
-
-
-# A forked child (leolink.io.render) has none of the pool's threads: it starts its own.
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_pool.cache_clear)
-
-
-def run_rows(kernel, n, *args, row_size=1):
-    """``kernel(*args, lo, hi)`` over the rows ``0 .. n - 1``, split over
-    :func:`n_threads` threads when large (the kernels release the GIL). Each row is
-    computed by one thread with the same operations: the bits of a single call.
-    ``row_size``: the work of a row, in units of a pair (a UT's row of satellites)."""
-    k = min(n_threads(), n * row_size // SPLIT_MIN_ROWS, n)
-    if k <= 1:
-        kernel(*args, 0, n)
-        return
-    edges = [n * i // k for i in range(k + 1)]
-    pool = _pool()
-    shares = zip(edges[1:-1], edges[2:], strict=True)
-    tasks = [pool.submit(kernel, *args, lo, hi) for lo, hi in shares]
-    kernel(*args, 0, edges[1])  # this thread's share
-    for task in tasks:
-        task.result()
+__all__ += ["SPLIT_MIN_ROWS", "find_pairs", "use"]
 
 
 def kernels():
@@ -163,7 +129,7 @@ def screen_kernel():
 
 
 def histogram_slots(values, lo, resolution, hi, n_bins, unserved_value):
-    """``leolink.sim.kpi.PercentileHistogram.slots`` of float64 ``values`` (1-D) by its
+    """``leolink.sim.histograms.PercentileHistogram.slots`` of float64 ``values`` (1-D) by its
     compiled loop: the same slots (``floor((x - lo) / resolution)``, clipped alike)."""
     from leolink import _kernels
 

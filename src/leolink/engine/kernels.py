@@ -15,7 +15,7 @@ last bits). ``tests/test_jit.py`` checks the equality bit for bit where numpy's 
 the C library's, to a few ulp elsewhere (``tests/platform_math.py``).
 
 Every kernel fills the rows ``lo .. hi - 1`` of its outputs without the GIL
-(:func:`leolink.engine.jit.run_rows` splits a large call over threads):
+(:func:`leolink.compiled.run_rows` splits a large call over threads):
 
 - ``links_kernel``: the geometry and beam kernels of ``LinkEngine.evaluate_pairs``, per pair;
 - ``snr_kernel``: ``Links.snr_db_bm``, ``(10 log10 k_x + 10 log10 k_y) + 10 log10 p``;
