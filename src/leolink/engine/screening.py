@@ -113,8 +113,7 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     ut_id = np.arange(len(ut_pos_m)) if ut_id is None else ut_id
     factor = _ut_factor(engine, ut_id)
     known = np.where(np.isnan(factor), 1.0, factor)
-    big = jit.use(ut_pos_m.shape[0] * sat_pos_m.shape[0])
-    if big and engine.steering is None:
+    if jit.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]) and engine.steering is None:
         code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
     else:
         code, bound, sin_el = _screen_numpy(

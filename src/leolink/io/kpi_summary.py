@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.sim.kpi import PercentileHistogram, handover_rates, ping_pong_mask, summarize
+from leolink.sim.histograms import PercentileHistogram
+from leolink.sim.kpi import handover_rates, ping_pong_mask, summarize
 
 __all__ = ["KpiAccumulator"]
 

@@ -24,7 +24,6 @@ Integer codes given to ``append`` for a string column are written as its names.
 from __future__ import annotations
 
 import contextlib
-import functools
 from pathlib import Path
 
 import numpy as np
@@ -155,9 +154,10 @@ class TableWriter:
             # (store_schema) a reader sees them as the strings they are, as before:
             # bench_sim's 3.6 M rows of four such columns 0.67 -> 0.30 s.
             strings = [n for n in self.schema.names if n in _STRING_COLUMNS]
+            self._coded_schema = _coded(self.parquet_schema)
             self._parquet = pq.ParquetWriter(
                 self._pending.open_native(self.paths["parquet"]),
-                _coded(self.parquet_schema),
+                self._coded_schema,
                 use_dictionary=strings,
                 store_schema=False,
             )
@@ -208,15 +208,20 @@ class TableWriter:
         ``coded`` as dictionary arrays (:func:`_coded`, the Parquet writer's)."""
         # Past TAKE_AFTER_ROWS rows the run is large: Arrow's take repays its import.
         by_take = self._n_written >= TAKE_AFTER_ROWS
-        arrays = [
-            (dictionary_array if coded else functools.partial(decoded_array, by_take=by_take))(
-                cols[f.name], self._vocab[f.name].names
+
+        def strings(name):
+            codes, names = cols[name], self._vocab[name].names
+            return (
+                dictionary_array(codes, names)
+                if coded
+                else decoded_array(codes, names, by_take=by_take)
             )
-            if f.name in self._vocab
-            else numeric_array(cols[f.name], f.type)
+
+        arrays = [
+            strings(f.name) if f.name in self._vocab else numeric_array(cols[f.name], f.type)
             for f in schema
         ]
-        return pa.Table.from_arrays(arrays, schema=_coded(schema) if coded else schema)
+        return pa.Table.from_arrays(arrays, schema=self._coded_schema if coded else schema)
 
     def _flush(self):
         """Hand the filled part of the chunk to the writer and start a new chunk (the

@@ -79,8 +79,8 @@ class Candidates:
 
     def _compiled(self):
         """Whether this table's lookups take :mod:`leolink.sim.table_kernels` (the same
-        results): a run large enough for the kernels (:func:`leolink.engine.jit.use`), a
-        table in one block of memory each (a dense table's broadcast cells take numpy)."""
+        results): the kernels on (:func:`leolink.engine.jit.use`) and a non-empty table in
+        one block of memory each (a dense table's broadcast cells take numpy)."""
         return (
             self.cell.flags.c_contiguous
             and self.snr_db.flags.c_contiguous

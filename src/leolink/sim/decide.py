@@ -200,7 +200,7 @@ class Decider:
     def _with_serving(self, table, rows, serving):
         """``table`` with each UT's serving cell added where it is missing and above the
         mask (an extra column; -1/NaN elsewhere)."""
-        if jit.use(table.n_ut) and table._compiled():  # the same column, in one loop
+        if table._compiled():  # the same column, in one loop
             cell, snr_db, missing, n_need = jit.serving_column(table, serving, rows.start,
                                                                self.block)  # fmt: skip
             if n_need == 0:
