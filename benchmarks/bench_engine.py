@@ -145,17 +145,20 @@ def main(quick=False, argv=None):
     figures = {"closed_vs_explicit_x": closed_vs_explicit(engine)}
     figures["coverage_wall_s"] = million_points(cfg, engine, args.points)
     figures["ut_epochs_per_s"] = engine_throughput(cfg, engine)
-    try:
-        from leolink.engine import jit
-    except ImportError:
-        return figures
-    use = jit.use
-    jit.use = lambda n: False
+    import leolink.compiled as switch
+
+    if not hasattr(switch, "use"):  # a tree before 2026-12-05: the switch was the engine's
+        try:
+            from leolink.engine import jit as switch
+        except ImportError:
+            return figures
+    use = switch.use
+    switch.use = lambda n: False
     try:
         print("    numpy only (LEOLINK_JIT=0):")
         figures["numpy_ut_epochs_per_s"] = engine_throughput(cfg, engine)
     finally:
-        jit.use = use
+        switch.use = use
     return figures
 
 

@@ -20,13 +20,13 @@ def compiled_and_numpy(request, monkeypatch):
     """The test on the compiled loops (``leolink._kernels``: every call where the extension
     is built) and on the numpy code (as ``LEOLINK_JIT=0``): for the modules with both
     paths (``pytestmark = pytest.mark.usefixtures("compiled_and_numpy")``)."""
-    from leolink.engine import jit
+    import leolink.compiled
 
     if request.param == "numpy":
-        monkeypatch.setattr(jit, "use", lambda n: False)
+        monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
     else:
         pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
-        assert jit.use(1)
+        assert leolink.compiled.use(1)
     return request.param
 
 

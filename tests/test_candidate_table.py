@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from leolink.engine import jit
+import leolink.compiled
 from leolink.sim.candidates import Candidates
 
 PATHS = ["numpy", "kernels"]
@@ -20,7 +20,7 @@ PATHS = ["numpy", "kernels"]
 def _path(name, table):
     """Within: ``table``'s lookups take the path ``name`` (asserted)."""
     if name == "numpy":
-        with mock.patch.object(jit, "use", lambda n: False):  # as LEOLINK_JIT=0
+        with mock.patch.object(leolink.compiled, "use", lambda n: False):  # as LEOLINK_JIT=0
             assert not table._compiled()
             yield
         return
@@ -117,7 +117,7 @@ def test_a_query_of_another_length_is_numpys_on_both_paths():
     cell = np.array([[3, 4], [4, 5], [6, 4]], np.int64)
     table = Candidates(cell, np.zeros(cell.shape))
     want = np.array([1, 0, 1])
-    with mock.patch.object(jit, "use", lambda n: False):
+    with mock.patch.object(leolink.compiled, "use", lambda n: False):
         np.testing.assert_array_equal(table.slot_of(np.array([4])), want)
     pytest.importorskip("leolink._kernels")
     assert table._compiled()

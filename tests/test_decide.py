@@ -6,9 +6,9 @@ from unittest import mock
 import numpy as np
 import pytest
 
+import leolink.compiled
 from leolink.app.scenario import build_scenario
 from leolink.config import load_config
-from leolink.engine import jit
 from leolink.sim.decide import Decider
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.policies import MaxSnr
@@ -63,9 +63,9 @@ def test_compiled_serving_column_is_the_numpy_one(decider):
     far_sat = rng.choice(far, n) * nb if far.size else random_sat
     serving = np.choose(rng.integers(0, 5, n), [np.full(n, -1), best, other_beam, random_sat,
                                                   far_sat])  # fmt: skip
-    assert jit.use(n) and table._compiled()
+    assert leolink.compiled.use(n) and table._compiled()
     got = decider._with_serving(table, rows, serving)
-    with mock.patch.object(jit, "use", lambda n: False):
+    with mock.patch.object(leolink.compiled, "use", lambda n: False):
         want = decider._with_serving(table, rows, serving)
     np.testing.assert_array_equal(got.cell, want.cell)
     assert same(got.snr_db, want.snr_db, ATOL_ANGLE_DB)

@@ -308,6 +308,7 @@ def test_compiled_kernels_give_the_same_bits_with_environments(tmp_path, monkeyp
     trace (bit for bit where numpy's loops are the C library's, tests/platform_math.py).
     (This test once set ``LEOLINK_JIT=0`` after ``enabled()`` had cached its answer: both
     runs took the kernels.)"""
+    import leolink.compiled
     from leolink.engine import jit
     from platform_math import ATOL_ANGLE_DB, same
 
@@ -318,7 +319,7 @@ def test_compiled_kernels_give_the_same_bits_with_environments(tmp_path, monkeyp
         m.setattr(jit, "serve_pairs", lambda *a: calls.append(1) or serve(*a))
         fused = run(cfg).trace
     assert calls  # the fused serving kernel wrote this trace
-    monkeypatch.setattr(jit, "use", lambda n: False)
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
     plain = run(cfg).trace
     assert np.isfinite(fused.shadow_db).all()
     for c in ("snr_db", "sinr_db", "se_bps_hz", "los", "shadow_db", "clutter_db"):

@@ -65,7 +65,7 @@ def split(request, monkeypatch):
 
 
 def _numpy(monkeypatch):
-    monkeypatch.setattr(jit, "use", lambda n: False)
+    monkeypatch.setattr(compiled, "use", lambda n: False)
 
 
 def _same(a, b, angle_db=False):
@@ -122,7 +122,7 @@ def test_evaluate_pairs_and_snr_db_are_the_numpy_bits(epoch, monkeypatch, given_
     """With the sphere's up, and with a given up 1 deg off it (the fused geometry must use
     it: elevations and visibility differ)."""
     eng, uts, pos, vel, _, ut, sat, _ = epoch
-    assert jit.use(ut.size)
+    assert compiled.use(ut.size)
     up = _turned(enu_basis(uts.lat_rad, uts.lon_rad))[:, 2] if given_up else None
     links = eng.evaluate_pairs(uts.pos_m, pos, vel, ut, sat, up)
     snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy)
@@ -238,18 +238,49 @@ def test_turned_off_by_the_environment(monkeypatch):
     monkeypatch.setenv("LEOLINK_JIT", "0")
     jit.enabled.cache_clear()
     try:
-        assert not jit.use(10**9)
+        assert not compiled.use(10**9)
     finally:
         monkeypatch.delenv("LEOLINK_JIT")
         jit.enabled.cache_clear()
-    assert jit.use(10**9)
+    assert compiled.use(10**9)
 
 
 def test_every_non_empty_call_takes_the_kernels():
     """No size threshold: the extension loads in a millisecond, so a one-pair call (a link
     budget) takes the kernels as a run's calls do, and a run's bits do not depend on how
     its work is cut into calls."""
-    assert jit.use(1) and not jit.use(0)
+    assert compiled.use(1) and not compiled.use(0)
+
+
+def test_the_switch_reaches_every_layer(monkeypatch):
+    """``leolink.compiled.use``, replaced (as the tests' numpy path does, as LEOLINK_JIT=0),
+    turns off the kernels below the engine too: the codebook's Dirichlet kernels, the
+    visibility loop, the summary's histograms and dB statistics."""
+    from sgp4.api import Satrec, jday
+
+    from leolink import _kernels, visibility_kernel
+    from leolink.antenna.array import dirichlet_kernels
+    from leolink.io.summary_stats import DbStats
+    from leolink.sim.histograms import PercentileHistogram
+    from leolink.visibility import tle_elevations_rad
+
+    def called(*args):
+        raise AssertionError("a kernel ran with the kernels off")
+
+    monkeypatch.setattr(compiled, "use", lambda n: False)
+    for name in ("dirichlet_kernels", "histogram_slots", "db_stats_add"):
+        monkeypatch.setattr(_kernels, name, called)
+    monkeypatch.setattr(visibility_kernel, "elevations", called)
+    u = np.linspace(-0.1, 0.1, 7)
+    assert dirichlet_kernels(u, np.array([-0.05, 0.0, 0.05]), 8, compiled=True).shape == (3, 7)
+    iss = Satrec.twoline2rv(
+        "1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991",
+        "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482",
+    )
+    jd, fr = jday(2019, 12, 9, 16, 30, 0.0)
+    assert tle_elevations_rad([iss], [0.1], [0.2], 0.0, [jd], [fr]).shape == (1, 1, 1)
+    assert PercentileHistogram(-10.0, 10.0, 0.5).slots(np.array([1.0, np.nan])).size == 2
+    DbStats(2).add(np.array([0, 1]), np.array([3.0, 4.0]))
 
 
 def test_tilted_panel_gains_are_the_numpy_bits(epoch, monkeypatch):
@@ -280,7 +311,7 @@ def test_screening_kernel_agrees_with_numpy_on_every_row(epoch, monkeypatch):
 
     eng, uts, pos, vel, *_ = epoch
     axes = body_frame(pos, vel)
-    assert jit.use(uts.n_ut * len(pos))
+    assert compiled.use(uts.n_ut * len(pos))
     got = screening.screen(eng, uts.pos_m, pos, axes)
     _numpy(monkeypatch)
     ref = screening.screen(eng, uts.pos_m, pos, axes)
@@ -311,7 +342,7 @@ def test_thread_count_from_the_environment(monkeypatch):
 
 
 def test_a_large_runs_bits_do_not_depend_on_its_motion_blocks(monkeypatch):
-    """Every non-empty call takes the kernels (``engine.jit.use``): 10 UTs of the paper's
+    """Every non-empty call takes the kernels (``leolink.compiled.use``): 10 UTs of the paper's
     constellation for 200 s in blocks of 105 epochs (its own) or of 64 give the same
     trace, bit for bit. With a threshold of 1,000 pairs (numba's, once) the monitor's calls
     of 640 rows took numpy and those of 1,050 the kernels: on an AVX-512 CPU 14 columns

@@ -105,7 +105,7 @@ def _db_stats(ut):
     values, count, total = np.array([1.0, 2.0, np.nan]), np.zeros(3, np.int64), np.zeros(3)
     pooled, keys = np.zeros(12, np.int64), np.empty(3, np.int64)
     bins = (0.0, 1.0, 10.0, 10)
-    return jit.db_stats_add(ut, values, count, total, pooled, bins, bins, keys)
+    return _kernels.db_stats_add(ut, values, count, total, pooled, *bins, *bins, keys)
 
 
 def _values_at(slot):

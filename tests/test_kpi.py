@@ -147,7 +147,7 @@ def test_histogram_slots_compiled_are_numpys(lo, width, res, unserved, seed):
     """The compiled slots (leolink._kernels.histogram_slots) against the numpy code, on
     values spread over the bins, their edges, the ends (a value just below hi may round
     into the overflow slot: the same on both), NaN and the infinities."""
-    from leolink.engine import jit
+    import leolink.compiled
 
     pytest.importorskip("leolink._kernels")
     acc = PercentileHistogram(lo, lo + width, res, unserved)
@@ -157,9 +157,9 @@ def test_histogram_slots_compiled_are_numpys(lo, width, res, unserved, seed):
         rng.uniform(acc.lo - res, acc.hi + res, 300), edges, np.nextafter(edges, -np.inf),
         np.nextafter(edges, np.inf), [np.nan, np.inf, -np.inf, acc.hi, acc.lo, 1e300, -1e300],
     ])  # fmt: skip
-    assert jit.use(x.size)
+    assert leolink.compiled.use(x.size)
     got = acc.slots(x)
-    with mock.patch.object(jit, "use", lambda n: False):
+    with mock.patch.object(leolink.compiled, "use", lambda n: False):
         want = acc.slots(x)
     assert got.dtype == want.dtype == np.int64
     np.testing.assert_array_equal(got, want)

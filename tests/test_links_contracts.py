@@ -218,9 +218,9 @@ def test_snr_of_some_pairs_is_that_of_the_pairs_taken(n_ut, jit_on, monkeypatch)
     ``snr_db_bm`` bit for bit, and against the dB sum of each pair's kernels and path
     SNR; the pairs unsorted, repeated, and some below the mask (NaN); the compiled
     kernel and the numpy path whatever the size."""
-    from leolink.engine import jit
+    import leolink.compiled
 
-    monkeypatch.setattr(jit, "use", lambda n: jit_on)
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: jit_on)
     eng = _engine()
     ut = _sphere_points(n_ut)
     sat = 1.2 * ut[:3]  # at the zenith of the first three UTs

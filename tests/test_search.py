@@ -326,7 +326,7 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
     """The tables are built in chunks of whole rows (bounded memory): chunks of one pair
     (every row longer than a chunk), of 37 pairs (cuts inside rows moved to the next row)
     and of 1024 give the tables of one chunk, bit for bit (in a run every chunk takes the
-    same path, compiled or numpy, whatever its size: engine.jit.use)."""
+    same path, compiled or numpy, whatever its size: leolink.compiled.use)."""
     eng, n_ut, mb, cones = block
     window_db = np.inf if floor_db > -np.inf else 3.0
     cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
@@ -343,11 +343,11 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
 def test_compiled_window_tables_are_the_numpy_tables(block, monkeypatch, window_db):
     """Without a floor, the tables take leolink.sim.table_kernels.window_entries:
     the same table slot for slot, the same diagnostics, as the numpy path's."""
-    from leolink.engine import jit
+    import leolink.compiled
 
     pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
     eng, n_ut, mb, cones = block
-    assert search._window_kernel(1) is not None and jit.use(1)  # (the path compared)
+    assert search._window_kernel(1) is not None and leolink.compiled.use(1)  # (the path compared)
     _, _, blk = _tables(eng, n_ut, mb, cones, window_db, True)
     with monkeypatch.context() as m:
         m.setattr(search, "_window_kernel", lambda n: None)  # the engine's path kept
@@ -452,7 +452,7 @@ def test_compiled_find_pairs_is_numpys(block, monkeypatch):
     """BlockCandidates.find_pairs by the compiled loop (galloping over ascending queries,
     bisection otherwise) against the numpy code: the block's own pairs, row after row as the
     monitor asks and shuffled, pairs never evaluated, satellites out of range."""
-    from leolink.engine import jit
+    import leolink.compiled
 
     pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
     eng, n_ut, mb, cones = block
@@ -468,10 +468,10 @@ def test_compiled_find_pairs_is_numpys(block, monkeypatch):
     order = np.argsort(rows, kind="stable")
     cases = [(rows[order], sats[order]), (rows, sats), (rows[::-1], sats[::-1])]
     for r, s in cases:
-        assert jit.use(r.size)
+        assert leolink.compiled.use(r.size)
         got = blk.find_pairs(r, s)
         with monkeypatch.context() as m:
-            m.setattr(jit, "use", lambda n: False)
+            m.setattr(leolink.compiled, "use", lambda n: False)
             want = blk.find_pairs(r, s)
         np.testing.assert_array_equal(got, want)
         assert (got >= 0).sum() > 5000 and (got < 0).sum() > 1000

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from leolink.engine import jit
+import leolink.compiled
 from leolink.io.summary_stats import DbStats
 
 
@@ -35,9 +35,9 @@ def test_compiled_db_stats_are_the_numpy_ones(seed, n_ut, n_add):
     pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
     compiled, plain = DbStats(n_ut), DbStats(n_ut)
     for ut, v in _stream(seed, n_ut, n_add):
-        assert jit.use(max(v.size, 1))
+        assert leolink.compiled.use(max(v.size, 1))
         compiled.add(ut, v)
-        with mock.patch.object(jit, "use", lambda n: False):
+        with mock.patch.object(leolink.compiled, "use", lambda n: False):
             plain.add(ut, v)
     np.testing.assert_array_equal(compiled.count, plain.count)
     np.testing.assert_array_equal(compiled.sum, plain.sum)

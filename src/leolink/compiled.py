@@ -15,7 +15,7 @@ import functools
 import os
 
 __all__ = ["SPLIT_MIN_ROWS", "enabled", "models_on_first_use", "n_threads", "run_rows"]
-__all__ += ["single_threaded_blas"]
+__all__ += ["single_threaded_blas", "use"]
 
 #: The variables BLAS libraries take their thread count from (OpenBLAS, numpy's own, reads
 #: the first three in this order; MKL its own).
@@ -36,6 +36,13 @@ def enabled():
     except ImportError:
         return False
     return True
+
+
+def use(n):
+    """Whether a call over ``n`` pairs or rows runs a compiled kernel: every non-empty call
+    when :func:`enabled` (the one switch of every layer: the tests turn the kernels off by
+    replacing it, so callers look it up here at each call)."""
+    return n >= 1 and enabled()
 
 
 @functools.cache

@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.compiled import enabled, run_rows
+from leolink import compiled
+from leolink.compiled import run_rows
 from leolink.geodesy import wgs84_to_ecef
 
 __all__ = ["gmst82_rad", "teme_to_ecef_m", "tle_elevations_rad"]
@@ -110,7 +111,7 @@ def tle_elevations_rad(
     # Blocks of times (the satellites' states: ~64 B per satellite-time), then of sites
     # (~6 float64 temporaries per site, satellite and time). Elementwise arithmetic, not
     # matrix products: the result does not depend on the blocks (BLAS rounding does).
-    kernel = _kernel()
+    kernel = _kernel(out.size)
     t_step = max(1, min(n_time, int(block_bytes // (64 * max(n_sat, 1)))))
     if kernel is not None:
         _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step)
@@ -149,10 +150,10 @@ def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
             run_rows(kernel, len(site), r, site, normal, out, t.start, row_size=r.shape[1])
 
 
-def _kernel():
+def _kernel(n):
     """The compiled :func:`leolink.visibility_kernel.elevations`, or None (the extension
     not built, or ``LEOLINK_JIT=0``: the numpy code below)."""
-    if not enabled():
+    if not compiled.use(n):
         return None
     from leolink.visibility_kernel import elevations
 

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import leolink.compiled
 from leolink.arrays import nonzero_2d
-from leolink.compiled import enabled
 from leolink.errors import ConfigError, require_at_least
 
 # |sin(pi du / 2)| below which the Dirichlet kernel is replaced by its limit n: the
@@ -169,7 +169,7 @@ def dirichlet_kernels(u, beam_u, n, trig=None, compiled=False):
     k = beam_u.size
     trig = dirichlet_trig(u, n) if trig is None else trig
     coef = dirichlet_coefficients(beam_u, n)
-    if compiled and u.ndim == 1 and k and enabled():
+    if compiled and u.ndim == 1 and k and leolink.compiled.use(u.size):
         from leolink import _kernels
 
         g = np.empty((k, u.size))

@@ -22,6 +22,7 @@ import functools
 
 import numpy as np
 
+from leolink import compiled
 from leolink.antenna.array import dirichlet_coefficients
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
@@ -198,7 +199,7 @@ class LinkEngine:
         -------
         Links
         """
-        if jit.use(ut.shape[0]) and self.steering is None:  # fused, bit for bit the same
+        if compiled.use(ut.shape[0]) and self.steering is None:  # fused, bit for bit the same
             axes = body_frame(sat_pos_m, sat_vel_m_s)
             arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
             rel, rho2, rho, elevation, visible, kx, ky = arrays
@@ -321,7 +322,7 @@ class LinkEngine:
             return {name: np.full(n, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
         pr = np.where(served, pair, 0)
         b = np.where(served, beam_idx, 0)
-        if jit.use(n) and self._full_reuse_lattice and lit is None:  # the same, fused
+        if compiled.use(n) and self._full_reuse_lattice and lit is None:  # the same, fused
             rows = dict(fading=rx_fading_lin, i_other=i_other, ut_vel=ut_vel_m_s,
                         ut_acc=ut_acc_m_s2, sat_vel=sat_vel_m_s, sat_acc=sat_acc_m_s2,
                         ut_pos=ut_pos_m, enu=ut_enu)  # fmt: skip

@@ -3,8 +3,8 @@ code they replace.
 
 Every non-empty call takes the kernels when the extension is built (it loads in about a
 millisecond: no start-up to repay) and ``LEOLINK_JIT`` is not 0 in the environment; else
-the numpy code runs everywhere. So a run's bits do not depend on how its work is cut into
-calls.
+the numpy code runs everywhere (:func:`leolink.compiled.use`, the switch of every layer).
+So a run's bits do not depend on how its work is cut into calls.
 
 The kernels (:mod:`leolink.engine.kernels`) repeat the numpy code's operations one for
 one: a pair gets the same bits from either where numpy's transcendental loops are the C
@@ -23,8 +23,8 @@ import numpy as np
 from leolink.compiled import SPLIT_MIN_ROWS, enabled, n_threads, run_rows
 
 __all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
-__all__ += ["db_stats_add", "histogram_slots", "serve_columns", "serve_pairs", "serving_column"]
-__all__ += ["SPLIT_MIN_ROWS", "find_pairs", "use"]
+__all__ += ["serve_columns", "serve_pairs", "serving_column"]
+__all__ += ["SPLIT_MIN_ROWS", "find_pairs"]
 
 
 def kernels():
@@ -32,11 +32,6 @@ def kernels():
     from leolink.engine import kernels as k
 
     return k
-
-
-def use(n):
-    """Whether a call over ``n`` pairs or rows runs a compiled kernel (module docstring)."""
-    return n >= 1 and enabled()
 
 
 def links_arrays(engine, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up):
@@ -126,27 +121,6 @@ def serve_pairs(engine, links, pr, served, b, rows):
 def screen_kernel():
     """The compiled screening loop (:func:`leolink.engine.kernels.screen_kernel`)."""
     return kernels().screen_kernel
-
-
-def histogram_slots(values, lo, resolution, hi, n_bins, unserved_value):
-    """``leolink.sim.histograms.PercentileHistogram.slots`` of float64 ``values`` (1-D) by its
-    compiled loop: the same slots (``floor((x - lo) / resolution)``, clipped alike)."""
-    from leolink import _kernels
-
-    out = np.empty(values.size, np.int64)
-    _kernels.histogram_slots(values, lo, resolution, hi, n_bins, unserved_value, out)
-    return out
-
-
-def db_stats_add(ut, values, count, total, pooled, pooled_bins, per_ut_bins, keys):
-    """``leolink.io.summary_stats.DbStats.add`` by its compiled loop: the finite values'
-    per-UT counts and sums (added in order, as its running sum) and pooled histogram
-    counts, in place; their per-UT histogram keys into ``keys``, whose number it returns.
-    ``*_bins``: ``(lo, resolution, hi, n_bins)`` of each histogram."""
-    from leolink import _kernels
-
-    return _kernels.db_stats_add(ut, values, count, total, pooled, *pooled_bins, *per_ut_bins,
-                                 keys)  # fmt: skip
 
 
 def serving_column(table, serving, row0, block):

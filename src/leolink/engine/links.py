@@ -15,6 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
+from leolink import compiled
 from leolink.antenna.array import dirichlet_kernels
 from leolink.engine import jit
 from leolink.engine.steered import beam_centres, steered_kernels
@@ -125,7 +126,7 @@ class Links:
         kx, ky, path_snr_lin = self.kx, self.ky, self.path_snr_lin
         if pairs is not None:
             kx, ky, path_snr_lin = kx[:, pairs], ky[:, pairs], path_snr_lin[pairs]
-        if jit.use(path_snr_lin.size):  # the same operations, fused
+        if compiled.use(path_snr_lin.size):  # the same operations, fused
             return jit.snr_db_bm(kx, ky, path_snr_lin, beam_ix, beam_iy)
         with np.errstate(divide="ignore"):
             lx, ly = 10.0 * np.log10(kx), 10.0 * np.log10(ky)
@@ -147,7 +148,7 @@ class Links:
             With ``with_snr_db``: that beam's entry of :meth:`snr_db_bm` (NaN where not
             visible); None otherwise (the kernel then skips its logarithms).
         """
-        if jit.use(self.n_pair):
+        if compiled.use(self.n_pair):
             return jit.best_beam(self, beam_ix, beam_iy, with_snr_db)
         snr = self.snr_db_bm(beam_ix, beam_iy)
         beam = np.argmax(snr, axis=0)

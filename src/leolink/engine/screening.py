@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink import compiled
 from leolink.arrays import nonzero_2d
 from leolink.engine.links import rows_gain_db
 from leolink.engine.steered import steered_bound_lin
@@ -108,12 +109,11 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     bound : ndarray, shape (n_u, n_s)
         Upper bound of every beam's linear SNR where ``code > 0``, -1 elsewhere.
     """
-    from leolink.engine import jit
 
     ut_id = np.arange(len(ut_pos_m)) if ut_id is None else ut_id
     factor = _ut_factor(engine, ut_id)
     known = np.where(np.isnan(factor), 1.0, factor)
-    if jit.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]) and engine.steering is None:
+    if compiled.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]) and engine.steering is None:
         code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
     else:
         code, bound, sin_el = _screen_numpy(

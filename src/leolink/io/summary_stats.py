@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.engine import jit
+from leolink import compiled
 from leolink.io.summary_records import STAT_KEYS
 from leolink.sim.histograms import GroupedPercentileHistogram, PercentileHistogram
 
@@ -88,12 +88,29 @@ class DbStats:
 
     def add(self, ut, values):
         """Add the finite ``values`` (1-D float) of UTs ``ut`` (1-D int)."""
-        if jit.use(values.size):  # the compiled loop: the same counts and sums, one pass
+        if compiled.use(values.size):  # the compiled loop: the same counts and sums, one pass
+            from leolink import _kernels
+
             keys = np.empty(values.size, np.int64)
             p, g = self.pooled, self.per_ut.grid
-            n = jit.db_stats_add(np.asarray(ut, np.int64), np.asarray(values, float), self.count,
-                                 self.sum, p.counts, (p.lo, p.resolution, p.hi, p.n_bins),
-                                 (g.lo, g.resolution, g.hi, g.n_bins), keys)  # fmt: skip
+            # The finite values' per-UT counts and sums (added in order, as the running sum
+            # below), the pooled counts, in place; the per-UT keys into ``keys``: n of them.
+            n = _kernels.db_stats_add(
+                np.asarray(ut, np.int64),
+                np.asarray(values, float),
+                self.count,
+                self.sum,
+                p.counts,
+                p.lo,
+                p.resolution,
+                p.hi,
+                p.n_bins,
+                g.lo,
+                g.resolution,
+                g.hi,
+                g.n_bins,
+                keys,
+            )
             self.per_ut.add_keys(keys[:n])
             return
         ok = np.isfinite(values)

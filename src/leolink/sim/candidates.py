@@ -19,7 +19,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink.engine import jit
+from leolink import compiled
 
 __all__ = ["Candidates"]
 
@@ -79,14 +79,14 @@ class Candidates:
 
     def _compiled(self):
         """Whether this table's lookups take :mod:`leolink.sim.table_kernels` (the same
-        results): the kernels on (:func:`leolink.engine.jit.use`) and a non-empty table in
+        results): the kernels on (:func:`leolink.compiled.use`) and a non-empty table in
         one block of memory each (a dense table's broadcast cells take numpy)."""
         return (
             self.cell.flags.c_contiguous
             and self.snr_db.flags.c_contiguous
             and self.cell.dtype == np.int64
             and self.snr_db.dtype == np.float64
-            and jit.use(self.cell.size)
+            and compiled.use(self.cell.size)
         )
 
     def like(self, snr_db):

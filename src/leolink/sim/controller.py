@@ -23,7 +23,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink.engine import jit
+from leolink import compiled
 from leolink.sim.candidates import Candidates
 from leolink.sim.event_tables import (  # noqa: F401  (the tables' names, re-exported)
     DWELL_COLUMNS,
@@ -192,7 +192,7 @@ def step(
     if target is None:
         target = policy.choose(t_s, usable_db, state, future_db)
     target = np.asarray(target, np.int64)
-    if jit.use(state.n_ut):  # the same rules, UT by UT in one compiled loop
+    if compiled.use(state.n_ut):  # the same rules, UT by UT in one compiled loop
         from leolink.sim.step_kernel import compiled_step
 
         return compiled_step(t_s, snr_db, state, policy, target, min_snr_db, handover_time_s,

@@ -32,6 +32,7 @@ import dataclasses
 
 import numpy as np
 
+from leolink import compiled
 from leolink.arrays import nonzero_2d, take_rows
 from leolink.engine import jit
 from leolink.engine.links import Links
@@ -92,7 +93,7 @@ class BlockCandidates:
         n = self.links.n_pair
         if n == 0:
             return np.full(np.shape(rows), -1, np.int64)
-        if jit.use(np.size(rows)):  # the same indices, ascending queries by galloping
+        if compiled.use(np.size(rows)):  # the same indices, ascending queries by galloping
             return jit.find_pairs(self.pair_key, self.n_key, rows, sats)
         ok = (sats >= 0) & (sats < self.n_key)
         key = rows * self.n_key + np.where(ok, sats, 0)
@@ -305,8 +306,8 @@ def _dense_pairs(ks, n_ut, cones):
 
 def _window_kernel(n_pairs):
     """:func:`leolink.sim.table_kernels.window_entries` where the kernels run
-    (:func:`leolink.engine.jit.use`), else None (the numpy code of ``_tables``)."""
-    if not jit.use(n_pairs):
+    (:func:`leolink.compiled.use`), else None (the numpy code of ``_tables``)."""
+    if not compiled.use(n_pairs):
         return None
     from leolink.sim import table_kernels
 
