@@ -134,7 +134,7 @@ def many_uts(n_ut, duration_s, tmp):
 def summary_speed(n_ut, n_epoch, repeat=3):
     """Seconds of ``summary()`` and ``per_ut_table()`` for ``n_ut`` UTs fed ``n_epoch``
     epochs (SNR of each UT a slow ramp plus noise, as a pass; a few outages)."""
-    from leolink.io.summary import SummaryAccumulator
+    from leolink.io.summary.accumulator import SummaryAccumulator
     from leolink.sim.streams import EpochFrame, RunInfo
 
     rng = np.random.default_rng(1)

@@ -4,7 +4,7 @@ Runs the paper scenario with ``--uts`` random static UTs for ``--epochs`` epochs
 trace) twice, with the report sink off and on (``[output.report]``: statistics kept epoch by
 epoch, ``report_stats.npz``, ``footprint.gif``, ``report.html``), then times, separately:
 
-1. streaming the trace file into :class:`leolink.io.report_stats.ReportStats` (what
+1. streaming the trace file into :class:`leolink.io.report.stats.ReportStats` (what
    ``leolink report DIR`` does for a folder without ``report_stats.npz``);
 2. building ``report.html`` from the statistics and ``summary.json`` (the page);
 3. writing ``footprint.gif``;
@@ -28,10 +28,10 @@ import tomli_w
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from leolink.io.animation import frames_from_stats, write_footprint_gif  # noqa: E402
-from leolink.io.report import build_run_report  # noqa: E402
-from leolink.io.report_dir import build_report_from_dir, stats_from_dir  # noqa: E402
-from leolink.io.report_stats import ReportStats  # noqa: E402
+from leolink.io.report.animation import frames_from_stats, write_footprint_gif  # noqa: E402
+from leolink.io.report.page import build_run_report  # noqa: E402
+from leolink.io.report.rebuild import build_report_from_dir, stats_from_dir  # noqa: E402
+from leolink.io.report.stats import ReportStats  # noqa: E402
 
 
 def _config(path, n_ut, n_epoch):

@@ -7,7 +7,7 @@ rest float64), appended one epoch at a time:
 - :class:`leolink.io.tables.TraceWriter` to ``trace.parquet`` (float32 columns but times
   and positions, background thread), to ``trace.csv``, and to both: rows/s, the floor of
   the simulator's end-to-end rate (aim >= 4.5 M rows/s with Parquet);
-- :class:`leolink.io.summary.SummaryAccumulator` (the summary sink): rows/s, and the
+- :class:`leolink.io.summary.accumulator.SummaryAccumulator` (the summary sink): rows/s, and the
   per-epoch fixed cost of both at 10 UTs.
 
 Run: ``python benchmarks/bench_writer.py [--epochs N]``. Prints figures only;
@@ -25,9 +25,9 @@ import time
 import numpy as np
 from _common import row
 
-from leolink.io.summary import SummaryAccumulator
+from leolink.io.summary.accumulator import SummaryAccumulator
 from leolink.io.tables import _INT_COLUMNS, TRACE_COLUMNS, TraceWriter
-from leolink.sim.controller import DWELL_COLUMNS, EVENT_COLUMNS
+from leolink.sim.handover.controller import DWELL_COLUMNS, EVENT_COLUMNS
 from leolink.sim.streams import EpochFrame, RunInfo
 
 FLOOR_ROWS_S = 4.5e6

@@ -18,9 +18,9 @@ from leolink.errors import ConfigError
 from leolink.geometry import direction_cosines
 from leolink.io.sinks import MemorySink
 from leolink.link.precoder import PRECODERS
-from leolink.sim.beam_service import BeamService
+from leolink.sim.beams.scheduler import SCHEDULERS
+from leolink.sim.beams.service import BeamService
 from leolink.sim.runner import run_simulation
-from leolink.sim.scheduler import SCHEDULERS
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "configs" / "paper.toml"
@@ -252,7 +252,7 @@ class _EvenBeams:
 
 
 def test_a_selector_plugs_in_through_its_registry(tmp_path):
-    from leolink.sim.active_beams import BEAM_SELECTORS
+    from leolink.sim.beams.selectors import BEAM_SELECTORS
 
     BEAM_SELECTORS.add("even_test", lambda p, c: _EvenBeams(c.n_beam), doc="even beams")
     try:

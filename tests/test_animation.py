@@ -7,9 +7,9 @@ import pytest
 from matplotlib.path import Path as MplPath
 from PIL import Image
 
-from leolink.io.animation import build_frames, frames_from_stats, write_footprint_gif
-from leolink.io.maps import N_BEAM_COLOURS, beam_colour
-from leolink.io.report_dir import stats_from_dir
+from leolink.io.report.animation import build_frames, frames_from_stats, write_footprint_gif
+from leolink.io.report.maps import N_BEAM_COLOURS, beam_colour
+from leolink.io.report.rebuild import stats_from_dir
 from report_helpers import WALKER, make_run
 
 HALF_POWER_DB = 10.0 * np.log10(0.5)  # -3.0103 dB

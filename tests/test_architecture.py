@@ -13,15 +13,34 @@ import leolink
 from leolink.antenna.terminal import TERMINALS
 from leolink.config import load_config
 from leolink.registry import Params
-from leolink.sim.policies import POLICIES, best_candidate, value_at
+from leolink.sim.handover.policies import POLICIES, best_candidate, value_at
 
 SRC = Path(leolink.__file__).resolve().parent
 # The config is in the repository, not next to the package (CI installs it non-editable).
 PAPER = Path(__file__).resolve().parents[1] / "configs" / "paper.toml"
-MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 60  # code lines, docstring excluded
-# Over the limits while the constellation work (which edits them) is merged; emptied then.
-PENDING: set[str] = set()
+P90_FUNCTION_LINES = 30
+MAX_PARAMETERS = 8  # dataclass constructors are generated, not written: not counted
+# Over the parameter limit until their options are bundled (issue 43); emptied then.
+PENDING: set[str] = {
+    "engine/kernels.py:links_kernel",
+    "sim/decide.py:__init__",
+    "engine/__init__.py:serve_pairs",
+    "link/budget.py:compute",
+    "io/report/animation.py:build_frames",
+    "sim/monitor.py:__init__",
+    "orbit.py:pass_over",
+    "link/atmosphere.py:itu_p618_db",
+    "engine/__init__.py:evaluate_pairs",
+    "app/sweep.py:run_sweep",
+    "app/compare.py:run_compare",
+    "visibility.py:tle_elevations_rad",
+    "visibility.py:_pipelined",
+    "sim/handover/controller.py:_apply_changes",
+    "sim/handover/controller.py:step",
+    "link/channel_state.py:environment_model",
+    "engine/links.py:pair_geometry",
+}
 
 # Layer of each top-level module or package of leolink (DESIGN.md "Layers"): a module may
 # import its own layer or lower ones only. The package root is the public API (leolink.run).
@@ -88,24 +107,38 @@ def test_the_import_check_sees_an_upward_import(tmp_path):
     assert LAYERS["config"] > LAYERS["geometry"]
 
 
-def test_modules_and_functions_stay_small():
-    long_modules, long_functions = [], []
+def _functions():
+    """``(name, code lines, parameters)`` of every function of the package (the docstring
+    and ``self``/``cls`` not counted)."""
     for path, _ in _modules():
-        text = path.read_text(encoding="utf-8")
-        if text.count("\n") > MAX_MODULE_LINES and str(path.relative_to(SRC)) not in PENDING:
-            long_modules.append(f"{path.relative_to(SRC)}: {text.count(chr(10))} lines")
-        for node in ast.walk(ast.parse(text)):
-            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
-                body = node.body
-                if isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
-                    body = body[1:]  # the docstring
-                name = f"{path.relative_to(SRC)}:{node.name}"
-                if name in PENDING:
-                    continue
-                if body and body[-1].end_lineno - body[0].lineno + 1 > MAX_FUNCTION_LINES:
-                    long_functions.append(f"{path.relative_to(SRC)}:{node.lineno} {node.name}")
-    assert not long_modules, long_modules
-    assert not long_functions, long_functions
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            body = node.body
+            if isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+                body = body[1:]  # the docstring
+            n_lines = body[-1].end_lineno - body[0].lineno + 1 if body else 0
+            a = node.args
+            params = [*a.posonlyargs, *a.args, *a.kwonlyargs]
+            n_params = len(params) - bool(params and params[0].arg in ("self", "cls"))
+            yield f"{path.relative_to(SRC)}:{node.name}", n_lines, n_params
+
+
+def test_functions_stay_short_and_take_few_parameters():
+    # Size follows the concept, not a line cap (DESIGN.md): modules are as long as their
+    # concept needs; functions short enough to see whole, with few parameters (bundle what
+    # travels together: a UT frame, a beam plan).
+    functions = list(_functions())
+    lines = np.array([n for _, n, _ in functions])
+    assert np.percentile(lines, 90) <= P90_FUNCTION_LINES
+    long = [f"{name}: {n} lines" for name, n, _ in functions if n > MAX_FUNCTION_LINES]
+    many = [
+        f"{name}: {k} parameters"
+        for name, _, k in functions
+        if k > MAX_PARAMETERS and name not in PENDING
+    ]
+    assert not long, long
+    assert not many, many
 
 
 # -- a policy and a terminal added from this test module, through the registries alone --

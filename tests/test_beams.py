@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from leolink.errors import ConfigError
-from leolink.sim.beams import (
+from leolink.sim.beams.active import (
     assign_chains,
     cell_counts,
     default_hopping_pattern,

@@ -20,9 +20,9 @@ import pytest
 from frame_helpers import BlockCapture
 from leolink.app import run as app_run
 from leolink.config import load_config
-from leolink.io.link_summary import LinkStats
 from leolink.io.sinks import PlotSink
-from leolink.io.summary_stats import DbStats
+from leolink.io.summary.link import LinkStats
+from leolink.io.summary.stats import DbStats
 from leolink.sim import streams
 
 ROOT = Path(__file__).resolve().parents[1]

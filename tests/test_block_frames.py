@@ -21,7 +21,7 @@ from frame_helpers import BlockCapture
 from leolink.app.run import run
 from leolink.config import load_config
 from leolink.io import sinks as io_sinks
-from leolink.io import summary as io_summary
+from leolink.io.summary import accumulator as io_summary
 from leolink.sim import monitor, motion, streams
 
 ROOT = Path(__file__).resolve().parents[1]

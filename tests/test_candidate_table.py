@@ -1,6 +1,6 @@
-"""leolink.sim.candidates.Candidates: slot lookups against a loop over each row, on the
-numpy path and on the compiled one (leolink.sim.table_kernels, taken wherever the compiled
-extension is built)."""
+"""leolink.sim.candidates.table.Candidates: slot lookups against a loop over each row, on the
+numpy path and on the compiled one (leolink.sim.candidates.table_kernels, taken wherever
+the compiled extension is built)."""
 
 import contextlib
 from unittest import mock
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import leolink.compiled
-from leolink.sim.candidates import Candidates
+from leolink.sim.candidates.table import Candidates
 
 PATHS = ["numpy", "kernels"]
 

@@ -1,4 +1,4 @@
-"""Tests of leolink.sim.controller against hand-computed sequences and brute force."""
+"""Tests of leolink.sim.handover.controller against hand-computed sequences and brute force."""
 
 import numpy as np
 import pytest
@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from leolink.config import parse_config
 from leolink.errors import ConfigError
-from leolink.sim.controller import (
+from leolink.sim.handover.controller import (
     SERVICE_HANDOVER,
     SERVICE_OUTAGE,
     SERVICE_SERVED,
@@ -15,9 +15,9 @@ from leolink.sim.controller import (
     close_dwells,
     step,
 )
-from leolink.sim.policies import Hysteresis, MaxSnr, Predictive
+from leolink.sim.handover.policies import Hysteresis, MaxSnr, Predictive
 
-# Every test on the compiled step (leolink.sim.step_kernel) and on the numpy one.
+# Every test on the compiled step (leolink.sim.handover.step_kernel) and on the numpy one.
 pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
 
 HANDOVER_KINDS = ("beam_handover", "sat_handover")

@@ -1,4 +1,4 @@
-"""Contracts of leolink.sim.controller, each checked by a second computation.
+"""Contracts of leolink.sim.handover.controller, each checked by a second computation.
 
 The main check drives :func:`step` over random candidate tables with the policy's choice
 given (``target``), and compares every output with a reference written here from the
@@ -14,8 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from leolink.sim.candidates import Candidates
-from leolink.sim.controller import (
+from leolink.sim.candidates.table import Candidates
+from leolink.sim.handover.controller import (
     SERVICE_HANDOVER,
     SERVICE_OUTAGE,
     SERVICE_SERVED,
@@ -26,9 +26,9 @@ from leolink.sim.controller import (
     service_codes,
     step,
 )
-from leolink.sim.policies import Hysteresis, MaxSnr
+from leolink.sim.handover.policies import Hysteresis, MaxSnr
 
-# Every test on the compiled step (leolink.sim.step_kernel) and on the numpy one.
+# Every test on the compiled step (leolink.sim.handover.step_kernel) and on the numpy one.
 pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
 
 TOL_S = 1e-9  # the documented epoch-time tolerance (1 ns)
@@ -422,7 +422,7 @@ def test_empty_tables_are_new_dicts_of_arrays_nobody_can_write():
     """Most epochs return the empty event and dwell tables, whose arrays are shared: each
     call gives its own dict (a caller may add or replace a column), and writing into a
     shared array fails instead of reaching every later epoch's table."""
-    from leolink.sim.event_tables import DWELL_COLUMNS, EVENT_COLUMNS, no_dwells, no_events
+    from leolink.sim.handover.events import DWELL_COLUMNS, EVENT_COLUMNS, no_dwells, no_events
 
     for make, columns in ((no_events, EVENT_COLUMNS), (no_dwells, DWELL_COLUMNS)):
         a, b = make(), make()

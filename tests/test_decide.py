@@ -10,8 +10,8 @@ import leolink.compiled
 from leolink.app.scenario import build_scenario
 from leolink.config import load_config
 from leolink.sim.decide import Decider
+from leolink.sim.handover.policies import MaxSnr
 from leolink.sim.motion import MotionBlocks
-from leolink.sim.policies import MaxSnr
 from platform_math import ATOL_ANGLE_DB, same
 
 CONSTELLATION = "configs/constellation.toml"

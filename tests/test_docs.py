@@ -10,7 +10,7 @@ import pytest
 
 import leolink
 from leolink.config import load_config
-from leolink.sim.policies import POLICIES
+from leolink.sim.handover.policies import POLICIES
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 PAPER = DOCS.parent / "configs" / "paper.toml"

@@ -18,7 +18,7 @@ from leolink.config import load_config
 from leolink.errors import ConfigError
 from leolink.link.environment import ENVIRONMENTS
 from leolink.sim import motion
-from leolink.sim.populations import PopulationParams
+from leolink.sim.mobility.populations import PopulationParams
 
 ROOT = Path(__file__).resolve().parents[1]
 TOWN = ROOT / "configs" / "examples" / "town.toml"
@@ -330,7 +330,7 @@ def test_a_run_over_1000_uts_keeps_blocked_outages_per_ut_and_by_environment(tmp
     """Beyond PER_UT_IN_JSON_MAX UTs summary.json has no per-UT list: the blocked outage
     fractions go to the per-UT table (``per_ut.parquet``), checked against the trace, and
     ``by_environment`` stays in the overall block."""
-    from leolink.io.summary import PER_UT_IN_JSON_MAX
+    from leolink.io.summary.accumulator import PER_UT_IN_JSON_MAX
 
     assert PER_UT_IN_JSON_MAX == 1000
     pops = _crowd(1000) + _crowd(1, "open").replace('name = "crowd"', 'name = "twin"')

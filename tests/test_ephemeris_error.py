@@ -201,7 +201,7 @@ def test_the_precoder_hook_gives_the_true_and_the_believed_directions():
 def test_the_wired_precoder_sees_the_believed_and_the_true_satellite(monkeypatch):
     """In a run, the precoder's inputs carry the serving satellite's true position and the
     one the controller believes (both recomputed here from the two ephemerides)."""
-    from leolink.sim.beam_service import BeamService
+    from leolink.sim.beams.service import BeamService
 
     seen, apply = [], BeamService.apply
 

@@ -12,7 +12,6 @@ import pytest
 
 from leolink.antenna.array import upa_gain
 from leolink.geometry import direction_cosines, geodetic_to_ecef
-from leolink.io.animation import frames_from_stats
 from leolink.io.exports import (
     czml_document,
     geojson_document,
@@ -21,8 +20,9 @@ from leolink.io.exports import (
     write_events,
     write_geojson,
 )
-from leolink.io.maps import subsatellite_points
-from leolink.io.report_dir import stats_from_dir
+from leolink.io.report.animation import frames_from_stats
+from leolink.io.report.maps import subsatellite_points
+from leolink.io.report.rebuild import stats_from_dir
 from report_helpers import WALKER, ephemeris, make_run
 
 GEOMETRIES = {"Point", "LineString", "MultiLineString", "Polygon", "MultiPolygon"}
@@ -204,7 +204,7 @@ def test_events_parquet_has_the_rows_of_the_csv(walker, tmp_path):
 
 
 def test_write_exports_of_a_run_gives_valid_files_of_the_serving_satellites(walker, tmp_path):
-    from leolink.io.report_dir import write_exports
+    from leolink.io.report.rebuild import write_exports
 
     stats = walker["stats"]
     geo, czml = write_exports(stats, tmp_path, epoch_utc="2026-01-01T00:00:00Z")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from leolink.sim.handover import (
+from leolink.sim.handover.decisions import (
     TRIGGERS,
     ConditionalHandover,
     TriggerPolicy,
@@ -11,8 +11,8 @@ from leolink.sim.handover import (
     pick,
     to_satellites,
 )
-from leolink.sim.triggers import A3, A4, A5, Epoch
-from leolink.sim.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
+from leolink.sim.handover.triggers import A3, A4, A5, Epoch
+from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
 
 DT_S = 0.1
 

@@ -6,8 +6,7 @@ import math
 import pytest
 from pydantic import ValidationError
 
-from leolink.sim.handover import ConditionalHandover, TriggerPolicy
-from leolink.sim.handover_config import (
+from leolink.sim.handover.config import (
     POLICY_CONFIGS,
     A3Config,
     ChoConfig,
@@ -20,8 +19,9 @@ from leolink.sim.handover_config import (
     build_policy,
     build_rlf,
 )
-from leolink.sim.triggers import A3, A4
-from leolink.sim.triggers_ntn import T1, Elevation, TimeToExit
+from leolink.sim.handover.decisions import ConditionalHandover, TriggerPolicy
+from leolink.sim.handover.triggers import A3, A4
+from leolink.sim.handover.triggers_ntn import T1, Elevation, TimeToExit
 
 
 @pytest.mark.parametrize("name", sorted(POLICY_CONFIGS))

@@ -56,7 +56,7 @@ def test_rlf_timing_by_hand(reestablishment_s, rlf_s, end_s, down_s):
     at the first served epoch (t = 0); T310 = 1 s expires one epoch later: RLF, and that
     epoch is an outage. Re-establishment ends at the first epoch >= RLF +
     reestablishment_s (``outage_end``, served again); that epoch gives no indication
-    (leolink.sim.rlf), the next one restarts T310. With 1 s epochs t = 0 ... 9: RLF at 1,
+    (leolink.sim.handover.rlf), the next one restarts T310. With 1 s epochs t = 0 ... 9: RLF at 1,
     4, 7 (0.2 s), or at 1, 5, 9 (1.5 s: the epoch at RLF + 1 s is still re-establishing)."""
     sets = [
         "run.duration_s=10",
@@ -167,8 +167,8 @@ def test_d1_references_are_the_beams_ground_centres():
     """The ground point of each cell, seen from its satellite, has the beam's direction
     cosines (the inverse of the ray cast that placed it)."""
     from leolink.app.scenario import build_scenario
-    from leolink.sim.local_axis import LocalAxis
-    from leolink.sim.trigger_policies import horizon_s  # noqa: F401  (registers)
+    from leolink.sim.handover.local_axis import LocalAxis
+    from leolink.sim.handover.trigger_policies import horizon_s  # noqa: F401  (registers)
 
     cfg = load_config(WALKER, [*QUIET, "controller.policy=d1"])
     scen = build_scenario(cfg)

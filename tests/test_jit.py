@@ -29,7 +29,7 @@ from leolink.config import load_config  # noqa: E402
 from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS, LinkEngine, jit  # noqa: E402
 from leolink.engine.links import pair_geometry  # noqa: E402
 from leolink.geometry import body_frame, ecef_to_geodetic, enu_basis  # noqa: E402
-from leolink.sim.mobility import concat_states  # noqa: E402
+from leolink.sim.mobility.models import concat_states  # noqa: E402
 from platform_math import ATOL_ANGLE_DB, NUMPY_IS_LIBM, close, same  # noqa: E402
 
 CONSTELLATION = "configs/constellation.toml"
@@ -260,7 +260,7 @@ def test_the_switch_reaches_every_layer(monkeypatch):
 
     from leolink import _kernels, visibility_kernel
     from leolink.antenna.array import dirichlet_kernels
-    from leolink.io.summary_stats import DbStats
+    from leolink.io.summary.stats import DbStats
     from leolink.sim.histograms import PercentileHistogram
     from leolink.visibility import tle_elevations_rad
 

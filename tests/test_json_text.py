@@ -1,4 +1,4 @@
-"""summary.json's text (leolink.io.json_text) against the standard library's encoder.
+"""summary.json's text (leolink.io.summary.json_text) against the standard library's encoder.
 
 The reference is ``json.dumps(to_jsonable(obj), indent=2, allow_nan=False)``, the text
 summary.json had before the faster encoder: real runs' summaries (a pass with per-UT
@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from leolink.app.run import run
 from leolink.config import load_config
 from leolink.io.atomic import to_jsonable
-from leolink.io.json_text import json_pieces
+from leolink.io.summary.json_text import json_pieces
 
 
 def _reference(obj):

@@ -21,12 +21,12 @@ from leolink.app.scenario import build_scenario  # noqa: E402
 from leolink.config import load_config  # noqa: E402
 from leolink.engine import jit  # noqa: E402
 from leolink.geometry import body_frame  # noqa: E402
-from leolink.sim import table_kernels  # noqa: E402
-from leolink.sim.candidates import Candidates  # noqa: E402
-from leolink.sim.controller import ControllerState  # noqa: E402
-from leolink.sim.mobility import concat_states  # noqa: E402
-from leolink.sim.policies import MaxSnr  # noqa: E402
-from leolink.sim.step_kernel import compiled_step  # noqa: E402
+from leolink.sim.candidates import table_kernels  # noqa: E402
+from leolink.sim.candidates.table import Candidates  # noqa: E402
+from leolink.sim.handover.controller import ControllerState  # noqa: E402
+from leolink.sim.handover.policies import MaxSnr  # noqa: E402
+from leolink.sim.handover.step_kernel import compiled_step  # noqa: E402
+from leolink.sim.mobility.models import concat_states  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from leolink.sim.kpi import (
+from leolink.sim.handover.kpi import (
     PERCENTILES,
     GroupedPercentileHistogram,
     PercentileHistogram,

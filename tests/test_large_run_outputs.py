@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from leolink.io.report_dir import stats_from_dir
-from leolink.io.summary import PER_UT_IN_JSON_MAX
+from leolink.io.report.rebuild import stats_from_dir
+from leolink.io.summary.accumulator import PER_UT_IN_JSON_MAX
 from report_helpers import PAPER, cli
 
 N_UT = PER_UT_IN_JSON_MAX + 1

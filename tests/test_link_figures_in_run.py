@@ -19,7 +19,7 @@ import pytest
 
 from leolink.app.run import run
 from leolink.config import load_config
-from leolink.io.summary import OVERALL_RESOLUTION_DB
+from leolink.io.summary.accumulator import OVERALL_RESOLUTION_DB
 from leolink.link.acm import LinkFigureParams, link_figure_columns
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 from matplotlib.collections import LineCollection, PathCollection, PolyCollection
 
-from leolink.io.maps import (
+from leolink.io.report.maps import (
     OUTAGE_COLOUR,
     beam_colour,
     break_at_antimeridian,
@@ -18,8 +18,8 @@ from leolink.io.maps import (
     new_figure,
     plot_map,
 )
-from leolink.io.report import run_map_figure
-from leolink.io.report_dir import stats_from_dir
+from leolink.io.report.page import run_map_figure
+from leolink.io.report.rebuild import stats_from_dir
 from report_helpers import make_run
 
 LANDMARKS = Path(__file__).parent / "data" / "coastal_landmarks.csv"

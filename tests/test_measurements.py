@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from leolink.errors import ConfigError
-from leolink.sim.measurements import (
+from leolink.sim.handover.measurements import (
     FILTER_COEFFICIENTS,
     L3Filter,
     L3State,

@@ -1,4 +1,4 @@
-"""Tests of leolink.sim.mobility against independent formulas (haversine, bearing,
+"""Tests of leolink.sim.mobility.models against independent formulas (haversine, bearing,
 spherical coordinates written out here, numerical derivatives)."""
 
 from pathlib import Path
@@ -17,7 +17,7 @@ from leolink.placement import (
     place_random,
     roi_points_to_geodetic,
 )
-from leolink.sim.mobility import (
+from leolink.sim.mobility.models import (
     SPEED_PRESETS_M_S,
     ConstantVelocity,
     Static,
@@ -86,7 +86,7 @@ def test_static_has_fixed_position_and_zero_velocity():
 def test_models_that_say_they_do_not_move_do_not_move():
     """``moves = False`` lets the simulator run no motion process for a population (its
     first state holds): it must be said by exactly the models whose states never change."""
-    from leolink.sim.mobility import OnWgs84
+    from leolink.sim.mobility.models import OnWgs84
 
     lat, lon = np.radians([10.0, -45.0]), np.radians([20.0, 170.0])
     models = [
@@ -448,7 +448,7 @@ def test_states_of_many_times_are_the_states_time_after_time_bit_for_bit(name):
 def test_motion_blocks_take_a_wrapped_models_own_states():
     """OnWgs84 hands unknown attributes to the sphere model it wraps; a block of its UTs
     must still be on the ellipsoid (its ``state``), not the wrapped model's ``states``."""
-    from leolink.sim.mobility import OnWgs84
+    from leolink.sim.mobility.models import OnWgs84
     from leolink.sim.motion import MotionBlocks
 
     sphere = _block_models()["great circle"]

@@ -1,4 +1,4 @@
-"""sim.populations: relative headings against the ROI axes, placement in the ROI plane.
+"""sim.mobility.populations: relative headings against the ROI axes, placement in the ROI plane.
 
 The ROI x axis is the ground track at the centre (azimuth ``track_heading_rad``); its y
 axis is ``up x x``, to the left of the track. ``along_track`` moves along +x,
@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from leolink.sim.populations import MOBILITY, PopulationContext
+from leolink.sim.mobility.populations import MOBILITY, PopulationContext
 
 R_M = 6_371_000.0
 

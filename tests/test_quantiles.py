@@ -55,7 +55,7 @@ def test_percentile_of_sorted_gives_numpys_signed_zeros(values, q_percent):
 
 def test_a_run_of_dwells_gives_numpys_statistics():
     """time_of_stay's median and deciles on real-shaped dwells (an even and an odd count)."""
-    from leolink.sim.kpi import time_of_stay
+    from leolink.sim.handover.kpi import time_of_stay
 
     for n in (7, 8):
         start = np.arange(n, dtype=float) * 3.0

@@ -8,7 +8,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from leolink.io.atomic import write_json_atomic, write_text_atomic
-from leolink.io.summary import (
+from leolink.io.summary.accumulator import (
     OVERALL_RESOLUTION_DB,
     PER_UT_RESOLUTION_DB,
     SummaryAccumulator,
@@ -16,8 +16,14 @@ from leolink.io.summary import (
 )
 from leolink.io.tables import TRACE_COLUMNS, TRACE_FLOAT64_COLUMNS, EventLog, TraceWriter
 from leolink.link.modcod import modcod_table
-from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES, ControllerState, close_dwells, step
-from leolink.sim.policies import MaxSnr
+from leolink.sim.handover.controller import (
+    EVENT_COLUMNS,
+    SERVICE_NAMES,
+    ControllerState,
+    close_dwells,
+    step,
+)
+from leolink.sim.handover.policies import MaxSnr
 from leolink.sim.processes import OUTAGE_REASONS
 
 # Percentiles from fixed-bin histograms: within half a bin of numpy (+ float rounding).

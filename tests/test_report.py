@@ -13,9 +13,9 @@ import pytest
 from PIL import Image
 
 from browser_helpers import open_page, require_browser
-from leolink.io.figures import fig_cdfs
-from leolink.io.report import build_run_report, build_table_report
-from leolink.io.report_dir import build_report_from_dir, stats_from_dir
+from leolink.io.report.figures import fig_cdfs
+from leolink.io.report.page import build_run_report, build_table_report
+from leolink.io.report.rebuild import build_report_from_dir, stats_from_dir
 from report_helpers import WALKER, make_run
 
 N_FIGURES = 8  # SNR, timeline, Doppler, angular speed, dwell, CDFs, outage, map

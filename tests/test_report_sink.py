@@ -14,10 +14,10 @@ from matplotlib.path import Path as MplPath
 from PIL import Image
 
 from browser_helpers import open_page, require_browser
-from leolink.io.animation import frames_from_stats, write_footprint_gif
-from leolink.io.maps import N_BEAM_COLOURS, beam_colour
-from leolink.io.report_dir import stats_from_dir
-from leolink.io.report_stats import ReportStats
+from leolink.io.report.animation import frames_from_stats, write_footprint_gif
+from leolink.io.report.maps import N_BEAM_COLOURS, beam_colour
+from leolink.io.report.rebuild import stats_from_dir
+from leolink.io.report.stats import ReportStats
 from report_helpers import PAPER, REPO, WALKER, cli, ephemeris
 
 TLE = REPO / "configs" / "examples" / "tle.toml"

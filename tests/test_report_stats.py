@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from leolink.io.report_dir import stats_from_dir
-from leolink.io.report_stats import ReportStats
+from leolink.io.report.rebuild import stats_from_dir
+from leolink.io.report.stats import ReportStats
 from report_helpers import WALKER, cli, make_run
 
 
@@ -122,7 +122,7 @@ def test_cli_is_on_the_path():
 
 
 def test_fast_histogram_bins_like_searchsorted_even_next_to_the_edges():
-    from leolink.io.report_stats import DB_EDGES, LOG_TPUT_EDGES, _hist
+    from leolink.io.report.stats import DB_EDGES, LOG_TPUT_EDGES, _hist
 
     rng = np.random.default_rng(7)
     for edges in (DB_EDGES, LOG_TPUT_EDGES):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from leolink.errors import ConfigError
-from leolink.sim.rlf import RlfParams, RlfState, reset, step
+from leolink.sim.handover.rlf import RlfParams, RlfState, reset, step
 
 DT_S = 0.1
 BAD, MID, GOOD = -12.0, -7.0, 0.0  # below Q_out = -8, between, above Q_in = -6

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from leolink.errors import ConfigError
-from leolink.sim.scheduler import (
+from leolink.sim.beams.scheduler import (
     beam_groups,
     delivered_rate,
     proportional_fair,

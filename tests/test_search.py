@@ -1,6 +1,6 @@
 """Pruning before evaluating: the screening bound and the candidate tables it builds.
 
-The claim of engine/screening.py and sim/search.py: a pruned pair can never hold a cell
+The claim of engine/screening.py and sim/candidates/search.py: a pruned pair can never hold a cell
 within the policy's window of the UT's best cell, so the pruned tables are the tables of
 the exhaustive evaluation, cell for cell and bit for bit. Checked here on the paper's
 constellation (4,399 satellites, 1,000 UTs: hundreds of satellites in each epoch's cone)
@@ -22,10 +22,10 @@ from leolink.config import load_config
 from leolink.engine import LinkEngine, screening
 from leolink.engine.screening import UNCERTAIN, VISIBLE, envelope, screen
 from leolink.geometry import body_frame, enu_basis
-from leolink.sim import search
+from leolink.sim.candidates import search
+from leolink.sim.candidates.search import CandidateSearch
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.processes import candidate_satellites
-from leolink.sim.search import CandidateSearch
 from scopes import shared_run_scope
 
 CONSTELLATION = "configs/constellation.toml"
@@ -341,7 +341,7 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
 
 @pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
 def test_compiled_window_tables_are_the_numpy_tables(block, monkeypatch, window_db):
-    """Without a floor, the tables take leolink.sim.table_kernels.window_entries:
+    """Without a floor, the tables take leolink.sim.candidates.table_kernels.window_entries:
     the same table slot for slot, the same diagnostics, as the numpy path's."""
     import leolink.compiled
 

@@ -4,8 +4,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from leolink.sim.local_axis import LocalAxis
-from leolink.sim.service_time import ServiceTimes
+from leolink.sim.handover.local_axis import LocalAxis
+from leolink.sim.handover.service_time import ServiceTimes
 
 N_UT, N_SAT, N_BEAM, N_T, DT_S, MIN_SNR_DB = 3, 4, 2, 60, 1.0, 0.0
 
@@ -95,11 +95,11 @@ def test_t1_hands_over_lead_s_before_the_serving_satellite_stops_serving():
     satellite 1 all along. T1 with lead 4 s: Thresh1 = 10 - 4 = 6 s, the condition
     ``Mt > Thresh1`` first holds at t = 7 s: the handover to satellite 1. (Max-SNR would
     stay until satellite 0 is lost at t = 10 s.)"""
-    from leolink.sim.candidates import Candidates
-    from leolink.sim.handover import TriggerPolicy
-    from leolink.sim.measurements import L3Filter
-    from leolink.sim.trigger_run import TriggerRun
-    from leolink.sim.triggers_ntn import T1
+    from leolink.sim.candidates.table import Candidates
+    from leolink.sim.handover.decisions import TriggerPolicy
+    from leolink.sim.handover.measurements import L3Filter
+    from leolink.sim.handover.trigger_run import TriggerRun
+    from leolink.sim.handover.triggers_ntn import T1
 
     n_t = 16
     snr = np.full((n_t + 40, 1, 2, 1), 5.0)

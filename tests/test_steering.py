@@ -238,7 +238,7 @@ def test_screening_bound_holds_for_re_steered_beams(constellation_block):
 
 
 def test_pruned_tables_are_the_exhaustive_tables_with_re_steered_beams(constellation_block):
-    from leolink.sim.search import CandidateSearch
+    from leolink.sim.candidates.search import CandidateSearch
 
     eng, n_ut, mb, cones = constellation_block
     out = []

@@ -140,7 +140,7 @@ def test_overall_statistics_against_the_trace(result):
 def test_the_trace_read_back_gives_the_same_summary(result):
     """Fed the trace as written (service as names, not codes), the accumulator gives the
     run's summary: the string path of the service column counts the same."""
-    from leolink.io.summary import SummaryAccumulator
+    from leolink.io.summary.accumulator import SummaryAccumulator
 
     summary, trace, events = result
     acc = SummaryAccumulator(trace.ut_id.nunique())
@@ -154,7 +154,7 @@ def test_rows_folded_in_many_small_buffers_give_the_same_per_ut_statistics(resul
     """The accumulator folds its buffered rows every _POOL_BUFFER rows: fed the run's
     trace epoch by epoch with a buffer of a few epochs' rows, every per-UT statistic is
     the one of the run (per-UT sums still added in row order)."""
-    import leolink.io.summary as S
+    import leolink.io.summary.accumulator as S
 
     summary, trace, _ = result
     n_ut, n_epoch = trace.ut_id.nunique(), trace.time_s.nunique()
@@ -180,7 +180,7 @@ def test_rows_folded_in_many_small_buffers_give_the_same_per_ut_statistics(resul
 
 
 def test_grouped_percentiles_of_tiny_and_empty_groups():
-    from leolink.io.summary import grouped_percentiles
+    from leolink.io.summary.accumulator import grouped_percentiles
 
     group = np.array([0, 2, 2, 3, 3, 3])
     values = np.array([4.0, 1.0, 3.0, 5.0, 2.0, 9.0])

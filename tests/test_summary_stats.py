@@ -1,4 +1,4 @@
-"""leolink.io.summary_stats.DbStats: its compiled loop (leolink._kernels.db_stats_add)
+"""leolink.io.summary.stats.DbStats: its compiled loop (leolink._kernels.db_stats_add)
 against its numpy code, on the same stream of adds."""
 
 from unittest import mock
@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import leolink.compiled
-from leolink.io.summary_stats import DbStats
+from leolink.io.summary.stats import DbStats
 
 
 def _stream(seed, n_ut, n_add):

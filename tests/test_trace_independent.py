@@ -30,7 +30,7 @@ from leolink.app.run import run
 from leolink.app.scenario import build_engine
 from leolink.config import load_config, parse_config
 from leolink.io.tle import read_tle_file
-from leolink.sim.mobility import SPEED_PRESETS_M_S
+from leolink.sim.mobility.models import SPEED_PRESETS_M_S
 from scopes import shared_run_scope
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,8 +1,8 @@
 """The trigger policies evaluate only the cells at or above the service threshold.
 
-Their decisions do not depend on cells below it (sim/trigger_run.py: such a cell is not
+Their decisions do not depend on cells below it (sim/handover/trigger_run.py: such a cell is not
 detected, its filter restarts), so the candidate search leaves those cells out
-(``usable_cells_only``, sim/search.py). Checked here on real runs: the same policy on the
+(``usable_cells_only``, sim/candidates/search.py). Checked here on real runs: the same policy on the
 exhaustive tables (every cell of every visible satellite, every pair evaluated) gives the
 same trace and events, bit for bit.
 """

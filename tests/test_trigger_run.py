@@ -1,6 +1,6 @@
 """Trigger policies on sparse per-UT tables behave exactly as on one dense axis of all cells.
 
-The reference is the dense driver of :mod:`leolink.sim.handover` (every cell of every
+The reference is the dense driver of :mod:`leolink.sim.handover.decisions` (every cell of every
 satellite, NaN where not measured, one layer-3 filter per cell), the representation the
 TS 38.331 bookkeeping was written for; the run's tables list only the visible
 satellites, in shuffled slots, with satellites entering and leaving.
@@ -11,12 +11,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from leolink.sim.candidates import Candidates
-from leolink.sim.handover import ConditionalHandover, TriggerPolicy
-from leolink.sim.local_axis import LocalAxis
-from leolink.sim.measurements import L3Filter, L3State, l3_update
-from leolink.sim.trigger_run import TriggerRun
-from leolink.sim.triggers import A3, A4, A5, Epoch
+from leolink.sim.candidates.table import Candidates
+from leolink.sim.handover.decisions import ConditionalHandover, TriggerPolicy
+from leolink.sim.handover.local_axis import LocalAxis
+from leolink.sim.handover.measurements import L3Filter, L3State, l3_update
+from leolink.sim.handover.trigger_run import TriggerRun
+from leolink.sim.handover.triggers import A3, A4, A5, Epoch
 
 N_SAT, N_BEAM, MIN_SNR_DB, DT_S = 6, 3, -10.0, 1.0
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from leolink.errors import ConfigError
-from leolink.sim.triggers import A3, A4, A5, Epoch, TriggerState, advance, evaluate
-from leolink.sim.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
+from leolink.sim.handover.triggers import A3, A4, A5, Epoch, TriggerState, advance, evaluate
+from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
 
 DT_S = 0.1
 

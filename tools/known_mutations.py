@@ -71,21 +71,21 @@ MUTATIONS = (
     ),
     Mutation(
         "along_against_swapped",
-        "src/leolink/sim/populations.py",
+        "src/leolink/sim/mobility/populations.py",
         '{"along_track": 0.0, "against_track": math.pi,',
         '{"along_track": math.pi, "against_track": 0.0,',
         ("tests/test_populations.py", "tests/test_trace_independent.py"),
     ),
     Mutation(
         "cross_track_flipped",
-        "src/leolink/sim/populations.py",
+        "src/leolink/sim/mobility/populations.py",
         '"cross_track": math.pi / 2}',
         '"cross_track": -math.pi / 2}',
         ("tests/test_populations.py", "tests/test_trace_independent.py"),
     ),
     Mutation(
         "interruption_from_wrong_code",
-        "src/leolink/io/summary.py",
+        "src/leolink/io/summary/accumulator.py",
         'gap = columns.get("interruption_s")',
         'gap = columns.get("interruption")',
         ("tests/test_summary_of_a_run.py", "tests/test_diagnostics.py", "tests/test_recorder.py"),
@@ -160,7 +160,7 @@ MUTATIONS = (
     # Issue 12 (handover triggers, RLF): each killed when it was added.
     Mutation(
         "trigger_filter_on_undetected_cells",
-        "src/leolink/sim/trigger_run.py",
+        "src/leolink/sim/handover/trigger_run.py",
         "filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)",
         "filt, meas = l3_update(filt, t_s, raw, self.l3)\n"
         "        meas = np.where(usable, meas, np.nan)",
@@ -168,7 +168,7 @@ MUTATIONS = (
     ),
     Mutation(
         "search_floor_3_db_high",
-        "src/leolink/sim/search.py",
+        "src/leolink/sim/candidates/search.py",
         "low = np.maximum(reach[rows] * factor, floor_lin)",
         "low = np.maximum(reach[rows] * factor, floor_lin * 2.0)",
         ("tests/test_search.py",),

@@ -111,7 +111,7 @@ MODULES = {
         "tests/test_simulation.py",
         "--deselect=tests/test_simulation.py::test_same_seed_same_trace_whatever_the_chunk_size",
     ],
-    # The step's event and dwell tables (moved out of sim/controller.py on 2026-12-02).
+    # The step's event and dwell tables (moved out of sim/handover/controller.py on 2026-12-02).
     "sim/event_tables": [
         "tests/test_controller.py",
         "tests/test_controller_contracts.py",

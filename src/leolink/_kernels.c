@@ -758,7 +758,7 @@ static PyObject *screen_kernel(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* ---- the candidate tables (leolink.sim.candidates): integer comparisons and maxima,
+/* ---- the candidate tables (leolink.sim.candidates.table): integer comparisons and maxima,
  * nothing rounded ---- */
 
 /* table_best(cell, snr_db, out_cell, out_db): Candidates.best, each row's highest SNR
@@ -1092,7 +1092,7 @@ static PyObject *find_pairs(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* ---- the summary's histograms (leolink.sim.histograms, leolink.io.summary_stats) ---- */
+/* ---- the summary's histograms (leolink.sim.histograms, leolink.io.summary.stats) ---- */
 
 /* histogram_slots(values, lo, resolution, hi, n_bins, unserved, out): PercentileHistogram.slots,
  * the slot of every value: 0 below lo, 1 .. n_bins the bins, n_bins + 1 at or above hi (NaN
@@ -1133,7 +1133,7 @@ static PyObject *histogram_slots(PyObject *self, PyObject *args)
 /* db_stats_add(ut, values, count, total, pooled, p_lo, p_res, p_hi, p_nbins, g_lo, g_res,
  *              g_hi, g_nbins, keys) -> n_keys: DbStats.add of rows (ut[i], values[i]), the
  * finite values only, in their order: count[u] += 1 and total[u] += v (the running sum
- * of leolink.io.summary_stats.running_sum: the same additions in the same order), the
+ * of leolink.io.summary.stats.running_sum: the same additions in the same order), the
  * pooled histogram's count of the value's slot, and the value's key in the per-UT
  * histogram, u * (g_nbins + 2) + slot, into keys (its first n_keys entries). */
 static PyObject *db_stats_add(PyObject *self, PyObject *args)
@@ -1172,7 +1172,7 @@ static PyObject *db_stats_add(PyObject *self, PyObject *args)
     return PyLong_FromSsize_t(n_keys);
 }
 
-/* ---- the controller's step (leolink.sim.controller.step) ---- */
+/* ---- the controller's step (leolink.sim.handover.controller.step) ---- */
 
 /* step_rules(cell, snr, target, serving, pending, pending_since, until, serving_since,
  *            in_outage, censored, serving_snr, t_s, min_snr, handover_s, ttt_s, tol,

@@ -187,7 +187,7 @@ def cmd_sweep(args) -> int:
 
 def cmd_report(args) -> int:
     import leolink
-    from leolink.io.report_dir import rebuild_report
+    from leolink.io.report.rebuild import rebuild_report
 
     uts = _ut_list(args.uts) if args.uts else None
     built = rebuild_report(

@@ -1,6 +1,6 @@
 """Motion on a spherical Earth's great circles: where a heading leads, and its velocity.
 
-Ground movers (sim/mobility.py) and the ROI's x axis (placement.py) follow great circles
+Ground movers (sim/mobility/models.py) and the ROI's x axis (placement.py) follow great circles
 of the sphere of :mod:`leolink.geometry` (R = ``earth.radius_m``). Closed forms of the
 spherical triangle (E. Williams, "Aviation Formulary", "Lat/lon given radial and distance").
 """

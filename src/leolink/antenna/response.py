@@ -116,7 +116,7 @@ def chain_response(u_xy, beam_u_xy, chain, array):
         Beam boresights [-], broadcastable as in :func:`beam_response`.
     chain : array_like of int, shape (..., n_beam)
         RF chain (subarray) radiating each beam, ``-1`` for a dark beam (response 0),
-        e.g. from :func:`leolink.sim.beams.assign_chains`; broadcastable like the beams.
+        e.g. from :func:`leolink.sim.beams.active.assign_chains`; broadcastable like the beams.
     array : leolink.antenna.array.HybridArray
 
     Returns

@@ -91,7 +91,7 @@ def run_coverage(cfg, out_dir, n_grid=201, margin=1.1, plots=True, overwrite=Fal
     import leolink
     from leolink.config import dump_toml
     from leolink.io.atomic import write_csv_atomic, write_text_atomic
-    from leolink.io.report import build_table_report
+    from leolink.io.report.page import build_table_report
     from leolink.io.run_dir import claim_out_dir, write_manifest
 
     df = coverage_grid(cfg, n_grid=n_grid, margin=margin)

@@ -17,7 +17,7 @@ def track_coverage(populations, times_s, n_warmup=0, epoch_s=1.0):
     """UTs whose recorded track (or waypoints) does not cover the recorded epochs.
 
     Before its first fix and after its last, a track's UT holds that fix
-    (:class:`leolink.sim.mobility.Waypoints`); this says for how long.
+    (:class:`leolink.sim.mobility.models.Waypoints`); this says for how long.
 
     Parameters
     ----------

@@ -32,7 +32,7 @@ from leolink.io.atomic import write_json_atomic, write_parquet_atomic, write_tex
 from leolink.io.notebook import ResultViews
 from leolink.io.run_dir import claim_out_dir, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
-from leolink.io.summary import SummaryAccumulator
+from leolink.io.summary.accumulator import SummaryAccumulator
 from leolink.sim.runner import run_simulation
 
 if TYPE_CHECKING:  # pandas is imported when a table is asked for (~0.5 s of start-up)

@@ -26,11 +26,11 @@ from leolink.errors import ConfigError
 from leolink.link.acm import LinkFigureParams
 from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
-from leolink.sim.beam_service import BeamService
+from leolink.sim.beams.service import BeamService
 from leolink.sim.environment import environment_models
-from leolink.sim.handover_config import build_rlf
-from leolink.sim.mobility import OnWgs84
-from leolink.sim.populations import PopulationContext
+from leolink.sim.handover.config import build_rlf
+from leolink.sim.mobility.models import OnWgs84
+from leolink.sim.mobility.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
 from leolink.sim.service_link import ServiceLink
 
@@ -167,7 +167,7 @@ def build_populations(cfg, heading_rad, rng):
     """``[(name, motion model), ...]`` of every ``[[population]]``, in config order.
 
     With ``earth.model = "wgs84"`` every model is carried onto the ellipsoid
-    (:class:`~leolink.sim.mobility.OnWgs84`): its latitudes are geodetic.
+    (:class:`~leolink.sim.mobility.models.OnWgs84`): its latitudes are geodetic.
     """
     rx, ry = cfg.roi_semi_axes_m()
     ctx = PopulationContext(

@@ -336,7 +336,7 @@ def _write(table, out_dir, cfg_path, spec, names, plot):
     from leolink.app.guard import raise_pending
     from leolink.config import dump_toml, load_config
     from leolink.io.atomic import write_csv_atomic, write_json_atomic
-    from leolink.io.report import build_table_report
+    from leolink.io.report.page import build_table_report
     from leolink.io.run_dir import write_manifest
 
     params, keys, base = spec

@@ -34,7 +34,7 @@ from leolink.config.schema import (
 )
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
-from leolink.sim.handover_config import FilterConfig, KpiConfig, RlfConfig
+from leolink.sim.handover.config import FilterConfig, KpiConfig, RlfConfig
 from leolink.textfile import read_text
 
 __all__ = [

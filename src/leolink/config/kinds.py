@@ -41,13 +41,13 @@ OWNERS = (
     "leolink.ephemeris_error",
     "leolink.io.ephemeris_sink",
     "leolink.link.atmosphere",
-    "leolink.sim.policies",
-    "leolink.sim.trigger_policies",
-    "leolink.sim.populations",
+    "leolink.sim.handover.policies",
+    "leolink.sim.handover.trigger_policies",
+    "leolink.sim.mobility.populations",
     "leolink.io.tracks",
     "leolink.io.sinks",
-    "leolink.sim.active_beams",
-    "leolink.sim.scheduler",
+    "leolink.sim.beams.selectors",
+    "leolink.sim.beams.scheduler",
     "leolink.link.precoder",
 )
 

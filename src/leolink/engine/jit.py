@@ -142,8 +142,8 @@ def serving_column(table, serving, row0, block):
 
 
 def find_pairs(pair_key, n_key, rows, sats):
-    """``leolink.sim.search.BlockCandidates.find_pairs`` by its compiled loop: the index of
-    each pair ``(rows[i], sats[i])`` in the sorted ``pair_key`` (``row * n_key + sat``),
+    """``leolink.sim.candidates.search.BlockCandidates.find_pairs`` by its compiled loop: the
+    index of each pair ``(rows[i], sats[i])`` in the sorted ``pair_key`` (``row * n_key + sat``),
     -1 where absent."""
     from leolink import _kernels
 

@@ -5,7 +5,7 @@ fused kernel, stay as they are): precoding couples the UTs scheduled together, s
 a small matrix problem per (satellite, slot), not an element-wise function of a pair.
 
 Problem ``p`` is one satellite in one slot: the UTs ``k = 0 .. B - 1`` it serves then, one
-per lit beam (:mod:`leolink.sim.scheduler`); beam ``j`` is UT ``j``'s serving beam, on RF
+per lit beam (:mod:`leolink.sim.beams.scheduler`); beam ``j`` is UT ``j``'s serving beam, on RF
 chain ``chain[j]``. The channel the precoder sees is the LoS response from the known
 ephemeris times the UT antenna gain and the path (:mod:`leolink.link.precoder`):
 

@@ -23,7 +23,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from leolink.io.json_text import json_pieces
+from leolink.io.summary.json_text import json_pieces
 
 __all__ = [
     "PARTIAL_SUFFIX",
@@ -193,7 +193,7 @@ def write_json_atomic(path, obj):
     """Write ``obj`` as indented JSON (NaN -> null) atomically; return the path.
 
     The text of ``json.dumps(to_jsonable(obj), indent=2, allow_nan=False)`` plus a newline,
-    built by :func:`leolink.io.json_text.json_pieces` and written in parts of about
+    built by :func:`leolink.io.summary.json_text.json_pieces` and written in parts of about
     :data:`_WRITE_CHARS` characters: a large summary is never held as one string.
     """
     with atomic_file(path) as f:

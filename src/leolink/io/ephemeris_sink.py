@@ -18,8 +18,8 @@ from pydantic import Field
 
 from leolink.io.atomic import write_csv_atomic, write_json_atomic
 from leolink.io.sinks import SINKS, SinkParams
-from leolink.sim.controller import SERVICE_OUTAGE
 from leolink.sim.ephemeris_monitor import EPHEMERIS_COLUMNS
+from leolink.sim.handover.controller import SERVICE_OUTAGE
 
 __all__ = ["EphemerisErrorSink", "ephemeris_summary"]
 

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from leolink.io.atomic import atomic_file, write_text_atomic
-from leolink.io.maps import beam_colour
+from leolink.io.report.maps import beam_colour
 
 __all__ = [
     "EVENT_SCHEMA",

@@ -5,7 +5,7 @@ with ``trace``, ``events`` and ``summary``); it adds ``plot_sinr(ut_ids=...)``,
 ``plot_map()``, ``plot_dwell()`` and friends (each returns a matplotlib Figure),
 ``_repr_html_`` (Jupyter shows the KPI table) and :meth:`to_xarray`.
 
-The figures come from a :class:`~leolink.io.report_stats.ReportStats`: the result's own
+The figures come from a :class:`~leolink.io.report.stats.ReportStats`: the result's own
 ``report_stats`` when the run kept one (large runs: no trace in memory), else one built
 once from the in-memory ``trace`` (and its ``satellites`` / ``codebook`` if given).
 """
@@ -25,7 +25,7 @@ __all__ = ["ResultViews", "dense", "stats_from_frames"]
 def stats_from_frames(trace, events, summary, series_ut, satellites=None, codebook=None):
     """A :class:`ReportStats` from in-memory tables (``satellites``: DataFrame ``time_s,
     sat_id, x_m .. vz_m_s``; ``codebook``: ``leolink codebook --json`` dict)."""
-    from leolink.io.report_stats import ReportStats
+    from leolink.io.report.stats import ReportStats
 
     run = summary["run"]
     stats = ReportStats(run["n_ut"], run["start_s"], run["end_s"], run["epoch_s"], series_ut)
@@ -51,7 +51,7 @@ def stats_from_frames(trace, events, summary, series_ut, satellites=None, codebo
 
 
 def _figures():
-    from leolink.io import figures
+    from leolink.io.report import figures
 
     return figures
 
@@ -130,12 +130,12 @@ class ResultViews:
 
     def plot_map(self):
         """Ground tracks, serving beam cells and UT tracks (Figure)."""
-        from leolink.io.report import run_map_figure
+        from leolink.io.report.page import run_map_figure
 
         return run_map_figure(self._stats())
 
     def _repr_html_(self):
-        from leolink.io.report import kpi_rows
+        from leolink.io.report.page import kpi_rows
 
         rows = "".join(
             f"<tr><td>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>"

@@ -261,7 +261,7 @@ def plot_run(
     events : pandas.DataFrame or None
         ``time_s, ut_id, kind, ...``; may be empty.
     summary : dict
-        The ``summary.json`` layout (:class:`leolink.io.summary.SummaryAccumulator`):
+        The ``summary.json`` layout (:class:`leolink.io.summary.accumulator.SummaryAccumulator`):
         ``summary["per_ut"]`` (``ut_id``, ``handovers``, ``dwell.censored``) and
         ``summary["overall"]`` (``handovers``, ``dwell.complete_s`` [s]).
     out_dir : path-like

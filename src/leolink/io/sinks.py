@@ -3,7 +3,7 @@
 Output sinks are a pluggable kind: :data:`SINKS` holds one entry per ``[output.<name>]``
 table of the config, each with an ``enabled`` switch and its own keys. A sink is built
 with the context ``out_dir`` (a folder, or None for a run kept in memory) and
-``summary`` (the run's :class:`~leolink.io.summary.SummaryAccumulator`, fed first),
+``summary`` (the run's :class:`~leolink.io.summary.accumulator.SummaryAccumulator`, fed first),
 ``ephemeris`` and ``codebook`` (the scenario's) and ``epoch_utc`` (UTC of time 0, or None).
 A sink that writes files lists them, once finished, in its ``files`` attribute (the run's
 manifest, ``run.json``, is made of these lists; reading it may wait for pictures still
@@ -263,7 +263,7 @@ class ReportParams(SinkParams):
 
 
 def _report_sink(p, ctx):
-    from leolink.io.report_sink import ReportSink
+    from leolink.io.report.sink import ReportSink
 
     return ReportSink(
         ctx.out_dir,

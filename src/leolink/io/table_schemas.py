@@ -19,7 +19,7 @@ from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 from leolink.io.arrow import decoded_array, numeric_array
 from leolink.link.acm import FIGURE_COLUMNS
 from leolink.link.modcod import modcod_table
-from leolink.sim.controller import EVENT_COLUMNS, SERVICE_NAMES
+from leolink.sim.handover.controller import EVENT_COLUMNS, SERVICE_NAMES
 from leolink.sim.processes import OUTAGE_REASONS
 
 __all__ = [

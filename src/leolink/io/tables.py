@@ -309,7 +309,7 @@ class TraceWriter(TableWriter):
 
 class EventLog(TableWriter):
     """``events.csv``: ``EVENT_COLUMNS``, written in the order appended (time, then ut_id
-    as :func:`leolink.sim.controller.step` emits them)."""
+    as :func:`leolink.sim.handover.controller.step` emits them)."""
 
     def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
         super().__init__(out_dir, "events", EVENT_SCHEMA, formats, chunk_rows)

@@ -1,6 +1,6 @@
 """Recorded UT tracks: CSV or GPX files of time-stamped positions, read into motion models.
 
-Registers the ``track`` population kind (:data:`leolink.sim.populations.MOBILITY`): the
+Registers the ``track`` population kind (:data:`leolink.sim.mobility.populations.MOBILITY`): the
 file is read here, in the io layer, and the motion model gets arrays.
 
 Times: a CSV gives ``time_s`` (simulation time) or ``time_utc`` (ISO 8601, UTC when no
@@ -22,8 +22,8 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from leolink.errors import LeolinkError
-from leolink.sim.mobility import Track, Waypoints
-from leolink.sim.populations import FIX_LIMITS, MOBILITY, PopulationParams
+from leolink.sim.mobility.models import Track, Waypoints
+from leolink.sim.mobility.populations import FIX_LIMITS, MOBILITY, PopulationParams
 from leolink.textfile import read_text
 
 __all__ = ["TrackFileError", "TrackParams", "read_track", "read_track_csv", "read_track_gpx"]

@@ -3,14 +3,14 @@
 :class:`Decider` is what :func:`~leolink.sim.processes.beam_controller` calls once per
 epoch. When an epoch opens a new motion block (:mod:`leolink.sim.motion`) it finds the
 candidates of the whole block in a few vectorized engine calls
-(:class:`~leolink.sim.search.CandidateSearch`); every epoch it adds each UT's serving
+(:class:`~leolink.sim.candidates.search.CandidateSearch`); every epoch it adds each UT's serving
 cell to its row (from the pairs already evaluated, or evaluated then), evaluates the
 table at ``t + lookahead`` if the policy asks, and runs the controller.
 
-A policy with per-cell state (the 3GPP triggers of :mod:`leolink.sim.trigger_policies`)
-has a ``run(...)`` method: its :class:`~leolink.sim.trigger_run.TriggerRun` picks the
+A policy with per-cell state (the 3GPP triggers of :mod:`leolink.sim.handover.trigger_policies`)
+has a ``run(...)`` method: its :class:`~leolink.sim.handover.trigger_run.TriggerRun` picks the
 target from the epoch's table and the controller executes it. With radio link failure
-monitoring (:mod:`leolink.sim.rlf_run`), the candidates of UTs still re-establishing are
+monitoring (:mod:`leolink.sim.handover.rlf_run`), the candidates of UTs still re-establishing are
 masked (NaN) so that the controller leaves them unserved.
 """
 
@@ -20,12 +20,12 @@ import numpy as np
 
 from leolink.engine import jit
 from leolink.geometry import enu_basis
-from leolink.sim.active_beams import restrict
-from leolink.sim.candidates import Candidates
-from leolink.sim.controller import concat_events, resumed_events, step
+from leolink.sim.beams.selectors import restrict
+from leolink.sim.candidates.search import CandidateSearch
+from leolink.sim.candidates.table import Candidates
 from leolink.sim.environment import candidate_margin_db
-from leolink.sim.policies import neighbour_window_db
-from leolink.sim.search import CandidateSearch
+from leolink.sim.handover.controller import concat_events, resumed_events, step
+from leolink.sim.handover.policies import neighbour_window_db
 
 __all__ = ["Decider"]
 
@@ -50,13 +50,13 @@ class Decider:
         handed to the engine; otherwise the engine takes the sphere's radial up.
     prune : bool
         Screen the (UT, satellite) pairs before evaluating them (the same tables,
-        :mod:`leolink.sim.search`); False evaluates every pair (the reference).
-    rlf : leolink.sim.rlf_run.RlfRun or None
+        :mod:`leolink.sim.candidates.search`); False evaluates every pair (the reference).
+    rlf : leolink.sim.handover.rlf_run.RlfRun or None
         Radio link failure bookkeeping (None: off).
     panels : leolink.antenna.panel.PanelOrientation or None
         The UTs' turned or tilted panels (None: lying flat, x east): their rows per epoch
         of the block are ``panel`` (n_k, n_ut, 3, 3), handed to the engine.
-    selector : leolink.sim.active_beams.BeamSelector, optional
+    selector : leolink.sim.beams.selectors.BeamSelector, optional
         Active beams: the controller chooses among the lit beams of each epoch, and every
         visible cell is a candidate (a lit neighbour may be further down than the
         policy's window). None: every beam lit (today's run, untouched).

@@ -13,7 +13,7 @@ columns are those of the best candidate (``best_snr_db``); the link columns (SNR
 SE, throughput) are NaN. In a handover epoch SE and throughput are the epoch's means:
 the link's, times the part of the epoch with service.
 
-With radio link failure monitoring (:mod:`leolink.sim.rlf_run`) the next decision needs
+With radio link failure monitoring (:mod:`leolink.sim.handover.rlf_run`) the next decision needs
 this epoch's serving SINR, so the links are evaluated every epoch (warm-up included) and
 the RLF state machine may end a UT's service before the frame is sent; without it,
 recording waits for the end of the block.
@@ -34,7 +34,7 @@ from leolink.engine.links import Links
 from leolink.link.acm import LinkFigureParams
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
-from leolink.sim.controller import SERVICE_HANDOVER, SERVICE_OUTAGE, interruption_s
+from leolink.sim.handover.controller import SERVICE_HANDOVER, SERVICE_OUTAGE, interruption_s
 from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import BlockFrame, EpochFrame, deliver
 
@@ -97,9 +97,9 @@ class Monitor:
     link : ServiceLink or None
         The link figures and the SINR service threshold (None: the default figures of the
         engine's power and bandwidth, service as the controller judged it).
-    rlf : leolink.sim.rlf_run.RlfRun or None
+    rlf : leolink.sim.handover.rlf_run.RlfRun or None
         Radio link failure bookkeeping (None: off; module docstring).
-    service : leolink.sim.beam_service.BeamService, optional
+    service : leolink.sim.beams.service.BeamService, optional
         Beam sharing and precoding (adds the ``n_sharing`` column); None: today's links.
     """
 
@@ -253,7 +253,7 @@ class Monitor:
         return mb.sat_pos_m[j], mb.sat_vel_m_s[j]
 
     def _share(self, recs, cols, inputs):
-        """Beam sharing and precoding, epoch by epoch (:mod:`leolink.sim.beam_service`)."""
+        """Beam sharing and precoding, epoch by epoch (:mod:`leolink.sim.beams.service`)."""
         n_ut = len(recs[0].geo_sat)
         cols["n_sharing"] = np.zeros(len(recs) * n_ut, np.int64)
         for i, rec in enumerate(recs):

@@ -1,10 +1,10 @@
 """Satellite and UT states of the run's epochs, computed in blocks of epochs.
 
 Satellites follow the ephemeris and UTs their mobility models, both pure functions of
-time (:class:`~leolink.sim.populations.MotionModel`), so the states of a whole block of
+time (:class:`~leolink.sim.mobility.populations.MotionModel`), so the states of a whole block of
 epochs are known before the block starts: the SimPy processes move the shared state one
 epoch at a time from the block, and the controller and the monitor evaluate the engine
-over the whole block in one vectorized call (:mod:`leolink.sim.search`,
+over the whole block in one vectorized call (:mod:`leolink.sim.candidates.search`,
 :mod:`leolink.sim.monitor`). A block aims at :data:`BLOCK_UT_EPOCHS` UT-epochs (64 epochs
 of 1,000 UTs, up to 1,024 epochs of a few UTs: a call's fixed cost is paid once a block),
 and its states stay within a few tens of MiB.
@@ -16,7 +16,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink.sim.mobility import UTState
+from leolink.sim.mobility.models import UTState
 
 __all__ = ["BLOCK_UT_EPOCHS", "MAX_BLOCK_EPOCHS", "MIN_BLOCK_EPOCHS", "MotionBlock"]
 __all__ += ["MotionBlocks"]

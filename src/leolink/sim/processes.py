@@ -22,13 +22,13 @@ import dataclasses
 
 import numpy as np
 
-from leolink.sim.controller import ControllerState, StepResult, close_dwells
+from leolink.sim.handover.controller import ControllerState, StepResult, close_dwells
 
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
 #: no satellite above the minimum elevation; satellites above it but no beam above the
 #: service threshold; the environment (blockage, shadowing, clutter: ``leolink.sim.environment``)
 #: took every beam below the threshold that the best beam reaches in open country;
-#: re-establishing after a radio link failure (:mod:`leolink.sim.rlf_run`).
+#: re-establishing after a radio link failure (:mod:`leolink.sim.handover.rlf_run`).
 OUTAGE_REASONS = ("none", "handover", "no_satellite", "below_threshold", "blocked", "rlf")
 
 __all__ = [

@@ -18,17 +18,18 @@ from leolink.antenna.panel import PanelOrientation
 from leolink.engine import LinkEngine
 from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
-from leolink.sim.active_beams import BeamSelector
-from leolink.sim.beam_service import BeamService
-from leolink.sim.controller import ControllerState
+from leolink.sim.beams.selectors import BeamSelector
+from leolink.sim.beams.service import BeamService
 from leolink.sim.decide import Decider
 from leolink.sim.environment import ChannelTracker
 from leolink.sim.ephemeris_monitor import TrueLinkMonitor
-from leolink.sim.mobility import concat_states
+from leolink.sim.handover.controller import ControllerState
+from leolink.sim.handover.policies import Policy
+from leolink.sim.handover.rlf_run import RLF_REASON, RlfRun
+from leolink.sim.mobility.models import concat_states
+from leolink.sim.mobility.populations import MotionModel
 from leolink.sim.monitor import Monitor
 from leolink.sim.motion import MotionBlocks
-from leolink.sim.policies import Policy
-from leolink.sim.populations import MotionModel
 from leolink.sim.processes import (
     OUTAGE_REASONS,
     SimState,
@@ -38,7 +39,6 @@ from leolink.sim.processes import (
     satellite_motion,
     ut_motion,
 )
-from leolink.sim.rlf_run import RLF_REASON, RlfRun
 from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import FinalFrame, RunInfo, SinkGroup
 
@@ -57,7 +57,7 @@ class Scenario:
     engine : LinkEngine
     ephemeris : Ephemeris
     populations : list of (name, motion model)
-        Motion models of :mod:`leolink.sim.populations`, UTs numbered in this order.
+        Motion models of :mod:`leolink.sim.mobility.populations`, UTs numbered in this order.
     policy : Policy
     min_snr_db : float [dB], service threshold.
     handover_time_s : float [s], service interruption per handover.
@@ -71,20 +71,20 @@ class Scenario:
     ellipsoidal : bool, UT latitudes are geodetic (WGS 84): the engine gets their
         ellipsoidal local frames (else the sphere's radial up).
     prune : bool, screen the (UT, satellite) pairs and evaluate only those that can hold a
-        cell the policy needs (:mod:`leolink.sim.search`; the same outputs); False
+        cell the policy needs (:mod:`leolink.sim.candidates.search`; the same outputs); False
         evaluates every pair of the cone-selected satellites (the reference).
-    rlf : leolink.sim.rlf.RlfParams or None, radio link failure monitoring
-        (:mod:`leolink.sim.rlf_run`); None: off.
+    rlf : leolink.sim.handover.rlf.RlfParams or None, radio link failure monitoring
+        (:mod:`leolink.sim.handover.rlf_run`); None: off.
     link : ServiceLink or None, the link figures and the SINR service threshold (None:
         default figures, service on SNR).
     panels : PanelOrientation or None, the UTs' turned or tilted panels (None: flat).
     environments : list of EnvironmentModel or None, one per population
         (:func:`leolink.sim.environment.environment_models`); None: every UT in open
         country, the paper's link.
-    selector : BeamSelector or None, active beams (:mod:`leolink.sim.active_beams`);
+    selector : BeamSelector or None, active beams (:mod:`leolink.sim.beams.selectors`);
         None: every beam lit.
     service : BeamService or None, beam sharing and precoding
-        (:mod:`leolink.sim.beam_service`; adds the ``n_sharing`` trace column); None: none.
+        (:mod:`leolink.sim.beams.service`; adds the ``n_sharing`` trace column); None: none.
     estimated_ephemeris : callable or None, the ephemeris the controller believes
         (:mod:`leolink.ephemeris_error`); the links are evaluated on ``ephemeris``
         (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.

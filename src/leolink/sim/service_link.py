@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 
 from leolink.link.acm import LinkFigureParams, link_figure_columns
-from leolink.sim.controller import SERVICE_OUTAGE
+from leolink.sim.handover.controller import SERVICE_OUTAGE
 
 __all__ = ["ServiceLink"]
 

@@ -1,0 +1,1 @@
+"""``report.html``: the streamed statistics, figures, maps, the animation and the page."""

@@ -1,0 +1,1 @@
+"""``summary.json``: run statistics streamed in bounded memory, per UT and overall."""

@@ -1,0 +1,345 @@
+"""The candidate tables of a block of epochs: every cell a policy can need, evaluated exactly.
+
+:class:`CandidateSearch` turns the geometry of a block of epochs
+(:class:`~leolink.sim.motion.MotionBlock`) into one
+:class:`~leolink.sim.candidates.table.Candidates` row per UT and epoch, plus the trace's per-UT
+diagnostics (satellites above the mask, the best cell and its SNR). Rows are
+``r = (k - k0) n_ut + u``; every engine call covers many epochs at once.
+
+Pairs evaluated, per epoch, among the satellites of the epoch's cone
+(:func:`~leolink.sim.processes.candidate_satellites`):
+
+- few satellites (at most ``DENSE_CONE``), or ``prune=False`` (the reference): every pair;
+- otherwise (pruned): :func:`leolink.engine.screening.screen` classifies every pair
+  (visible, uncertain, below the mask) and bounds the SNR of every beam of the pair from
+  above. Each UT's pair with the largest bound, and every uncertain pair, are evaluated
+  first: their best beam gives ``L``, an SNR the UT certainly reaches. Then every pair
+  above the mask whose bound is at least ``max(L - window, floor)``: ``window`` the
+  policy's ``neighbour_window_db``, ``floor`` the service threshold for a policy that
+  declares ``usable_cells_only`` (else no floor).
+
+A pair left out has a bound below ``L - window`` or below the floor: none of its cells can
+be within the window of the best cell and at or above the floor. So a row holds exactly
+the cells within the window of the UT's best cell and at or above the floor, pruned or
+not; the serving cell is added at decision time (:meth:`Decider._with_serving
+<leolink.sim.decide.Decider>`), from the evaluated pairs or evaluated then. The
+diagnostics (``n_visible``, the best cell and its SNR) do not depend on the floor.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from leolink import compiled
+from leolink.arrays import nonzero_2d, take_rows
+from leolink.engine import jit
+from leolink.engine.links import Links
+from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
+from leolink.geometry import body_frame
+from leolink.sim.candidates.table import Candidates
+
+__all__ = ["DENSE_CONE", "BlockCandidates", "CandidateSearch"]
+
+#: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each).
+SCREEN_PAIRS = 1 << 18
+#: Evaluated pairs turned into table entries at once (bounds the (pairs, beams)
+#: temporaries: ~4 MiB each with 16 beams).
+TABLE_PAIRS = 1 << 15
+#: Cones of at most this many satellites are evaluated whole (screening would not pay).
+DENSE_CONE = 2
+
+
+@dataclasses.dataclass
+class BlockCandidates:
+    """Candidates of the epochs ``k0 ..`` of a block (rows ``r = (k - k0) n_ut + u``).
+
+    Attributes
+    ----------
+    k0, n_ut, n_beam : int
+    table : Candidates
+        Cells within the window of each row's best cell (global ids), (n_rows, n_slot).
+    n_visible, best_cell, best_snr_db : ndarray, shape (n_rows,)
+        Satellites above the mask; the best cell (-1 for none) and its SNR (NaN).
+    links : Links
+        Every evaluated pair, sorted by (row, satellite); ``links.ut`` is the row,
+        ``links.sat`` the global satellite id.
+    """
+
+    k0: int
+    n_ut: int
+    n_beam: int
+    table: Candidates
+    n_visible: np.ndarray
+    best_cell: np.ndarray
+    best_snr_db: np.ndarray
+    links: Links
+
+    beam_ix: np.ndarray
+    beam_iy: np.ndarray
+
+    def __post_init__(self):
+        self.n_key = int(self.links.sat.max(initial=0)) + 1
+        self.pair_key = self.links.ut * self.n_key + self.links.sat  # sorted
+
+    def rows(self, k):
+        """Rows of epoch ``k``."""
+        lo = (k - self.k0) * self.n_ut
+        return slice(lo, lo + self.n_ut)
+
+    def find_pairs(self, rows, sats):
+        """Index into ``links`` of the pairs ``(rows[i], sats[i])``, -1 if not evaluated."""
+        n = self.links.n_pair
+        if n == 0:
+            return np.full(np.shape(rows), -1, np.int64)
+        if compiled.use(np.size(rows)):  # the same indices, ascending queries by galloping
+            return jit.find_pairs(self.pair_key, self.n_key, rows, sats)
+        ok = (sats >= 0) & (sats < self.n_key)
+        key = rows * self.n_key + np.where(ok, sats, 0)
+        i = np.minimum(np.searchsorted(self.pair_key, key), n - 1)
+        ok &= self.pair_key[i] == key
+        return np.where(ok, i, -1)
+
+    def snr_db_of(self, pair, beam):
+        """SNR [dB] of beam ``beam[i]`` of evaluated pair ``pair[i]``, and whether the
+        pair is above the mask."""
+        snr = self.links.snr_db_bm(self.beam_ix, self.beam_iy, pair)
+        return snr[beam, np.arange(pair.size)], self.links.visible[pair]
+
+
+class CandidateSearch:
+    """Candidate tables of the blocks of a run (module docstring).
+
+    Parameters
+    ----------
+    engine : leolink.engine.LinkEngine
+    window_db : float
+        The policy's ``neighbour_window_db`` [dB] (``inf``: every cell above the mask).
+    prune : bool
+        Screen the pairs (default); False evaluates every pair (the reference).
+    floor_db : float
+        Cells below this SNR [dB] are left out of the tables (``-inf``: none).
+    """
+
+    def __init__(self, engine, window_db, prune=True, floor_db=-np.inf):
+        self.engine, self.window_db, self.prune = engine, float(window_db), bool(prune)
+        self.floor_db = float(floor_db)
+
+    def block(self, k0, n_ut, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones, normal=None):
+        """The candidates of the epochs ``k0 .. k0 + n_k - 1``.
+
+        Parameters
+        ----------
+        k0 : int
+        n_ut : int
+        ut_pos_m : ndarray, shape (n_k, n_ut, 3)
+        ut_up : ndarray, shape (n_k, n_ut, 3), or None
+            Local up of each UT (WGS 84); None: the sphere's.
+        sat_pos_m, sat_vel_m_s : ndarray, shape (n_k, n_sat, 3)
+            Every satellite of the run.
+        cones : list of ndarray of int
+            Per epoch, the global ids (ascending) of the satellites that may be above the
+            mask for some UT.
+        normal : ndarray, shape (n_k, n_ut, 3), optional
+            Panel normal of each UT (tilted panels, ``LinkEngine.evaluate_pairs``).
+
+        Returns
+        -------
+        BlockCandidates
+        """
+        n_k = len(cones)
+        pos = ut_pos_m.reshape(-1, 3)
+        up = None if ut_up is None else ut_up.reshape(-1, 3)
+        nrm = None if normal is None else normal.reshape(-1, 3)
+        widest = max((len(c) for c in cones), default=0)
+        step = int(np.clip(SCREEN_PAIRS // max(n_ut * widest, 1), 1, n_k))
+        parts = []
+        for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
+            ks = range(lo, min(lo + step, n_k))
+            parts.append(self._chunk(ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm))
+        links = Links.concat([p[0] for p in parts])
+        sure = np.concatenate([p[1] for p in parts])
+        order = np.lexsort((links.sat, links.ut))
+        if (order != np.arange(order.size)).any():  # (often sorted already: no copy)
+            links = links.take(order)
+        return self._tables(k0, n_ut, n_k, links, sure)
+
+    def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm=None):
+        """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
+        global id) and the rows' visible satellites that were not evaluated."""
+        sure = np.zeros(len(ks) * n_ut, np.int64)
+        if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
+            rows, sats = _dense_pairs(ks, n_ut, cones)
+            return self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm), sure
+        rows1, sats1, rows2, sats2, screened = [], [], [], [], []
+        for i, k in enumerate(ks):
+            rows = k * n_ut + np.arange(n_ut)
+            cone = cones[k]
+            code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone, nrm)
+            first = np.argmax(bound, axis=1)
+            chosen = code == UNCERTAIN
+            has = np.flatnonzero(bound[np.arange(n_ut), first] >= 0.0)
+            chosen[has, first[has]] = True
+            r, s = nonzero_2d(chosen)
+            rows1.append(rows[r])
+            sats1.append(cone[s])
+            screened.append((i, rows, cone, code, bound, chosen))
+        links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1, nrm)
+        reach = np.zeros(pos.shape[0])
+        gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
+        lin = np.where(links1.visible, gain, 0.0)
+        np.maximum.at(reach, links1.ut, lin * links1.path_lin)
+        factor = 10.0 ** (-self.window_db / 10.0)
+        floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
+        for i, rows, cone, code, bound, chosen in screened:
+            low = np.maximum(reach[rows] * factor, floor_lin)
+            with np.errstate(invalid="ignore"):
+                more = (code > 0) & (bound >= low[:, None]) & ~chosen
+            r, s = nonzero_2d(more)
+            rows2.append(rows[r])
+            sats2.append(cone[s])
+            sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
+        links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2, nrm)
+        return Links.concat([links1, links2]), sure
+
+    def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone, nrm=None):
+        """:func:`screen` of the UT rows ``rows`` against the cone, in blocks of UTs."""
+        eng = self.engine
+        axes = body_frame(sat_pos_m[cone], sat_vel_m_s[cone])
+        n_ut = len(rows)
+        ut_id = np.arange(n_ut)
+        n_part = -(-n_ut * len(cone) // SCREEN_PAIRS)
+        step = -(-n_ut // max(n_part, 1))
+        parts = [
+            screen(
+                eng,
+                pos[rows[lo : lo + step]],
+                sat_pos_m[cone],
+                axes,
+                None if up is None else up[rows[lo : lo + step]],
+                ut_id[lo : lo + step],
+                None if nrm is None else nrm[rows[lo : lo + step]],
+                cone,
+            )  # fmt: skip
+            for lo in range(0, n_ut, step)
+        ]
+        return (np.concatenate([p[j] for p in parts]) for j in (0, 1))
+
+    def evaluate(self, pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm=None):
+        """The engine's links of the pairs ``(rows, global satellite ids)`` of a block, in
+        one call (``pos``, ``up``, ``nrm`` (panel normals or None): (n_k n_ut, 3) rows;
+        ``sat_*``: (n_k, n_sat, 3)); lists of index arrays are joined."""
+        if isinstance(rows, list):
+            rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+            sats = np.concatenate(sats) if sats else np.zeros(0, np.int64)
+        n_sat = sat_pos_m.shape[1]
+        key, inverse = np.unique((rows // n_ut) * n_sat + sats, return_inverse=True)
+        flat_pos = take_rows(sat_pos_m.reshape(-1, 3), key)
+        flat_vel = take_rows(sat_vel_m_s.reshape(-1, 3), key)
+        ut_id = np.arange(pos.shape[0]) % n_ut
+        links = self.engine.evaluate_pairs(
+            pos, flat_pos, flat_vel, rows, inverse.reshape(-1), ut_up=up, ut_id=ut_id,
+            ut_normal=nrm, sat_id=key % n_sat,
+        )  # fmt: skip
+        links.sat = sats  # global ids from here on
+        return links
+
+    def _tables(self, k0, n_ut, n_k, links, sure):
+        """Window tables and diagnostics of the sorted evaluated pairs, in chunks of whole
+        rows (:data:`TABLE_PAIRS` pairs): the (pairs, beams) temporaries stay bounded
+        however many satellites a block sees; every value is one row's, so the tables do
+        not depend on the chunks."""
+        eng, nb, n_rows = self.engine, self.engine.n_beam, n_k * n_ut
+        vis = np.flatnonzero(links.visible)
+        rows_vis = links.ut[vis]
+        n_visible = sure + np.bincount(rows_vis, minlength=n_rows)
+        best_db = np.full(n_rows, np.nan)
+        best_cell = np.full(n_rows, -1, np.int64)
+        every = vis.size == links.n_pair  # every pair visible: slices, not gathers
+        window = _window_kernel(vis.size) if self.floor_db == -np.inf else None
+        entries = []
+        for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
+            pairs = slice(lo, hi) if every else vis[lo:hi]
+            rows, sat = rows_vis[lo:hi], links.sat[pairs]
+            snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
+            if window is not None:  # the same entries and best_db, no (pairs, beams) temporaries
+                entries.append(window(snr_bm, rows, sat, nb, float(self.window_db), best_db))
+                continue
+            snr = snr_bm.T  # (m, nb)
+            if rows.size:
+                start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+                with np.errstate(invalid="ignore"):
+                    pair_best = np.fmax.reduce(snr, axis=1)
+                    best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
+            with np.errstate(invalid="ignore"):
+                keep = snr >= (best_db[rows] - self.window_db)[:, None]
+            if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
+                cells = sat[:, None] * nb + np.arange(nb)[None, :]
+                _best_cells(rows, cells, snr, best_db, best_cell)
+                with np.errstate(invalid="ignore"):
+                    keep &= snr >= self.floor_db
+            # the kept entries in (pair, beam) order, as boolean indexing gives them
+            pair, beam = np.divmod(np.flatnonzero(keep), nb)
+            entries.append((rows[pair], sat[pair] * nb + beam, snr[pair, beam]))
+        ut, cell, snr = (np.concatenate(e) for e in zip(*entries, strict=True))
+        table = Candidates.from_entries(n_rows, ut, cell, snr)
+        if self.floor_db == -np.inf:
+            best_cell, _ = table.best()
+        return BlockCandidates(
+            k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
+        )
+
+
+def _dense_pairs(ks, n_ut, cones):
+    """Every (row, satellite) pair of the epochs ``ks`` (a range): each UT of an epoch with
+    each satellite of its cone, epoch after epoch, UT after UT (rows ``k n_ut + u``)."""
+    if len({len(cones[k]) for k in ks}) == 1:  # one cone size (the usual): at once
+        cone = np.array([cones[k] for k in ks])  # (n_k, n_cone)
+        rows = np.arange(ks.start * n_ut, ks.stop * n_ut)
+        sats = np.broadcast_to(cone[:, None, :], (len(ks), n_ut, cone.shape[1]))
+        return np.repeat(rows, cone.shape[1]), sats.reshape(-1)
+    rows = [np.repeat(k * n_ut + np.arange(n_ut), len(cones[k])) for k in ks]
+    sats = [np.tile(cones[k], n_ut) for k in ks]
+    return np.concatenate(rows), np.concatenate(sats)
+
+
+def _window_kernel(n_pairs):
+    """:func:`leolink.sim.candidates.table_kernels.window_entries` where the kernels run
+    (:func:`leolink.compiled.use`), else None (the numpy code of ``_tables``)."""
+    if not compiled.use(n_pairs):
+        return None
+    from leolink.sim.candidates import table_kernels
+
+    return table_kernels.window_entries
+
+
+def _row_chunks(rows, size):
+    """``(lo, hi)`` slices of the sorted ``rows``, each of at least ``size`` entries (the
+    last may have fewer) and ending at the end of a row; one empty slice if none."""
+    lo, n = 0, rows.size
+    while True:
+        hi = n if lo + size >= n else int(np.searchsorted(rows, rows[lo + size - 1], "right"))
+        yield lo, hi
+        if hi >= n:
+            return
+        lo = hi
+
+
+def _best_cells(rows, cell, snr, best_db, out):
+    """Write into ``out`` each of ``rows``' best cell (left as is where its best SNR is
+    not finite), ties to the lowest id, as :meth:`Candidates.best` of the whole table,
+    without building it.
+
+    ``rows`` (m,) sorted, with the pairs of a row by ascending satellite, so that the
+    entries ``(pair, beam)`` of a row, flattened, are in ascending cell id: the first
+    entry equal to the row's best is the lowest tied cell.
+    """
+    best = best_db[rows]
+    with np.errstate(invalid="ignore"):
+        tied = (snr == best[:, None]) & np.isfinite(best)[:, None]
+    flat = np.flatnonzero(tied)
+    row_of = rows[flat // snr.shape[1]]
+    first = np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]]) if flat.size else flat
+    out[row_of[first]] = cell.reshape(-1)[flat[first]]
+    return out

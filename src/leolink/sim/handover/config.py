@@ -1,0 +1,248 @@
+"""Validated config tables of the handover policies, the layer-3 filter, RLF and KPIs.
+
+One :class:`leolink.registry.Params` model per policy (``[controller.a3]`` etc.), ready for
+``POLICIES.register(name, config=..., build=...)``; :data:`POLICY_CONFIGS` and
+:func:`build_policy` are what the registration needs. Degrees appear only here, at the
+config edge (``*_deg``), and are converted to radians when the policy is built.
+
+The standard's ASN.1 ranges are given in the descriptions (TS 38.331 6.3.2: Hysteresis
+0..15 dB in 0.5 dB steps, a3-Offset -15..15 dB in 0.5 dB steps, TimeToTrigger ms0..ms5120
+enumerated, hysteresisLocation 0..327.68 km, distanceThreshFromReference up to
+3276.25 km, t1 duration 100 ms steps); leolink accepts any physical value (a continuous
+sweep is the point of a simulator) and enforces only signs.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from leolink.registry import Params
+from leolink.sim.handover.decisions import ConditionalHandover, TriggerPolicy
+from leolink.sim.handover.measurements import FILTER_COEFFICIENTS, L3Filter
+from leolink.sim.handover.rlf import RlfParams
+from leolink.sim.handover.triggers import A3, A4, A5
+from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
+
+Level = Literal["cell", "satellite"] | None
+FilterCoefficient = Literal[FILTER_COEFFICIENTS]  # type: ignore[valid-type]
+_LEVEL = Field(
+    None,
+    description="candidate axis: 'cell' decides satellite and beam, 'satellite' decides the "
+    "satellite and takes the best beam in it; default: the event's own (cell for a3, a4, "
+    "a5, d1; satellite for d2, t1, elevation, time_to_exit)",
+)
+_TTT = Field(0.0, ge=0, description="time-to-trigger [s] (TS 38.331: ms0..ms5120)")
+
+
+class A3Config(Params):
+    kind: Literal["a3"] = "a3"
+    offset_db: float = Field(0.0, description="a3-Offset Off [dB], neighbour over serving")
+    hysteresis_db: float = Field(0.0, ge=0, description="hysteresis Hys [dB]")
+    time_to_trigger_s: float = _TTT
+    level: Level = _LEVEL
+
+
+class A4Config(Params):
+    kind: Literal["a4"] = "a4"
+    threshold_db: float = Field(-10.0, description="a4-Threshold, in the trigger quantity's unit")
+    hysteresis_db: float = Field(0.0, ge=0, description="hysteresis Hys [dB]")
+    time_to_trigger_s: float = _TTT
+    level: Level = _LEVEL
+
+
+class A5Config(Params):
+    kind: Literal["a5"] = "a5"
+    threshold1_db: float = Field(-10.0, description="a5-Threshold1: serving below it")
+    threshold2_db: float = Field(-5.0, description="a5-Threshold2: neighbour above it")
+    hysteresis_db: float = Field(0.0, ge=0, description="hysteresis Hys [dB]")
+    time_to_trigger_s: float = _TTT
+    level: Level = _LEVEL
+
+
+class D1Config(Params):
+    kind: Literal["d1"] = "d1"
+    threshold1_m: float = Field(
+        0.0, ge=0, description="distance to the serving reference above it [m]"
+    )
+    threshold2_m: float = Field(
+        0.0, ge=0, description="distance to the candidate reference below it [m]"
+    )
+    hysteresis_m: float = Field(0.0, ge=0, description="hysteresisLocation [m]")
+    time_to_trigger_s: float = _TTT
+    level: Level = _LEVEL
+
+
+class D2Config(D1Config):
+    kind: Literal["d2"] = "d2"  # type: ignore[assignment]
+
+
+class T1Config(Params):
+    kind: Literal["t1"] = "t1"
+    duration_s: float = Field(1.0, ge=0, description="T1 duration after Thresh1 [s]")
+    lead_s: float = Field(
+        0.0, description="Thresh1 this long before the serving's end of service [s]"
+    )
+    horizon_s: float = Field(
+        300.0, gt=0, description="look-ahead of the end of service; beyond it: inf [s]"
+    )
+    level: Level = _LEVEL
+
+
+class ElevationConfig(Params):
+    kind: Literal["elevation"] = "elevation"
+    serving_below_deg: float = Field(
+        30.0, ge=-90, le=90, description="serving elevation below [deg]"
+    )
+    candidate_above_deg: float = Field(30.0, ge=-90, le=90, description="candidate above [deg]")
+    hysteresis_deg: float = Field(0.0, ge=0, description="hysteresis [deg]")
+    time_to_trigger_s: float = _TTT
+    level: Level = _LEVEL
+
+
+class TimeToExitConfig(Params):
+    kind: Literal["time_to_exit"] = "time_to_exit"
+    offset_s: float = Field(0.0, description="candidate must outlast the serving by this [s]")
+    hysteresis_s: float = Field(0.0, ge=0, description="hysteresis [s]")
+    time_to_trigger_s: float = _TTT
+    serving_below_s: float | None = Field(
+        None, gt=0, description="only once the serving has less than this left [s]; none: always"
+    )
+    horizon_s: float = Field(
+        300.0, gt=0, description="look-ahead of the end of service; beyond it: inf [s]"
+    )
+    level: Level = _LEVEL
+
+
+TriggerConfig = Annotated[
+    A3Config
+    | A4Config
+    | A5Config
+    | D1Config
+    | D2Config
+    | T1Config
+    | ElevationConfig
+    | TimeToExitConfig,
+    Field(discriminator="kind"),
+]
+
+
+def _default_prepare() -> TriggerConfig:
+    return A3Config.model_validate({})
+
+
+def _default_execute() -> list[TriggerConfig]:
+    return [A3Config.model_validate({"offset_db": 3.0})]
+
+
+class ChoConfig(Params):
+    """Conditional handover; the default conditions are illustrative, not 3GPP values."""
+
+    kind: Literal["cho"] = "cho"
+    prepare: TriggerConfig = Field(
+        default_factory=_default_prepare, description="trigger that prepares a candidate"
+    )
+    execute: list[TriggerConfig] = Field(
+        default_factory=_default_execute,
+        min_length=1,
+        max_length=2,
+        description="one or two execution conditions (all must be fulfilled)",
+    )
+    max_prepared: int = Field(8, ge=1, description="prepared candidates per UT (maxNrofCondCells)")
+    preparation_delay_s: float = Field(0.0, ge=0, description="network preparation time [s]")
+    level: Level = _LEVEL
+
+
+class FilterConfig(Params):
+    """``[controller.filter]``: layer-3 filtering (TS 38.331 5.5.3.2)."""
+
+    k: FilterCoefficient = Field(4, description="filterCoefficient (fc0..fc19; 0: off)")
+    reference_period_s: float = Field(
+        0.2, gt=0, description="sample period the coefficient assumes [s] (L1 period of TS 38.133)"
+    )
+
+
+class RlfConfig(Params):
+    """``[controller.rlf]``: radio link failure (TS 38.331 5.3.10; defaults 9.2.3)."""
+
+    enabled: bool = Field(False, description="monitor the serving SINR and declare RLF")
+
+    q_out_db: float = Field(-8.0, description="out-of-sync below this SINR [dB] (study value)")
+    q_in_db: float = Field(-6.0, description="in-sync above this SINR [dB] (study value)")
+    t310_s: float = Field(1.0, ge=0, description="T310 [s] (ms0..ms6000)")
+    n310: int = Field(1, ge=1, le=20, description="out-of-sync indications to start T310")
+    n311: int = Field(1, ge=1, le=10, description="in-sync indications to stop T310")
+    reestablishment_s: float = Field(0.2, ge=0, description="RLF to service [s] (placeholder)")
+
+
+class KpiConfig(Params):
+    """``[kpi]``."""
+
+    ping_pong_s: float = Field(1.0, gt=0, description="minimum time of stay for ping-pong [s]")
+
+
+_TRIGGER_OF = {
+    "a3": lambda c: A3(c.offset_db, c.hysteresis_db, c.time_to_trigger_s),
+    "a4": lambda c: A4(c.threshold_db, c.hysteresis_db, c.time_to_trigger_s),
+    "a5": lambda c: A5(c.threshold1_db, c.threshold2_db, c.hysteresis_db, c.time_to_trigger_s),
+    "d1": lambda c: D1(c.threshold1_m, c.threshold2_m, c.hysteresis_m, c.time_to_trigger_s),
+    "d2": lambda c: D2(c.threshold1_m, c.threshold2_m, c.hysteresis_m, c.time_to_trigger_s),
+    "t1": lambda c: T1(c.duration_s, c.lead_s),
+    "elevation": lambda c: Elevation(
+        math.radians(c.serving_below_deg),
+        math.radians(c.candidate_above_deg),
+        math.radians(c.hysteresis_deg),
+        c.time_to_trigger_s,
+    ),
+    "time_to_exit": lambda c: TimeToExit(
+        c.offset_s,
+        c.hysteresis_s,
+        c.time_to_trigger_s,
+        math.inf if c.serving_below_s is None else c.serving_below_s,
+    ),
+}
+
+#: Policy config models by ``controller.policy`` name.
+POLICY_CONFIGS: dict[str, type[Params]] = {
+    "a3": A3Config,
+    "a4": A4Config,
+    "a5": A5Config,
+    "d1": D1Config,
+    "d2": D2Config,
+    "t1": T1Config,
+    "elevation": ElevationConfig,
+    "time_to_exit": TimeToExitConfig,
+    "cho": ChoConfig,
+}
+
+
+def build_trigger(config):
+    """The trigger event of a validated trigger config."""
+    return _TRIGGER_OF[config.kind](config)
+
+
+def build_policy(config, context=None):
+    """The policy of a validated policy config (the registry's ``build`` hook)."""
+    del context  # the policies need nothing of the scenario at build time
+    if config.kind == "cho":
+        return ConditionalHandover(
+            build_trigger(config.prepare),
+            [build_trigger(c) for c in config.execute],
+            config.max_prepared,
+            config.preparation_delay_s,
+            config.level,
+        )
+    return TriggerPolicy(build_trigger(config), config.level)
+
+
+def build_filter(config):
+    return L3Filter(config.k, config.reference_period_s)
+
+
+def build_rlf(config):
+    """The RLF parameters of ``[controller.rlf]``, None when it is not enabled."""
+    if not getattr(config, "enabled", True):
+        return None
+    return RlfParams(**{k: v for k, v in dict(config).items() if k != "enabled"})

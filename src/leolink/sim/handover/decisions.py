@@ -1,0 +1,246 @@
+"""Handover policies built from trigger events: what the controller calls once per epoch.
+
+Policy protocol (proposal for ``leolink.sim.handover.controller``)
+--------------------------------------------------------
+A policy has
+
+- ``needs``: the :class:`~leolink.sim.handover.triggers.Epoch` fields the controller must fill
+  (``meas``, ``ut_pos_m``, ``ref_pos_m``, ``moving_ref_pos_m``, ``elevation_rad``,
+  ``service_end_s``);
+- ``initial_state(n_ut, n_cand, n_beam) -> PolicyState``;
+- ``decide(epoch, state, n_beam) -> (Decision, PolicyState)``: pure. ``epoch`` is on the
+  cell axis ``cand = sat * n_beam + beam`` (per-satellite arrays, i.e. the moving
+  reference locations, have one row per satellite); ``Decision.target`` is the cell to
+  hand over to now (-1: stay). The policy owns its time-to-trigger: the controller
+  executes a target at once (its own ``time_to_trigger_s`` is 0 for these policies).
+
+The controller keeps execution time, outage, RLF and the first assignment, and calls
+``decide`` every epoch; a policy notices a serving change itself (``epoch.serving``
+differs from the serving it saw last) and clears its trigger rows (TS 38.331 5.5.6.1).
+
+Level. A cell-level policy decides satellite and beam. A satellite-level policy runs its
+trigger on satellites (cell arrays reduced by the maximum over each satellite's beams)
+and leaves the beam to max-``meas`` inside the chosen satellite; inside the serving
+satellite the beam follows max-``meas`` every epoch, and only a satellite change clears
+its triggers (a beam switch is beam management, not an RRC handover). Defaults: A3, A4,
+A5, D1: cell; D2, T1, elevation, time_to_exit: satellite.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from leolink.errors import require_at_least
+from leolink.sim.handover.triggers import (
+    A3,
+    A4,
+    A5,
+    TIME_TOL_S,
+    TriggerState,
+    advance,
+    evaluate,
+    neighbours,
+)
+from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
+
+#: Trigger classes by config name (``controller.policy``).
+TRIGGERS = {
+    "a3": A3,
+    "a4": A4,
+    "a5": A5,
+    "d1": D1,
+    "d2": D2,
+    "t1": T1,
+    "elevation": Elevation,
+    "time_to_exit": TimeToExit,
+}
+_PER_CELL = ("meas", "elevation_rad", "service_end_s")
+
+
+@dataclasses.dataclass(frozen=True)
+class Decision:
+    """``target`` int64 (n_ut,): cell to hand over to now, -1 to stay. ``prepared``: bool
+    (n_ut, n_unit) conditional-handover candidates on the policy's axis, or None.
+    ``report``: the TriggerReport of the (first) deciding trigger, for accounting."""
+
+    target: np.ndarray
+    prepared: np.ndarray | None = None
+    report: object = None
+
+
+@dataclasses.dataclass(frozen=True)
+class PolicyState:
+    """``serving`` (n_ut,) seen at the last call; one TriggerState per trigger; ``prepared``
+    (CHO only) the admitted candidates."""
+
+    serving: np.ndarray
+    triggers: tuple
+    prepared: np.ndarray | None = None
+
+
+def _reduce_beams(x, n_beam):
+    """Max over the beams of each satellite on the last axis (NaN ignored)."""
+    x = np.asarray(x, float)
+    if x.ndim == 0:
+        return x
+    return np.fmax.reduce(x.reshape(*x.shape[:-1], x.shape[-1] // n_beam, n_beam), axis=-1)
+
+
+def to_satellites(epoch, n_beam):
+    """The epoch on the satellite axis: serving satellite, per-cell arrays reduced by max."""
+    serving = np.asarray(epoch.serving, np.int64)
+    changes = {"serving": np.where(serving >= 0, serving // n_beam, -1)}
+    for name in (*_PER_CELL, "offset_db"):
+        value = getattr(epoch, name)
+        if value is not None and np.ndim(value) > 0:
+            changes[name] = _reduce_beams(value, n_beam)
+    return dataclasses.replace(epoch, **changes)
+
+
+def pick(mask, score):
+    """Per UT the index of the best ``score`` where ``mask``; -1 where none (NaN never wins)."""
+    s = np.where(np.asarray(mask, bool), np.asarray(score, float), -np.inf)
+    s = np.where(np.isnan(s), -np.inf, s)
+    if s.shape[1] == 0:
+        return np.full(s.shape[0], -1, np.int64)
+    best = np.argmax(s, axis=1)  # ties: the lowest index, as controller.best_candidate
+    found = s[np.arange(s.shape[0]), best] > -np.inf
+    return np.where(found, best, -1).astype(np.int64)
+
+
+def best_beam(sat, meas, n_beam):
+    """Cell of the best ``meas`` inside satellite ``sat`` (n_ut,); -1 where none usable."""
+    meas = np.asarray(meas, float)
+    rows = meas.reshape(meas.shape[0], -1, n_beam)[np.arange(len(sat)), np.maximum(sat, 0)]
+    beam = pick(np.ones(rows.shape, bool), rows)
+    return np.where((sat >= 0) & (beam >= 0), np.maximum(sat, 0) * n_beam + beam, -1)
+
+
+def _level_target(unit, epoch, level, n_beam):
+    """Cell target from a unit (cell or satellite) choice; -1 when it is the serving cell."""
+    serving = np.asarray(epoch.serving, np.int64)
+    if level == "cell":
+        cell = unit
+    else:
+        sat = np.where(unit >= 0, unit, np.where(serving >= 0, serving // n_beam, -1))
+        cell = best_beam(sat, epoch.need("meas", "satellite-level beam choice"), n_beam)
+    return np.where(cell == serving, -1, cell).astype(np.int64)
+
+
+def _unit_serving(serving, level, n_beam):
+    serving = np.asarray(serving, np.int64)
+    return serving if level == "cell" else np.where(serving >= 0, serving // n_beam, -1)
+
+
+def _changed(epoch, state, level, n_beam):
+    """bool (n_ut,): the serving unit (cell, or satellite) differs from the last one seen."""
+    now = _unit_serving(epoch.serving, level, n_beam)
+    return now != _unit_serving(state.serving, level, n_beam)
+
+
+def _check_level(level):
+    if level not in ("cell", "satellite"):
+        raise ValueError(f"level = {level!r}; use 'cell' or 'satellite'")
+    return level
+
+
+class TriggerPolicy:
+    """Hand over to the best triggered candidate of one trigger event (its ``rank``)."""
+
+    def __init__(self, trigger, level=None):
+        self.trigger = trigger
+        self.level = _check_level(level or trigger.level)
+        self.needs = tuple(dict.fromkeys(trigger.needs + ("meas",)))
+
+    def initial_state(self, n_ut, n_cand, n_beam):
+        n_unit = n_cand if self.level == "cell" else n_cand // n_beam
+        return PolicyState(np.full(n_ut, -1, np.int64), (TriggerState.initial(n_ut, n_unit),))
+
+    def _axis(self, epoch, n_beam):
+        return epoch if self.level == "cell" else to_satellites(epoch, n_beam)
+
+    def decide(self, epoch, state, n_beam):
+        (trig,) = state.triggers
+        trig = trig.reset(_changed(epoch, state, self.level, n_beam))
+        ep = self._axis(epoch, n_beam)
+        trig, report = evaluate(self.trigger, trig, ep)
+        unit = pick(trig.triggered, self.trigger.rank(ep))
+        target = _level_target(unit, epoch, self.level, n_beam)
+        return Decision(target, None, report), PolicyState(
+            np.asarray(epoch.serving, np.int64).copy(), (trig,)
+        )
+
+    def __repr__(self):
+        return f"TriggerPolicy({self.trigger!r}, level={self.level!r})"
+
+
+def _admit(admitted, ready, score, max_prepared):
+    """Keep admitted candidates still ready; admit the best new ones up to max_prepared."""
+    keep = admitted & ready
+    room = max_prepared - keep.sum(axis=1)
+    s = np.where(ready & ~keep, np.nan_to_num(score, nan=-np.inf), -np.inf)
+    order = np.argsort(-s, axis=1, kind="stable")
+    rank = np.empty_like(order)
+    np.put_along_axis(rank, order, np.arange(s.shape[1])[None, :], axis=1)
+    return keep | ((s > -np.inf) & (rank < room[:, None]))
+
+
+class ConditionalHandover:
+    """Conditional handover (TS 38.331 5.3.5.13): prepare candidates, execute on a condition.
+
+    A candidate is prepared once the ``prepare`` trigger has held it triggered for
+    ``preparation_delay_s`` (the network's preparation time), up to ``max_prepared`` per
+    UT (maxNrofCondCells = 8), best ``prepare.rank`` first; it stays prepared while the
+    prepare trigger keeps it triggered. Execution conditions (``execute``: one or two
+    CondEvents, all must be fulfilled, 5.3.5.13.4) are evaluated only on prepared
+    candidates, so their time-to-trigger starts no earlier than the preparation. Among
+    fulfilled candidates the UE picks the best by the first execution trigger's rank
+    (the standard leaves the choice to the UE). Execution clears everything.
+    """
+
+    def __init__(self, prepare, execute, max_prepared=8, preparation_delay_s=0.0, level=None):
+        self.prepare, self.execute = prepare, tuple(execute)
+        if not 1 <= len(self.execute) <= 2:
+            raise ValueError("conditional handover takes one or two execution conditions")
+        require_at_least("controller.cho.max_prepared", max_prepared, 1, "candidates")
+        require_at_least("controller.cho.preparation_delay_s", preparation_delay_s, 0.0, "[s]")
+        self.max_prepared, self.preparation_delay_s = int(max_prepared), float(preparation_delay_s)
+        self.level = _check_level(level or self.execute[0].level)
+        needs = prepare.needs + sum((t.needs for t in self.execute), ()) + ("meas",)
+        self.needs = tuple(dict.fromkeys(needs))
+
+    def initial_state(self, n_ut, n_cand, n_beam):
+        n_unit = n_cand if self.level == "cell" else n_cand // n_beam
+        states = tuple(TriggerState.initial(n_ut, n_unit) for _ in range(1 + len(self.execute)))
+        return PolicyState(np.full(n_ut, -1, np.int64), states, np.zeros((n_ut, n_unit), bool))
+
+    def decide(self, epoch, state, n_beam):
+        changed = _changed(epoch, state, self.level, n_beam)
+        states = [s.reset(changed) for s in state.triggers]
+        ep = epoch if self.level == "cell" else to_satellites(epoch, n_beam)
+        states[0], _ = evaluate(self.prepare, states[0], ep)
+        with np.errstate(invalid="ignore"):
+            ready = ep.t_s - states[0].triggered_at_s >= self.preparation_delay_s - TIME_TOL_S
+        admitted = np.where(changed[:, None], False, state.prepared)
+        prepared = _admit(admitted, ready, self.prepare.rank(ep), self.max_prepared)
+        applicable = neighbours(ep, prepared.shape[1]) & prepared
+        fulfilled, report = prepared.copy(), None
+        for i, trig in enumerate(self.execute, start=1):
+            enter, leave = trig.conditions(ep)
+            states[i], rep = advance(
+                states[i], ep.t_s, enter, leave, trig.time_to_trigger_s, applicable
+            )
+            fulfilled &= states[i].triggered
+            report = rep if report is None else report
+        unit = pick(fulfilled, self.execute[0].rank(ep))
+        target = _level_target(unit, epoch, self.level, n_beam)
+        serving = np.asarray(epoch.serving, np.int64).copy()
+        return Decision(target, prepared, report), PolicyState(serving, tuple(states), prepared)
+
+    def __repr__(self):
+        return (
+            f"ConditionalHandover(prepare={self.prepare!r}, execute={self.execute!r}, "
+            f"max_prepared={self.max_prepared}, preparation_delay_s={self.preparation_delay_s})"
+        )

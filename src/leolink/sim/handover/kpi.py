@@ -1,0 +1,234 @@
+"""Handover KPIs from the event and dwell tables (the streaming percentiles over UT-epochs:
+:mod:`leolink.sim.histograms`).
+
+Tables are dicts of equal-length 1-D arrays, as :mod:`leolink.sim.handover.controller` emits them:
+events ``time_s, ut_id, kind, from_sat, from_beam, to_sat, to_beam`` (kinds
+``beam_handover``, ``sat_handover``, ``outage_start``, ``outage_end``, ``rlf``, ...);
+dwells ``ut_id, sat_id, beam_id, start_s, end_s, censored_start, censored_end``.
+
+Definitions
+-----------
+Handover rate: handovers per UT-minute of observation, overall and by kind.
+
+Ping-pong (after TR 36.839 5.2.2, "ping-pong modelling", and the time-of-stay of
+5.4.3): a handover ``B -> A`` is a ping-pong when the UT's previous serving change was
+the handover ``A -> B`` and it came less than ``ping_pong_s`` earlier (the time of stay in
+``B`` is shorter than the minimum time of stay, 1 s by default). At cell level a cell is
+``(sat, beam)`` and every event of the UT (handover, outage, RLF) is a serving change; at
+satellite level only satellite handovers, outages and RLFs are, so beam handovers inside
+``B`` do not break the pair. Each return counts once, so ``A -> B -> A -> B`` has two
+ping-pongs. ``ping_pong_fraction`` = ping-pongs / handovers (of the same level).
+
+Time of stay: the duration of a dwell (beam level: one serving cell; satellite level:
+consecutive dwells on one satellite joined where one ends as the next starts). A stay cut
+by the start or end of the run (``censored_*``) is not complete: it is excluded from the
+mean and the distribution and counted apart.
+
+References
+----------
+.. [1] 3GPP TR 36.839 V11.1.0, "E-UTRA; Mobility enhancements in heterogeneous
+   networks", 5.2.2 Ping-pong modelling, 5.4.2 handover performance metrics, 5.4.3
+   short time-of-stay.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from leolink.sim.histograms import (  # noqa: F401  (re-exported: the KPIs' percentiles)
+    PERCENTILES,
+    GroupedPercentileHistogram,
+    PercentileHistogram,
+    interpolated_percentiles,
+)
+from leolink.sim.quantiles import median, percentile_of_sorted
+
+HANDOVER_KINDS = ("beam_handover", "sat_handover")
+# Dwell boundaries come from the same epoch times; 1 ns absorbs float rounding.
+TIME_TOL_S = 1e-9
+
+
+def _ut_minutes(observed_s, n_ut):
+    minutes = np.broadcast_to(np.asarray(observed_s, float), (n_ut,)) / 60.0
+    if np.any(minutes <= 0):
+        raise ValueError("observed_s must be > 0 for every UT")
+    return minutes
+
+
+def handover_rates(events, observed_s, n_ut, kinds=HANDOVER_KINDS):
+    """Handovers per UT-minute, overall and by kind.
+
+    Parameters
+    ----------
+    events : dict of arrays (``ut_id``, ``kind``)
+    observed_s : float or (n_ut,) [s], observation time of each UT.
+    n_ut : int
+    kinds : the event kinds that are handovers.
+
+    Returns
+    -------
+    dict
+        ``overall`` (total handovers / total UT-minutes), ``by_kind`` {kind: float},
+        ``per_ut`` (n_ut,) and ``per_ut_by_kind`` {kind: (n_ut,)} [1/min].
+    """
+    minutes = _ut_minutes(observed_s, n_ut)
+    ut, kind = np.asarray(events["ut_id"], np.int64), np.asarray(events["kind"])
+    per_kind = {k: np.bincount(ut[kind == k], minlength=n_ut).astype(float) for k in kinds}
+    total = sum(per_kind.values(), np.zeros(n_ut))
+    return {
+        "overall": float(total.sum() / minutes.sum()),
+        "by_kind": {k: float(c.sum() / minutes.sum()) for k, c in per_kind.items()},
+        "per_ut": total / minutes,
+        "per_ut_by_kind": {k: c / minutes for k, c in per_kind.items()},
+    }
+
+
+def ping_pong_mask(events, ping_pong_s=1.0, level="cell"):
+    """bool per event: the handover is a ping-pong (module docstring).
+
+    Parameters
+    ----------
+    events : dict of arrays
+    ping_pong_s : float [s], minimum time of stay; a return strictly sooner is a ping-pong.
+    level : "cell" or "satellite"
+
+    Returns
+    -------
+    ndarray of bool, one per event row, in the table's order.
+    """
+    kind = np.asarray(events["kind"])
+    if level == "cell":
+        counted, breaks = np.isin(kind, HANDOVER_KINDS), np.ones(kind.shape, bool)
+        cols = ("from_sat", "from_beam", "to_sat", "to_beam")
+    elif level == "satellite":
+        counted = kind == "sat_handover"
+        breaks = kind != "beam_handover"  # a beam change inside the satellite is no change
+        cols = ("from_sat", "from_sat", "to_sat", "to_sat")
+    else:
+        raise ValueError(f"level = {level!r}; use 'cell' or 'satellite'")
+    idx = np.flatnonzero(breaks)
+    time_s, ut_all = np.asarray(events["time_s"], float), np.asarray(events["ut_id"])
+    order = idx[np.lexsort((idx, time_s[idx], ut_all[idx]))]
+    t, ut = time_s[order], ut_all[order]
+    fs, fb, ts, tb = (np.asarray(events[c])[order] for c in cols)
+    pp = np.zeros(order.shape, bool)
+    same = (ut[1:] == ut[:-1]) & counted[order][1:] & counted[order][:-1]
+    chain = (fs[1:] == ts[:-1]) & (fb[1:] == tb[:-1])  # B -> A starts where A -> B ended
+    back = (ts[1:] == fs[:-1]) & (tb[1:] == fb[:-1])  # ... and returns to A
+    pp[1:] = same & chain & back & (t[1:] - t[:-1] < ping_pong_s - TIME_TOL_S)
+    mask = np.zeros(kind.shape, bool)
+    mask[order] = pp
+    return mask
+
+
+def ping_pong_fraction(events, ping_pong_s=1.0, level="cell"):
+    """``(fraction, n_ping_pong, n_handover)``; fraction NaN without handovers."""
+    kind = np.asarray(events["kind"])
+    n_ho = int(np.isin(kind, HANDOVER_KINDS if level == "cell" else ("sat_handover",)).sum())
+    n_pp = int(ping_pong_mask(events, ping_pong_s, level).sum())
+    return (n_pp / n_ho if n_ho else math.nan), n_pp, n_ho
+
+
+def stays(dwells, level="beam"):
+    """Stays as a dwell table: the dwells themselves (beam) or joined per satellite.
+
+    At satellite level, dwells of one UT on one satellite that follow each other without
+    a gap (``end_s`` of one = ``start_s`` of the next) become one stay.
+    """
+    if level == "beam":
+        return {k: np.asarray(v) for k, v in dwells.items()}
+    if level != "satellite":
+        raise ValueError(f"level = {level!r}; use 'beam' or 'satellite'")
+    ut, sat = np.asarray(dwells["ut_id"]), np.asarray(dwells["sat_id"])
+    start, end = np.asarray(dwells["start_s"], float), np.asarray(dwells["end_s"], float)
+    order = np.lexsort((start, ut))
+    ut, sat, start, end = ut[order], sat[order], start[order], end[order]
+    touching = np.abs(start[1:] - end[:-1]) <= TIME_TOL_S
+    joins = (ut[1:] == ut[:-1]) & (sat[1:] == sat[:-1]) & touching
+    first = np.flatnonzero(np.concatenate(([True], ~joins))) if len(ut) else np.zeros(0, int)
+    last = np.concatenate((first[1:] - 1, [len(ut) - 1])) if len(ut) else first
+    cs = np.asarray(dwells["censored_start"], bool)[order]
+    ce = np.asarray(dwells["censored_end"], bool)[order]
+    return {
+        "ut_id": ut[first],
+        "sat_id": sat[first],
+        "start_s": start[first],
+        "end_s": end[last],
+        "censored_start": cs[first],
+        "censored_end": ce[last],
+    }
+
+
+def time_of_stay(dwells, level="beam"):
+    """Distribution of complete stays [s]: ``durations_s`` (sorted), ``mean_s``,
+    ``median_s``, ``p10_s``, ``p90_s``, ``n_complete``, ``n_censored`` (NaN stats if none)."""
+    table = stays(dwells, level)
+    dur = np.asarray(table["end_s"], float) - np.asarray(table["start_s"], float)
+    censored = np.asarray(table["censored_start"], bool) | np.asarray(table["censored_end"], bool)
+    done = np.sort(dur[~censored])
+    stat = (lambda f: float(f(done))) if done.size else (lambda f: math.nan)
+    return {
+        "durations_s": done,
+        "mean_s": stat(np.mean),
+        "median_s": stat(median),
+        "p10_s": stat(lambda d: percentile_of_sorted(d, 10)),
+        "p90_s": stat(lambda d: percentile_of_sorted(d, 90)),
+        "n_complete": int(done.size),
+        "n_censored": int(censored.sum()),
+    }
+
+
+class StateTime:
+    """Time each UT spends in each state (service code, outage reason), streamed per epoch.
+
+    ``add(codes, dt_s)``: codes (n_ut,) int in ``range(len(names))``, -1 to skip; the epoch
+    weighs ``dt_s`` [s]. ``time_s``: (n_ut, n_state) [s]. ``fractions()``: share of all
+    UT-time in each state.
+    """
+
+    def __init__(self, n_ut, names):
+        self.names = tuple(names)
+        self.time_s = np.zeros((n_ut, len(self.names)))
+
+    def add(self, codes, dt_s):
+        codes = np.asarray(codes, np.int64)
+        ok = codes >= 0
+        flat = np.flatnonzero(ok) * len(self.names) + codes[ok]
+        self.time_s.reshape(-1)[:] += dt_s * np.bincount(flat, minlength=self.time_s.size)
+
+    def fractions(self):
+        total = self.time_s.sum()
+        share = self.time_s.sum(axis=0) / total if total else np.full(len(self.names), np.nan)
+        return dict(zip(self.names, map(float, share), strict=True))
+
+
+def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0):
+    """The ``overall.kpi`` block of summary.json from the event and dwell tables.
+
+    SINR/throughput percentiles and interruption/outage times come from the streamed
+    :class:`PercentileHistogram` and :class:`StateTime`; the caller adds their summaries.
+    """
+    rates = handover_rates(events, observed_s, n_ut)
+    pp_cell, n_pp_cell, _ = ping_pong_fraction(events, ping_pong_s, "cell")
+    pp_sat, n_pp_sat, _ = ping_pong_fraction(events, ping_pong_s, "satellite")
+    stay = {level: time_of_stay(dwells, level) for level in ("beam", "satellite")}
+    n_rlf = int(np.sum(np.asarray(events["kind"]) == "rlf"))
+    minutes = _ut_minutes(observed_s, n_ut).sum()
+    return {
+        "handover_rate_per_ut_min": rates["overall"],
+        "handover_rate_per_ut_min_by_kind": rates["by_kind"],
+        "ping_pong_s": float(ping_pong_s),
+        "ping_pong_fraction": pp_cell,
+        "ping_pong_count": n_pp_cell,
+        "ping_pong_fraction_satellite": pp_sat,
+        "ping_pong_count_satellite": n_pp_sat,
+        "rlf_count": n_rlf,
+        "rlf_rate_per_ut_min": n_rlf / minutes,
+        "mean_time_of_stay_s": {k: v["mean_s"] for k, v in stay.items()},
+        "time_of_stay_s": {
+            k: {m: v[m] for m in ("median_s", "p10_s", "p90_s", "n_complete", "n_censored")}
+            for k, v in stay.items()
+        },
+    }

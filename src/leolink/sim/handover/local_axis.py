@@ -1,0 +1,154 @@
+"""Per-UT local candidate axes: what lets dense trigger state follow sparse candidate tables.
+
+The trigger policies of :mod:`leolink.sim.handover.decisions` keep one time-to-trigger run, one
+triggered flag and one layer-3 filter per (UT, candidate), on a dense candidate axis
+``cand = sat * n_beam + beam`` shared by all UTs. A run's candidate tables
+(:class:`~leolink.sim.candidates.table.Candidates`) are sparse: a UT sees a few of thousands of
+satellites. A :class:`LocalAxis` gives every UT its own dense axis over *its*
+satellites: row ``i`` lists global satellite ids ``sats[i, 0 .. n_local - 1]`` in
+ascending order (-1 in unused slots), and local cell ``s * n_beam + b`` is beam ``b`` of
+satellite ``sats[i, s]``. So the pure trigger code runs unchanged (``serving // n_beam``
+is the local satellite, a reshape to ``(n_local, n_beam)`` reduces cells to satellites),
+and ties resolve as the global table's (lowest local index = lowest global cell id).
+
+From one epoch to the next, :meth:`LocalAxis.remap` carries every per-candidate array
+to the new axis by global satellite id: a cell keeps its timers and filter while it is on
+the UT's axis. The next axis holds the satellites of the new table plus every satellite
+of the old axis that still has live state (a running timer, a triggered cell, a filter
+value, the serving cell): a satellite that left the table is kept, with NaN
+measurements, until its state has run out, exactly as a dense axis over all satellites
+would behave (a NaN measurement resets the filter and lets a triggered cell leave after
+its time-to-trigger; :mod:`leolink.sim.handover.triggers`). A satellite without live state is
+dropped: on a dense axis it would hold nothing either.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+
+from leolink.arrays import nonzero_2d
+
+__all__ = ["LocalAxis"]
+
+
+@dataclasses.dataclass(frozen=True)
+class LocalAxis:
+    """Per-UT local satellites (module docstring).
+
+    Attributes
+    ----------
+    sats : ndarray of int64, shape (n_ut, n_local)
+        Global satellite ids, ascending per row, -1 in unused slots (at the end).
+    n_beam : int
+    """
+
+    sats: np.ndarray
+    n_beam: int
+
+    @classmethod
+    def empty(cls, n_ut, n_beam):
+        return cls(np.full((n_ut, 0), -1, np.int64), int(n_beam))
+
+    @classmethod
+    def union(cls, n_ut, n_beam, ut, sat):
+        """The axis holding every satellite ``sat[k]`` of UT ``ut[k]`` (repeats allowed)."""
+        ut, sat = np.asarray(ut, np.int64), np.asarray(sat, np.int64)
+        keep = sat >= 0
+        ut, sat = ut[keep], sat[keep]
+        span = int(sat.max(initial=0)) + 1
+        key = np.unique(ut * span + sat)  # sorted: by UT, then satellite
+        row, s = np.divmod(key, span)
+        counts = np.bincount(row, minlength=n_ut)
+        start = np.cumsum(counts) - counts
+        sats = np.full((n_ut, int(counts.max(initial=0))), -1, np.int64)
+        sats[row, np.arange(key.size) - start[row]] = s
+        return cls(sats, int(n_beam))
+
+    @property
+    def n_ut(self) -> int:
+        return self.sats.shape[0]
+
+    @property
+    def n_local(self) -> int:
+        return self.sats.shape[1]
+
+    @property
+    def n_cand(self) -> int:
+        """Local cells per UT, ``n_local * n_beam``."""
+        return self.n_local * self.n_beam
+
+    @functools.cached_property
+    def _index(self):
+        """``(span, keys, slots)``: sorted keys ``row * span + sat`` of the occupied slots."""
+        rows, slots = nonzero_2d(self.sats >= 0)  # row-major: by row, then ascending sat
+        span = int(self.sats.max(initial=0)) + 1
+        return span, rows * span + self.sats[rows, slots], slots
+
+    def _slot(self, rows, sat):
+        """Local slot of global satellite ``sat[k]`` in row ``rows[k]``, -1 where absent."""
+        rows, sat = np.asarray(rows, np.int64), np.asarray(sat, np.int64)
+        span, keys, slots = self._index
+        if keys.size == 0:
+            return np.full(rows.shape, -1, np.int64)
+        query = rows * span + sat
+        pos = np.minimum(np.searchsorted(keys, query), keys.size - 1)
+        hit = (keys[pos] == query) & (sat >= 0) & (sat < span)
+        return np.where(hit, slots[pos], -1)
+
+    def local_cell(self, cell):
+        """Global cell ``cell[i]`` of UT ``i`` -> its local cell, -1 if absent or < 0."""
+        cell = np.asarray(cell, np.int64)
+        sat, beam = np.divmod(np.maximum(cell, 0), self.n_beam)
+        slot = self._slot(np.arange(cell.size), np.where(cell >= 0, sat, -1))
+        return np.where(slot >= 0, slot * self.n_beam + beam, -1)
+
+    def global_cell(self, local):
+        """Local cell ``local[i]`` of UT ``i`` -> its global cell id, -1 for -1."""
+        local = np.asarray(local, np.int64)
+        slot, beam = np.divmod(np.maximum(local, 0), self.n_beam)
+        if self.n_local == 0:
+            return np.full(local.shape, -1, np.int64)
+        sat = self.sats[np.arange(local.size), np.minimum(slot, self.n_local - 1)]
+        return np.where((local >= 0) & (sat >= 0), sat * self.n_beam + beam, -1)
+
+    def values(self, table, fill=np.nan):
+        """A :class:`~leolink.sim.candidates.table.Candidates` table on this axis, ``(n_ut,
+        n_cand)``: its values at their local cells, ``fill`` where the table has none."""
+        out = np.full((self.n_ut, self.n_cand), fill, float)
+        rows, slots = nonzero_2d(table.cell >= 0)
+        local = self._slot(rows, table.cell[rows, slots] // self.n_beam)
+        ok = local >= 0
+        beam = table.cell[rows, slots] % self.n_beam
+        out[rows[ok], local[ok] * self.n_beam + beam[ok]] = table.snr_db[rows[ok], slots[ok]]
+        return out
+
+    def per_satellite(self, sat_values, fill=np.nan):
+        """``sat_values[g]`` of every local satellite ``g``, ``(n_ut, n_local, ...)``."""
+        sat_values = np.asarray(sat_values)
+        got = sat_values[np.maximum(self.sats, 0)]
+        mask = (self.sats < 0).reshape(self.sats.shape + (1,) * (got.ndim - 2))
+        return np.where(mask, fill, got)
+
+    def remap(self, new, values, fill):
+        """Carry ``values`` from this axis to axis ``new`` by global satellite id.
+
+        ``values``: shape ``(n_ut, n_local * n_beam, ...)`` (per cell) or ``(n_ut,
+        n_local, ...)`` (per satellite); returns the same on ``new``, ``fill`` for
+        satellites that were not on this axis.
+        """
+        values = np.asarray(values)
+        if values.shape[1] not in (self.n_cand, self.n_local):
+            raise ValueError(f"remap: axis 1 has {values.shape[1]}, not a cell or satellite axis")
+        per_cell = values.shape[1] == self.n_cand  # n_beam = 1: both readings agree
+        inner = (self.n_beam,) if per_cell else ()
+        old = values.reshape((self.n_ut, self.n_local) + inner + values.shape[2:])
+        out = np.full((new.n_ut, new.n_local) + inner + values.shape[2:], fill, values.dtype)
+        rows, slots = nonzero_2d(new.sats >= 0)
+        src = self._slot(rows, new.sats[rows, slots])
+        ok = src >= 0
+        out[rows[ok], slots[ok]] = old[rows[ok], src[ok]]
+        width = new.n_cand if per_cell else new.n_local
+        return out.reshape((new.n_ut, width) + values.shape[2:])

@@ -1,0 +1,1 @@
+"""UT motion: the mobility models and the populations that use them."""
