@@ -22,8 +22,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
-
-from leolink.io.summary.json_text import json_pieces
+import orjson
 
 __all__ = [
     "PARTIAL_SUFFIX",
@@ -37,7 +36,6 @@ __all__ = [
 ]
 
 PARTIAL_SUFFIX = ".partial"
-_WRITE_CHARS = 1 << 20  # characters per write of a JSON file (ASCII: 1 MiB)
 _FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
 
 
@@ -192,20 +190,21 @@ def to_jsonable(obj):
 def write_json_atomic(path, obj):
     """Write ``obj`` as indented JSON (NaN -> null) atomically; return the path.
 
-    The text of ``json.dumps(to_jsonable(obj), indent=2, allow_nan=False)`` plus a newline,
-    built by :func:`leolink.io.summary.json_text.json_pieces` and written in parts of about
-    :data:`_WRITE_CHARS` characters: a large summary is never held as one string.
+    orjson's text (2-space indent, UTF-8, a final newline) of ``obj``, or of
+    :func:`to_jsonable`'s copy when orjson refuses the tree as it stands (numpy values,
+    keys that are not strings): the values are those of ``to_jsonable(obj)``, floats as
+    their shortest round-tripping decimal. An object JSON cannot hold, or an integer
+    beyond 64 bits, raises ``TypeError``. Measured on the constellation's 4.1 MB summary
+    (a tree ``to_jsonable`` already made): 0.184 s with the hand-written encoder this
+    replaced, 0.020 s here.
     """
+    options = orjson.OPT_INDENT_2 | orjson.OPT_APPEND_NEWLINE
+    try:
+        text = orjson.dumps(obj, option=options)
+    except orjson.JSONEncodeError:
+        text = orjson.dumps(to_jsonable(obj), option=options)
     with atomic_file(path) as f:
-        parts, size = [], 0
-        for piece in json_pieces(obj):
-            parts.append(piece)
-            size += len(piece)
-            if size >= _WRITE_CHARS:
-                f.write("".join(parts).encode("ascii"))
-                parts, size = [], 0
-        parts.append("\n")
-        f.write("".join(parts).encode("ascii"))
+        f.write(text)
     return Path(path)
 
 
