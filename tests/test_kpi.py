@@ -110,6 +110,8 @@ def test_time_of_stay_excludes_censored_dwells():
     beam = time_of_stay(dw, "beam")
     assert beam["durations_s"].tolist() == [2.0, 3.0, 5.0]
     assert beam["mean_s"] == pytest.approx(10 / 3) and beam["n_censored"] == 2
+    # linear interpolation at rank (n - 1) q: 2 + 0.2 * (3 - 2), 3 + 0.8 * (5 - 3)
+    assert (beam["median_s"], beam["p10_s"], beam["p90_s"]) == pytest.approx((3.0, 2.2, 4.6))
     sat = time_of_stay(dw, "satellite")
     # UT 0: sat 0 from 0 to 6 (censored start), sat 1 from 6 to 20 (censored end)
     assert sat["durations_s"].tolist() == [5.0] and sat["n_censored"] == 2

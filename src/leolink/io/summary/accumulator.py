@@ -40,7 +40,6 @@ from leolink.sim.handover.controller import (
     SERVICE_OUTAGE,
 )
 from leolink.sim.processes import OUTAGE_REASONS
-from leolink.sim.quantiles import median
 
 __all__ = [
     "DB_RANGE",
@@ -329,7 +328,7 @@ class SummaryAccumulator:
             dwell["complete_s"] = done.tolist()
         dwell["n_censored"] = int((~complete).sum())
         dwell["mean_s"] = done.mean() if done.size else None
-        dwell["median_s"] = median(done) if done.size else None
+        dwell["median_s"] = float(np.median(done)) if done.size else None
         counts = {k: self.event_counts[i].sum() for i, k in enumerate(EVENT_KINDS)}
         return {
             "n_ut": self.n_ut,
