@@ -178,26 +178,6 @@ def test_a_run_with_errors_writes_its_files(tmp_path):
     assert "ephemeris_errors.csv" in manifest
 
 
-def test_the_precoder_hook_gives_the_true_and_the_believed_directions():
-    from leolink.ephemeris_error import believed_and_true_cosines
-
-    sat, vel = np.array([0.0, 0.0, 7.671e6]), np.array([7.2e3, 0.0, 0.0])
-    ut = np.array([[1e5, 2e5, 6.37e6], [-3e5, 0.0, 6.36e6]])
-    est = sat + np.array([2e4, 0.0, 0.0])  # 20 km along-track
-    u_true, u_est = believed_and_true_cosines(ut, sat, vel, est, vel)
-    d = ut - sat
-    np.testing.assert_allclose(u_true, (d / np.linalg.norm(d, axis=1)[:, None])[:, :2])
-    # By hand: the believed body frame is radial z at the believed position, x the
-    # velocity without its radial part, y = z x x.
-    z = est / np.linalg.norm(est)
-    x = vel - (vel @ z) * z
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    d = (ut - est) / np.linalg.norm(ut - est, axis=1)[:, None]
-    np.testing.assert_allclose(u_est, np.stack([d @ x, d @ y], axis=1), atol=1e-12)
-    assert np.abs(u_est - u_true).max() > 5e-3  # 20 km moves them by ~0.01
-
-
 def test_the_wired_precoder_sees_the_believed_and_the_true_satellite(monkeypatch):
     """In a run, the precoder's inputs carry the serving satellite's true position and the
     one the controller believes (both recomputed here from the two ephemerides)."""

@@ -13,7 +13,6 @@ from leolink.sim.handover.kpi import (
     PERCENTILES,
     GroupedPercentileHistogram,
     PercentileHistogram,
-    StateTime,
     handover_rates,
     ping_pong_fraction,
     ping_pong_mask,
@@ -218,14 +217,6 @@ def test_histogram_merge_equals_one_stream():
     whole.add(x)
     a.merge(b)
     np.testing.assert_array_equal(a.counts, whole.counts)
-
-
-def test_state_time_accumulates_per_ut_and_state():
-    st = StateTime(3, ("served", "handover", "outage"))
-    st.add(np.array([0, 1, 2]), 0.5)
-    st.add(np.array([0, 0, -1]), 0.5)
-    np.testing.assert_allclose(st.time_s, [[1.0, 0, 0], [0.5, 0.5, 0], [0, 0, 0.5]])
-    assert st.fractions() == pytest.approx({"served": 0.6, "handover": 0.2, "outage": 0.2})
 
 
 def test_summary_block_names_and_values():

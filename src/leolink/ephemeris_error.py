@@ -32,7 +32,7 @@ from leolink.geometry import body_frame
 from leolink.registry import Params, Registry
 
 __all__ = ["EPHEMERIS_ERRORS", "EphemerisErrorModel", "EstimatedEphemeris", "RtnError"]
-__all__ += ["believed_and_true_cosines", "rtn_to_frame"]
+__all__ += ["rtn_to_frame"]
 
 _SECONDS_PER_HOUR = 3600.0
 #: Spawn key of the ephemeris-error draws under the run's seed.
@@ -180,29 +180,3 @@ EPHEMERIS_ERRORS.add(
     doc="along/cross/radial Gaussian errors, constant offsets, along-track growth",
     config=RtnConfig,
 )
-
-
-def believed_and_true_cosines(ut_pos_m, true_pos_m, true_vel_m_s, est_pos_m, est_vel_m_s):
-    """The UTs' direction cosines seen by a satellite, true and as it believes them.
-
-    The hook of a precoder under ephemeris error: computed from the believed cosines, its
-    weights meet the channel of the true ones, and the mismatch leaves residual
-    inter-beam interference (``analysis/precoding_pass.py`` does this by hand).
-
-    Parameters
-    ----------
-    ut_pos_m : ndarray, shape (n_ut, 3)
-    true_pos_m, true_vel_m_s, est_pos_m, est_vel_m_s : ndarray, shape (3,)
-        The satellite's true and believed states (same Earth-centred frame).
-
-    Returns
-    -------
-    u_true, u_believed : ndarray, shape (n_ut, 2)
-        Body-frame ``(u_x, u_y)`` [-].
-    """
-    from leolink.geometry import direction_cosines
-
-    return (
-        direction_cosines(true_pos_m, true_vel_m_s, ut_pos_m),
-        direction_cosines(est_pos_m, est_vel_m_s, ut_pos_m),
-    )

@@ -179,35 +179,11 @@ def time_of_stay(dwells, level="beam"):
     }
 
 
-class StateTime:
-    """Time each UT spends in each state (service code, outage reason), streamed per epoch.
-
-    ``add(codes, dt_s)``: codes (n_ut,) int in ``range(len(names))``, -1 to skip; the epoch
-    weighs ``dt_s`` [s]. ``time_s``: (n_ut, n_state) [s]. ``fractions()``: share of all
-    UT-time in each state.
-    """
-
-    def __init__(self, n_ut, names):
-        self.names = tuple(names)
-        self.time_s = np.zeros((n_ut, len(self.names)))
-
-    def add(self, codes, dt_s):
-        codes = np.asarray(codes, np.int64)
-        ok = codes >= 0
-        flat = np.flatnonzero(ok) * len(self.names) + codes[ok]
-        self.time_s.reshape(-1)[:] += dt_s * np.bincount(flat, minlength=self.time_s.size)
-
-    def fractions(self):
-        total = self.time_s.sum()
-        share = self.time_s.sum(axis=0) / total if total else np.full(len(self.names), np.nan)
-        return dict(zip(self.names, map(float, share), strict=True))
-
-
 def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0):
     """The ``overall.kpi`` block of summary.json from the event and dwell tables.
 
-    SINR/throughput percentiles and interruption/outage times come from the streamed
-    :class:`PercentileHistogram` and :class:`StateTime`; the caller adds their summaries.
+    SINR/throughput percentiles and interruption/outage times are streamed by the caller
+    (:class:`PercentileHistogram`), which adds their summaries.
     """
     rates = handover_rates(events, observed_s, n_ut)
     pp_cell, n_pp_cell, _ = ping_pong_fraction(events, ping_pong_s, "cell")
