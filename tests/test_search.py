@@ -13,15 +13,18 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from pydantic import Field
 
 from leolink.antenna.array import ula_gain
 from leolink.antenna.panel import oriented_panel_basis
-from leolink.antenna.terminal import UPATerminal
+from leolink.antenna.terminal import TERMINALS, UPATerminal
 from leolink.app.scenario import build_scenario
 from leolink.config import load_config
 from leolink.engine import LinkEngine, screening
 from leolink.engine.screening import UNCERTAIN, VISIBLE, envelope, screen
+from leolink.errors import ConfigError
 from leolink.geometry import body_frame, enu_basis
+from leolink.registry import Params
 from leolink.sim.candidates import search
 from leolink.sim.candidates.search import CandidateSearch
 from leolink.sim.motion import MotionBlocks
@@ -493,3 +496,64 @@ def test_dense_pairs_are_every_ut_with_every_satellite_of_its_epochs_cone(k0, n_
     want = [(k * n_ut + u, s) for k in ks for u in range(n_ut) for s in cones[k]]
     assert list(zip(rows.tolist(), sats.tolist(), strict=True)) == want
     assert rows.dtype == sats.dtype == np.int64
+
+
+#: Width of the steps of the stepped pattern below [rad]: about ten times the difference
+#: between the screening's elevation and the engine's (rounding, ~1e-15 rad), so that one
+#: pair in ten or so sees another step in the two.
+_STEP_RAD = 1e-14
+
+
+class SteppedConfig(Params):
+    smooth_gain: bool = Field(False, description="declare the gain smooth (it is not)")
+    give_max: bool = Field(True, description="declare max_gain_db")
+
+
+class Stepped:
+    """A stepped (piecewise constant) pattern: 30 dB on every other elevation step, 0 dB
+    on the others: its gain jumps between the screening's elevation and the engine's."""
+
+    elevation_independent = False
+    pattern_lin = None
+
+    def __init__(self, smooth_gain=False, give_max=True):
+        self.smooth_gain = smooth_gain
+        if give_max:
+            self.max_gain_db = 30.0
+
+    def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0):
+        el = np.asarray(elevation_rad, float) + 0.0 * np.asarray(off_boresight_rad)
+        return np.where(np.floor(el / _STEP_RAD) % 2 == 1, 30.0, 0.0)
+
+
+@pytest.fixture
+def stepped():
+    TERMINALS.register("stepped", config=SteppedConfig)(Stepped)
+    yield
+    TERMINALS.remove("stepped")
+
+
+@pytest.mark.parametrize("declared_smooth", [False, True])
+def test_a_stepped_terminal_is_pruned_exactly_when_it_says_it_is_not_smooth(
+    block, stepped, declared_smooth
+):
+    """The TerminalAntenna contract: a gain that is not smooth, declared so with its
+    maximum, is bounded by that maximum and the pruned tables are the exhaustive ones; the
+    same pattern declared smooth breaks the pruning (what the contract guards against)."""
+    eng, n_ut, mb, cones = block
+    terminal = TERMINALS.build("stepped", SteppedConfig(smooth_gain=declared_smooth))
+    eng = LinkEngine(eng.codebook, terminal, eng.params, eng.atmosphere, eng.colors)
+    cells, snr, blk = _tables(eng, n_ut, mb, cones, 3.0, prune=True)
+    cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, 3.0, prune=False)
+    same = cells.shape == cells_ref.shape and np.array_equal(cells, cells_ref)
+    assert same == (not declared_smooth)
+    if not declared_smooth:
+        assert np.array_equal(snr, snr_ref)
+        assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
+        assert blk.links.n_pair < ref.links.n_pair  # still pruned (by the 30 dB maximum)
+
+
+def test_a_stepped_terminal_without_its_maximum_is_refused_at_config_time(stepped):
+    sets = ["terminal.kind=stepped", "terminal.stepped.give_max=false"]
+    with pytest.raises(ConfigError, match=r"terminal.kind = 'stepped' is not allowed: its gain"):
+        build_scenario(load_config("configs/paper.toml", sets))

@@ -33,6 +33,7 @@ from pydantic import Field
 from leolink.antenna.array import ula_gain, upa_gain
 from leolink.antenna.element import DEFAULT_SCAN_EXPONENT, element_factor_lin
 from leolink.antenna.panel import pointing_offsets
+from leolink.errors import ConfigError
 from leolink.registry import Params, Registry
 
 __all__ = [
@@ -46,6 +47,7 @@ __all__ = [
     "UPATerminal",
     "leaky_wave_gain_lin",
     "leaky_wave_peak_gain_lin",
+    "pruning_terminal",
 ]
 
 
@@ -58,6 +60,24 @@ class TerminalAntenna(Protocol):  # pragma: no mutate block (mutants would add p
     engine evaluates it once); ``pattern_lin(du_x, du_y)`` is the linear gain towards a
     direction offset by panel direction cosines from the beam, or None for a model
     without a pattern (it cannot weigh other satellites' beams).
+
+    The whole contract, including what the rest of leolink assumes of the gain:
+
+    - **Smoothness (candidate pruning).** :func:`leolink.engine.screening.screen` bounds
+      every pair's SNR with the gain at the screening elevation, which differs from the
+      engine's by rounding (~1e-15 rad); its slack covers a gain that changes by less than
+      1e-6 dB per 1e-12 rad. A model whose gain jumps (a stepped or tabulated pattern)
+      sets ``smooth_gain = False`` and gives ``max_gain_db``: the pruning then bounds its
+      gain by that maximum (exact, less tight). ``smooth_gain`` is optional (default
+      True); a model with ``smooth_gain = False`` and no ``max_gain_db`` is refused when
+      the scenario is built (:func:`pruning_terminal`).
+    - **Maximum gain.** ``max_gain_db`` (optional, [dB]): no ``gain_db`` exceeds it, at
+      any elevation, pointing error or UT.
+    - **Fading reference gain.** With ``link.fading = "rician"`` the linear
+      ``10^(gain_db / 10)`` of the serving link is taken as the LoS combining gain ``N``
+      of Eq. (17) (:mod:`leolink.link.fading`), and the draws are normalized by the mean
+      ``N + 1/K``: the fading has mean 1 whatever the model, and the gain stays the
+      terminal's mean gain.
     """
 
     @property
@@ -67,6 +87,36 @@ class TerminalAntenna(Protocol):  # pragma: no mutate block (mutants would add p
     def pattern_lin(self) -> Callable[..., np.ndarray] | None: ...  # a method, or None
 
     def gain_db(self, elevation_rad, off_boresight_rad=0.0, error_azimuth_rad=0.0): ...
+
+
+def pruning_terminal(terminal, where=None):
+    """The terminal whose gain the candidate pruning takes as a bound of ``terminal``'s.
+
+    ``terminal`` itself where its gain is smooth (``smooth_gain``, default True); a
+    :class:`FixedGain` at its ``max_gain_db`` where it is not; per member of a
+    :class:`TerminalGroups`.
+
+    Raises
+    ------
+    ConfigError
+        A terminal with ``smooth_gain = False`` and no ``max_gain_db`` (``where`` names
+        it in the message, e.g. ``"terminal.kind = 'stepped'"``).
+    """
+    if isinstance(terminal, TerminalGroups):
+        members = [pruning_terminal(t, where) for t in terminal.terminals]
+        if all(m is t for m, t in zip(members, terminal.terminals, strict=True)):
+            return terminal
+        return TerminalGroups(members, terminal.group)
+    if getattr(terminal, "smooth_gain", True):
+        return terminal
+    peak_db = getattr(terminal, "max_gain_db", None)
+    if peak_db is None:
+        raise ConfigError(
+            f"{where or type(terminal).__name__} is not allowed: its gain is not smooth "
+            "(smooth_gain = False) and it gives no max_gain_db, which the candidate pruning "
+            "needs to bound it (the TerminalAntenna protocol)"
+        )
+    return FixedGain(float(peak_db))
 
 
 #: Terminal antennas by config name (``terminal.kind``).

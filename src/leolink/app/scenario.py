@@ -16,7 +16,7 @@ import numpy as np
 
 from leolink.antenna.array import HybridArray
 from leolink.antenna.panel import PanelOrientation
-from leolink.antenna.terminal import TerminalGroups
+from leolink.antenna.terminal import TerminalGroups, pruning_terminal
 from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
 from leolink.app.steering import steering_from_config
@@ -60,6 +60,7 @@ def _terminal(cfg, section, key):
             "metasurface's peak gain and roll-off only); use 'serving_satellite' or another "
             "terminal"
         )
+    pruning_terminal(terminal, f"{key}.kind = {section.kind!r}")  # refuses what it cannot bound
     return terminal
 
 

@@ -185,7 +185,6 @@ class ConfigBase(Section):
 @functools.cache
 def _model(gen):
     del gen  # cache key only
-    kinds.load_owners()
     sel = kinds.selector_section
     sections = {
         "run": RunSection,
@@ -224,6 +223,7 @@ def _model(gen):
 
 def config_model() -> type[ConfigBase]:
     """The current config model (rebuilt when a kind is registered)."""
+    kinds.load_owners()  # the installed plugins register before the cache key is read
     return _model(generation())
 
 

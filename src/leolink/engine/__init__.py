@@ -124,6 +124,12 @@ class LinkEngine:
     def n_beam(self) -> int:
         return len(self.beam_ix)
 
+    @property
+    def k_lin(self) -> float:
+        """SNR per unit TX gain at 1 m, before ``G_rx / L_atm``: ``SNR = k_lin G_tx G_rx /
+        (L_atm rho^2)`` (linear; the candidate pruning's bound)."""
+        return self._k_lin
+
     @functools.cached_property
     def kernel_coefficients(self):
         """:func:`~leolink.antenna.array.dirichlet_coefficients` of the x and y beam cosines."""

@@ -24,7 +24,9 @@ below the best SNR already found for its UT cannot hold the best beam.
 The bound uses the screening geometry, which differs from the engine's by rounding only
 (~1e-15 relative); ``BOUND_SLACK`` (1e-6, i.e. 4e-6 dB) covers it, and it covers the
 terminal gain and the atmospheric loss evaluated at the screening elevation provided they
-change by less than 1e-6 dB per 1e-12 rad (every registered model: they are smooth).
+change by less than 1e-6 dB per 1e-12 rad (every registered model: they are smooth). A
+terminal that declares its gain not smooth is bounded by its maximum gain instead
+(:func:`leolink.antenna.terminal.pruning_terminal`, the TerminalAntenna protocol).
 """
 
 from __future__ import annotations
@@ -32,8 +34,9 @@ from __future__ import annotations
 import numpy as np
 
 from leolink import compiled
+from leolink.antenna.terminal import pruning_terminal
 from leolink.arrays import nonzero_2d
-from leolink.engine.links import rows_gain_db
+from leolink.engine.links import group_constants_db, rows_gain_db
 from leolink.engine.steered import steered_bound_lin
 
 __all__ = ["BOUND_SLACK", "SIN_EL_BAND", "UNCERTAIN", "VISIBLE", "envelope", "screen"]
@@ -111,7 +114,8 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     """
 
     ut_id = np.arange(len(ut_pos_m)) if ut_id is None else ut_id
-    factor = _ut_factor(engine, ut_id)
+    rx = _rx_bound(engine.terminal)
+    factor = _ut_factor(engine, rx, ut_id)
     known = np.where(np.isnan(factor), 1.0, factor)
     if compiled.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]) and engine.steering is None:
         code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
@@ -126,7 +130,7 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
         if ut_normal is not None:  # the gain sees the angle above the panel plane
             d = sat_pos_m[s] - ut_pos_m[rows[r]]
             sin_rx = np.einsum("pk,pk->p", d, ut_normal[rows[r]]) / np.linalg.norm(d, axis=1)
-        bound[rows[r], s] *= _pair_factor(engine, sin_el[rows[r], s], ut_id[rows[r]], sin_rx)
+        bound[rows[r], s] *= _pair_factor(engine, rx, sin_el[rows[r], s], ut_id[rows[r]], sin_rx)
     return code, bound
 
 
@@ -154,7 +158,7 @@ def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_i
     else:
         bound = envelope(ux, engine.beam_ux, cb.n_sub_x)
         bound *= envelope(uy, engine.beam_uy, cb.n_sub_y)
-    bound *= (engine._k_lin * (1.0 + BOUND_SLACK)) * ut_factor[:, None] / rho2
+    bound *= (engine.k_lin * (1.0 + BOUND_SLACK)) * ut_factor[:, None] / rho2
     return code, np.where(code > 0, bound, -1.0), sin_el
 
 
@@ -170,7 +174,7 @@ def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
         np.ascontiguousarray(sat_pos_m, float),
         np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
         engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
-        engine._k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
+        engine.k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
         np.ascontiguousarray(ut_factor, float), code, bound, sin_el, row_size=shape[1],
     )  # fmt: skip
     return code, bound, sin_el
@@ -179,29 +183,40 @@ def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
 _SLACK_DB = 10.0 * np.log10(1.0 + BOUND_SLACK)
 
 
-def _ut_factor(engine, ut_id):
+def _rx_bound(terminal):
+    """The terminal whose gain bounds ``terminal``'s (:func:`pruning_terminal`), its gain
+    [dB] if it is one constant, else the constants of its groups (or None)."""
+    t = pruning_terminal(terminal)
+    if t.elevation_independent:
+        return t, float(t.gain_db(np.pi / 2)), None
+    return t, None, (group_constants_db(t) if getattr(t, "group", None) is not None else None)
+
+
+def _ut_factor(engine, rx, ut_id):
     """Each UT's bound of ``G_rx / L_atm`` (linear) where it does not depend on the
     elevation, NaN where it does (shape (n_u,))."""
-    atm_db = engine._atm_const
+    atm_db = engine.atmosphere.constant_db
+    terminal, rx_const, rx_groups = rx
     if atm_db is None:
         return np.full(ut_id.shape, np.nan)
-    if engine._rx_const is not None:
-        return np.full(ut_id.shape, 10.0 ** ((engine._rx_const - atm_db + _SLACK_DB) / 10.0))
+    if rx_const is not None:
+        return np.full(ut_id.shape, 10.0 ** ((rx_const - atm_db + _SLACK_DB) / 10.0))
     out = np.full(ut_id.shape, np.nan)
-    for g, rx_db in enumerate(engine._rx_groups or ()):
+    for g, rx_db in enumerate(rx_groups or ()):
         if rx_db is not None:
-            out[engine.terminal.group[ut_id] == g] = 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)
+            out[terminal.group[ut_id] == g] = 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)
     return out
 
 
-def _pair_factor(engine, sin_el, ut_id, sin_rx=None):
+def _pair_factor(engine, rx, sin_el, ut_id, sin_rx=None):
     """Bound of ``G_rx / L_atm`` (linear) at the screening elevations of pairs, (m,)
     (``sin_rx``: the sine of the angle the terminal gain takes, if not the elevation's)."""
     el = np.arcsin(np.clip(sin_el, -1.0, 1.0))
-    rx_db, atm_db = engine._rx_const, engine._atm_const
+    terminal, rx_db, rx_groups = rx
+    atm_db = engine.atmosphere.constant_db
     if rx_db is None:
         el_rx = el if sin_rx is None else np.arcsin(np.clip(sin_rx, -1.0, 1.0))
-        rx_db = rows_gain_db(engine.terminal, el_rx, ut_id, engine._rx_groups)
+        rx_db = rows_gain_db(terminal, el_rx, ut_id, rx_groups)
     if atm_db is None:
         atm_db = engine.atmosphere(np.maximum(el, 0.0))
     return 10.0 ** ((rx_db - atm_db + _SLACK_DB) / 10.0)
