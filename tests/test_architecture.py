@@ -30,7 +30,6 @@ PENDING: set[str] = {
     "io/report/animation.py:build_frames",
     "sim/monitor.py:__init__",
     "orbit.py:pass_over",
-    "link/atmosphere.py:itu_p618_db",
     "engine/__init__.py:evaluate_pairs",
     "app/sweep.py:run_sweep",
     "app/compare.py:run_compare",
@@ -38,7 +37,6 @@ PENDING: set[str] = {
     "visibility.py:_pipelined",
     "sim/handover/controller.py:_apply_changes",
     "sim/handover/controller.py:step",
-    "link/channel_state.py:environment_model",
     "engine/links.py:pair_geometry",
 }
 

@@ -112,7 +112,9 @@ def test_shadowing_decorrelates_along_a_straight_track_as_exp_minus_d_over_dcorr
 def test_shadow_db_follows_the_field_of_the_current_state():
     # Dense urban with a long NLoS distance: while a UT stays NLoS its shadow_db / sigma
     # decorrelates over 120 m, while it stays LoS over 37 m (one field per link state).
-    model = cs.environment_model("dense_urban", 11.45e9, sf_corr_distance_nlos_m=120.0)
+    model = cs.environment_model(
+        "dense_urban", 11.45e9, cs.ChannelOptions(sf_corr_distance_nlos_m=120.0)
+    )
     n_ut, step_m, lag = 8000, 6.0, 10
     states = track_states(model, n_ut, step_m, lag + 1)
     t0, t1 = cs.link_terms(states[0], model), cs.link_terms(states[lag], model)
@@ -128,7 +130,9 @@ def test_shadow_db_follows_the_field_of_the_current_state():
 def test_los_state_decorrelates_as_a_thresholded_exponential_field():
     # Independent model: LoS = {Z < t}, (Z0, ZL) bivariate normal with correlation
     # exp(-d/d_corr), so P(LoS at both) = Phi2(t, t; rho) (TR 38.901 clause 7.6.3.3).
-    model = cs.environment_model("dense_urban", 11.45e9, los_corr_distance_m=30.0)
+    model = cs.environment_model(
+        "dense_urban", 11.45e9, cs.ChannelOptions(los_corr_distance_m=30.0)
+    )
     n_ut, step_m = 8000, 4.0
     states = track_states(model, n_ut, step_m, 21)
     p = 0.468  # Table 6.6.1-1, dense urban, 40 deg
@@ -293,7 +297,7 @@ def test_open_environment_is_always_los_with_zero_loss():
 
 def test_scintillation_margin_enters_the_extra_loss():
     # 20 GHz, 30 deg: 0.30 dB (Table 6.6.6.2.1-1), on top of shadowing and clutter.
-    model = cs.environment_model("urban", 20e9, scintillation=True)
+    model = cs.environment_model("urban", 20e9, cs.ChannelOptions(scintillation=True))
     sat_id, el, az = fixed_geometry(200, 3, 30.0)
     (state,) = run(model, lrng.ut_keys(4, 200), sat_id, el, az, np.zeros(200), [0])
     t = cs.link_terms(state, model)
@@ -303,9 +307,9 @@ def test_scintillation_margin_enters_the_extra_loss():
 
 def test_invalid_parameters_and_epoch_order():
     with pytest.raises(cs.ConfigError, match=r"los_corr_distance_m = 0.0 is not allowed"):
-        cs.environment_model("urban", 11.45e9, los_corr_distance_m=0.0)
+        cs.environment_model("urban", 11.45e9, cs.ChannelOptions(los_corr_distance_m=0.0))
     with pytest.raises(cs.ConfigError, match="geomagnetic_latitude_deg is required"):
-        cs.environment_model("urban", 2e9, scintillation=True)
+        cs.environment_model("urban", 2e9, cs.ChannelOptions(scintillation=True))
     model = cs.environment_model("urban", 11.45e9)
     sat_id, el, az = fixed_geometry(3, 1, 40.0)
     (state,) = run(model, lrng.ut_keys(0, 3), sat_id, el, az, np.zeros(3), [5])

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from leolink.link.atmosphere import itu_p618_db
+from leolink.link.atmosphere import P618Terms, itu_p618_db
 from leolink.link.standard_atmosphere import specific_attenuation_db_m
 from leolink.orbit import Ephemeris, orbital_speed_m_s
 
@@ -56,8 +56,7 @@ def test_p618_gas_and_clouds_match_itu_r_validation_examples(row):
         row["lon_deg"],
         p_percent=row["p_percent"],
         diameter_m=row["diameter_m"],
-        include_rain=False,
-        include_scintillation=False,
+        terms=P618Terms(rain=False, scintillation=False),
     )
     assert float(a_db) == pytest.approx(row["a_gas_db"] + row["a_clouds_db"], rel=ITU_RTOL)
 

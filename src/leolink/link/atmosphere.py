@@ -24,6 +24,7 @@ References
 """
 
 import warnings
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -43,6 +44,7 @@ __all__ = [
     "ATMOSPHERES",
     "AtmosphereModel",
     "AtmosphereTable",
+    "P618Terms",
     "atmosphere_model",
     "fixed_loss_db",
     "itu_p618_db",
@@ -146,6 +148,16 @@ def site_surface_conditions(lat_deg, lon_deg, p_percent=50.0):
     }
 
 
+@dataclass(frozen=True)
+class P618Terms:
+    """The terms of ITU-R P.618's total attenuation that :func:`itu_p618_db` sums."""
+
+    rain: bool = True
+    clouds: bool = True
+    scintillation: bool = True
+    gas: bool = True
+
+
 def itu_p618_db(
     elevation_rad,
     freq_hz,
@@ -153,17 +165,16 @@ def itu_p618_db(
     lon_deg,
     p_percent=1.0,
     diameter_m=1.0,
-    include_rain=True,
-    include_clouds=True,
-    include_scintillation=True,
-    include_gas=True,
+    terms=None,
 ):
     """Total attenuation exceeded ``p_percent`` of the time, ITU-R P.618 via ``itur`` [dB].
 
     Gas (P.676), rain (P.618/P.837/P.838), clouds (P.840) and scintillation (P.618, for
-    an antenna of ``diameter_m``), at the site ``lat_deg, lon_deg``. ``itur`` warns below
+    an antenna of ``diameter_m``), at the site ``lat_deg, lon_deg``; ``terms``
+    (:class:`P618Terms`, None: all four) says which are summed. ``itur`` warns below
     5 deg elevation. Slow: tabulate (:class:`AtmosphereTable`).
     """
+    t = P618Terms() if terms is None else terms
     import itur
 
     el_deg = np.degrees(np.atleast_1d(np.asarray(elevation_rad, dtype=float)))
@@ -177,10 +188,10 @@ def itu_p618_db(
             el_deg,
             p_percent,
             diameter_m,
-            include_rain=include_rain,
-            include_clouds=include_clouds,
-            include_scintillation=include_scintillation,
-            include_gas=include_gas,
+            include_rain=t.rain,
+            include_clouds=t.clouds,
+            include_scintillation=t.scintillation,
+            include_gas=t.gas,
         )
     return np.asarray(getattr(out, "value", out), dtype=float).reshape(np.shape(elevation_rad))
 

@@ -56,6 +56,7 @@ from leolink.errors import ConfigError
 from leolink.link import environment as env
 
 __all__ = [
+    "ChannelOptions",
     "ChannelState",
     "EnvironmentModel",
     "LinkTerms",
@@ -101,17 +102,35 @@ class EnvironmentModel:
     geomagnetic_latitude_deg: float | None = None
 
 
-def environment_model(
-    environment,
-    freq_hz,
-    band=None,
-    scintillation=False,
-    geomagnetic_latitude_deg=None,
-    los_corr_distance_m=None,
-    sf_corr_distance_los_m=None,
-    sf_corr_distance_nlos_m=None,
-    clutter_height_m=None,
-):
+@dataclass(frozen=True)
+class ChannelOptions:
+    """The optional settings of an environment's channel (the config's
+    ``[population.channel]``); None: the module docstring's defaults.
+
+    Attributes
+    ----------
+    band : {None, "s", "ka"}
+        Table band; ``None``: :func:`leolink.link.environment.band_for_frequency`.
+    scintillation : bool
+        Add the clause 6.6.6 scintillation margin (off: the paper neglects it).
+    geomagnetic_latitude_deg : float, optional
+        Needed with ``scintillation`` below 6 GHz.
+    los_corr_distance_m, sf_corr_distance_los_m, sf_corr_distance_nlos_m : float, optional
+        Correlation distances [m].
+    clutter_height_m : float, optional
+        Obstacle height above the UT antenna [m] for the ray shift.
+    """
+
+    band: str | None = None
+    scintillation: bool = False
+    geomagnetic_latitude_deg: float | None = None
+    los_corr_distance_m: float | None = None
+    sf_corr_distance_los_m: float | None = None
+    sf_corr_distance_nlos_m: float | None = None
+    clutter_height_m: float | None = None
+
+
+def environment_model(environment, freq_hz, options=None):
     """Validate and resolve an environment once, at the edge (ConfigError on bad values).
 
     Parameters
@@ -120,43 +139,36 @@ def environment_model(
         One of :data:`leolink.link.environment.ENVIRONMENTS`.
     freq_hz : float
         Carrier frequency [Hz].
-    band : {None, "s", "ka"}
-        Table band; ``None``: :func:`leolink.link.environment.band_for_frequency`.
-    scintillation : bool
-        Add the clause 6.6.6 scintillation margin (off: the paper neglects it).
-    geomagnetic_latitude_deg : float, optional
-        Needed with ``scintillation`` below 6 GHz.
-    los_corr_distance_m, sf_corr_distance_los_m, sf_corr_distance_nlos_m : float, optional
-        Correlation distances [m]; defaults in the module docstring.
-    clutter_height_m : float, optional
-        Obstacle height above the UT antenna [m] for the ray shift; module docstring.
+    options : ChannelOptions, optional
+        Band, scintillation, correlation distances, clutter height (None: defaults).
 
     Returns
     -------
     EnvironmentModel
     """
+    o = ChannelOptions() if options is None else options
     env.validate_environment(environment)
     defaults = _DEFAULTS[environment]
-    given = (los_corr_distance_m, sf_corr_distance_los_m, sf_corr_distance_nlos_m)
+    given = (o.los_corr_distance_m, o.sf_corr_distance_los_m, o.sf_corr_distance_nlos_m)
     names = ("los_corr_distance_m", "sf_corr_distance_los_m", "sf_corr_distance_nlos_m")
     dists = [d if v is None else float(v) for v, d in zip(given, defaults[:3], strict=True)]
     for name, value in zip(names, dists, strict=True):
         if not value > 0.0:
             raise ConfigError(f"{name} = {value!r} is not allowed; use a value > 0 (metres)")
-    height = defaults[3] if clutter_height_m is None else float(clutter_height_m)
+    height = defaults[3] if o.clutter_height_m is None else float(o.clutter_height_m)
     if not height >= 0.0:
         raise ConfigError(f"clutter_height_m = {height!r} is not allowed; use a value >= 0")
     model = EnvironmentModel(
         environment,
         float(freq_hz),
-        env.band_for_frequency(freq_hz, band),
+        env.band_for_frequency(freq_hz, o.band),
         *dists,
         height,
-        bool(scintillation),
-        geomagnetic_latitude_deg,
+        bool(o.scintillation),
+        o.geomagnetic_latitude_deg,
     )
-    if scintillation:  # fail now, not at the first epoch, if the latitude is missing
-        env.scintillation_db(45.0, model.freq_hz, geomagnetic_latitude_deg)
+    if o.scintillation:  # fail now, not at the first epoch, if the latitude is missing
+        env.scintillation_db(45.0, model.freq_hz, o.geomagnetic_latitude_deg)
     return model
 
 

@@ -94,7 +94,9 @@ def environment_models(populations, freq_hz):
     for i, p in enumerate(populations):
         ch = p.channel if p.channel is not None else ChannelParams()
         try:
-            models.append(cs.environment_model(p.environment, freq_hz, **ch.model_dump()))
+            models.append(
+                cs.environment_model(p.environment, freq_hz, cs.ChannelOptions(**ch.model_dump()))
+            )
         except ConfigError as exc:
             raise ConfigError(f"population.{i}.channel: {exc}") from None
     if all(m.environment == "open" and not m.scintillation for m in models):
