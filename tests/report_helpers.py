@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from leolink.orbit import Ephemeris, pass_over, walker_delta
+from leolink.orbit import CentralBody, Ephemeris, pass_over, walker_delta
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "configs" / "paper.toml"
@@ -55,9 +55,7 @@ def ephemeris(cfg):
             c["altitude_m"],
             inc,
             ascending=c["ascending"],
-            earth_rotation=e["rotation"],
-            radius_m=e["radius_m"],
-            gm_m3_s2=e["gm_m3_s2"],
+            earth=CentralBody(e["radius_m"], e["gm_m3_s2"], e["rotation"]),
         )
     else:
         raise NotImplementedError(c["kind"])

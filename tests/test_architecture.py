@@ -29,7 +29,6 @@ PENDING: set[str] = {
     "link/budget.py:compute",
     "io/report/animation.py:build_frames",
     "sim/monitor.py:__init__",
-    "orbit.py:pass_over",
     "engine/__init__.py:evaluate_pairs",
     "app/sweep.py:run_sweep",
     "app/compare.py:run_compare",

@@ -14,6 +14,7 @@ from leolink.errors import ConfigError, LeolinkError
 from leolink.geometry import ecef_to_geodetic
 from leolink.io.tle import read_tle_file
 from leolink.orbit import (
+    CentralBody,
     Elements,
     Ephemeris,
     angular_rate_rad_s,
@@ -167,7 +168,7 @@ def test_pass_over_sub_satellite_point(earth_rotation, ascending, lat_deg, lon_d
         1300e3,
         np.radians(53.0),
         ascending=ascending,
-        earth_rotation=earth_rotation,
+        earth=CentralBody(rotation=earth_rotation),
     )
     eph = Ephemeris.from_elements(el, earth_rotation=earth_rotation)
     pos, vel, _ = eph(np.array([t_pass - 1.0, t_pass]))

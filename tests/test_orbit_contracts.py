@@ -14,6 +14,7 @@ from sgp4.api import Satrec
 from leolink.constants import GM_EARTH_M3_S2
 from leolink.errors import ConfigError
 from leolink.orbit import (
+    CentralBody,
     Elements,
     Ephemeris,
     circular_state,
@@ -185,7 +186,7 @@ def test_pass_over_of_another_body_uses_its_radius_and_gm():
     # Mars (NASA fact sheet: GM = 42,828.37 km^3/s^2, mean radius 3,389.5 km): the orbit
     # built for that body passes over the point at t_pass when propagated with its GM.
     gm, radius = 4.282837e13, 3_389.5e3
-    el = pass_over(0.3, -0.4, 900.0, 400e3, 0.8, radius_m=radius, gm_m3_s2=gm)
+    el = pass_over(0.3, -0.4, 900.0, 400e3, 0.8, earth=CentralBody(radius, gm))
     elements = (el.altitude_m, el.inclination_rad, el.raan_rad, el.arg_lat0_rad)
     pos, _, _ = circular_state(np.array([900.0]), *elements, radius_m=radius, gm_m3_s2=gm)
     p = pos[0, 0]

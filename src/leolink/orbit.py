@@ -12,6 +12,7 @@ from leolink.constants import EARTH_RADIUS_M, EARTH_ROTATION_RAD_S, GM_EARTH_M3_
 from leolink.errors import ConfigError
 
 __all__ = [
+    "CentralBody",
     "Elements",
     "Ephemeris",
     "angular_rate_rad_s",
@@ -166,6 +167,17 @@ def walker_delta(n_total, n_planes, phasing, inclination_rad, altitude_m):
     return Elements(altitude_m, inclination_rad, raan, np.mod(arg_lat, 2.0 * np.pi))
 
 
+@dataclass(frozen=True)
+class CentralBody:
+    """The body an orbit is flown around: sphere radius [m], GM [m^3/s^2], and whether
+    positions are Earth-fixed (``rotation``, angle ``gmst0_rad + w_E t``) or inertial."""
+
+    radius_m: float = EARTH_RADIUS_M
+    gm_m3_s2: float = GM_EARTH_M3_S2
+    rotation: bool = False
+    gmst0_rad: float = 0.0
+
+
 def pass_over(
     lat_rad,
     lon_rad,
@@ -173,22 +185,21 @@ def pass_over(
     altitude_m,
     inclination_rad,
     ascending=True,
-    earth_rotation=False,
-    gmst0_rad=0.0,
-    radius_m=EARTH_RADIUS_M,
-    gm_m3_s2=GM_EARTH_M3_S2,
+    earth=None,
 ):
     """One satellite whose sub-satellite point is ``(lat, lon)`` at ``t_pass_s``.
 
     ``sin(u) = sin(lat) / sin(i)`` (ascending: ``|u| <= pi/2``, else ``pi - u``); the node
-    follows from the longitude. With ``earth_rotation`` the point is the ECEF one of
-    :func:`eci_to_ecef` (rotation angle ``gmst0 + w_E t``).
+    follows from the longitude. ``earth`` (:class:`CentralBody`, None: the default sphere
+    without rotation) gives the radius and GM; with its ``rotation`` the point is the
+    ECEF one of :func:`eci_to_ecef` (rotation angle ``gmst0 + w_E t``).
 
     Raises
     ------
     ConfigError
         If the orbit cannot reach that latitude (``|lat| > min(i, pi - i)``).
     """
+    earth = CentralBody() if earth is None else earth
     lat, inc = float(lat_rad), float(inclination_rad)
     max_lat = min(inc, np.pi - inc)
     if abs(lat) > max_lat + 1e-12:
@@ -199,10 +210,10 @@ def pass_over(
     sin_u = np.clip(np.sin(lat) / np.sin(inc), -1.0, 1.0) if np.sin(inc) > 0 else 0.0
     u = np.arcsin(sin_u) if ascending else np.pi - np.arcsin(sin_u)
     lon_eci = float(lon_rad)
-    if earth_rotation:
-        lon_eci += gmst0_rad + EARTH_ROTATION_RAD_S * t_pass_s
+    if earth.rotation:
+        lon_eci += earth.gmst0_rad + EARTH_ROTATION_RAD_S * t_pass_s
     raan = lon_eci - np.arctan2(np.sin(u) * np.cos(inc), np.cos(u))
-    n = angular_rate_rad_s(altitude_m, radius_m, gm_m3_s2)
+    n = angular_rate_rad_s(altitude_m, earth.radius_m, earth.gm_m3_s2)
     arg_lat0 = u - n * t_pass_s
     return Elements(altitude_m, inc, np.mod(raan, 2 * np.pi), np.mod(arg_lat0, 2 * np.pi))
 

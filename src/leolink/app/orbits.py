@@ -23,7 +23,7 @@ from leolink.geodesy import wgs84_to_ecef
 from leolink.geometry import ecef_to_geodetic, enu_basis, geodetic_to_ecef
 from leolink.io.earth_orientation import ut1_minus_utc
 from leolink.io.tle import read_tle_file
-from leolink.orbit import Ephemeris, pass_over, walker_delta
+from leolink.orbit import CentralBody, Ephemeris, pass_over, walker_delta
 from leolink.roi import closest_overhead_pass
 
 __all__ = [
@@ -87,9 +87,7 @@ def _pass_elements(cfg, t_pass_s):
         c.altitude_m,
         math.radians(c.inclination_deg),
         ascending=c.ascending,
-        earth_rotation=e.rotation,
-        radius_m=e.radius_m,
-        gm_m3_s2=e.gm_m3_s2,
+        earth=CentralBody(e.radius_m, e.gm_m3_s2, e.rotation),
     )
 
 
