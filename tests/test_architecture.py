@@ -30,8 +30,6 @@ PENDING: set[str] = {
     "io/report/animation.py:build_frames",
     "sim/monitor.py:__init__",
     "engine/__init__.py:evaluate_pairs",
-    "app/sweep.py:run_sweep",
-    "app/compare.py:run_compare",
     "visibility.py:tle_elevations_rad",
     "visibility.py:_pipelined",
     "sim/handover/controller.py:_apply_changes",

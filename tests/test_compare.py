@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from leolink.app.compare import parse_policy, run_compare
+from leolink.app.sweep import Execution
 from leolink.cli import main
 from leolink.errors import ConfigError
 
@@ -19,7 +20,7 @@ BASE = ["run.duration_s=20", "link.fading=rician", 'output.trace.formats=["csv"]
 def compared(tmp_path_factory):
     out = tmp_path_factory.mktemp("compare")
     table = run_compare(
-        PAPER, ["max_snr", "a3,hysteresis_db=3"], out, BASE, seeds=2, progress=False
+        PAPER, ["max_snr", "a3,hysteresis_db=3"], out, BASE, seeds=2, how=Execution(progress=False)
     )
     return out, table
 
@@ -95,7 +96,13 @@ def test_policy_specs_and_mistakes():
     with pytest.raises(ConfigError, match="is not KEY=VALUE"):
         parse_policy("a3,hysteresis_db")
     with pytest.raises(ConfigError, match=r"policy a3,hysteresis_db=-1: .*hysteresis_db = -1"):
-        run_compare(PAPER, ["a3,hysteresis_db=-1"], "/nonexistent/never", BASE, progress=False)
+        run_compare(
+            PAPER,
+            ["a3,hysteresis_db=-1"],
+            "/nonexistent/never",
+            BASE,
+            how=Execution(progress=False),
+        )
 
 
 def test_cli_compare(tmp_path, capsys):

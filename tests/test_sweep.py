@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import leolink.app.run as runner
-from leolink.app.sweep import parse_param, point_name, run_sweep
+from leolink.app.sweep import Execution, parse_param, point_name, run_sweep
 from leolink.cli import EXIT_USAGE, main
 from leolink.config import load_config
 from leolink.errors import ConfigError
@@ -57,7 +57,9 @@ def _get(summary, path):
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep_serial")
-    return out, run_sweep(PAPER, PARAMS, out, base_overrides=BASE, workers=1, progress=False)
+    return out, run_sweep(
+        PAPER, PARAMS, out, base_overrides=BASE, how=Execution(workers=1, progress=False)
+    )
 
 
 def test_one_row_per_grid_point(serial):
@@ -100,7 +102,9 @@ def test_written_csv_and_json_match_table(serial):
 
 def test_two_workers_give_the_same_table(serial, tmp_path):
     _, table = serial
-    parallel = run_sweep(PAPER, PARAMS, tmp_path, base_overrides=BASE, workers=2, progress=False)
+    parallel = run_sweep(
+        PAPER, PARAMS, tmp_path, base_overrides=BASE, how=Execution(workers=2, progress=False)
+    )
     pd.testing.assert_frame_equal(parallel, table)
 
 
@@ -125,15 +129,28 @@ def test_two_workers_give_the_same_table(serial, tmp_path):
 def test_bad_param_fails_before_any_run(tmp_path, spec, text):
     out = tmp_path / "sweep"
     with pytest.raises(ConfigError, match=re.escape(text)):
-        run_sweep(PAPER, ["link.ptx_dbw=15,12", spec], out, base_overrides=BASE, progress=False)
+        run_sweep(
+            PAPER,
+            ["link.ptx_dbw=15,12", spec],
+            out,
+            base_overrides=BASE,
+            how=Execution(progress=False),
+        )
     assert not out.exists()
 
 
 def test_duplicate_param_and_bad_workers(tmp_path):
     with pytest.raises(ConfigError, match="link.ptx_dbw is given twice"):
-        run_sweep(PAPER, ["link.ptx_dbw=1", "link.ptx_dbw=2"], tmp_path / "a", progress=False)
+        run_sweep(
+            PAPER,
+            ["link.ptx_dbw=1", "link.ptx_dbw=2"],
+            tmp_path / "a",
+            how=Execution(progress=False),
+        )
     with pytest.raises(ConfigError, match="workers = 0"):
-        run_sweep(PAPER, ["link.ptx_dbw=1"], tmp_path / "b", workers=0, progress=False)
+        run_sweep(
+            PAPER, ["link.ptx_dbw=1"], tmp_path / "b", how=Execution(workers=0, progress=False)
+        )
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
@@ -185,7 +202,13 @@ def test_interrupt_keeps_finished_runs_and_writes_no_table(tmp_path, monkeypatch
     (tmp_path / "sweep.csv").write_text("old,table\n1,2\n")  # an earlier, finished sweep
     calls = _counting_run(monkeypatch, fail_at=2)
     with pytest.raises(KeyboardInterrupt):
-        run_sweep(PAPER, PARAMS, tmp_path, base_overrides=BASE, progress=False, overwrite=True)
+        run_sweep(
+            PAPER,
+            PARAMS,
+            tmp_path,
+            base_overrides=BASE,
+            how=Execution(progress=False, overwrite=True),
+        )
     assert (Path(calls[0]) / "run.json").exists()  # finished
     assert not (Path(calls[1]) / "run.json").exists()
     assert not list(tmp_path.glob("sweep.*")) and not (tmp_path / "run.json").exists()
@@ -195,18 +218,26 @@ def test_resume_reuses_only_matching_runs(serial, tmp_path, monkeypatch):
     out, table = serial
     shutil.copytree(out / "runs", tmp_path / "runs")
     calls = _counting_run(monkeypatch)
-    again = run_sweep(PAPER, PARAMS, tmp_path, base_overrides=BASE, progress=False, resume=True)
+    again = run_sweep(
+        PAPER, PARAMS, tmp_path, base_overrides=BASE, how=Execution(progress=False, resume=True)
+    )
     assert calls == []
     pd.testing.assert_frame_equal(again, table, check_dtype=False)
     changed = [*BASE, "run.seed=7"]  # same folder names, another config: run them again
-    run_sweep(PAPER, PARAMS, tmp_path, base_overrides=changed, progress=False, resume=True)
+    run_sweep(
+        PAPER, PARAMS, tmp_path, base_overrides=changed, how=Execution(progress=False, resume=True)
+    )
     assert len(calls) == 4
 
 
 def test_parallel_rows_follow_the_grid_not_completion_order(tmp_path):
     # point 0 runs 10x longer than point 1, so point 1 finishes first on 2 workers
     table = run_sweep(
-        PAPER, ["run.duration_s=40,4"], tmp_path, base_overrides=BASE[1:], workers=2, progress=False
+        PAPER,
+        ["run.duration_s=40,4"],
+        tmp_path,
+        base_overrides=BASE[1:],
+        how=Execution(workers=2, progress=False),
     )
     n_ut = 7  # the paper config's populations: 1 + 4 + 1 + 1 UTs, epoch_s = 1 s
     assert list(table["n_ut_epochs"]) == [n_ut * 40, n_ut * 4]
@@ -218,14 +249,15 @@ def test_dask_cluster_gives_the_same_table(tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     base = ['controller.policy="hysteresis"', "run.duration_s=10"]
     params = ["controller.hysteresis.margin_db=0,3"]
-    local = run_sweep(PAPER, params, tmp_path / "local", base_overrides=base, progress=False)
+    local = run_sweep(
+        PAPER, params, tmp_path / "local", base_overrides=base, how=Execution(progress=False)
+    )
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster:
         remote = run_sweep(
             PAPER,
             params,
             tmp_path / "dask",
             base_overrides=base,
-            workers=f"dask://{cluster.scheduler_address}",
-            progress=False,
+            how=Execution(workers=f"dask://{cluster.scheduler_address}", progress=False),
         )
     pd.testing.assert_frame_equal(remote, local)

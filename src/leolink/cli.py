@@ -157,7 +157,7 @@ def _db(value):
 
 
 def cmd_sweep(args) -> int:
-    from leolink.app.sweep import run_sweep
+    from leolink.app.sweep import Execution, run_sweep
 
     _config(args)  # config mistakes fail here, before any run
     workers = int(args.workers) if str(args.workers).isdigit() else args.workers
@@ -166,10 +166,9 @@ def cmd_sweep(args) -> int:
         args.param,
         Path(args.out),
         base_overrides=args.set or [],
-        workers=workers,
-        progress=not args.quiet,
-        resume=args.resume,
-        overwrite=args.overwrite,
+        how=Execution(
+            workers=workers, progress=not args.quiet, resume=args.resume, overwrite=args.overwrite
+        ),
     )
     if not args.quiet:
         print(table.to_string(index=False))
@@ -222,6 +221,7 @@ def _version():
 
 def cmd_compare(args) -> int:
     from leolink.app.compare import report_table, run_compare
+    from leolink.app.sweep import Execution
 
     _config(args)  # config mistakes fail here, before any run
     policies = list(args.policy or [])
@@ -233,10 +233,12 @@ def cmd_compare(args) -> int:
         Path(args.out),
         base_overrides=args.set or [],
         seeds=args.seeds,
-        workers=int(args.workers) if str(args.workers).isdigit() else args.workers,
-        progress=not args.quiet,
-        resume=args.resume,
-        overwrite=args.overwrite,
+        how=Execution(
+            workers=int(args.workers) if str(args.workers).isdigit() else args.workers,
+            progress=not args.quiet,
+            resume=args.resume,
+            overwrite=args.overwrite,
+        ),
     )
     if not args.quiet:
         print(report_table(table), end="")

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from leolink.app.guard import raise_pending
-from leolink.app.sweep import _base_overrides, _progress_bar, _run_point
+from leolink.app.sweep import Execution, _base_overrides, _progress_bar, _run_point
 from leolink.errors import ConfigError
 
 __all__ = ["MAIN_KPIS", "parse_policy", "run_compare"]
@@ -146,10 +146,7 @@ def report_table(table):
     return "\n".join(lines) + "\n"
 
 
-def run_compare(
-    cfg_path, policies, out_dir, base_overrides=None, seeds=1, workers=1, progress=True, *,
-    resume=False, overwrite=False, plot=True,
-):  # fmt: skip
+def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, how=None):
     """Run every policy on the same seeds and tabulate their KPIs (module docstring).
 
     Parameters
@@ -159,10 +156,9 @@ def run_compare(
     out_dir : path-like
     base_overrides : list of str, ``section.key=value`` applied to every run.
     seeds : int >= 1, seeds per policy (``run.seed`` on).
-    workers : int, local processes (1: in this process).
-    resume : bool, reuse finished runs of the same config.
-    overwrite : bool, replace an earlier compare's files in ``out_dir``.
-    plot : bool, draw the figures.
+    how : :class:`~leolink.app.sweep.Execution`, optional: workers, progress bar, resume
+        (reuse finished runs of the same config), overwrite (an earlier compare's files in
+        ``out_dir``), the figures; None: the defaults.
 
     Returns
     -------
@@ -176,19 +172,20 @@ def run_compare(
         raise ConfigError("compare: give at least one --policy")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ConfigError(f"--seeds {seeds!r} is not allowed; use an integer >= 1")
-    check_workers(workers)
+    how = Execution() if how is None else how
+    check_workers(how.workers)
     cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
     base = _base_overrides(base_overrides, [], False)
-    triples = _jobs(cfg_path, list(policies), seeds, base, out_dir, resume)
+    triples = _jobs(cfg_path, list(policies), seeds, base, out_dir, how.resume)
     out_dir = claim_out_dir(
         out_dir,
-        overwrite or resume,
+        how.overwrite or how.resume,
         flag="--overwrite (or --resume, to reuse its finished runs)",
-        keep=("runs",) if resume else (),
+        keep=("runs",) if how.resume else (),
     )
     jobs = [(i, job) for i, (_, _, job) in enumerate(triples)]
-    with _progress_bar(len(jobs), progress) as bar:
-        rows = run_jobs(_run_point, jobs, lambda i: bar.update(1), workers)
+    with _progress_bar(len(jobs), how.progress) as bar:
+        rows = run_jobs(_run_point, jobs, lambda i: bar.update(1), how.workers)
     failed = [(triples[i][0], row["error"]) for i, row in sorted(rows.items()) if "error" in row]
     if failed:
         raise ConfigError(f"policy {failed[0][0]}: {failed[0][1]}")
@@ -201,7 +198,7 @@ def run_compare(
     table = _aggregate(runs)
     files = [write_csv_atomic(runs, out_dir / "compare_runs.csv"),
              write_text_atomic(out_dir / "compare.md", report_table(table))]  # fmt: skip
-    if plot:
+    if how.plot:
         from leolink.io.compare_plots import plot_compare
 
         files += plot_compare(table, out_dir, _cdfs(runs))

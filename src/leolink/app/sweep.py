@@ -16,6 +16,7 @@ Each run is deterministic from its config (``run.seed``), so the table does not 
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import re
@@ -27,7 +28,14 @@ import tomli_w
 
 from leolink.errors import ConfigError, LeolinkError
 
-__all__ = ["SWEEP_PLOT_METRICS", "flatten_summary", "parse_param", "point_name", "run_sweep"]
+__all__ = [
+    "SWEEP_PLOT_METRICS",
+    "Execution",
+    "flatten_summary",
+    "parse_param",
+    "point_name",
+    "run_sweep",
+]
 
 #: Metrics drawn by ``plot_sweep`` when exactly one parameter is swept.
 SWEEP_PLOT_METRICS = (
@@ -223,19 +231,34 @@ def _base_overrides(base_overrides, keys, run_plots):
     return base
 
 
-def run_sweep(
-    cfg_path,
-    params,
-    out_dir,
-    base_overrides=None,
-    workers=1,
-    progress=True,
-    *,
-    resume=False,
-    overwrite=False,
-    run_plots=False,
-    plot=True,
-):
+@dataclasses.dataclass(frozen=True)
+class Execution:
+    """How a study (:func:`run_sweep`, :func:`leolink.app.compare.run_compare`) runs its
+    points and treats its folder.
+
+    Attributes
+    ----------
+    workers : int or str
+        Local processes (``1`` runs in this process), or ``"dask://<scheduler address>"``.
+    progress : bool
+        Show a progress bar over the points (stderr).
+    resume : bool
+        Reuse the finished runs (``run.json``) of the same point configs in ``out_dir``.
+    overwrite : bool
+        Replace an earlier study's files in ``out_dir`` (only leolink's files are removed);
+        without it (or ``resume``) such a folder raises ``OutputFolderError``.
+    plot : bool
+        Draw the study's figures.
+    """
+
+    workers: int | str = 1
+    progress: bool = True
+    resume: bool = False
+    overwrite: bool = False
+    plot: bool = True
+
+
+def run_sweep(cfg_path, params, out_dir, base_overrides=None, *, run_plots=False, how=None):
     """Run every point of a parameter grid and tabulate the summaries.
 
     Parameters
@@ -249,21 +272,13 @@ def run_sweep(
         with one parameter, ``sweep_<section>_<key>.png``.
     base_overrides : list of str, optional
         ``section.key=value`` overrides applied to every point (before the swept values).
-    workers : int or str
-        Local processes (``1`` runs in this process), or ``"dask://<scheduler address>"``.
-    progress : bool
-        Show a progress bar over the points (stderr).
-    resume : bool
-        Reuse the finished runs (``run.json``) of the same point configs in ``out_dir``.
-    overwrite : bool
-        Replace an earlier sweep's files in ``out_dir`` (only leolink's files are removed);
-        without it (or ``resume``) such a folder raises ``OutputFolderError``.
     run_plots : bool
         Write each run's own plots and report (off by default, for speed; also on if
         ``output.plots.enabled`` / ``output.report.enabled`` is set explicitly in
         ``base_overrides`` or ``params``).
-    plot : bool
-        Draw the main metrics against the parameter when exactly one is swept.
+    how : Execution, optional
+        Workers, progress bar, resume or overwrite, and the plot of the main metrics
+        against the parameter (drawn when exactly one is swept); None: the defaults.
 
     Returns
     -------
@@ -278,7 +293,8 @@ def run_sweep(
     """
     from leolink.app.sweep_exec import check_workers, run_jobs
 
-    check_workers(workers)
+    how = Execution() if how is None else how
+    check_workers(how.workers)
     # Absolute paths: workers (dask's, on other machines' working directories) resolve
     # the config's own relative paths from its folder, and write where this process does.
     cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
@@ -291,23 +307,23 @@ def run_sweep(
     # An earlier sweep's tables and page go first (resumed: its point runs stay).
     out_dir = claim_out_dir(
         out_dir,
-        overwrite or resume,
+        how.overwrite or how.resume,
         flag="--overwrite (or --resume, to reuse its finished points)",
-        keep=("runs",) if resume else (),
+        keep=("runs",) if how.resume else (),
     )
     width = max(4, len(str(len(points) - 1)))
     names = [point_name(i, p, width) for i, p in enumerate(points)]
     jobs = [
-        (i, (str(cfg_path), base + _overrides(p), str(out_dir / "runs" / names[i]), resume))
+        (i, (str(cfg_path), base + _overrides(p), str(out_dir / "runs" / names[i]), how.resume))
         for i, p in enumerate(points)
         if i not in failed
     ]
     finished: list[int] = []
-    with _progress_bar(len(points), progress) as bar:
+    with _progress_bar(len(points), how.progress) as bar:
         bar.update(len(failed))
         try:
             rows = run_jobs(
-                _run_point, jobs, lambda i: (finished.append(i), bar.update(1)), workers
+                _run_point, jobs, lambda i: (finished.append(i), bar.update(1)), how.workers
             )
         except KeyboardInterrupt as exc:
             exc.add_note(_stopped_note(finished, len(jobs), names, out_dir))
@@ -316,7 +332,7 @@ def run_sweep(
     table = pd.DataFrame([{"point": names[i], **points[i], **rows[i]} for i in range(len(points))])
     if "error" in table:  # only when a point failed: "" for the others
         table["error"] = table["error"].fillna("").astype(str)
-    _write(table, out_dir, cfg_path, (params, keys, base), names, plot)
+    _write(table, out_dir, cfg_path, (params, keys, base), names, how.plot)
     return table
 
 
