@@ -28,7 +28,6 @@ PENDING: set[str] = {
     "engine/__init__.py:serve_pairs",
     "link/budget.py:compute",
     "io/report/animation.py:build_frames",
-    "sim/monitor.py:__init__",
     "engine/__init__.py:evaluate_pairs",
     "visibility.py:tle_elevations_rad",
     "visibility.py:_pipelined",

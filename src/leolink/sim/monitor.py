@@ -38,7 +38,7 @@ from leolink.sim.handover.controller import SERVICE_HANDOVER, SERVICE_OUTAGE, in
 from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import BlockFrame, EpochFrame, deliver
 
-__all__ = ["Monitor"]
+__all__ = ["FadingDraws", "Monitor"]
 
 _LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps")
 
@@ -78,43 +78,48 @@ class _Record:
     share: np.ndarray | None = None  # (n_ut,) time share of the UT's beam (sharing on)
 
 
+@dataclasses.dataclass(frozen=True)
+class FadingDraws:
+    """Random Rician fading of the serving links: the factor ``k`` (linear) and the UTs'
+    random keys (``ut_keys``, (n_ut,) uint64) of the counter-based draws."""
+
+    k: float
+    ut_keys: np.ndarray
+
+
 class Monitor:
     """Serving links of every UT -> block (or epoch) frames for the sinks (module docstring).
 
     Parameters
     ----------
-    engine : leolink.engine.LinkEngine
     sink : Sink
     decider : leolink.sim.decide.Decider
-        Whose block candidates (and evaluated pairs) the links are read from.
-    fading_k : float or None
-        Rician factor of random fading draws (None: the mean gain).
-    ut_keys : ndarray or None
-        Per-UT random keys of the fading draws.
-    epoch_s : float
+        Whose block candidates (and evaluated pairs) the links are read from; its engine,
+        epoch and radio link failure bookkeeping (``rlf``, None: off; module docstring)
+        are the monitor's.
+    fading : FadingDraws or None
+        Random fading draws (None: the mean gain).
     population : sequence of str
         The population name of every UT.
     link : ServiceLink or None
         The link figures and the SINR service threshold (None: the default figures of the
         engine's power and bandwidth, service as the controller judged it).
-    rlf : leolink.sim.handover.rlf_run.RlfRun or None
-        Radio link failure bookkeeping (None: off; module docstring).
     service : leolink.sim.beams.service.BeamService, optional
         Beam sharing and precoding (adds the ``n_sharing`` column); None: today's links.
     """
 
-    def __init__(self, engine, sink, decider, fading_k=None, ut_keys=None, epoch_s=1.0,
-                 population=(), link=None, rlf=None, service=None):  # fmt: skip
-        self.engine, self.sink, self.decider, self.rlf = engine, sink, decider, rlf
-        self.service = service
-        self.fading_k, self.ut_keys = fading_k, ut_keys
-        self.epoch_s = float(epoch_s)
+    def __init__(self, sink, decider, fading=None, population=(), link=None, service=None):
+        self.engine, self.sink, self.decider = decider.engine, sink, decider
+        self.rlf, self.epoch_s = decider.rlf, decider.epoch_s
+        self.service, self.fading = service, fading
         self.population = np.asarray(population, dtype=object)
         self._tiled = {}
         self.pending = []
         if link is None:
-            p = engine.params
-            link = ServiceLink(LinkFigureParams(p.ptx_dbw, p.cable_loss_db, engine.bandwidth_hz))
+            p = self.engine.params
+            link = ServiceLink(
+                LinkFigureParams(p.ptx_dbw, p.cable_loss_db, self.engine.bandwidth_hz)
+            )
         self.link = link
 
     def __call__(self, state):
@@ -277,14 +282,14 @@ class Monitor:
         return env_lin if fading is None else fading * env_lin
 
     def _fading(self, recs, links, pair):
-        if self.fading_k is None or not (pair >= 0).any():
+        if self.fading is None or not (pair >= 0).any():
             return None
         rx = np.broadcast_to(links.rx_db, links.ut.shape)[np.maximum(pair, 0)]
         n_lin = 10.0 ** (rx / 10.0)
         # Instantaneous over mean gain (mean 1); the mean receive gain stands in for the
         # LoS gain N, which is off by 1/K = 0.1 in N = 576 for the paper's UPA.
-        g = np.concatenate([complex_normal(self.ut_keys, r.k) for r in recs])
-        k = self.fading_k
+        g = np.concatenate([complex_normal(self.fading.ut_keys, r.k) for r in recs])
+        k = self.fading.k
         with np.errstate(divide="ignore", invalid="ignore"):
             return rician_gain_from_draws_lin(n_lin, k, g) / mean_rician_gain_lin(n_lin, k)
 

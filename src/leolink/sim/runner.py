@@ -28,7 +28,7 @@ from leolink.sim.handover.policies import Policy
 from leolink.sim.handover.rlf_run import RLF_REASON, RlfRun
 from leolink.sim.mobility.models import concat_states
 from leolink.sim.mobility.populations import MotionModel
-from leolink.sim.monitor import Monitor
+from leolink.sim.monitor import FadingDraws, Monitor
 from leolink.sim.motion import MotionBlocks
 from leolink.sim.processes import (
     OUTAGE_REASONS,
@@ -176,9 +176,10 @@ def _processes(env, scen, state, motion, decide, monitor):
     env.process(link_monitor(env, state, monitor, epoch))
 
 
-def _monitor(scen, sink, decide, keys, names, rlf):
+def _monitor(scen, sink, decide, keys, names):
     """The run's monitor; with an ephemeris error, the links on the true states."""
-    args = (scen.engine, sink, decide, scen.fading_k, keys, scen.epoch_s, names, scen.link, rlf)
+    fading = None if scen.fading_k is None else FadingDraws(scen.fading_k, keys)
+    args = (sink, decide, fading, names, scen.link)
     if scen.estimated_ephemeris is None:
         return Monitor(*args, service=scen.service)
     return TrueLinkMonitor(*args, service=scen.service, true_ephemeris=scen.ephemeris)
@@ -235,7 +236,7 @@ def run_simulation(
         counts = [pop.n_ut for _, pop in scen.populations]
         decide.with_channel(ChannelTracker(scen.environments, counts, keys, decide.min_el))
         environment = decide.channel.environment
-    monitor = _monitor(scen, sink, decide, keys, names, rlf)
+    monitor = _monitor(scen, sink, decide, keys, names)
     env = simpy.Environment(initial_time=float(times[0]))
     _processes(env, scen, state, motion, decide, monitor)
     info = RunInfo(
