@@ -18,6 +18,16 @@ Pairs evaluated, per epoch, among the satellites of the epoch's cone
   policy's ``neighbour_window_db``, ``floor`` the service threshold for a policy that
   declares ``usable_cells_only`` (else no floor).
 
+Every pair whose bound reaches ``L`` is evaluated too, below the floor as well: one of them
+holds the row's best cell (the outage rows' geometry).
+
+With the UTs' environments (``loss``: each path's extra loss of the epoch, drawn before the
+search by :class:`~leolink.sim.decide.Decider`) the bounds, ``L``, the window, the floor
+and the best cell are those of each pair's SNR after its own loss: a bound of the linear
+SNR times ``10^(-loss/10)`` bounds it after the loss, so the same argument holds, with no
+margin. Every pair whose bound without the loss reaches ``L`` without it is evaluated too:
+the row's best SNR in open country (``open_snr_db``, the ``blocked`` outage reason).
+
 A pair left out has a bound below ``L - window`` or below the floor: none of its cells can
 be within the window of the best cell and at or above the floor. So a row holds exactly
 the cells within the window of the UT's best cell and at or above the floor, pruned or
