@@ -112,6 +112,7 @@ class Decider:
         self.mb = mb
         loss = None
         if self.channel is not None:  # every epoch's paths, in order, before the search
+            self.channels = []  # (the last block's go first: one block's at a time)
             self.channels = [self._channel(mb, i) for i in range(mb.n_k)]
             loss = lambda i: self.channels[i].loss_grid()  # noqa: E731
         self.block = self.search.block(mb.k0, mb.ut_pos_m, up, mb.sat_pos_m, mb.sat_vel_m_s,
