@@ -7,8 +7,10 @@ table (:class:`ChannelParams`). :class:`ChannelTracker` owns the per-pair states
 (warm-up included), it advances every pair of a UT and a satellite above the mask and
 gives the environment's extra loss of each path (:class:`EpochChannel`). The loss enters
 
-- the candidate table the controller decides on (:meth:`EpochChannel.apply`): blockage
-  moves handovers and causes outages, with reason ``blocked``;
+- the candidate table the controller decides on: the channel of a block's epochs is drawn
+  before the block's candidate search, which prunes on each path's SNR after its own loss
+  (:class:`~leolink.sim.decide.Decider`; exact, no margin); blockage moves handovers and
+  causes outages, with reason ``blocked``;
 - the trace: the serving path's ``los``, ``shadow_db``, ``clutter_db`` and
   ``scintillation_db`` columns and its SNR and SINR, the serving satellite's other beams
   sharing the path's state and each interfering satellite's path having its own.
