@@ -1,14 +1,15 @@
-"""The candidate search widens its window and lowers its floor by the environment margin.
+"""The candidate search prunes on each path's SNR after its environment loss.
 
 A trigger policy sees only the cells at or above the service threshold
-(``usable_cells_only``), so the search leaves out cells whose open-country SNR is below it;
-a policy with a window (``max_snr``: the best cell only) leaves out the cells further below
-the best. With an environment, shadowing can lift a path by several dB and clutter can
-sink the best one: a cell outside the floor or the window in open country may be inside
-after the environment, so both move by the environment's margin (``Decider.with_channel``).
-Checked on real multi-satellite runs with shadowed UTs: the pruned tables with the floor
-and the window give the same trace and events, bit for bit, as every cell of every
-visible satellite with every pair evaluated.
+(``usable_cells_only``), so the search leaves out cells below it; a policy with a window
+(``max_snr``: the best cell only) leaves out the cells further below the best. With an
+environment, shadowing can lift a path by several dB and clutter can sink the best one:
+the search draws every path's loss of the block before it prunes (``Decider._open``) and
+bounds each pair's SNR after its own loss, so the floor and the window apply to the SNRs
+the controller decides on. Checked on real multi-satellite runs with shadowed UTs: the
+pruned tables with the floor and the window give the same trace and events, bit for bit,
+as every cell of every visible satellite with every pair evaluated; with UTs on the move,
+other environments and masks other than the config's too.
 """
 
 import numpy as np
@@ -23,11 +24,18 @@ ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 WALKER = ROOT / "configs" / "examples" / "walker.toml"
 
 
-def _run(tmp_path, policy_sets, exhaustive):
+def _run(tmp_path, policy_sets, exhaustive, environment="suburban", moving=False):
     text = WALKER.read_text()
     # Every UT in a shadowed environment (TR 38.811 suburban: LoS sigma up to several dB).
-    text = text.replace('placement = "center"', 'placement = "center"\nenvironment = "suburban"')
-    text = text.replace("count = 3", 'count = 3\nenvironment = "suburban"')
+    env = f'\nenvironment = "{environment}"'
+    text = text.replace('placement = "center"', 'placement = "center"' + env)
+    text = text.replace("count = 3", "count = 3" + env)
+    if moving:  # the grid's three UTs by train, each on its own heading
+        text = text.replace(
+            'kind = "static"\nplacement = "grid"',
+            'kind = "constant_velocity"\n'
+            'placement = "grid"\nspeed = "train"\nheading_deg = "random"',
+        )
     path = tmp_path / "walker_suburban.toml"
     path.write_text(text)
     # The threshold (min_snr_db = 1 dB) in the middle of the SNRs after the environment.
@@ -51,6 +59,32 @@ def test_shadowed_runs_on_the_pruned_tables_equal_every_cell(tmp_path, policy_se
     # The threshold sits in the middle of the shadowed SNRs: handovers and outages.
     assert events.kind.isin(["beam_handover", "sat_handover"]).sum() >= 3
     assert (events.kind == "outage_end").sum() >= 5
+
+
+@pytest.mark.parametrize(
+    ("environment", "policy_sets"),
+    [
+        (
+            "urban",
+            [
+                "controller.policy=a3",
+                "controller.a3.hysteresis_db=1.0",
+                "constellation.min_elevation_deg=15",
+            ],
+        ),
+        ("dense_urban", ["controller.policy=hysteresis", "constellation.min_elevation_deg=20"]),
+    ],  # fmt: skip
+    ids=["urban_a3_mask15", "dense_urban_hysteresis_mask20"],
+)
+def test_moving_uts_in_other_environments_and_masks_equal_every_cell(
+    tmp_path, environment, policy_sets
+):
+    trace, events = _run(tmp_path, policy_sets, False, environment, moving=True)
+    trace_ref, events_ref = _run(tmp_path, policy_sets, True, environment, moving=True)
+    pd.testing.assert_frame_equal(trace, trace_ref)
+    pd.testing.assert_frame_equal(events, events_ref)
+    assert events.kind.isin(["beam_handover", "sat_handover"]).sum() >= 3
+    assert (trace.los == 0.0).any() and (trace.los == 1.0).any()  # blocked and clear paths
 
 
 def test_the_lookahead_table_carries_the_environment_loss(tmp_path, monkeypatch):

@@ -242,24 +242,19 @@ def test_scintillation_twice_is_refused(tmp_path):
         run(cfg)
 
 
-def test_candidate_search_widens_by_what_the_environment_can_reorder():
-    """A cell the search leaves out must stay out after the environment: the window grows
-    by the largest clutter loss plus 6 shadowing deviations each way (Table 6.6.2-2, Ka:
-    CL 44.3 dB at 10 deg, sigma_SF NLoS 6 dB), and the decider searches with it."""
+def test_the_environment_leaves_the_search_window_and_floor_as_the_policy_declares():
+    """The search draws each path's loss before it prunes (``Decider.with_channel``): no
+    margin widens the window or lowers the floor (116-250 dB did once, which evaluated
+    every visible pair; ``tests/test_environment_floor.py`` checks the tables exact)."""
     from leolink.app.scenario import build_scenario
     from leolink.sim.decide import Decider
-    from leolink.sim.environment import ChannelTracker, candidate_margin_db
+    from leolink.sim.environment import ChannelTracker
 
-    models = build_scenario(load_config(TOWN)).environments
-    assert candidate_margin_db([models[0]]) == pytest.approx(44.3 + 2 * 6 * 6.0)  # urban
-    assert candidate_margin_db([models[1]]) == 0.0  # open country reorders nothing
-    # Rural, Table 6.6.2-3 Ka: CL 29.5 dB at 10 deg, sigma_SF NLoS 11.8 dB at 50 deg.
-    assert candidate_margin_db(models) == pytest.approx(29.5 + 2 * 6 * 11.8)
     sc = build_scenario(load_config(TOWN))
     dec = Decider(sc.engine, sc.policy, -10.0, 0.0, 0.17, 6.371e6, None, None)
-    window = dec.search.window_db
-    dec.with_channel(ChannelTracker(models, [1, 1, 1], np.zeros(3, np.uint64), 0.17))
-    assert dec.search.window_db == pytest.approx(window + 29.5 + 12 * 11.8)
+    window, floor = dec.search.window_db, dec.search.floor_db
+    dec.with_channel(ChannelTracker(sc.environments, [1, 1, 1], np.zeros(3, np.uint64), 0.17))
+    assert (dec.search.window_db, dec.search.floor_db) == (window, floor)
 
 
 def test_interfering_satellites_paths_keep_their_own_states(tmp_path, monkeypatch):

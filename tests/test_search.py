@@ -164,7 +164,7 @@ def test_screening_bound_is_the_product_of_the_envelopes(block, kind):
 
 def _tables(eng, n_ut, mb, cones, window_db, prune, floor_db=-np.inf):
     blk = CandidateSearch(eng, window_db, prune, floor_db).block(
-        0, n_ut, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones
+        0, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones
     )
     t = blk.table
     r, s = np.nonzero(t.cell >= 0)
@@ -312,7 +312,7 @@ def test_pruned_tables_of_tilted_panels_are_the_exhaustive_tables(block, tilted)
     out = []
     for prune in (True, False):
         blk = CandidateSearch(scan, 3.0, prune).block(
-            0, n_ut, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones, normal
+            0, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones, normal
         )
         t = blk.table
         r, s = np.nonzero(t.cell >= 0)

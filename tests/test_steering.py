@@ -244,7 +244,7 @@ def test_pruned_tables_are_the_exhaustive_tables_with_re_steered_beams(constella
     out = []
     for prune in (True, False):
         blk = CandidateSearch(eng, 3.0, prune).block(
-            0, n_ut, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones
+            0, mb.ut_pos_m, None, mb.sat_pos_m, mb.sat_vel_m_s, cones
         )
         t = blk.table
         r, s = np.nonzero(t.cell >= 0)

@@ -169,8 +169,8 @@ MUTATIONS = (
     Mutation(
         "search_floor_3_db_high",
         "src/leolink/sim/candidates/search.py",
-        "low = np.maximum(reach[rows] * factor, floor_lin)",
-        "low = np.maximum(reach[rows] * factor, floor_lin * 2.0)",
+        "low = np.minimum(np.maximum(reach[rows] * factor, floor_lin), reach[rows])",
+        "low = np.minimum(np.maximum(reach[rows] * factor, floor_lin * 2.0), reach[rows])",
         ("tests/test_search.py",),
     ),
     Mutation(

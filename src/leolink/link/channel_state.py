@@ -63,11 +63,13 @@ __all__ = [
     "advance",
     "ar1_step",
     "effective_displacement_m",
+    "dense_terms",
     "empty_state",
     "environment_model",
     "innovations",
     "link_terms",
     "pair_keys",
+    "pair_terms",
     "ray_clutter_offset_m",
 ]
 
@@ -299,21 +301,27 @@ def effective_displacement_m(ut_step_m, el_prev_rad, az_prev_rad, el_rad, az_rad
     return np.sqrt(step[:, None] ** 2 + np.sum(shift * shift, axis=-1))
 
 
-def _carry(state, sat_id):
-    """Previous values aligned with the new slots, and which slots had a previous value."""
-    old_id = state.sat_id
-    if old_id.shape[1] == 0:  # pad so that argmax has an axis to reduce
-        old_id = np.full((sat_id.shape[0], 1), -1, dtype=np.int64)
-    match = (sat_id[:, :, None] == old_id[:, None, :]) & (sat_id[:, :, None] >= 0)
-    had = match.any(axis=-1)
-    idx = match.argmax(axis=-1)
+def _carry(state, sat_id, rows, slots):
+    """Previous values of the entries ``(rows, slots)`` of ``sat_id`` (its valid ones, in
+    row-major order), and which of them had a previous value: the previous state's entry
+    of the same (row, satellite), found by sorted keys (no (n_slot x n_old_slot) match)."""
+    old_rows, old_slots = np.nonzero(state.sat_id >= 0)
+    old_sat = state.sat_id[old_rows, old_slots]
+    sat = sat_id[rows, slots]
+    n_key = int(max(old_sat.max(initial=0), sat.max(initial=0))) + 1
+    old_key = old_rows * n_key + old_sat
+    order = np.argsort(old_key, kind="stable")  # equal keys: the first slot, as before
+    old_key = old_key[order]
+    key = rows * n_key + sat
     fields = ("z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "azimuth_rad")
+    if old_key.size == 0:  # the first epoch: every pair new
+        return np.zeros(key.size, bool), {name: np.zeros(key.size) for name in fields}
+    idx = np.minimum(np.searchsorted(old_key, key), old_key.size - 1)
+    had = old_key[idx] == key
+    src_rows, src_slots = old_rows[order][idx], old_slots[order][idx]
     prev = {}
     for name in fields:
-        values = getattr(state, name)
-        if values.shape[1] == 0:
-            values = np.zeros(old_id.shape)
-        prev[name] = np.where(had, np.take_along_axis(values, idx, axis=1), 0.0)
+        prev[name] = np.where(had, getattr(state, name)[src_rows, src_slots], 0.0)
     return had, prev
 
 
@@ -346,17 +354,24 @@ def advance(state, model, ut_keys, sat_id, elevation_rad, azimuth_rad, ut_step_m
     sat_id = np.asarray(sat_id, dtype=np.int64)
     el = np.asarray(elevation_rad, dtype=float)
     az = np.asarray(azimuth_rad, dtype=float)
-    had, prev = _carry(state, sat_id)
+    # Only the pairs with a satellite evolve (row-major); empty slots keep zeros.
+    rows, slots = np.nonzero(sat_id >= 0)
+    had, prev = _carry(state, sat_id, rows, slots)
+    step = np.asarray(ut_step_m, dtype=float)[rows]  # each pair's UT step, (n, 2) or (n,)
+    el_p, az_p = el[rows, slots][:, None], az[rows, slots][:, None]  # (n, 1): one slot a row
     moved_m = effective_displacement_m(
-        ut_step_m, prev["elevation_rad"], prev["azimuth_rad"], el, az, model.clutter_height_m
-    )
+        step, prev["elevation_rad"][:, None], prev["azimuth_rad"][:, None], el_p, az_p,
+        model.clutter_height_m,
+    )[:, 0]  # fmt: skip
     distance_m = np.where(had, moved_m, np.inf)  # new pair: rho = 0, stationary start
-    w = innovations(pair_keys(ut_keys, sat_id), epoch)
+    keys = np.asarray(ut_keys, dtype=np.uint64)[rows]
+    w = innovations(pair_keys(keys, sat_id[rows, slots][:, None])[:, 0], epoch)
     dists = (model.los_corr_distance_m, model.sf_corr_distance_los_m, model.sf_corr_distance_nlos_m)
-    z = [
-        ar1_step(prev[name], distance_m, d, w[i])
-        for i, (name, d) in enumerate(zip(("z_los", "z_sf_los", "z_sf_nlos"), dists, strict=True))
-    ]
+    z = []
+    for i, (name, d) in enumerate(zip(("z_los", "z_sf_los", "z_sf_nlos"), dists, strict=True)):
+        dense = np.zeros(sat_id.shape)
+        dense[rows, slots] = ar1_step(prev[name], distance_m, d, w[i])
+        z.append(dense)
     return ChannelState(sat_id, *z, el, az, int(epoch))
 
 
@@ -389,9 +404,28 @@ def link_terms(state, model):
         ``los = Phi(z_los) < P_LoS(el)`` (TR 38.901 clause 7.6.3.3 with TR 38.811
         Table 6.6.1-1); ``shadow_db = sigma_SF(el, los) z_sf`` of the current state and
         ``clutter_db = CL(el)`` if NLoS (Tables 6.6.2-1..3); ``open``: always LoS, 0 dB.
+        Shape (n_ut, n_slot), NaN / False in empty slots.
     """
-    valid = state.sat_id >= 0
-    el_deg = np.degrees(state.elevation_rad)
+    rows, slots = np.nonzero(state.sat_id >= 0)
+    return dense_terms(pair_terms(state, model, rows, slots), rows, slots, state.sat_id.shape)
+
+
+def dense_terms(terms, rows, slots, shape):
+    """:class:`LinkTerms` of the pairs ``(rows, slots)`` (shape (n,)) spread on a grid of
+    ``shape``: NaN / False elsewhere."""
+    out = []
+    for name, values in zip(LinkTerms._fields, terms, strict=True):
+        dense = np.zeros(shape, bool) if name == "los" else np.full(shape, np.nan)
+        dense[rows, slots] = values
+        out.append(dense)
+    return LinkTerms(*out)
+
+
+def pair_terms(state, model, rows, slots):
+    """:func:`link_terms` of the pairs ``(rows, slots)`` of ``state`` only (each with a
+    satellite): :class:`LinkTerms` of shape (n,), the same values."""
+    z_los, el_rad = state.z_los[rows, slots], state.elevation_rad[rows, slots]
+    el_deg = np.degrees(el_rad)
     name, band = model.environment, model.band
     if name == "open":
         los = np.ones(el_deg.shape, dtype=bool)
@@ -400,13 +434,12 @@ def link_terms(state, model):
         from scipy.special import ndtri  # here, not at import: scipy costs ~0.3 s of start-up
 
         # Compare in the Gaussian domain (exact, no erf): Phi(z) < p  <=>  z < Phi^-1(p).
-        los = state.z_los < ndtri(env.los_probability(el_deg, name))
-        z_sf = np.where(los, state.z_sf_los, state.z_sf_nlos)
+        los = z_los < ndtri(env.los_probability(el_deg, name))
+        z_sf = np.where(los, state.z_sf_los[rows, slots], state.z_sf_nlos[rows, slots])
         shadow_db = env.shadow_sigma_db(el_deg, name, band, los) * z_sf
         clutter_db = np.where(los, 0.0, env.clutter_loss_db(el_deg, name, band))
     if model.scintillation:
         scint_db = env.scintillation_db(el_deg, model.freq_hz, model.geomagnetic_latitude_deg)
     else:
         scint_db = np.zeros(el_deg.shape)
-    terms = [np.where(valid, t, np.nan) for t in (shadow_db, clutter_db, scint_db)]
-    return LinkTerms(los & valid, *terms, terms[0] + terms[1] + terms[2])
+    return LinkTerms(los, shadow_db, clutter_db, scint_db, shadow_db + clutter_db + scint_db)

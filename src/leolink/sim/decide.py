@@ -23,7 +23,6 @@ from leolink.geometry import enu_basis
 from leolink.sim.beams.selectors import restrict
 from leolink.sim.candidates.search import CandidateSearch
 from leolink.sim.candidates.table import Candidates
-from leolink.sim.environment import candidate_margin_db
 from leolink.sim.handover.controller import concat_events, resumed_events, step
 from leolink.sim.handover.policies import neighbour_window_db
 
@@ -84,16 +83,15 @@ class Decider:
         self.panels = panels
         self.block = self.mb = self.cones = self.enu = self.panel = None
         self.channel = None  # ChannelTracker of the UTs' environments (None: open country)
+        self.channels = []  # its EpochChannel of each epoch of the current block
 
     def with_channel(self, tracker):
-        """Decide on SNRs with each path's environment loss (:mod:`leolink.sim.environment`);
-        the search window widens by what the environment can reorder."""
+        """Decide on SNRs with each path's environment loss (:mod:`leolink.sim.environment`).
+
+        The channel of a block's epochs is drawn when the block opens, before its search:
+        the search prunes on each path's SNR after its own loss (an exact bound, neither
+        a margin nor a tail probability), so the window and the floor stay the policy's."""
         self.channel = tracker
-        margin_db = candidate_margin_db(tracker.models)
-        # The floor (open-country SNR) drops by as much: shadowing may lift a path above it.
-        self.search = CandidateSearch(
-            self.engine, self.window_db + margin_db, self.prune, self.floor_db - margin_db
-        )
 
     def _open(self, k):
         """The candidates of the motion block of epoch ``k`` (computed once per block)."""
@@ -111,12 +109,20 @@ class Decider:
         up = None if self.enu is None else self.enu[..., 2, :]
         self.panel = self._panels(mb)
         normal = None if self.panel is None else self.panel[..., 2, :]
-        n_ut = mb.ut_pos_m.shape[1]
         self.mb = mb
-        self.block = self.search.block(
-            mb.k0, n_ut, mb.ut_pos_m, up, mb.sat_pos_m, mb.sat_vel_m_s, self.cones, normal
-        )
+        loss = None
+        if self.channel is not None:  # every epoch's paths, in order, before the search
+            self.channels = []  # (the last block's go first: one block's at a time)
+            self.channels = [self._channel(mb, i) for i in range(mb.n_k)]
+            loss = lambda i: self.channels[i].loss_grid()  # noqa: E731
+        self.block = self.search.block(mb.k0, mb.ut_pos_m, up, mb.sat_pos_m, mb.sat_vel_m_s,
+                                       self.cones, normal, loss)  # fmt: skip
         return self.block
+
+    def _channel(self, mb, i):
+        """The UTs' environment at the block's epoch ``i`` (the tracker steps to it)."""
+        enu = self.enu[i] if self.enu is not None else enu_basis(mb.ut_lat_rad[i], mb.ut_lon_rad[i])
+        return self.channel.step(mb.k0 + i, mb.ut_pos_m[i], enu, mb.sat_pos_m[i], self.cones[i])
 
     def _panels(self, mb):
         """Panel rows of the block's epochs (n_k, n_ut, 3, 3), or None (flat panels). On
@@ -131,7 +137,8 @@ class Decider:
         blk = self._open(k)
         c = state.controller
         rows = blk.rows(k)
-        table = self._with_serving(blk.table.rows(rows), rows, c.serving)
+        ch = self.channels[k - blk.k0] if self.channel is not None else None
+        table = self._with_serving(blk.table.rows(rows), rows, c.serving, ch)
         state.best_snr_db, state.n_visible = blk.best_snr_db[rows], blk.n_visible[rows]
         best_cell = blk.best_cell[rows]
         future = None
@@ -140,7 +147,8 @@ class Decider:
             # for an aircraft over 10 s.
             future = self._future(table, state.t_s + self.policy.lookahead_s, k)
         if self.channel is not None:
-            table, future, best_cell = self._environment(state, table, future)
+            self._environment(state, ch)
+            future = None if future is None else ch.apply(future, nb)
         if self.selector is not None:
             table, future = self._lit_only(state, table, future, best_cell, k)
         t = state.t_s
@@ -164,20 +172,11 @@ class Decider:
         state.enu = None if self.enu is None else self.enu[k - blk.k0]
         state.controller = res.state
 
-    def _environment(self, state, table, future):
-        """Each cell's SNR with its path's environment loss (now and, persisting, at the
-        lookahead); the best cell and its SNR then; which UTs are served in open country."""
-        j = state.k - self.block.k0
-        mb = self.mb
-        enu = self.enu[j] if self.enu is not None else enu_basis(mb.ut_lat_rad[j], mb.ut_lon_rad[j])
-        ch = self.channel.step(state.k, mb.ut_pos_m[j], enu, mb.sat_pos_m[j], self.cones[j])
-        nb = self.engine.n_beam
+    def _environment(self, state, ch):
+        """The epoch's environment ``ch`` (its paths' losses are in the block's tables and
+        best cells already) and each UT's best SNR without it (open country)."""
         state.channel = ch
-        state.open_snr_db = state.best_snr_db  # the best cell without the environment
-        table = ch.apply(table, nb)
-        future = None if future is None else ch.apply(future, nb)
-        best_cell, state.best_snr_db = table.best()
-        return table, future, best_cell
+        state.open_snr_db = self.block.open_snr_db[self.block.rows(state.k)]
 
     def _masked(self, state, table):
         """``table`` with the candidates of UTs re-establishing after an RLF masked."""
@@ -197,9 +196,11 @@ class Decider:
             future = restrict(future, state.lit, best_cell, sel.dark_fallback)
         return table, future
 
-    def _with_serving(self, table, rows, serving):
+    def _with_serving(self, table, rows, serving, channel=None):
         """``table`` with each UT's serving cell added where it is missing and above the
-        mask (an extra column; -1/NaN elsewhere)."""
+        mask (an extra column; -1/NaN elsewhere), lowered by its path's loss in
+        ``channel`` (the epoch's :class:`~leolink.sim.environment.EpochChannel`, if any:
+        the table's cells have theirs)."""
         if table._compiled():  # the same column, in one loop
             cell, snr_db, missing, n_need = jit.serving_column(table, serving, rows.start,
                                                                self.block)  # fmt: skip
@@ -225,6 +226,9 @@ class Decider:
                 val[miss], vis[miss] = self._evaluated_snr_db(r[miss], serving[need[miss]])
             cell, snr_db = np.full(table.n_ut, -1, np.int64), np.full(table.n_ut, np.nan)
             cell[need[vis]], snr_db[need[vis]] = serving[need[vis]], val[vis]
+        if channel is not None:
+            sat = np.where(cell >= 0, cell // self.engine.n_beam, -1)
+            snr_db = snr_db - channel.loss_db(sat[:, None])[:, 0]
         return Candidates(np.column_stack([table.cell, cell]),
                           np.column_stack([table.snr_db, snr_db]))  # fmt: skip
 

@@ -7,8 +7,10 @@ table (:class:`ChannelParams`). :class:`ChannelTracker` owns the per-pair states
 (warm-up included), it advances every pair of a UT and a satellite above the mask and
 gives the environment's extra loss of each path (:class:`EpochChannel`). The loss enters
 
-- the candidate table the controller decides on (:meth:`EpochChannel.apply`): blockage
-  moves handovers and causes outages, with reason ``blocked``;
+- the candidate table the controller decides on: the channel of a block's epochs is drawn
+  before the block's candidate search, which prunes on each path's SNR after its own loss
+  (:class:`~leolink.sim.decide.Decider`; exact, no margin); blockage moves handovers and
+  causes outages, with reason ``blocked``;
 - the trace: the serving path's ``los``, ``shadow_db``, ``clutter_db`` and
   ``scintillation_db`` columns and its SNR and SINR, the serving satellite's other beams
   sharing the path's state and each interfering satellite's path having its own.
@@ -30,20 +32,11 @@ from pydantic import Field
 
 from leolink.errors import ConfigError
 from leolink.link import channel_state as cs
-from leolink.link.environment import (
-    ENVIRONMENTS,
-    clutter_loss_db,
-    scintillation_db,
-    shadow_sigma_db,
-)
+from leolink.link.environment import ENVIRONMENTS
 from leolink.registry import Params
 
 __all__ = ["ENVIRONMENTS", "ChannelParams", "ChannelTracker", "EpochChannel"]
-__all__ += ["candidate_margin_db", "environment_models"]
-
-#: Shadowing draws further than this many standard deviations from the mean are rarer
-#: than 1e-9 per sample: the candidate margin of :func:`candidate_margin_db` covers them.
-SHADOW_Z_MAX = 6.0
+__all__ += ["environment_models"]
 
 
 class ChannelParams(Params):
@@ -104,61 +97,55 @@ def environment_models(populations, freq_hz):
     return models
 
 
-def candidate_margin_db(models):
-    """How much the environment can reorder two paths' SNRs [dB], at most (in practice).
-
-    A path loses at most the clutter loss plus ``SHADOW_Z_MAX`` shadowing deviations and
-    the scintillation margin, and gains at most ``SHADOW_Z_MAX`` deviations: a cell whose
-    free-space SNR is more than the policy's window plus this margin below the best is
-    outside the window after the environment too. The candidate search widens its window
-    by it (:class:`~leolink.sim.decide.Decider`).
-    """
-    el_deg = np.arange(0.0, 91.0)
-    margin = 0.0
-    for m in models:
-        if m.environment == "open":
-            sigma, clutter = 0.0, 0.0
-        else:
-            sigma = max(
-                float(shadow_sigma_db(el_deg, m.environment, m.band, los).max())
-                for los in (True, False)
-            )
-            clutter = float(clutter_loss_db(el_deg, m.environment, m.band).max())
-        scint = 0.0
-        if m.scintillation:
-            lat_deg = m.geomagnetic_latitude_deg
-            scint = float(np.max(scintillation_db(el_deg, m.freq_hz, lat_deg)))
-        margin = max(margin, clutter + scint + 2.0 * SHADOW_Z_MAX * sigma)
-    return margin
-
-
 @dataclasses.dataclass(frozen=True)
 class EpochChannel:
-    """The environment of every path of one epoch.
+    """The environment of every path of one epoch, kept for the pairs with a state only.
 
-    Attributes (shape (n_ut, n_slot); slot ``j`` is satellite ``cone[j]``, the same for
-    every UT; ``sat_id[u, j] = -1`` where that satellite is below the mask for ``u``):
-    ``sat_id``; ``terms``, the :class:`~leolink.link.channel_state.LinkTerms`.
+    Attributes: ``cone`` (n_cone,), the epoch's candidate satellites (ascending);
+    ``has`` (n_ut, n_cone), whether UT ``u``'s path to ``cone[j]`` has a state (the
+    satellite is above the mask for ``u``); ``los``, ``shadow_db``, ``clutter_db``
+    (n_pair,) and ``scintillation_db`` (n_pair,), or None where no population has it (0
+    dB): the :class:`~leolink.link.channel_state.LinkTerms` of the pairs of ``has``, in
+    row-major order. A block of 64 epochs of 1,000 UTs with ~63 satellites each above the
+    mask holds ~70 MB so (the dense (n_ut, n_cone) terms of every cone satellite: 350 MB).
     """
 
     cone: np.ndarray
-    sat_id: np.ndarray
-    terms: cs.LinkTerms
+    has: np.ndarray
+    los: np.ndarray
+    shadow_db: np.ndarray
+    clutter_db: np.ndarray
+    scintillation_db: np.ndarray | None = None
 
-    def _slots(self, sat):
-        """Slot of satellite ``sat[u, ...]`` in row ``u``, and whether the pair has a state."""
+    @property
+    def extra_loss_db(self):
+        """Each pair's extra loss [dB], (n_pair,): shadowing + clutter + scintillation."""
+        scint = 0.0 if self.scintillation_db is None else self.scintillation_db
+        return self.shadow_db + self.clutter_db + scint
+
+    def loss_grid(self):
+        """Extra loss [dB] of every (UT, cone satellite) path, (n_ut, n_cone); 0 without
+        a state."""
+        out = np.zeros(self.has.shape)
+        out[self.has] = self.extra_loss_db
+        return out
+
+    def _pairs(self, sat):
+        """Index of the pair of UT ``u`` and satellite ``sat[u, ...]`` in the kept pairs,
+        and whether it has a state."""
         sat = np.asarray(sat, np.int64)
         if self.cone.size == 0:
             return np.zeros(sat.shape, np.int64), np.zeros(sat.shape, bool)
         slot = np.clip(np.searchsorted(self.cone, sat), 0, self.cone.size - 1)
         rows = np.arange(sat.shape[0]).reshape((-1,) + (1,) * (sat.ndim - 1))
-        return slot, (self.sat_id[rows, slot] == sat) & (sat >= 0)
+        ok = self.has[rows, slot] & (self.cone[slot] == sat) & (sat >= 0)
+        index = np.cumsum(self.has.reshape(-1)) - 1  # row-major position of each state
+        return np.where(ok, index[rows * self.cone.size + slot], 0), ok
 
     def loss_db(self, sat):
         """Extra loss [dB] of the paths to satellites ``sat (n_ut, m)``; 0 without a state."""
-        slot, ok = self._slots(sat)
-        rows = np.arange(ok.shape[0])[:, None]
-        return np.where(ok, self.terms.extra_loss_db[rows, slot], 0.0)
+        pair, ok = self._pairs(sat)
+        return _take(self.extra_loss_db, pair, ok, 0.0)
 
     def apply(self, table, n_beam):
         """The candidate table with each cell's SNR lowered by its path's extra loss."""
@@ -171,14 +158,40 @@ class EpochChannel:
         ``los`` 1.0 / 0.0 (NaN without a path), ``shadow_db``, ``clutter_db``,
         ``scintillation_db``; and ``extra_loss_db`` (0 without a path).
         """
-        slot, ok = self._slots(sat)
-        u = np.arange(slot.shape[0])
-        t = self.terms
-        out = {"los": np.where(ok, t.los[u, slot].astype(float), np.nan)}
-        for name in ("shadow_db", "clutter_db", "scintillation_db"):
-            out[name] = np.where(ok, getattr(t, name)[u, slot], np.nan)
-        out["extra_loss_db"] = np.where(ok, t.extra_loss_db[u, slot], 0.0)
+        pair, ok = self._pairs(sat)
+        out = {
+            "los": _take(self.los.astype(float), pair, ok, np.nan),
+            "shadow_db": _take(self.shadow_db, pair, ok, np.nan),
+            "clutter_db": _take(self.clutter_db, pair, ok, np.nan),
+            "scintillation_db": _take(self._scintillation(), pair, ok, np.nan),
+        }
+        out["extra_loss_db"] = _take(self.extra_loss_db, pair, ok, 0.0)
         return out
+
+    def _scintillation(self):
+        """``scintillation_db`` (n_pair,), zeros where no population has it."""
+        s = self.scintillation_db
+        return np.zeros(self.los.size) if s is None else s
+
+    @property
+    def sat_id(self):
+        """(n_ut, n_cone): ``cone[j]`` where the pair has a state, -1 elsewhere."""
+        return np.where(self.has, self.cone[None, :], -1)
+
+    @property
+    def terms(self):
+        """The dense :class:`~leolink.link.channel_state.LinkTerms` (n_ut, n_cone), NaN /
+        False without a state."""
+        part = cs.LinkTerms(self.los, self.shadow_db, self.clutter_db, self._scintillation(),
+                            self.extra_loss_db)  # fmt: skip
+        return cs.dense_terms(part, *np.nonzero(self.has), self.has.shape)
+
+
+def _take(values, pair, ok, fill):
+    """``values[pair]`` where ``ok``, ``fill`` elsewhere (``values`` may be empty)."""
+    if values.size == 0:
+        return np.full(pair.shape, fill)
+    return np.where(ok, values[pair], fill)
 
 
 class ChannelTracker:
@@ -202,6 +215,7 @@ class ChannelTracker:
         self.slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         self.keys = np.asarray(ut_keys, np.uint64)
         self.min_el = float(min_elevation_rad)
+        self.scintillation = any(m.scintillation for m in self.models)
         self.states = [cs.empty_state(s.stop - s.start) for s in self.slices]
         self.prev_pos_m = None
         self.k = -1
@@ -243,10 +257,12 @@ class ChannelTracker:
             moved = ut_pos_m - self.prev_pos_m
             step_m = np.stack([np.einsum("uk,uk->u", moved, ut_enu[:, i, :]) for i in (0, 1)], -1)
         self.prev_pos_m, self.k = ut_pos_m.copy(), k
+        has = sat_id >= 0
         parts = []
         for i, (model, sl) in enumerate(zip(self.models, self.slices, strict=True)):
             self.states[i] = cs.advance(self.states[i], model, self.keys[sl], sat_id[sl],
                                         elevation[sl], azimuth[sl], step_m[sl], k)  # fmt: skip
-            parts.append(cs.link_terms(self.states[i], model))
-        terms = cs.LinkTerms(*(np.concatenate(f, axis=0) for f in zip(*parts, strict=True)))
-        return EpochChannel(cone, sat_id, terms)
+            parts.append(cs.pair_terms(self.states[i], model, *np.nonzero(has[sl])))
+        terms = cs.LinkTerms(*(np.concatenate(f) for f in zip(*parts, strict=True)))
+        scint = terms.scintillation_db if self.scintillation else None
+        return EpochChannel(cone, has, terms.los, terms.shadow_db, terms.clutter_db, scint)

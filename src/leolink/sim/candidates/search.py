@@ -18,6 +18,16 @@ Pairs evaluated, per epoch, among the satellites of the epoch's cone
   policy's ``neighbour_window_db``, ``floor`` the service threshold for a policy that
   declares ``usable_cells_only`` (else no floor).
 
+Every pair whose bound reaches ``L`` is evaluated too, below the floor as well: one of them
+holds the row's best cell (the outage rows' geometry).
+
+With the UTs' environments (``loss``: each path's extra loss of the epoch, drawn before the
+search by :class:`~leolink.sim.decide.Decider`) the bounds, ``L``, the window, the floor
+and the best cell are those of each pair's SNR after its own loss: a bound of the linear
+SNR times ``10^(-loss/10)`` bounds it after the loss, so the same argument holds, with no
+margin. Every pair whose bound without the loss reaches ``L`` without it is evaluated too:
+the row's best SNR in open country (``open_snr_db``, the ``blocked`` outage reason).
+
 A pair left out has a bound below ``L - window`` or below the floor: none of its cells can
 be within the window of the best cell and at or above the floor. So a row holds exactly
 the cells within the window of the UT's best cell and at or above the floor, pruned or
@@ -78,6 +88,9 @@ class BlockCandidates:
 
     beam_ix: np.ndarray
     beam_iy: np.ndarray
+    #: Each row's best SNR without the environment [dB] (NaN: none); ``best_snr_db`` with
+    #: it. None: no environment (the same as ``best_snr_db``).
+    open_snr_db: np.ndarray | None = None
 
     def __post_init__(self):
         self.n_key = int(self.links.sat.max(initial=0)) + 1
@@ -126,13 +139,12 @@ class CandidateSearch:
         self.engine, self.window_db, self.prune = engine, float(window_db), bool(prune)
         self.floor_db = float(floor_db)
 
-    def block(self, k0, n_ut, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones, normal=None):
+    def block(self, k0, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones, normal=None, loss=None):
         """The candidates of the epochs ``k0 .. k0 + n_k - 1``.
 
         Parameters
         ----------
         k0 : int
-        n_ut : int
         ut_pos_m : ndarray, shape (n_k, n_ut, 3)
         ut_up : ndarray, shape (n_k, n_ut, 3), or None
             Local up of each UT (WGS 84); None: the sphere's.
@@ -143,12 +155,17 @@ class CandidateSearch:
             mask for some UT.
         normal : ndarray, shape (n_k, n_ut, 3), optional
             Panel normal of each UT (tilted panels, ``LinkEngine.evaluate_pairs``).
+        loss : callable, optional
+            ``loss(i) -> (n_ut, len(cones[i]))``: the extra loss [dB] of each path of the
+            block's epoch ``i`` (the UTs' environments; 0 without one), drawn before the
+            search: the window, the floor and the best cell are those of the SNRs after
+            it, and the pruning stays exact (module docstring). None: no environment.
 
         Returns
         -------
         BlockCandidates
         """
-        n_k = len(cones)
+        n_k, n_ut = len(cones), ut_pos_m.shape[1]
         pos = ut_pos_m.reshape(-1, 3)
         up = None if ut_up is None else ut_up.reshape(-1, 3)
         nrm = None if normal is None else normal.reshape(-1, 3)
@@ -157,51 +174,78 @@ class CandidateSearch:
         parts = []
         for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
             ks = range(lo, min(lo + step, n_k))
-            parts.append(self._chunk(ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm))
+            geo = (pos, up, sat_pos_m, sat_vel_m_s, nrm)
+            parts.append(self._chunk(ks, n_ut, geo, cones, loss))
         links = Links.concat([p[0] for p in parts])
         sure = np.concatenate([p[1] for p in parts])
+        pair_loss = None if loss is None else np.concatenate([p[2] for p in parts])
         order = np.lexsort((links.sat, links.ut))
         if (order != np.arange(order.size)).any():  # (often sorted already: no copy)
             links = links.take(order)
-        return self._tables(k0, n_ut, n_k, links, sure)
+            pair_loss = None if loss is None else pair_loss[order]
+        return self._tables(k0, n_ut, n_k, links, sure, pair_loss)
 
-    def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm=None):
+    def _chunk(self, ks, n_ut, geo, cones, loss=None):
         """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
-        global id) and the rows' visible satellites that were not evaluated."""
+        global id), the rows' visible satellites that were not evaluated, and the pairs'
+        environment loss [dB] (None without ``loss``). ``geo``: ``(pos, up, sat_pos_m,
+        sat_vel_m_s, nrm)`` of :meth:`evaluate`."""
+        pos, up, sat_pos_m, sat_vel_m_s, nrm = geo
         sure = np.zeros(len(ks) * n_ut, np.int64)
+        grids = {} if loss is None else {k: loss(k) for k in ks}
         if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
             rows, sats = _dense_pairs(ks, n_ut, cones)
-            return self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm), sure
+            links = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm)
+            return links, sure, _pair_loss(grids, n_ut, cones, links)
         rows1, sats1, rows2, sats2, screened = [], [], [], [], []
         for i, k in enumerate(ks):
             rows = k * n_ut + np.arange(n_ut)
             cone = cones[k]
             code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone, nrm)
-            first = np.argmax(bound, axis=1)
+            # Each path's bound after its environment (the loss is known: an exact bound).
+            env = bound if loss is None else bound * 10.0 ** (-grids[k] / 10.0)
+            first = np.argmax(env, axis=1)
             chosen = code == UNCERTAIN
-            has = np.flatnonzero(bound[np.arange(n_ut), first] >= 0.0)
+            has = np.flatnonzero(env[np.arange(n_ut), first] >= 0.0)
             chosen[has, first[has]] = True
             r, s = nonzero_2d(chosen)
             rows1.append(rows[r])
             sats1.append(cone[s])
-            screened.append((i, rows, cone, code, bound, chosen))
+            screened.append((i, rows, cone, code, bound, env, chosen))
         links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1, nrm)
-        reach = np.zeros(pos.shape[0])
-        gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
-        lin = np.where(links1.visible, gain, 0.0)
-        np.maximum.at(reach, links1.ut, lin * links1.path_lin)
+        loss1 = _pair_loss(grids, n_ut, cones, links1)
+        reach, reach_open = self._reach(pos.shape[0], links1, loss1)
         factor = 10.0 ** (-self.window_db / 10.0)
         floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
-        for i, rows, cone, code, bound, chosen in screened:
-            low = np.maximum(reach[rows] * factor, floor_lin)
+        for i, rows, cone, code, bound, env, chosen in screened:
+            # the window's and the floor's cells, and every pair that may hold the best
+            # cell (the diagnostics', below the floor too)
+            low = np.minimum(np.maximum(reach[rows] * factor, floor_lin), reach[rows])
             with np.errstate(invalid="ignore"):
-                more = (code > 0) & (bound >= low[:, None]) & ~chosen
+                more = (code > 0) & (env >= low[:, None]) & ~chosen
+                if reach_open is not None:  # and every pair that may hold the open best
+                    more |= (code > 0) & (bound >= reach_open[rows][:, None]) & ~chosen
             r, s = nonzero_2d(more)
             rows2.append(rows[r])
             sats2.append(cone[s])
             sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
         links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2, nrm)
-        return Links.concat([links1, links2]), sure
+        pair_loss = None if loss is None else np.r_[loss1, _pair_loss(grids, n_ut, cones, links2)]
+        return Links.concat([links1, links2]), sure, pair_loss
+
+    def _reach(self, n_rows, links, pair_loss):
+        """Per row, the largest linear SNR of its evaluated pairs' best beams: after the
+        environment (``pair_loss`` [dB]), and without it (None without an environment)."""
+        gain = links.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
+        lin = np.where(links.visible, gain, 0.0) * links.path_lin
+        reach = np.zeros(n_rows)
+        if pair_loss is None:
+            np.maximum.at(reach, links.ut, lin)
+            return reach, None
+        reach_open = np.zeros(n_rows)
+        np.maximum.at(reach_open, links.ut, lin)
+        np.maximum.at(reach, links.ut, lin * 10.0 ** (-pair_loss / 10.0))
+        return reach, reach_open
 
     def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone, nrm=None):
         """:func:`screen` of the UT rows ``rows`` against the cone, in blocks of UTs."""
@@ -245,7 +289,7 @@ class CandidateSearch:
         links.sat = sats  # global ids from here on
         return links
 
-    def _tables(self, k0, n_ut, n_k, links, sure):
+    def _tables(self, k0, n_ut, n_k, links, sure, pair_loss=None):
         """Window tables and diagnostics of the sorted evaluated pairs, in chunks of whole
         rows (:data:`TABLE_PAIRS` pairs): the (pairs, beams) temporaries stay bounded
         however many satellites a block sees; every value is one row's, so the tables do
@@ -258,20 +302,20 @@ class CandidateSearch:
         best_cell = np.full(n_rows, -1, np.int64)
         every = vis.size == links.n_pair  # every pair visible: slices, not gathers
         window = _window_kernel(vis.size) if self.floor_db == -np.inf else None
+        open_db = None if pair_loss is None else np.full(n_rows, np.nan)
         entries = []
         for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
             pairs = slice(lo, hi) if every else vis[lo:hi]
             rows, sat = rows_vis[lo:hi], links.sat[pairs]
             snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
+            if pair_loss is not None:  # the open best, then every SNR after the environment
+                _row_best(rows, snr_bm.T, open_db)
+                snr_bm = snr_bm - pair_loss[pairs][None, :]
             if window is not None:  # the same entries and best_db, no (pairs, beams) temporaries
                 entries.append(window(snr_bm, rows, sat, nb, float(self.window_db), best_db))
                 continue
             snr = snr_bm.T  # (m, nb)
-            if rows.size:
-                start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-                with np.errstate(invalid="ignore"):
-                    pair_best = np.fmax.reduce(snr, axis=1)
-                    best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
+            _row_best(rows, snr, best_db)
             with np.errstate(invalid="ignore"):
                 keep = snr >= (best_db[rows] - self.window_db)[:, None]
             if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
@@ -286,9 +330,33 @@ class CandidateSearch:
         table = Candidates.from_entries(n_rows, ut, cell, snr)
         if self.floor_db == -np.inf:
             best_cell, _ = table.best()
-        return BlockCandidates(
-            k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
-        )
+        return BlockCandidates(k0, n_ut, nb, table, n_visible, best_cell, best_db, links,
+                               eng.beam_ix, eng.beam_iy, open_db)  # fmt: skip
+
+
+def _row_best(rows, snr, out):
+    """Write into ``out`` each of the sorted ``rows``' largest SNR of ``snr (m, nb)``
+    (NaN ignored; NaN where all are)."""
+    if rows.size:
+        start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+        with np.errstate(invalid="ignore"):
+            pair_best = np.fmax.reduce(snr, axis=1)
+            out[rows[start]] = np.fmax.reduceat(pair_best, start)
+
+
+def _pair_loss(grids, n_ut, cones, links):
+    """The environment loss [dB] of each pair of ``links`` (rows ``k n_ut + u``) from the
+    epochs' ``(n_ut, n_cone)`` grids (``{k: grid}``); None without grids."""
+    if not grids:
+        return None
+    out = np.zeros(links.n_pair)
+    epoch = links.ut // n_ut
+    for k, grid in grids.items():
+        at = np.flatnonzero(epoch == k)
+        if at.size:
+            slot = np.searchsorted(cones[k], links.sat[at])  # every pair's satellite is in it
+            out[at] = grid[links.ut[at] - k * n_ut, slot]
+    return out
 
 
 def _dense_pairs(ks, n_ut, cones):
