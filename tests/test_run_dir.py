@@ -104,11 +104,10 @@ def _interrupted_run(out, monkeypatch):
     def stop(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(app_run, "write_manifest", stop)
+    monkeypatch.setattr(app_run, "raise_pending", stop)  # just before run.json
     args = ["--parquet", "--set", "run.duration_s=10"]  # every output, plots and report too
     assert _leolink("run", PAPER, "--out", out, "--quiet", *args) == 130
     monkeypatch.undo()
-    (out / "trace.csv.1a2b3c4d.partial").write_text("left by a killed writer")
 
 
 def test_an_interrupted_run_is_not_finished_and_is_cleared_by_overwrite(
@@ -123,6 +122,12 @@ def test_an_interrupted_run_is_not_finished_and_is_cleared_by_overwrite(
     err = capsys.readouterr().err
     assert "files of an unfinished leolink run (no run.json: " in err
     lean = [*SHORT, "--set", "output.report.enabled=false"]  # writes fewer files
+    killed = tmp_path / "trace.csv.1a2b3c4d.partial"  # a killed writer's: in no manifest
+    killed.write_text("left by a killed writer")
+    assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", "--overwrite", *lean) == 2
+    err = capsys.readouterr().err
+    assert f"holds {killed.name}, not written by leolink" in err and "left alone" in err
+    killed.unlink()  # the user's decision
     assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", "--overwrite", *lean) == 0
     assert not list(tmp_path.glob("*.partial")) and not list(tmp_path.glob("*.png"))
     assert not {"trace.parquet", "report.html", "footprint.gif"} & _files(tmp_path)
@@ -237,3 +242,41 @@ def test_the_manifest_takes_a_known_digest_only_for_a_file_of_that_size(tmp_path
     assert files["kept.csv"]["sha256"] == "k" * 64  # taken as told (the size matches)
     assert files["grown.csv"]["sha256"] == hashlib.sha256(grown.read_bytes()).hexdigest()
     assert files["grown.csv"]["bytes"] == 12
+
+
+def test_overwrite_never_removes_a_file_through_a_linked_folder(tmp_path, capsys):
+    # Issue 49's reproduction: a forged run.json names data/keep.txt, data -> ../other.
+    out, other = tmp_path / "o", tmp_path / "other"
+    out.mkdir()
+    other.mkdir()
+    (other / "keep.txt").write_text("x\n")
+    (out / "data").symlink_to("../other")
+    forged = {"files": [{"path": "data/keep.txt"}]}
+    (out / "run.json").write_text(json.dumps(forged))
+    assert _leolink("run", PAPER, "--out", out, "--quiet", "--overwrite", *SHORT) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert (other / "keep.txt").read_text() == "x\n" and (out / "run.json").exists()
+    assert len(err.strip().splitlines()) == 1 and "data/keep.txt" in err and "left alone" in err
+
+
+def test_overwrite_removes_a_listed_file_only_with_its_sha256(parquet_run, tmp_path, capsys):
+    out = tmp_path / "out"
+    shutil.copytree(parquet_run, out)
+    (out / "report.html").write_text("<p>my own page</p>")  # a user's file, leolink's name
+    assert _leolink("run", PAPER, "--out", out, "--quiet", "--overwrite", *SHORT) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "holds report.html, run.json, not written by leolink or changed since" in err
+    assert (out / "report.html").read_text() == "<p>my own page</p>"
+    assert _files(out) == _files(parquet_run)  # nothing removed: all or nothing
+
+
+def test_overwrite_leaves_a_linked_file_and_its_target(parquet_run, tmp_path, capsys):
+    out, target = tmp_path / "out", tmp_path / "target.csv"
+    shutil.copytree(parquet_run, out)
+    shutil.copy(out / "trace.csv", target)  # same bytes, same SHA-256: only the link differs
+    (out / "trace.csv").unlink()
+    (out / "trace.csv").symlink_to(target)
+    assert _leolink("run", PAPER, "--out", out, "--quiet", "--overwrite", *SHORT) == EXIT_USAGE
+    assert "holds trace.csv, run.json, not written by leolink" in capsys.readouterr().err
+    assert target.read_bytes() == (parquet_run / "trace.csv").read_bytes()
+    assert (out / "trace.csv").is_symlink()

@@ -3,22 +3,29 @@ manifest ``run.json`` that marks a finished run.
 
 A leolink output folder is recognisable by its ``run.json`` or by the names leolink writes
 (:data:`KNOWN_NAMES`, :data:`KNOWN_PATTERNS`). :func:`claim_out_dir` refuses a folder that
-holds such files unless ``overwrite``, which removes exactly those files (the ones listed
-in ``run.json`` plus any known name, and the temporary ``*.partial`` files of an interrupted
-run), never a file of another name: a user's notes beside a run survive ``--overwrite``.
+holds such files unless ``overwrite``, which removes only regular files leolink wrote: those
+a manifest it wrote lists (``run.json``, or ``run.unfinished.json`` of a stopped run), each
+reached without following a symbolic link, inside the folder, its SHA-256 still the listed
+one. A file with one of leolink's names that is not such a file (a user's ``report.html``,
+a file changed since, a link, the ``*.partial`` file of a killed writer) is left alone and
+named in the one-line refusal; a user's notes of another name are never looked at.
 
 :func:`write_manifest` is called last by every command: ``run.json`` holds the leolink
 version, the command, the SHA-256 of the resolved config and every file written (path
 relative to the folder, size in bytes, SHA-256). A folder without it is not a finished run:
-an interrupted run leaves none (its files may be complete, the run is not), so the next run
-into that folder is refused with a message naming the files, and ``--overwrite`` clears them.
+an interrupted run leaves none (its files may be complete, the run is not) but lists those
+it finished in ``run.unfinished.json``, so the next run into that folder is refused with a
+message naming the files, and ``--overwrite`` clears them.
 """
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import hashlib
 import json
+import os
+import stat
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -28,6 +35,7 @@ from leolink.io.atomic import PARTIAL_SUFFIX, write_json_atomic
 __all__ = [
     "KNOWN_NAMES",
     "MANIFEST",
+    "UNFINISHED",
     "OutputFolderError",
     "claim_out_dir",
     "config_sha256",
@@ -38,11 +46,14 @@ __all__ = [
 ]
 
 MANIFEST = "run.json"
+#: The manifest of a run stopped after some of its files were finished (no ``run.json``).
+UNFINISHED = "run.unfinished.json"
 MANIFEST_VERSION = 1
 #: Files the commands write at the top of their folder (run, coverage, sweep).
 KNOWN_NAMES = frozenset(
     {
         MANIFEST,
+        UNFINISHED,
         "trace.csv",
         "trace.parquet",
         "events.csv",
@@ -125,15 +136,15 @@ def config_sha256(config_text):
     return hashlib.sha256(config_text.encode("utf-8")).hexdigest()
 
 
-def read_manifest(out_dir):
-    """``run.json`` of a folder as a dict, or None when there is none.
+def read_manifest(out_dir, name=MANIFEST):
+    """``run.json`` (or ``name``) of a folder as a dict, or None when there is none.
 
     Raises
     ------
     OutputFolderError
         The file exists but is not a leolink manifest.
     """
-    path = Path(out_dir) / MANIFEST
+    path = Path(out_dir) / name
     if not path.is_file():
         return None
     try:
@@ -159,6 +170,47 @@ def _inside(out_dir, rel):
     return Path(out_dir) / rel_path
 
 
+def _regular_file(out_dir, rel):
+    """``out_dir / rel`` when each of its folders below ``out_dir`` is a real folder and it
+    is a regular file, none of them a symbolic link (``os.lstat`` of each component: a
+    link planted in the folder never leads a removal outside it); else None."""
+    path = _inside(out_dir, rel)
+    here = Path(out_dir)
+    for part in path.relative_to(out_dir).parts:
+        here = here / part
+        try:
+            mode = os.lstat(here).st_mode
+        except OSError:
+            return None
+        if not (stat.S_ISREG(mode) if here == path else stat.S_ISDIR(mode)):
+            return None
+    return path
+
+
+def _sha256_no_follow(path):
+    """SHA-256 of a regular file opened with ``O_NOFOLLOW`` (never a link's target)."""
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    sha = hashlib.sha256()
+    with os.fdopen(fd, "rb") as handle:
+        while block := handle.read(_CHUNK):
+            sha.update(block)
+    return sha.hexdigest()
+
+
+def _verified(folder, manifest):
+    """The files ``manifest`` (of ``folder``) lists that are still what leolink wrote:
+    regular files reached without a link, of the listed size and SHA-256."""
+    mine = []
+    for entry in manifest["files"]:
+        path = _regular_file(folder, entry["path"])
+        if path is None or os.lstat(path).st_size != entry.get("bytes"):
+            continue
+        with contextlib.suppress(OSError):
+            if _sha256_no_follow(path) == entry.get("sha256"):
+                mine.append(path)
+    return mine
+
+
 def _known(name):
     """A name leolink writes, or the temporary file of one (``NAME.<hex>.partial`` of
     :mod:`leolink.io.atomic`, ``footprint.partial.gif`` of the animation)."""
@@ -169,40 +221,62 @@ def _known(name):
     return name in KNOWN_NAMES or any(fnmatch.fnmatchcase(name, p) for p in KNOWN_PATTERNS)
 
 
+def _real_dir(path):
+    try:
+        return stat.S_ISDIR(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
 def _known_in(folder):
-    if not folder.is_dir():
+    if not _real_dir(folder):
         return []
-    return sorted(p for p in folder.iterdir() if _known(p.name) and not p.is_dir())
+    return sorted(p for p in folder.iterdir() if _known(p.name) and not _real_dir(p))
+
+
+def _folders(out_dir):
+    """``out_dir`` and a sweep's or compare's point folders ``runs/*/`` (real folders)."""
+    runs = out_dir / _RUNS
+    subs = sorted(p for p in runs.iterdir() if _real_dir(p)) if _real_dir(runs) else []
+    return [out_dir, *subs]
 
 
 def owned_files(out_dir):
-    """Files of leolink runs in ``out_dir``: those its ``run.json`` lists and any known name
-    (also in ``runs/*/``, a sweep's point folders). Returns existing paths, sorted."""
+    """Files of leolink runs in ``out_dir``, as ``(verified, others)``, each sorted.
+
+    ``verified``: the files a manifest (``run.json``, or ``run.unfinished.json`` of a
+    stopped run) lists and that are still what leolink wrote (:func:`_verified`), and
+    each manifest all of whose files are. ``others``: any other file with one of leolink's
+    names (:data:`KNOWN_NAMES`, also in ``runs/*/``), or that a manifest lists and that is
+    not (or no longer) leolink's: a user's ``report.html``, a changed file, a link.
+    """
     out_dir = Path(out_dir)
-    found = set(_known_in(out_dir))
-    folders = [out_dir]
-    runs = out_dir / _RUNS
-    if runs.is_dir() and not runs.is_symlink():
-        folders += sorted(p for p in runs.iterdir() if p.is_dir() and not p.is_symlink())
-        for sub in folders[1:]:
-            found.update(_known_in(sub))
-    for folder in folders:
-        manifest = read_manifest(folder)
-        for entry in manifest["files"] if manifest else []:
-            path = _inside(folder, entry["path"])
-            if path.is_file() or path.is_symlink():
-                found.add(path)
-    return sorted(found)
+    verified, named = set(), set()
+    for folder in _folders(out_dir):
+        named.update(_known_in(folder))
+        for name in (MANIFEST, UNFINISHED):
+            if (manifest := read_manifest(folder, name)) is None:
+                continue
+            mine = _verified(folder, manifest)
+            verified.update(mine)
+            listed = [_inside(folder, e["path"]) for e in manifest["files"]]
+            named.update(p for p in listed if p not in mine and os.path.lexists(p))
+            if len(mine) == len(listed) and _regular_file(folder, name) is not None:
+                verified.add(folder / name)
+    return sorted(verified), sorted(named - verified)
 
 
 def _describe(out_dir, files):
     manifest = read_manifest(out_dir)
-    names = ", ".join(str(p.relative_to(out_dir)) for p in files[:4])
-    names += f" and {len(files) - 4} more" if len(files) > 4 else ""
     if manifest is not None:
         what, version = manifest.get("command", "run"), manifest.get("leolink_version")
         return f"the files of a finished 'leolink {what}' (run.json of leolink {version})"
-    return f"files of an unfinished leolink run (no run.json: {names})"
+    return f"files of an unfinished leolink run (no run.json: {_names(out_dir, files)})"
+
+
+def _names(out_dir, files):
+    names = ", ".join(str(p.relative_to(out_dir)) for p in files[:4])
+    return names + (f" and {len(files) - 4} more" if len(files) > 4 else "")
 
 
 def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
@@ -213,8 +287,9 @@ def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
     out_dir : path-like
         Created if missing. A folder with only other files (not leolink's) is used as is.
     overwrite : bool
-        Remove the files of an earlier run first (:func:`owned_files`); without it such
-        files make this raise.
+        Remove the files of an earlier run first: only the regular files a manifest lists
+        whose size and SHA-256 still match it (:func:`owned_files`), never through a
+        symbolic link; without it such files make this raise.
     flag : str
         How the caller's user asks for ``overwrite`` (named in the message).
     keep : sequence of str
@@ -223,28 +298,37 @@ def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
     Raises
     ------
     OutputFolderError
-        ``out_dir`` is a file, or holds an earlier run's files and ``overwrite`` is off.
+        ``out_dir`` is a file, or holds an earlier run's files and ``overwrite`` is off, or
+        holds files with leolink's names that leolink did not write (left alone, named).
     """
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputFolderError(f"--out {out_dir} is a file; give a folder")
     out_dir.mkdir(parents=True, exist_ok=True)
-    theirs = [p for p in owned_files(out_dir) if not _kept(p, out_dir, keep)]
-    if not theirs:
+    mine, others = (
+        [p for p in group if not _kept(p, out_dir, keep)] for group in owned_files(out_dir)
+    )
+    if not mine and not others:
         return out_dir
     if not overwrite:
         raise OutputFolderError(
-            f"--out {out_dir} holds {_describe(out_dir, theirs)}; rerun with {flag} to "
+            f"--out {out_dir} holds {_describe(out_dir, mine + others)}; rerun with {flag} to "
             "replace it (only leolink's files are removed), or choose another folder"
         )
-    manifests = [p for p in theirs if p.name == MANIFEST]
-    for path in [p for p in theirs if p.name != MANIFEST] + manifests:  # manifests last
+    if others:  # (a manifest is named last: the files are why it cannot be trusted)
+        others.sort(key=lambda p: (p.name in (MANIFEST, UNFINISHED), p))
+        raise OutputFolderError(
+            f"--out {out_dir} holds {_names(out_dir, others)}, not written by leolink or changed "
+            "since (not in its run.json with that size and SHA-256, or behind a link): left "
+            "alone; move them away or choose another folder"
+        )
+    manifests = [p for p in mine if p.name in (MANIFEST, UNFINISHED)]
+    for path in [p for p in mine if p not in manifests] + manifests:  # manifests last
         path.unlink(missing_ok=True)
-    runs = out_dir / _RUNS
-    if runs.is_dir() and not _kept(runs, out_dir, keep):
-        for sub in sorted(runs.iterdir()):
+    if not _kept(out_dir / _RUNS, out_dir, keep):
+        for sub in _folders(out_dir)[1:]:
             _rmdir_if_empty(sub)
-        _rmdir_if_empty(runs)
+        _rmdir_if_empty(out_dir / _RUNS)
     return out_dir
 
 
@@ -254,11 +338,13 @@ def _kept(path, out_dir, keep):
 
 
 def _rmdir_if_empty(folder):
-    if folder.is_dir() and not folder.is_symlink() and not any(folder.iterdir()):
+    if _real_dir(folder) and not any(folder.iterdir()):
         folder.rmdir()
 
 
-def write_manifest(out_dir, files, command, config_text, arguments=None, *, version, digests=None):
+def write_manifest(
+    out_dir, files, command, config_text, arguments=None, *, version, digests=None, name=MANIFEST
+):
     """Write ``run.json`` last: the leolink version, ``command``, the config's SHA-256 and
     every file of ``files`` (inside ``out_dir``) with its size and SHA-256.
 
@@ -279,6 +365,8 @@ def write_manifest(out_dir, files, command, config_text, arguments=None, *, vers
     digests : dict, optional
         ``{path: (size [bytes], SHA-256 hex)}`` known already (a writer's
         :class:`GrowingDigest`), used where the file still has that size.
+    name : str
+        :data:`MANIFEST`, or :data:`UNFINISHED` for the files a stopped run finished.
 
     Returns
     -------
@@ -290,7 +378,7 @@ def write_manifest(out_dir, files, command, config_text, arguments=None, *, vers
     for f in files:
         path = Path(f)  # as the command wrote it: absolute, or relative to the cwd
         rel = path.resolve().relative_to(out_dir.resolve()).as_posix()
-        if rel in seen or rel == MANIFEST:
+        if rel in seen or rel in (MANIFEST, UNFINISHED):
             continue
         seen.add(rel)
         size, digest = path.stat().st_size, known.get(path.resolve())
@@ -305,4 +393,4 @@ def write_manifest(out_dir, files, command, config_text, arguments=None, *, vers
         "finished_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "files": entries,
     }
-    return write_json_atomic(out_dir / MANIFEST, manifest)
+    return write_json_atomic(out_dir / name, manifest)
