@@ -251,7 +251,8 @@ def test_overwrite_never_removes_a_file_through_a_linked_folder(tmp_path, capsys
     other.mkdir()
     (other / "keep.txt").write_text("x\n")
     (out / "data").symlink_to("../other")
-    forged = {"files": [{"path": "data/keep.txt"}]}
+    sha = hashlib.sha256(b"x\n").hexdigest()  # forged well: even its size and checksum match
+    forged = {"files": [{"path": "data/keep.txt", "bytes": 2, "sha256": sha}]}
     (out / "run.json").write_text(json.dumps(forged))
     assert _leolink("run", PAPER, "--out", out, "--quiet", "--overwrite", *SHORT) == EXIT_USAGE
     err = capsys.readouterr().err
