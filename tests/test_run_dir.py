@@ -4,9 +4,12 @@ without it is not finished; ``Result.trace`` reads only the files its run wrote.
 
 import hashlib
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 
 import pandas as pd
 import pytest
@@ -14,7 +17,7 @@ import pytest
 from leolink.app.run import run
 from leolink.cli import EXIT_USAGE, main
 from leolink.config import load_config
-from leolink.io.run_dir import OutputFolderError, claim_out_dir
+from leolink.io.run_dir import LOCK, OutputFolderError, claim_out_dir
 from report_helpers import PAPER, REPO
 
 SHORT = ["--set", "run.duration_s=10", "--set", "output.plots.enabled=false"]
@@ -281,3 +284,51 @@ def test_overwrite_leaves_a_linked_file_and_its_target(parquet_run, tmp_path, ca
     assert "holds trace.csv, run.json, not written by leolink" in capsys.readouterr().err
     assert target.read_bytes() == (parquet_run / "trace.csv").read_bytes()
     assert (out / "trace.csv").is_symlink()
+
+
+def _start_run(out, *args):
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
+    return subprocess.Popen(
+        [sys.executable, "-m", "leolink.cli", "run", str(PAPER), "--out", str(out), "--quiet",
+         *SHORT, *args],
+        env=env, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+
+
+def _wait_for(predicate, what, timeout_s=300.0):
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.05)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="fcntl.flock and SIGSTOP")
+@pytest.mark.parametrize("overwrite", [[], ["--overwrite"]])
+def test_a_second_command_into_a_folder_in_use_is_refused(tmp_path, capsys, overwrite):
+    out = tmp_path / "out"
+    first = _start_run(out)
+    try:
+        _wait_for(lambda: (out / LOCK).exists() and (out / LOCK).read_text().strip(), "the lock")
+        first.send_signal(signal.SIGSTOP)  # holds its lock, whatever the machine's load
+        code = _leolink("run", PAPER, "--out", out, "--quiet", *SHORT, *overwrite)
+        err = capsys.readouterr().err
+        assert code == EXIT_USAGE and len(err.strip().splitlines()) == 1
+        assert f"is in use by another leolink command (pid {first.pid}, lock file" in err
+        assert _leolink("report", out) == EXIT_USAGE
+    finally:
+        first.send_signal(signal.SIGCONT)
+    assert first.wait(timeout=300) == 0, first.stderr.read()
+    manifest = json.loads((out / "run.json").read_text())
+    for entry in manifest["files"]:  # the first run's outputs, intact
+        data = (out / entry["path"]).read_bytes()
+        assert hashlib.sha256(data).hexdigest() == entry["sha256"]
+    assert not (out / LOCK).exists()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="fcntl.flock")
+def test_the_lock_file_of_a_dead_command_is_taken_again(tmp_path, capsys):
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    (tmp_path / LOCK).write_text(dead.stdout)  # left by a killed command
+    assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", *SHORT) == 0
+    assert (tmp_path / "run.json").exists() and not (tmp_path / LOCK).exists()

@@ -188,8 +188,11 @@ def cmd_sweep(args) -> int:
 def cmd_report(args) -> int:
     import leolink
     from leolink.io.report.rebuild import rebuild_report
+    from leolink.io.run_dir import lock_out_dir
 
     uts = _ut_list(args.uts) if args.uts else None
+    if Path(args.dir).is_dir():
+        lock_out_dir(args.dir)  # it rewrites files: not while a command writes there
     built = rebuild_report(
         Path(args.dir),
         series_ut=uts,
@@ -341,11 +344,12 @@ def _add_report(p):
 
 def main(argv=None) -> int:
     from leolink.app.guard import Stopped, environment_error, interruptible, quiet_warnings
+    from leolink.io.run_dir import held_out_dirs
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        with interruptible(), quiet_warnings():
+        with interruptible(), quiet_warnings(), held_out_dirs():
             return args.func(args)
     except LeolinkError as exc:
         print(f"leolink: error: {exc}", file=sys.stderr)

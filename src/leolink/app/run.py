@@ -31,7 +31,7 @@ from leolink.config import dump_toml
 from leolink.errors import LeolinkError
 from leolink.io.atomic import write_json_atomic, write_parquet_atomic, write_text_atomic
 from leolink.io.notebook import ResultViews
-from leolink.io.run_dir import UNFINISHED, claim_out_dir, write_manifest
+from leolink.io.run_dir import UNFINISHED, claim_out_dir, held_out_dirs, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary.accumulator import SummaryAccumulator
 from leolink.sim.runner import run_simulation
@@ -214,8 +214,13 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     """
     scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
     fix_heap_thresholds()  # memory flat in run length, few page faults (leolink.app.heap)
-    if out_dir is not None:  # after the scenario built: a bad config removes nothing
-        out_dir = claim_out_dir(out_dir, overwrite)
+    with held_out_dirs():  # one command per folder (leolink.io.run_dir)
+        if out_dir is not None:  # after the scenario built: a bad config removes nothing
+            out_dir = claim_out_dir(out_dir, overwrite)
+        return _run(cfg, scen, out_dir, progress)
+
+
+def _run(cfg, scen, out_dir, progress):
     summary, position = SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s), _Position()
     sinks, files = _sinks(cfg, out_dir, summary, scen), []
     try:

@@ -10,6 +10,12 @@ one. A file with one of leolink's names that is not such a file (a user's ``repo
 a file changed since, a link, the ``*.partial`` file of a killed writer) is left alone and
 named in the one-line refusal; a user's notes of another name are never looked at.
 
+One command at a time per folder: :func:`claim_out_dir` takes an exclusive ``fcntl.flock``
+on ``DIR/.leolink.lock`` (holding the pid) before it looks at the folder, kept until
+:func:`held_out_dirs` ends (the command line holds it for the whole command); a second
+command is refused with one line naming the holder's pid. The kernel drops the lock of a
+process that died, so a lock file a killed command left (a dead pid) is taken again.
+
 :func:`write_manifest` is called last by every command: ``run.json`` holds the leolink
 version, the command, the SHA-256 of the resolved config and every file written (path
 relative to the folder, size in bytes, SHA-256). A folder without it is not a finished run:
@@ -32,14 +38,22 @@ from pathlib import Path
 from leolink.errors import LeolinkError
 from leolink.io.atomic import PARTIAL_SUFFIX, write_json_atomic
 
+try:
+    import fcntl
+except ImportError:  # Windows
+    fcntl = None  # type: ignore[assignment]
+
 __all__ = [
     "KNOWN_NAMES",
+    "LOCK",
     "MANIFEST",
     "UNFINISHED",
     "OutputFolderError",
     "claim_out_dir",
     "config_sha256",
     "file_sha256",
+    "held_out_dirs",
+    "lock_out_dir",
     "owned_files",
     "read_manifest",
     "write_manifest",
@@ -49,6 +63,9 @@ MANIFEST = "run.json"
 #: The manifest of a run stopped after some of its files were finished (no ``run.json``).
 UNFINISHED = "run.unfinished.json"
 MANIFEST_VERSION = 1
+#: The lock file of an output folder in use (:func:`claim_out_dir`): the holder's pid.
+LOCK = ".leolink.lock"
+_HELD: dict[Path, int] = {}  # lock file -> descriptor holding its flock
 #: Files the commands write at the top of their folder (run, coverage, sweep).
 KNOWN_NAMES = frozenset(
     {
@@ -279,6 +296,54 @@ def _names(out_dir, files):
     return names + (f" and {len(files) - 4} more" if len(files) > 4 else "")
 
 
+def lock_out_dir(out_dir):
+    """Take ``out_dir``'s lock (:data:`LOCK`, ``fcntl.flock``: the kernel drops it when its
+    holder dies, so a lock file a killed command left is simply taken again), held until
+    :func:`held_out_dirs` ends; one this process holds already is held once."""
+    path = Path(out_dir) / LOCK
+    key = path.absolute()
+    if fcntl is None or key in _HELD:  # (no flock on Windows: no lock there)
+        return
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
+            os.close(fd)
+            raise OutputFolderError(
+                f"--out {out_dir} is in use by another leolink command (pid {holder}, lock "
+                f"file {path}); wait for it to end or choose another folder"
+            ) from None
+        if _same_file(fd, path):  # not the file of a holder that removed it meanwhile
+            break
+        os.close(fd)
+    _HELD[key] = fd
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
+
+
+def _same_file(fd, path):
+    try:
+        return os.path.samestat(os.fstat(fd), os.lstat(path))
+    except FileNotFoundError:
+        return False
+
+
+@contextlib.contextmanager
+def held_out_dirs():
+    """The output folders claimed inside the block (:func:`claim_out_dir`) stay locked
+    until it ends: their lock files are then removed and the locks released."""
+    before = set(_HELD)
+    try:
+        yield
+    finally:
+        for key in [k for k in _HELD if k not in before]:
+            with contextlib.suppress(OSError):
+                os.unlink(key)  # first: a waiting command then finds a new file
+            os.close(_HELD.pop(key))
+
+
 def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
     """Make ``out_dir`` ready for a new run; returns it as a Path.
 
@@ -298,13 +363,15 @@ def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
     Raises
     ------
     OutputFolderError
-        ``out_dir`` is a file, or holds an earlier run's files and ``overwrite`` is off, or
+        ``out_dir`` is in use by another command (:func:`lock_out_dir`), is a file, or holds an
+        earlier run's files and ``overwrite`` is off, or
         holds files with leolink's names that leolink did not write (left alone, named).
     """
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputFolderError(f"--out {out_dir} is a file; give a folder")
     out_dir.mkdir(parents=True, exist_ok=True)
+    lock_out_dir(out_dir)  # before looking: no other command writes or removes here meanwhile
     mine, others = (
         [p for p in group if not _kept(p, out_dir, keep)] for group in owned_files(out_dir)
     )
