@@ -4,8 +4,9 @@ validate``.
 Errors leolink raises on purpose, and errors of the environment (a folder that cannot
 be written, a full disk, an unreachable dask scheduler), are printed as one line (exit
 code 2); anything else is a bug and is printed as a short note (exit code 3) unless
-``--debug`` is given. SIGINT (Ctrl-C) and SIGTERM stop a command cleanly: finished files
-stay, temporary ones are removed, one line says where it stopped (exit 130, 143). A sweep
+``--debug`` is given. SIGINT (Ctrl-C), SIGTERM, SIGHUP and SIGXCPU stop a command cleanly:
+finished files stay, temporary ones are removed, one line says where it stopped (exit 128 +
+the signal's number: 130, 143, 129, 152). A sweep
 some of whose points failed writes its table (their ``error`` column) and exits 1.
 """
 
@@ -22,7 +23,6 @@ EXIT_POINTS_FAILED = 1
 EXIT_USAGE = 2
 EXIT_BUG = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
-EXIT_TERMINATED = 143  # 128 + SIGTERM
 MAX_GRID = 5001  # coverage grid points per axis (25 million points)
 OVERWRITE_HELP = "replace an earlier run's files in --out (other files are kept)"
 
@@ -354,7 +354,7 @@ def main(argv=None) -> int:
     except LeolinkError as exc:
         print(f"leolink: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Stopped)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM, SIGHUP, SIGXCPU (Stopped)
         name = exc.signal_name if isinstance(exc, Stopped) else "SIGINT"
         where = "; ".join(getattr(exc, "__notes__", [])) or "before any output was finished"
         print(
@@ -362,7 +362,7 @@ def main(argv=None) -> int:
             "files removed",
             file=sys.stderr,
         )
-        return EXIT_TERMINATED if name == "SIGTERM" else EXIT_INTERRUPTED
+        return exc.exit_code if isinstance(exc, Stopped) else EXIT_INTERRUPTED
     except OSError as exc:  # the environment: permissions, a full disk, the network
         message = environment_error(exc, getattr(args, "out", None))
         print(f"leolink: error: {message}", file=sys.stderr)
