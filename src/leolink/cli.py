@@ -343,7 +343,13 @@ def _add_report(p):
 
 
 def main(argv=None) -> int:
-    from leolink.app.guard import Stopped, environment_error, interruptible, quiet_warnings
+    from leolink.app.guard import (
+        Stopped,
+        environment_error,
+        interruptible,
+        out_of_memory,
+        quiet_warnings,
+    )
     from leolink.io.run_dir import held_out_dirs
 
     parser = build_parser()
@@ -363,6 +369,9 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return exc.exit_code if isinstance(exc, Stopped) else EXIT_INTERRUPTED
+    except MemoryError as exc:  # the environment too: the run is larger than the machine
+        print(f"leolink: error: {out_of_memory(exc)}", file=sys.stderr)
+        return EXIT_USAGE
     except OSError as exc:  # the environment: permissions, a full disk, the network
         message = environment_error(exc, getattr(args, "out", None))
         print(f"leolink: error: {message}", file=sys.stderr)

@@ -168,7 +168,7 @@ def run_compare(
     -------
     pandas.DataFrame, ``compare.csv``.
     """
-    from leolink.app.sweep_exec import check_workers, run_jobs
+    from leolink.app.sweep_exec import check_runs, check_workers, run_jobs
     from leolink.io.atomic import write_csv_atomic, write_text_atomic
     from leolink.io.run_dir import claim_out_dir
 
@@ -176,6 +176,7 @@ def run_compare(
         raise ConfigError("compare: give at least one --policy")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ConfigError(f"--seeds {seeds!r} is not allowed; use an integer >= 1")
+    check_runs(len(policies) * seeds, f"--seeds {seeds} x {len(policies)} policies")
     check_workers(workers)
     cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
     base = _base_overrides(base_overrides, [], False)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import math
 import os
 import signal
 import sys
@@ -33,6 +34,7 @@ __all__ = [
     "Stopped",
     "environment_error",
     "interruptible",
+    "out_of_memory",
     "quiet_warnings",
     "raise_pending",
     "worker_init",
@@ -150,6 +152,17 @@ def environment_error(exc: OSError, out=None) -> str:
     if exc.errno == errno.EISDIR:
         return f"cannot write {where}: it is a folder"
     return f"{where}: {exc.strerror or type(exc).__name__}"
+
+
+def out_of_memory(exc: MemoryError) -> str:
+    """One line for a MemoryError, with the size of the array that did not fit when numpy
+    says it (its ``shape`` and ``dtype``)."""
+    try:
+        gib = math.prod(exc.shape) * exc.dtype.itemsize / 2**30  # type: ignore[attr-defined]
+        needs = f"needs about {max(gib, 0.1):.1f} GiB more; "
+    except (TypeError, AttributeError):
+        needs = ""
+    return f"out of memory ({needs}reduce UTs/epochs or use --workers)"
 
 
 def _parent_gone(parent_pid):
