@@ -332,3 +332,62 @@ def test_the_lock_file_of_a_dead_command_is_taken_again(tmp_path, capsys):
     (tmp_path / LOCK).write_text(dead.stdout)  # left by a killed command
     assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", *SHORT) == 0
     assert (tmp_path / "run.json").exists() and not (tmp_path / LOCK).exists()
+
+
+def _rehash(out, name):
+    """run.json rewritten to match ``name``'s new bytes (a consistent tampering)."""
+    manifest = json.loads((out / "run.json").read_text())
+    for entry in manifest["files"]:
+        if entry["path"] == name:
+            data = (out / name).read_bytes()
+            entry["bytes"], entry["sha256"] = len(data), hashlib.sha256(data).hexdigest()
+    (out / "run.json").write_text(json.dumps(manifest))
+
+
+def _object_array_npz(path):
+    import numpy as np
+
+    np.savez(path, ut_id=np.array([{"a": 1}], dtype=object))
+
+
+DAMAGES = {
+    "npz_truncated": ("report_stats.npz", lambda p: p.write_bytes(p.read_bytes()[:100])),
+    "npz_empty": ("report_stats.npz", lambda p: p.write_bytes(b"")),
+    "npz_object_array": ("report_stats.npz", _object_array_npz),
+    "summary_not_json": ("summary.json", lambda p: p.write_text("{not json")),
+    "summary_one_byte_changed": ("summary.json",
+                                 lambda p: p.write_bytes(p.read_bytes().replace(b"1", b"2", 1))),
+    "config_removed": ("config.resolved.toml", lambda p: p.unlink()),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("damage", sorted(DAMAGES))
+def test_leolink_report_refuses_a_damaged_folder_in_one_line(parquet_run, tmp_path, capsys, damage):
+    name, harm = DAMAGES[damage]
+    out = tmp_path / "out"
+    shutil.copytree(parquet_run, out)
+    harm(out / name)
+    before = {n: (out / n).read_bytes() for n in _files(out)}
+    capsys.readouterr()
+    assert _leolink("report", out, "--no-animation", "--quiet") == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith(f"leolink: error: {out / name} ") and len(err.splitlines()) == 1, err
+    assert "the folder was changed or damaged since its run" in err
+    assert {n: (out / n).read_bytes() for n in _files(out)} == before  # nothing rewritten
+
+
+@pytest.mark.parametrize("damage", [d for d in sorted(DAMAGES) if d != "config_removed"])
+def test_leolink_report_never_fails_as_a_bug_on_a_rehashed_damage(
+    parquet_run, tmp_path, capsys, damage
+):
+    """run.json rewritten to match the damage: the report is rebuilt from what reads, or
+    refused in one line; never an internal error (exit 3)."""
+    name, harm = DAMAGES[damage]
+    out = tmp_path / "out"
+    shutil.copytree(parquet_run, out)
+    harm(out / name)
+    _rehash(out, name)
+    capsys.readouterr()
+    code = _leolink("report", out, "--no-animation", "--quiet")
+    err = capsys.readouterr().err
+    assert code in (0, EXIT_USAGE) and len(err.splitlines()) <= 1, err

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import zipfile
 from pathlib import Path
 
 from leolink.errors import ConfigError, LeolinkError
@@ -24,6 +25,8 @@ EXIT_USAGE = 2
 EXIT_BUG = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
 MAX_GRID = 5001  # coverage grid points per axis (25 million points)
+#: What ``leolink report`` writes anew (the rest of the folder it reads, checked first).
+REPORT_WRITES = ("report.html", "footprint.gif", "run.geojson", "run.czml")
 OVERWRITE_HELP = "replace an earlier run's files in --out (other files are kept)"
 
 
@@ -188,18 +191,26 @@ def cmd_sweep(args) -> int:
 def cmd_report(args) -> int:
     import leolink
     from leolink.io.report.rebuild import rebuild_report
-    from leolink.io.run_dir import lock_out_dir
+    from leolink.io.run_dir import OutputFolderError, lock_out_dir, verify_manifest
 
     uts = _ut_list(args.uts) if args.uts else None
     if Path(args.dir).is_dir():
         lock_out_dir(args.dir)  # it rewrites files: not while a command writes there
-    built = rebuild_report(
-        Path(args.dir),
-        series_ut=uts,
-        animate=not args.no_animation,
-        exports=args.exports,
-        version=leolink.__version__,
-    )
+        verify_manifest(args.dir, REPORT_WRITES)  # sizes and SHA-256 of what it reads
+    try:
+        built = rebuild_report(
+            Path(args.dir),
+            series_ut=uts,
+            animate=not args.no_animation,
+            exports=args.exports,
+            version=leolink.__version__,
+        )
+    except (ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:  # a listed file
+        # that reads wrong although its checksum matches: run.json was rewritten with it
+        raise OutputFolderError(
+            f"{args.dir}: a file of the run cannot be read ({type(exc).__name__}: "
+            f"{str(exc)[:120]}); rerun it (leolink run ... --overwrite)"
+        ) from None
     if not args.quiet:
         for path in [built["report"], built["animation"], *built["exports"]]:
             if path is not None:

@@ -27,7 +27,8 @@ def loads_toml(text: str, what: str) -> dict:
         if isinstance(exc, tomllib.TOMLDecodeError):
             raise
         match = _INT_DIGITS.search(text)
-        line = f" (line {text.count(chr(10), 0, match.start()) + 1})" if "\n" in text else ""
+        where = match.start() if match and "\n" in text else None
+        line = "" if where is None else f" (line {text.count(chr(10), 0, where) + 1})"
         raise ConfigError(
             f"{what}: an integer of more than 4,300 digits{line} is not allowed; no leolink "
             "value needs more than 20"

@@ -56,6 +56,7 @@ __all__ = [
     "lock_out_dir",
     "owned_files",
     "read_manifest",
+    "verify_manifest",
     "write_manifest",
 ]
 
@@ -226,6 +227,39 @@ def _verified(folder, manifest):
             if _sha256_no_follow(path) == entry.get("sha256"):
                 mine.append(path)
     return mine
+
+
+def verify_manifest(out_dir, rewritten=()):
+    """Check that every file ``run.json`` lists is still what leolink wrote (a regular file
+    reached without a link, of the listed size and SHA-256), before a command reads them;
+    but the names in ``rewritten``, which the command writes anew.
+
+    Raises
+    ------
+    OutputFolderError
+        No ``run.json``, or the first file that is missing, changed or damaged.
+    """
+    out_dir = Path(out_dir)
+    manifest = read_manifest(out_dir)
+    if manifest is None:
+        return None
+    for entry in manifest["files"]:
+        if entry["path"] in rewritten:
+            continue
+        path = _regular_file(out_dir, entry["path"])
+        if path is None:
+            why = "is missing or not a regular file"
+        elif os.lstat(path).st_size != entry.get("bytes"):
+            why = f"has {os.lstat(path).st_size:,} bytes where run.json lists {entry.get('bytes')}"
+        elif _sha256_no_follow(path) != entry.get("sha256"):
+            why = "has another SHA-256 than run.json lists"
+        else:
+            continue
+        raise OutputFolderError(
+            f"{out_dir / entry['path']} {why}: the folder was changed or damaged since its run; "
+            "rerun it (leolink run ... --overwrite)"
+        )
+    return manifest
 
 
 def _known(name):
