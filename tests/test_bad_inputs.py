@@ -40,8 +40,15 @@ def _sets_only(*overrides, config=PAPER):
     return lambda tmp_path: (config, list(overrides))
 
 
+ONE_UT = "population=[{kind = 'static', name = 'one', placement = 'center'}]"
+
 # (id, config and overrides as a function of tmp_path, message regex)
 BAD_INPUTS = [
+    (
+        "report_ut_5_of_one",
+        _sets_only(ONE_UT, "output.report.enabled=true", "output.report.uts=[5]"),
+        r"output\.report\.uts = \[5\] is not allowed; UT ids of this run are 0 to 0",
+    ),
     ("toml_nested_5000_deep", _deep_toml, r"deep\.toml: tables or arrays nested more than 32"),
     (
         "toml_integer_5000_digits",
