@@ -391,3 +391,16 @@ def test_leolink_report_never_fails_as_a_bug_on_a_rehashed_damage(
     code = _leolink("report", out, "--no-animation", "--quiet")
     err = capsys.readouterr().err
     assert code in (0, EXIT_USAGE) and len(err.splitlines()) <= 1, err
+
+
+def test_an_empty_or_dangling_out_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert _leolink("run", PAPER, "--out", "", "--quiet", *SHORT) == EXIT_USAGE
+    assert capsys.readouterr().err == (
+        "leolink: error: --out '' is not allowed; give a folder, e.g. --out results\n"
+    )
+    (tmp_path / "dangling").symlink_to(tmp_path / "gone")
+    assert _leolink("run", PAPER, "--out", "dangling", "--quiet", *SHORT) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "--out dangling is a link to " in err and "which does not exist" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling"]  # nothing written

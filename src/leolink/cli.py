@@ -366,6 +366,8 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if getattr(args, "out", None) is not None and not args.out.strip():
+            raise ConfigError("--out '' is not allowed; give a folder, e.g. --out results")
         with interruptible(), quiet_warnings(), held_out_dirs():
             return args.func(args)
     except LeolinkError as exc:

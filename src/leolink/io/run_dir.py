@@ -404,6 +404,11 @@ def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputFolderError(f"--out {out_dir} is a file; give a folder")
+    if out_dir.is_symlink() and not out_dir.exists():
+        raise OutputFolderError(
+            f"--out {out_dir} is a link to {os.readlink(out_dir)!r}, which does not exist; "
+            "create that folder or give another one"
+        )
     out_dir.mkdir(parents=True, exist_ok=True)
     lock_out_dir(out_dir)  # before looking: no other command writes or removes here meanwhile
     mine, others = (
