@@ -36,6 +36,13 @@ def _wide_track(tmp_path):
     return PAPER, [population]
 
 
+def _duplicate_column_track(tmp_path):
+    path = tmp_path / "twice.csv"
+    path.write_text("time_s,lat_deg,lon_deg,alt_m,lat_deg\n0,1,2,0,3\n", encoding="utf-8")
+    population = f"population=[{{kind = 'track', name = 't', track_file = {str(path)!r}}}]"
+    return PAPER, [population]
+
+
 def _sets_only(*overrides, config=PAPER):
     return lambda tmp_path: (config, list(overrides))
 
@@ -44,6 +51,26 @@ ONE_UT = "population=[{kind = 'static', name = 'one', placement = 'center'}]"
 
 # (id, config and overrides as a function of tmp_path, message regex)
 BAD_INPUTS = [
+    (
+        "trace_format_twice",
+        _sets_only('output.trace.formats=["csv", "csv"]'),
+        r"output\.trace\.formats: give each format once",
+    ),  # fmt: skip
+    (
+        "internal_source_key",
+        _sets_only('source="elsewhere.toml"'),
+        r"paper\.toml: source is not a known key",
+    ),  # fmt: skip
+    (
+        "set_with_trailing_toml",
+        _sets_only("run.seed=5\nsource = 1"),
+        r"--set 'run\.seed=5\\nsource = 1' is not allowed: give one value",
+    ),  # fmt: skip
+    (
+        "track_column_twice",
+        _duplicate_column_track,
+        r"twice\.csv: line 1: column 'lat_deg' appears twice",
+    ),  # fmt: skip
     (
         "report_ut_5_of_one",
         _sets_only(ONE_UT, "output.report.enabled=true", "output.report.uts=[5]"),
@@ -159,3 +186,13 @@ def test_out_of_memory_is_one_line_with_the_size(monkeypatch, capsys):
     assert out_of_memory(MemoryError()) == "out of memory (reduce UTs/epochs or use --workers)"
     code, _, err = cli(capsys, "validate", PAPER)
     assert code == EXIT_USAGE and err == f"leolink: error: {out_of_memory(caught.value)}\n"
+
+
+def test_a_byte_order_mark_is_no_part_of_a_config_or_a_track(tmp_path, capsys):
+    config = tmp_path / "bom.toml"
+    config.write_bytes(b"\xef\xbb\xbf" + PAPER.read_bytes())
+    track = tmp_path / "bom.csv"
+    track.write_bytes(b"\xef\xbb\xbftime_s,lat_deg,lon_deg,alt_m\n0,1,2,0\n10,1.1,2,0\n")
+    population = f"population=[{{kind = 'track', name = 't', track_file = {str(track)!r}}}]"
+    code, out, err = cli(capsys, "validate", config, "--set", population)
+    assert code == 0 and "valid (1 population" in out, err

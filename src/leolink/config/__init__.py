@@ -274,6 +274,10 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> ConfigB
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
     data = _resolve_files(apply_overrides(data, overrides), path.parent)
+    if "source" in data:  # the model's own record of the file, not a config key
+        raise ConfigError(
+            f"{path}: source is not a known key (check the spelling; see docs/config.md)"
+        )
     return parse_config(data, source=str(path))
 
 

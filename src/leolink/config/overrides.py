@@ -63,9 +63,14 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
         if not sep or not key.strip():
             raise ConfigError(f"--set {item!r} is not allowed: use section.key=value")
         try:
-            value = loads_toml(f"v = {raw.strip()}", f"--set {key.strip()}")["v"]
+            parsed = loads_toml(f"v = {raw.strip()}", f"--set {key.strip()}")
         except tomllib.TOMLDecodeError:
-            value = raw.strip()
+            parsed = {"v": raw.strip()}
+        if len(parsed) > 1:  # "5\nother = 1": TOML after the value, which would be dropped
+            raise ConfigError(
+                f"--set {item!r} is not allowed: give one value; set another key with another --set"
+            )
+        value = parsed["v"]
         node = data
         parts = key.strip().split(".")
         for depth, part in enumerate(parts[:-1]):

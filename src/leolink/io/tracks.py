@@ -141,6 +141,11 @@ def read_track_csv(path, time_zero_utc=None):
             f"{path}: empty track file; expected a header line {', '.join(_TRACK_COLUMNS)}[, ut]"
         )
     header_line, header = rows[0]
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise TrackFileError(
+            f"{path}: line {header_line}: column {twice[0]!r} appears twice; give each once"
+        )
     wanted = _TRACK_COLUMNS if "time_s" in header or "time_utc" not in header else _POSITION_COLUMNS
     missing = [c for c in wanted if c not in header]
     if missing:
