@@ -215,18 +215,25 @@ def _sha256_no_follow(path):
     return sha.hexdigest()
 
 
+def _mismatch(folder, entry):
+    """Why the file a manifest ``entry`` lists is not what leolink wrote (not a regular
+    file reached without a link, another size or SHA-256), or None when it is."""
+    path = _regular_file(folder, entry["path"])
+    if path is None:
+        return "is missing or not a regular file"
+    size = os.lstat(path).st_size
+    if size != entry.get("bytes"):
+        return f"has {size:,} bytes where run.json lists {entry.get('bytes')}"
+    try:
+        same = _sha256_no_follow(path) == entry.get("sha256")
+    except OSError:
+        same = False
+    return None if same else "has another SHA-256 than run.json lists"
+
+
 def _verified(folder, manifest):
-    """The files ``manifest`` (of ``folder``) lists that are still what leolink wrote:
-    regular files reached without a link, of the listed size and SHA-256."""
-    mine = []
-    for entry in manifest["files"]:
-        path = _regular_file(folder, entry["path"])
-        if path is None or os.lstat(path).st_size != entry.get("bytes"):
-            continue
-        with contextlib.suppress(OSError):
-            if _sha256_no_follow(path) == entry.get("sha256"):
-                mine.append(path)
-    return mine
+    """The files ``manifest`` (of ``folder``) lists that are still what leolink wrote."""
+    return [folder / e["path"] for e in manifest["files"] if _mismatch(folder, e) is None]
 
 
 def verify_manifest(out_dir, rewritten=()):
@@ -244,16 +251,8 @@ def verify_manifest(out_dir, rewritten=()):
     if manifest is None:
         return None
     for entry in manifest["files"]:
-        if entry["path"] in rewritten:
-            continue
-        path = _regular_file(out_dir, entry["path"])
-        if path is None:
-            why = "is missing or not a regular file"
-        elif os.lstat(path).st_size != entry.get("bytes"):
-            why = f"has {os.lstat(path).st_size:,} bytes where run.json lists {entry.get('bytes')}"
-        elif _sha256_no_follow(path) != entry.get("sha256"):
-            why = "has another SHA-256 than run.json lists"
-        else:
+        why = None if entry["path"] in rewritten else _mismatch(out_dir, entry)
+        if why is None:
             continue
         raise OutputFolderError(
             f"{out_dir / entry['path']} {why}: the folder was changed or damaged since its run; "
