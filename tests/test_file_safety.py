@@ -44,7 +44,7 @@ def test_a_planted_partial_symlink_is_not_followed(tmp_path, victim, capsys):
     assert not (out / "trace.csv").is_symlink()
 
 
-def test_a_symlink_at_the_final_name_is_replaced_never_followed(tmp_path, victim, capsys):
+def test_a_symlink_at_the_final_name_is_left_alone_never_followed(tmp_path, victim, capsys):
     out = tmp_path / "run"
     out.mkdir()
     (out / "trace.csv").symlink_to(victim)
@@ -53,8 +53,8 @@ def test_a_symlink_at_the_final_name_is_replaced_never_followed(tmp_path, victim
     assert "rerun with --overwrite" in err and err.count("\n") == 1
     assert files_in(out) == ["trace.csv"] and (out / "trace.csv").is_symlink()
     code, _, err = cli(capsys, "run", PAPER, *SHORT, "--out", out, "--quiet", "--overwrite")
-    assert code == 0, err
-    assert not (out / "trace.csv").is_symlink() and "time_s" in (out / "trace.csv").read_text()
+    assert code == EXIT_USAGE and "holds trace.csv, not written by leolink" in err  # issue 49
+    assert (out / "trace.csv").is_symlink() and files_in(out) == ["trace.csv"]
     assert victim.read_text(encoding="utf-8") == VICTIM_TEXT
 
 

@@ -4,9 +4,12 @@ without it is not finished; ``Result.trace`` reads only the files its run wrote.
 
 import hashlib
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 
 import pandas as pd
 import pytest
@@ -14,7 +17,7 @@ import pytest
 from leolink.app.run import run
 from leolink.cli import EXIT_USAGE, main
 from leolink.config import load_config
-from leolink.io.run_dir import OutputFolderError, claim_out_dir
+from leolink.io.run_dir import LOCK, OutputFolderError, claim_out_dir
 from report_helpers import PAPER, REPO
 
 SHORT = ["--set", "run.duration_s=10", "--set", "output.plots.enabled=false"]
@@ -104,11 +107,10 @@ def _interrupted_run(out, monkeypatch):
     def stop(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(app_run, "write_manifest", stop)
+    monkeypatch.setattr(app_run, "raise_pending", stop)  # just before run.json
     args = ["--parquet", "--set", "run.duration_s=10"]  # every output, plots and report too
     assert _leolink("run", PAPER, "--out", out, "--quiet", *args) == 130
     monkeypatch.undo()
-    (out / "trace.csv.1a2b3c4d.partial").write_text("left by a killed writer")
 
 
 def test_an_interrupted_run_is_not_finished_and_is_cleared_by_overwrite(
@@ -123,6 +125,12 @@ def test_an_interrupted_run_is_not_finished_and_is_cleared_by_overwrite(
     err = capsys.readouterr().err
     assert "files of an unfinished leolink run (no run.json: " in err
     lean = [*SHORT, "--set", "output.report.enabled=false"]  # writes fewer files
+    killed = tmp_path / "trace.csv.1a2b3c4d.partial"  # a killed writer's: in no manifest
+    killed.write_text("left by a killed writer")
+    assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", "--overwrite", *lean) == 2
+    err = capsys.readouterr().err
+    assert f"holds {killed.name}, not written by leolink" in err and "left alone" in err
+    killed.unlink()  # the user's decision
     assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", "--overwrite", *lean) == 0
     assert not list(tmp_path.glob("*.partial")) and not list(tmp_path.glob("*.png"))
     assert not {"trace.parquet", "report.html", "footprint.gif"} & _files(tmp_path)
@@ -237,3 +245,162 @@ def test_the_manifest_takes_a_known_digest_only_for_a_file_of_that_size(tmp_path
     assert files["kept.csv"]["sha256"] == "k" * 64  # taken as told (the size matches)
     assert files["grown.csv"]["sha256"] == hashlib.sha256(grown.read_bytes()).hexdigest()
     assert files["grown.csv"]["bytes"] == 12
+
+
+def test_overwrite_never_removes_a_file_through_a_linked_folder(tmp_path, capsys):
+    # Issue 49's reproduction: a forged run.json names data/keep.txt, data -> ../other.
+    out, other = tmp_path / "o", tmp_path / "other"
+    out.mkdir()
+    other.mkdir()
+    (other / "keep.txt").write_text("x\n")
+    (out / "data").symlink_to("../other")
+    sha = hashlib.sha256(b"x\n").hexdigest()  # forged well: even its size and checksum match
+    forged = {"files": [{"path": "data/keep.txt", "bytes": 2, "sha256": sha}]}
+    (out / "run.json").write_text(json.dumps(forged))
+    assert _leolink("run", PAPER, "--out", out, "--quiet", "--overwrite", *SHORT) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert (other / "keep.txt").read_text() == "x\n" and (out / "run.json").exists()
+    assert len(err.strip().splitlines()) == 1 and "data/keep.txt" in err and "left alone" in err
+
+
+def test_overwrite_removes_a_listed_file_only_with_its_sha256(parquet_run, tmp_path, capsys):
+    out = tmp_path / "out"
+    shutil.copytree(parquet_run, out)
+    (out / "report.html").write_text("<p>my own page</p>")  # a user's file, leolink's name
+    assert _leolink("run", PAPER, "--out", out, "--quiet", "--overwrite", *SHORT) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "holds report.html, run.json, not written by leolink or changed since" in err
+    assert (out / "report.html").read_text() == "<p>my own page</p>"
+    assert _files(out) == _files(parquet_run)  # nothing removed: all or nothing
+
+
+def test_overwrite_leaves_a_linked_file_and_its_target(parquet_run, tmp_path, capsys):
+    out, target = tmp_path / "out", tmp_path / "target.csv"
+    shutil.copytree(parquet_run, out)
+    shutil.copy(out / "trace.csv", target)  # same bytes, same SHA-256: only the link differs
+    (out / "trace.csv").unlink()
+    (out / "trace.csv").symlink_to(target)
+    assert _leolink("run", PAPER, "--out", out, "--quiet", "--overwrite", *SHORT) == EXIT_USAGE
+    assert "holds trace.csv, run.json, not written by leolink" in capsys.readouterr().err
+    assert target.read_bytes() == (parquet_run / "trace.csv").read_bytes()
+    assert (out / "trace.csv").is_symlink()
+
+
+def _start_run(out, *args):
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
+    return subprocess.Popen(
+        [sys.executable, "-m", "leolink.cli", "run", str(PAPER), "--out", str(out), "--quiet",
+         *SHORT, *args],
+        env=env, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+
+
+def _wait_for(predicate, what, timeout_s=300.0):
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.05)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="fcntl.flock and SIGSTOP")
+@pytest.mark.parametrize("overwrite", [[], ["--overwrite"]])
+def test_a_second_command_into_a_folder_in_use_is_refused(tmp_path, capsys, overwrite):
+    out = tmp_path / "out"
+    first = _start_run(out)
+    try:
+        _wait_for(lambda: (out / LOCK).exists() and (out / LOCK).read_text().strip(), "the lock")
+        first.send_signal(signal.SIGSTOP)  # holds its lock, whatever the machine's load
+        code = _leolink("run", PAPER, "--out", out, "--quiet", *SHORT, *overwrite)
+        err = capsys.readouterr().err
+        assert code == EXIT_USAGE and len(err.strip().splitlines()) == 1
+        assert f"is in use by another leolink command (pid {first.pid}, lock file" in err
+        assert _leolink("report", out) == EXIT_USAGE
+    finally:
+        first.send_signal(signal.SIGCONT)
+    assert first.wait(timeout=300) == 0, first.stderr.read()
+    manifest = json.loads((out / "run.json").read_text())
+    for entry in manifest["files"]:  # the first run's outputs, intact
+        data = (out / entry["path"]).read_bytes()
+        assert hashlib.sha256(data).hexdigest() == entry["sha256"]
+    assert not (out / LOCK).exists()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="fcntl.flock")
+def test_the_lock_file_of_a_dead_command_is_taken_again(tmp_path, capsys):
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    (tmp_path / LOCK).write_text(dead.stdout)  # left by a killed command
+    assert _leolink("run", PAPER, "--out", tmp_path, "--quiet", *SHORT) == 0
+    assert (tmp_path / "run.json").exists() and not (tmp_path / LOCK).exists()
+
+
+def _rehash(out, name):
+    """run.json rewritten to match ``name``'s new bytes (a consistent tampering)."""
+    manifest = json.loads((out / "run.json").read_text())
+    for entry in manifest["files"]:
+        if entry["path"] == name:
+            data = (out / name).read_bytes()
+            entry["bytes"], entry["sha256"] = len(data), hashlib.sha256(data).hexdigest()
+    (out / "run.json").write_text(json.dumps(manifest))
+
+
+def _object_array_npz(path):
+    import numpy as np
+
+    np.savez(path, ut_id=np.array([{"a": 1}], dtype=object))
+
+
+DAMAGES = {
+    "npz_truncated": ("report_stats.npz", lambda p: p.write_bytes(p.read_bytes()[:100])),
+    "npz_empty": ("report_stats.npz", lambda p: p.write_bytes(b"")),
+    "npz_object_array": ("report_stats.npz", _object_array_npz),
+    "summary_not_json": ("summary.json", lambda p: p.write_text("{not json")),
+    "summary_one_byte_changed": ("summary.json",
+                                 lambda p: p.write_bytes(p.read_bytes().replace(b"1", b"2", 1))),
+    "config_removed": ("config.resolved.toml", lambda p: p.unlink()),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("damage", sorted(DAMAGES))
+def test_leolink_report_refuses_a_damaged_folder_in_one_line(parquet_run, tmp_path, capsys, damage):
+    name, harm = DAMAGES[damage]
+    out = tmp_path / "out"
+    shutil.copytree(parquet_run, out)
+    harm(out / name)
+    before = {n: (out / n).read_bytes() for n in _files(out)}
+    capsys.readouterr()
+    assert _leolink("report", out, "--no-animation", "--quiet") == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith(f"leolink: error: {out / name} ") and len(err.splitlines()) == 1, err
+    assert "the folder was changed or damaged since its run" in err
+    assert {n: (out / n).read_bytes() for n in _files(out)} == before  # nothing rewritten
+
+
+@pytest.mark.parametrize("damage", [d for d in sorted(DAMAGES) if d != "config_removed"])
+def test_leolink_report_never_fails_as_a_bug_on_a_rehashed_damage(
+    parquet_run, tmp_path, capsys, damage
+):
+    """run.json rewritten to match the damage: the report is rebuilt from what reads, or
+    refused in one line; never an internal error (exit 3)."""
+    name, harm = DAMAGES[damage]
+    out = tmp_path / "out"
+    shutil.copytree(parquet_run, out)
+    harm(out / name)
+    _rehash(out, name)
+    capsys.readouterr()
+    code = _leolink("report", out, "--no-animation", "--quiet")
+    err = capsys.readouterr().err
+    assert code in (0, EXIT_USAGE) and len(err.splitlines()) <= 1, err
+
+
+def test_an_empty_or_dangling_out_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert _leolink("run", PAPER, "--out", "", "--quiet", *SHORT) == EXIT_USAGE
+    assert capsys.readouterr().err == (
+        "leolink: error: --out '' is not allowed; give a folder, e.g. --out results\n"
+    )
+    (tmp_path / "dangling").symlink_to(tmp_path / "gone")
+    assert _leolink("run", PAPER, "--out", "dangling", "--quiet", *SHORT) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "--out dangling is a link to " in err and "which does not exist" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling"]  # nothing written

@@ -199,7 +199,6 @@ def _counting_run(monkeypatch, fail_at=None):
 
 
 def test_interrupt_keeps_finished_runs_and_writes_no_table(tmp_path, monkeypatch):
-    (tmp_path / "sweep.csv").write_text("old,table\n1,2\n")  # an earlier, finished sweep
     calls = _counting_run(monkeypatch, fail_at=2)
     with pytest.raises(KeyboardInterrupt):
         run_sweep(

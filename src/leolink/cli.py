@@ -4,8 +4,9 @@ validate``.
 Errors leolink raises on purpose, and errors of the environment (a folder that cannot
 be written, a full disk, an unreachable dask scheduler), are printed as one line (exit
 code 2); anything else is a bug and is printed as a short note (exit code 3) unless
-``--debug`` is given. SIGINT (Ctrl-C) and SIGTERM stop a command cleanly: finished files
-stay, temporary ones are removed, one line says where it stopped (exit 130, 143). A sweep
+``--debug`` is given. SIGINT (Ctrl-C), SIGTERM, SIGHUP and SIGXCPU stop a command cleanly:
+finished files stay, temporary ones are removed, one line says where it stopped (exit 128 +
+the signal's number: 130, 143, 129, 152). A sweep
 some of whose points failed writes its table (their ``error`` column) and exits 1.
 """
 
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import zipfile
 from pathlib import Path
 
 from leolink.errors import ConfigError, LeolinkError
@@ -22,8 +24,9 @@ EXIT_POINTS_FAILED = 1
 EXIT_USAGE = 2
 EXIT_BUG = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
-EXIT_TERMINATED = 143  # 128 + SIGTERM
 MAX_GRID = 5001  # coverage grid points per axis (25 million points)
+#: What ``leolink report`` writes anew (the rest of the folder it reads, checked first).
+REPORT_WRITES = ("report.html", "footprint.gif", "run.geojson", "run.czml")
 OVERWRITE_HELP = "replace an earlier run's files in --out (other files are kept)"
 
 
@@ -187,15 +190,26 @@ def cmd_sweep(args) -> int:
 def cmd_report(args) -> int:
     import leolink
     from leolink.io.report.rebuild import rebuild_report
+    from leolink.io.run_dir import OutputFolderError, lock_out_dir, verify_manifest
 
     uts = _ut_list(args.uts) if args.uts else None
-    built = rebuild_report(
-        Path(args.dir),
-        series_ut=uts,
-        animate=not args.no_animation,
-        exports=args.exports,
-        version=leolink.__version__,
-    )
+    if Path(args.dir).is_dir():
+        lock_out_dir(args.dir)  # it rewrites files: not while a command writes there
+        verify_manifest(args.dir, REPORT_WRITES)  # sizes and SHA-256 of what it reads
+    try:
+        built = rebuild_report(
+            Path(args.dir),
+            series_ut=uts,
+            animate=not args.no_animation,
+            exports=args.exports,
+            version=leolink.__version__,
+        )
+    except (ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:  # a listed file
+        # that reads wrong although its checksum matches: run.json was rewritten with it
+        raise OutputFolderError(
+            f"{args.dir}: a file of the run cannot be read ({type(exc).__name__}: "
+            f"{str(exc)[:120]}); rerun it (leolink run ... --overwrite)"
+        ) from None
     if not args.quiet:
         for path in [built["report"], built["animation"], *built["exports"]]:
             if path is not None:
@@ -342,17 +356,26 @@ def _add_report(p):
 
 
 def main(argv=None) -> int:
-    from leolink.app.guard import Stopped, environment_error, interruptible, quiet_warnings
+    from leolink.app.guard import (
+        Stopped,
+        environment_error,
+        interruptible,
+        out_of_memory,
+        quiet_warnings,
+    )
+    from leolink.io.run_dir import held_out_dirs
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        with interruptible(), quiet_warnings():
+        if getattr(args, "out", None) is not None and not args.out.strip():
+            raise ConfigError("--out '' is not allowed; give a folder, e.g. --out results")
+        with interruptible(), quiet_warnings(), held_out_dirs():
             return args.func(args)
     except LeolinkError as exc:
         print(f"leolink: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Stopped)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM, SIGHUP, SIGXCPU (Stopped)
         name = exc.signal_name if isinstance(exc, Stopped) else "SIGINT"
         where = "; ".join(getattr(exc, "__notes__", [])) or "before any output was finished"
         print(
@@ -360,7 +383,10 @@ def main(argv=None) -> int:
             "files removed",
             file=sys.stderr,
         )
-        return EXIT_TERMINATED if name == "SIGTERM" else EXIT_INTERRUPTED
+        return exc.exit_code if isinstance(exc, Stopped) else EXIT_INTERRUPTED
+    except MemoryError as exc:  # the environment too: the run is larger than the machine
+        print(f"leolink: error: {out_of_memory(exc)}", file=sys.stderr)
+        return EXIT_USAGE
     except OSError as exc:  # the environment: permissions, a full disk, the network
         message = environment_error(exc, getattr(args, "out", None))
         print(f"leolink: error: {message}", file=sys.stderr)

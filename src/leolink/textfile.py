@@ -13,7 +13,8 @@ __all__ = ["read_text"]
 
 
 def read_text(path, what, error):
-    """The UTF-8 text of ``path``.
+    """The UTF-8 text of ``path``, without a leading byte-order mark (Windows editors
+    write one; it is no part of the first key or column name).
 
     Parameters
     ----------
@@ -25,7 +26,7 @@ def read_text(path, what, error):
         (byte N)`` or ``... cannot be read: {reason}``.
     """
     try:
-        return Path(path).read_text(encoding="utf-8")
+        return Path(path).read_text(encoding="utf-8-sig")  # a byte-order mark is dropped
     except FileNotFoundError:
         raise error(f"{what} {str(path)!r} does not exist") from None
     except UnicodeDecodeError as exc:

@@ -164,7 +164,7 @@ def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, ho
     -------
     pandas.DataFrame, ``compare.csv``.
     """
-    from leolink.app.sweep_exec import check_workers, run_jobs
+    from leolink.app.sweep_exec import check_runs, check_workers, run_jobs
     from leolink.io.atomic import write_csv_atomic, write_text_atomic
     from leolink.io.run_dir import claim_out_dir
 
@@ -173,6 +173,7 @@ def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, ho
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ConfigError(f"--seeds {seeds!r} is not allowed; use an integer >= 1")
     how = Execution() if how is None else how
+    check_runs(len(policies) * seeds, f"--seeds {seeds} x {len(policies)} policies")
     check_workers(how.workers)
     cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
     base = _base_overrides(base_overrides, [], False)

@@ -1,14 +1,17 @@
 """What the command line wraps around every command: signals, library warnings, and the
 environment's errors turned into one line.
 
-- SIGINT and SIGTERM raise :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread,
-  once: the stream's sinks abort (:func:`leolink.sim.runner.run_simulation`), the atomic
-  writer removes its temporary files, the command adds a note saying where it stopped,
-  and a second signal during that cleanup is ignored so that the cleanup finishes.
+- SIGINT, SIGTERM, SIGHUP (a closed terminal or SSH session) and SIGXCPU (``RLIMIT_CPU``'s
+  soft limit) raise :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread, once:
+  the stream's sinks abort (:func:`leolink.sim.runner.run_simulation`), the atomic writer
+  removes its temporary files, the command adds a note saying where it stopped and exits
+  with 128 + the signal's number; a second signal (a second Ctrl-C) during that cleanup
+  is ignored so that the cleanup finishes.
 - Sweep workers (:func:`worker_init`) die with their parent: ``prctl(PR_SET_PDEATHSIG)``
   on Linux (also after SIGKILL of the parent), and a watchdog thread on the parent's pid
-  elsewhere; they ignore SIGINT (the parent stops them with SIGTERM, so a Ctrl-C in a
-  terminal, sent to the whole process group, stops each point once, cleanly).
+  elsewhere; they ignore SIGINT and SIGHUP (the parent stops them with SIGTERM, so a Ctrl-C
+  or a hang-up, sent to the whole process group, stops each point once, cleanly) and stop
+  their point on SIGTERM or SIGXCPU.
 - Library warnings are shown as one line each, once (:func:`quiet_warnings`), or silenced
   where the reason is known (:data:`SILENCED`).
 """
@@ -17,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import math
 import os
 import signal
 import sys
@@ -30,12 +34,17 @@ __all__ = [
     "Stopped",
     "environment_error",
     "interruptible",
+    "out_of_memory",
     "quiet_warnings",
     "raise_pending",
     "worker_init",
 ]
 
-_SIGNALS = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
+_SIGNALS = {
+    getattr(signal, name): name
+    for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGXCPU")
+    if hasattr(signal, name)  # (Windows has SIGINT and SIGTERM only)
+}
 _WATCHDOG_S = 0.5
 
 #: (message regex, category, module regex, why it is silenced).
@@ -64,11 +73,13 @@ SILENCED = (
 
 
 class Stopped(KeyboardInterrupt):
-    """The command was stopped by a signal (``signal_name``: ``"SIGINT"``, ``"SIGTERM"``)."""
+    """The command was stopped by a signal (``signal_name``: ``"SIGINT"``, ``"SIGTERM"``,
+    ``"SIGHUP"``, ``"SIGXCPU"``); ``exit_code`` is 128 + its number, as a shell reports."""
 
     def __init__(self, signal_name: str):
         super().__init__(signal_name)
         self.signal_name = signal_name
+        self.exit_code = 128 + int(getattr(signal, signal_name, signal.SIGINT))
 
 
 #: The stop a signal raised, kept until it reaches the command: library code may catch the
@@ -143,6 +154,17 @@ def environment_error(exc: OSError, out=None) -> str:
     return f"{where}: {exc.strerror or type(exc).__name__}"
 
 
+def out_of_memory(exc: MemoryError) -> str:
+    """One line for a MemoryError, with the size of the array that did not fit when numpy
+    says it (its ``shape`` and ``dtype``)."""
+    try:
+        gib = math.prod(exc.shape) * exc.dtype.itemsize / 2**30  # type: ignore[attr-defined]
+        needs = f"needs about {max(gib, 0.1):.1f} GiB more; "
+    except (TypeError, AttributeError):
+        needs = ""
+    return f"out of memory ({needs}reduce UTs/epochs or use --workers)"
+
+
 def _parent_gone(parent_pid):
     return os.getppid() != parent_pid
 
@@ -159,8 +181,12 @@ def _watchdog(parent_pid):
 _busy = False  # a worker is running a point (SIGTERM raises) or idle (SIGTERM exits)
 
 
+_WORKER_STOPS = [s for s in _SIGNALS if _SIGNALS[s] in ("SIGTERM", "SIGXCPU")]
+
+
 def _worker_term(signum, frame):
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    for sig in _WORKER_STOPS:
+        signal.signal(sig, signal.SIG_IGN)
     if not _busy:
         os._exit(128 + signum)
     raise Stopped("SIGTERM")
@@ -168,8 +194,8 @@ def _worker_term(signum, frame):
 
 def worker_init(parent_pid: int):
     """Initializer of a sweep's worker process (``ProcessPoolExecutor(initializer=...)``)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _worker_term)
+    for sig in _SIGNALS:
+        signal.signal(sig, _worker_term if sig in _WORKER_STOPS else signal.SIG_IGN)
     die_with_parent(signal.SIGTERM)
     if _parent_gone(parent_pid):  # the parent died before prctl took effect
         os._exit(128 + signal.SIGTERM)

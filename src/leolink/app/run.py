@@ -13,6 +13,7 @@ manifest ``run.json`` last: a folder without it is not a finished run.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from datetime import UTC
 from pathlib import Path
@@ -30,7 +31,7 @@ from leolink.config import dump_toml
 from leolink.errors import LeolinkError
 from leolink.io.atomic import write_json_atomic, write_parquet_atomic, write_text_atomic
 from leolink.io.notebook import ResultViews
-from leolink.io.run_dir import claim_out_dir, write_manifest
+from leolink.io.run_dir import UNFINISHED, claim_out_dir, held_out_dirs, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary.accumulator import SummaryAccumulator
 from leolink.sim.runner import run_simulation
@@ -213,36 +214,56 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     """
     scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
     fix_heap_thresholds()  # memory flat in run length, few page faults (leolink.app.heap)
-    if out_dir is not None:  # after the scenario built: a bad config removes nothing
-        out_dir = claim_out_dir(out_dir, overwrite)
+    with held_out_dirs():  # one command per folder (leolink.io.run_dir)
+        if out_dir is not None:  # after the scenario built: a bad config removes nothing
+            out_dir = claim_out_dir(out_dir, overwrite)
+        return _run(cfg, scen, out_dir, progress)
+
+
+def _run(cfg, scen, out_dir, progress):
     summary, position = SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s), _Position()
-    sinks = _sinks(cfg, out_dir, summary, scen)
+    sinks, files = _sinks(cfg, out_dir, summary, scen), []
     try:
-        return _run_and_write(cfg, scen, out_dir, summary, [*sinks, position], progress)
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the sinks have aborted
-        exc.add_note(position.where(out_dir))
+        return _run_and_write(cfg, scen, (out_dir, files), summary, [*sinks, position], progress)
+    except BaseException as exc:  # Ctrl-C, a signal (leolink.app.guard), an error
+        if out_dir is not None:
+            _list_unfinished(out_dir, files, sinks)
+        if isinstance(exc, KeyboardInterrupt):  # the sinks have aborted
+            exc.add_note(position.where(out_dir))
         raise
 
 
-def _run_and_write(cfg, scen, out_dir, summary, sinks, progress):
+def _list_unfinished(out_dir, files, sinks):
+    """``run.unfinished.json``: the files a stopped run finished (its trace, ...), so that
+    ``--overwrite`` may remove them (:func:`leolink.io.run_dir.claim_out_dir`)."""
+    digests = {p: d for s in sinks for p, d in (getattr(s, "digests", None) or {}).items()}
+    done = [Path(p) for p in [*files, *digests] if Path(p).is_file()]
+    if done:
+        with contextlib.suppress(OSError):  # the error being reported matters more
+            write_manifest(out_dir, done, "run", "", version=leolink.__version__,
+                           digests=digests, name=UNFINISHED)  # fmt: skip
+
+
+def _run_and_write(cfg, scen, where, summary, sinks, progress):
     stats = run_simulation(scen, sinks, progress=progress)
     sinks = sinks[:-1]  # without the position
     try:  # the pictures may still be drawn (leolink.io.render): stopped on any error
-        return _write(cfg, scen, out_dir, summary, sinks, stats)
+        return _write(cfg, scen, where, summary, sinks, stats)
     except BaseException:
         for sink in sinks:  # a finished sink's abort only stops what still runs
             sink.abort()
         raise
 
 
-def _write(cfg, scen, out_dir, summary, sinks, stats):
-    """The run's own files, then the sinks' (``after_run``), then ``run.json``."""
+def _write(cfg, scen, where, summary, sinks, stats):
+    """The run's own files (appended to ``files`` of ``where = (out_dir, files)`` as they
+    are finished), then the sinks' (``after_run``), then ``run.json``."""
+    out_dir, files = where
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
     report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
     per_ut = summary.per_ut_table()
     if out_dir is None:
         return Result(result_summary, None, [], sinks[1], report, per_ut)
-    files = []
     if "per_ut" not in result_summary:  # a large run: the tables beside summary.json
         files.append(write_parquet_atomic(per_ut, out_dir / "per_ut.parquet"))
         files.append(write_parquet_atomic(summary.dwell_table(), out_dir / "dwells.parquet"))

@@ -26,6 +26,7 @@ from pathlib import Path
 import pandas as pd
 import tomli_w
 
+from leolink.config.overrides import loads_toml
 from leolink.errors import ConfigError, LeolinkError
 
 __all__ = [
@@ -75,7 +76,7 @@ def parse_param(spec):
     if not sep or not key or any(not part for part in key.split(".")):
         raise ConfigError(f"--param {spec!r} is not allowed: use section.key=v1,v2,...")
     try:  # the whole list as one TOML array handles quoted strings holding commas
-        values = tomllib.loads(f"v = [{raw}]")["v"]
+        values = loads_toml(f"v = [{raw}]", f"--param {key}")["v"]
     except tomllib.TOMLDecodeError:
         values = [_scalar(item, key) for item in raw.split(",")]
     if not values:
@@ -89,7 +90,7 @@ def _scalar(item, key):
     if not item:
         raise ConfigError(f"--param {key}: an empty value in the list is not allowed")
     try:
-        return tomllib.loads(f"v = {item}")["v"]
+        return loads_toml(f"v = {item}", f"--param {key}")["v"]
     except tomllib.TOMLDecodeError:
         return item
 
@@ -122,6 +123,9 @@ def _grid(params):
     dup = {k for k in keys if keys.count(k) > 1}
     if dup:
         raise ConfigError(f"--param {sorted(dup)[0]} is given twice; give all its values once")
+    from leolink.app.sweep_exec import check_runs
+
+    check_runs(math.prod(len(v) for _, v in parsed), "--param " + " x ".join(keys))
     combos = itertools.product(*(values for _, values in parsed))
     return keys, [dict(zip(keys, combo, strict=True)) for combo in combos]
 

@@ -105,13 +105,48 @@ def _dask(fn, jobs, done, address):
 def check_workers(workers):
     """The dask scheduler address of ``"dask://ADDRESS"``, None for a number of processes."""
     if isinstance(workers, str) and workers.startswith("dask://"):
-        return workers.removeprefix("dask://")
+        return _dask_address(workers)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(
             f"workers = {workers!r} is not allowed; use an integer >= 1 (local processes) "
             "or 'dask://<scheduler address>'"
         )
     return None
+
+
+#: The most runs one sweep or compare makes (each a folder of files; split a larger study).
+MAX_RUNS = 100_000
+
+
+def check_runs(n_runs, what):
+    """Refuse a study of more than :data:`MAX_RUNS` runs before anything is built."""
+    if n_runs > MAX_RUNS:
+        raise ConfigError(
+            f"{what} makes {n_runs:,} runs, which is not allowed; use at most {MAX_RUNS:,} "
+            "(split the study)"
+        )
+
+
+def _dask_address(url):
+    """The scheduler address ``[PROTOCOL://]HOST:PORT`` of ``dask://ADDRESS`` (an IPv6 host
+    in brackets), checked here: an address that cannot be one is a bad argument, not an
+    error of the network."""
+    from urllib.parse import urlsplit
+
+    address = url.removeprefix("dask://")
+    protocol, sep, rest = address.rpartition("://")
+    try:
+        parts = urlsplit(f"//{rest}")
+        ok = bool(parts.hostname) and parts.port is not None and not parts.path
+        ok = ok and (not sep or protocol.isalpha())
+    except ValueError:  # a port that is not a number in 0..65535, an unclosed bracket
+        ok = False
+    if not ok:
+        raise ConfigError(
+            f"--workers {url!r} is not allowed; use dask://HOST:PORT, e.g. "
+            "dask://127.0.0.1:8786 (an IPv6 host in brackets: dask://[::1]:8786)"
+        )
+    return address
 
 
 def run_jobs(fn, jobs, done, workers):

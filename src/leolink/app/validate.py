@@ -20,6 +20,7 @@ __all__ = [
     "HEALTH_SAMPLES",
     "TLE_AGE_NOTE_DAYS",
     "check_files",
+    "check_report_uts",
     "checked_scenario",
     "ephemeris_health",
 ]
@@ -151,4 +152,17 @@ def checked_scenario(cfg):
     check_files(cfg)
     scen = build_scenario(cfg)
     ephemeris_health(cfg, scen.ephemeris, scen.times_s)
+    check_report_uts(cfg, sum(pop.n_ut for _, pop in scen.populations))
     return scen
+
+
+def check_report_uts(cfg, n_ut):
+    """``output.report.uts`` are UT ids of the run (``n_ut`` UTs): the rule the report's
+    sink applies when it starts (:class:`leolink.io.report.sink.ReportSink`), checked
+    before the run so that ``validate`` says it too, in the same words."""
+    report = cfg.output.report
+    if report.enabled and any(not 0 <= u < n_ut for u in report.uts):
+        raise ConfigError(
+            f"output.report.uts = {list(report.uts)!r} is not allowed; "
+            f"UT ids of this run are 0 to {n_ut - 1}"
+        )

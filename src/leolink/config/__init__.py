@@ -21,7 +21,7 @@ from pydantic import Field, ValidationError, create_model, model_validator
 
 from leolink.config import kinds
 from leolink.config.messages import reword
-from leolink.config.overrides import apply_overrides
+from leolink.config.overrides import apply_overrides, loads_toml
 from leolink.config.schema import (
     ConstellationSection,
     EarthSection,
@@ -237,18 +237,32 @@ def parse_config(data: dict, source: str = "") -> ConfigBase:
     return cfg.model_copy(update={"source": source})
 
 
-def _resolve_files(node, base: Path):
+#: The longest path and file name a system takes (Linux's PATH_MAX and NAME_MAX).
+MAX_PATH_CHARS, MAX_NAME_CHARS = 4096, 255
+
+
+def _resolve_files(node, base: Path, key=""):
     """Keys ending in ``_file`` are paths relative to the config file's folder."""
     if isinstance(node, dict):
         return {
-            k: str(base / v)
-            if k.endswith("_file") and isinstance(v, str) and v and not Path(v).is_absolute()
-            else _resolve_files(v, base)
+            k: _file(f"{key}{k}", v, base)
+            if k.endswith("_file") and isinstance(v, str) and v
+            else _resolve_files(v, base, f"{key}{k}.")
             for k, v in node.items()
         }
     if isinstance(node, list):
-        return [_resolve_files(v, base) for v in node]
+        return [_resolve_files(v, base, f"{key}{i}.") for i, v in enumerate(node)]
     return node
+
+
+def _file(key, value, base):
+    longest = max(len(part) for part in Path(value).parts) if Path(value).parts else 0
+    if len(value) > MAX_PATH_CHARS or longest > MAX_NAME_CHARS:
+        raise ConfigError(
+            f"{key} = {value[:40]!r}... ({len(value):,} characters) is not allowed; use a path "
+            f"of at most {MAX_PATH_CHARS} characters, each name at most {MAX_NAME_CHARS}"
+        )
+    return value if Path(value).is_absolute() else str(base / value)
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> ConfigBase:
@@ -256,10 +270,14 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> ConfigB
     path = Path(path)
     text = read_text(path, "config file", ConfigError)
     try:
-        data = tomllib.loads(text)
+        data = loads_toml(text, str(path))
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
     data = _resolve_files(apply_overrides(data, overrides), path.parent)
+    if "source" in data:  # the model's own record of the file, not a config key
+        raise ConfigError(
+            f"{path}: source is not a known key (check the spelling; see docs/config.md)"
+        )
     return parse_config(data, source=str(path))
 
 

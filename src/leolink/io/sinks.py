@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 import pyarrow as pa
-from pydantic import Field
+from pydantic import AfterValidator, Field
 
 from leolink.io.tables import (
     EVENT_SCHEMA,
@@ -218,9 +218,19 @@ class PlotSink:
             self._job.cancel()
 
 
+def _each_once(formats):
+    if len(set(formats)) != len(formats):
+        raise ValueError("give each format once")
+    return formats
+
+
+#: The file formats of a table sink, each once (a repeated one would write its file twice).
+Formats = Annotated[list[Literal["csv", "parquet"]], AfterValidator(_each_once)]
+
+
 class TraceParams(SinkParams):
     enabled: bool = Field(True, description="write trace.csv / trace.parquet")
-    formats: list[Literal["csv", "parquet"]] = Field(
+    formats: Formats = Field(
         default_factory=lambda: ["csv"],  # type: ignore[arg-type]  # mypy infers list[str]
         min_length=1,
         description="trace files to write",
@@ -230,7 +240,7 @@ class TraceParams(SinkParams):
 
 class EventsParams(SinkParams):
     enabled: bool = Field(True, description="write events.csv / events.parquet")
-    formats: list[Literal["csv", "parquet"]] = Field(
+    formats: Formats = Field(
         default_factory=lambda: ["csv", "parquet"],  # type: ignore[arg-type]  # list[str]
         min_length=1,
         description="event files",

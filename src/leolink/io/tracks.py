@@ -43,10 +43,19 @@ def _data_lines(path):
     """(line number, parsed fields) of the non-blank, non-``#`` lines of a CSV file."""
     lines = read_text(path, "track file", TrackFileError).splitlines()
     return [
-        (i, [c.strip() for c in next(csv.reader([s]))])
+        (i, _fields(path, i, s))
         for i, s in enumerate(lines, 1)
         if s.strip() and not s.lstrip().startswith("#")
     ]
+
+
+def _fields(path, line, text):
+    try:
+        return [c.strip() for c in next(csv.reader([text]))]
+    except csv.Error as exc:  # a field over csv.field_size_limit() (131,072 characters)
+        raise TrackFileError(
+            f"{path}: line {line}: not a CSV line that leolink reads ({exc})"
+        ) from None
 
 
 def _utc_seconds(path, where, text, time_zero_utc):
@@ -132,6 +141,11 @@ def read_track_csv(path, time_zero_utc=None):
             f"{path}: empty track file; expected a header line {', '.join(_TRACK_COLUMNS)}[, ut]"
         )
     header_line, header = rows[0]
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise TrackFileError(
+            f"{path}: line {header_line}: column {twice[0]!r} appears twice; give each once"
+        )
     wanted = _TRACK_COLUMNS if "time_s" in header or "time_utc" not in header else _POSITION_COLUMNS
     missing = [c for c in wanted if c not in header]
     if missing:
