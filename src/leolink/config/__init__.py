@@ -252,8 +252,11 @@ def _resolve_files(node, base: Path):
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> ConfigBase:
-    """Read, override and validate a TOML config file."""
-    path = Path(path)
+    """Read, override and validate a TOML config file, or an example's by its name
+    (``"paper"``: :func:`leolink.examples.resolve`; a file of that path wins)."""
+    from leolink.examples import resolve
+
+    path = resolve(path)
     text = read_text(path, "config file", ConfigError)
     try:
         data = tomllib.loads(text)
