@@ -1,6 +1,7 @@
 """The examples shipped as package data (``leolink.examples``): listed, copied with their
 files, usable by name wherever a config path is, and the one copy behind ``configs/``."""
 
+import json
 import tomllib
 from pathlib import Path
 
@@ -111,3 +112,19 @@ def test_a_bare_unknown_name_says_it_is_neither_file_nor_example(tmp_path, monke
         load_config("papr")
     assert main(["validate", "nope.toml"]) == 2
     assert "config file 'nope.toml' does not exist" in capsys.readouterr().err
+
+
+def test_an_all_defaults_config_runs_the_papers_pass(tmp_path, capsys):
+    config = tmp_path / "m.toml"
+    config.write_text("[run]\nduration_s = 60.0\n", encoding="utf-8")
+    out = tmp_path / "o"
+    assert main(["run", str(config), "--out", str(out), "--quiet"]) == 0
+    resolved = tomllib.loads((out / "config.resolved.toml").read_text("utf-8"))
+    assert (resolved["roi"]["semi_axis_x_m"], resolved["roi"]["semi_axis_y_m"]) == (
+        534.1e3,
+        170.5e3,
+    )
+    summary = json.loads((out / "summary.json").read_text("utf-8"))
+    assert (summary["run"]["oversampling"], summary["run"]["n_beam"]) == (1.2, 15)
+    assert summary["run"]["n_epochs"] == 60
+    assert summary["overall"]["outage_fraction"] == 0.0
