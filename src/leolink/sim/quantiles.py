@@ -1,6 +1,6 @@
 """Exact median and percentiles of small tables, numpy's values bit for bit, without
 loading ``numpy.ma``: numpy.median, numpy.percentile and numpy.unique import it on first
-use, 7-11 ms of a small run's start (README "Speed").
+use, 7-11 ms of a small run's start (docs/speed_history.md).
 
 Streams of samples get :mod:`leolink.sim.histograms` instead (bounded memory).
 """
