@@ -128,3 +128,15 @@ def test_an_all_defaults_config_runs_the_papers_pass(tmp_path, capsys):
     assert (summary["run"]["oversampling"], summary["run"]["n_beam"]) == (1.2, 15)
     assert summary["run"]["n_epochs"] == 60
     assert summary["overall"]["outage_fraction"] == 0.0
+
+
+def test_sweep_and_compare_take_a_name(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no file named "paper" here: the example
+    short = ["--set", "run.duration_s=2", "--set", "output.plots.enabled=false", "--quiet"]
+    assert main(["sweep", "paper", "--param", "run.seed=1,2", "--out", "sw", *short]) == 0
+    assert main(["compare", "paper", "--policy", "max_snr", "--out", "cmp", *short]) == 0
+    import pandas as pd
+
+    sweep = pd.read_csv("sw/sweep.csv", keep_default_na=False)
+    assert len(sweep) == 2 and not (sweep.get("error", pd.Series([""])) != "").any()
+    assert pd.read_csv("cmp/compare.csv")["policy"].tolist() == ["max_snr"]
