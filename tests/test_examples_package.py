@@ -13,6 +13,7 @@ from leolink.errors import ConfigError
 from leolink.examples import EXAMPLES, HERE, copy_example, example_path, resolve
 
 ROOT = Path(__file__).resolve().parents[1]
+SOURCE = ROOT / "src" / "leolink" / "examples"  # HERE, unless leolink is installed (CI)
 
 
 def test_every_packaged_toml_is_listed_and_every_listed_name_has_its_file():
@@ -26,15 +27,23 @@ def test_the_clone_configs_are_links_to_the_packaged_examples():
     linked = [p for p in configs.rglob("*") if p.is_file()] + data
     assert len(linked) == len(EXAMPLES) + 3
     for path in linked:
-        assert path.resolve().is_relative_to(HERE), path
-    assert (ROOT / "configs" / "paper.toml").resolve() == example_path("paper")
+        assert path.resolve().is_relative_to(SOURCE), path
+    assert (ROOT / "configs" / "paper.toml").resolve() == SOURCE / "paper.toml"
+
+
+def test_the_installed_examples_are_the_source_files():
+    files = [p.relative_to(SOURCE) for p in SOURCE.rglob("*") if p.is_file()]
+    files = [f for f in files if "__pycache__" not in f.parts and f.suffix != ".py"]
+    assert len(files) == len(EXAMPLES) + 3
+    for f in files:  # a wheel that left one out, or an old install, fails here
+        assert (HERE / f).read_bytes() == (SOURCE / f).read_bytes(), f
 
 
 def test_pyproject_ships_every_example_file():
     globs = tomllib.loads((ROOT / "pyproject.toml").read_text("utf-8"))["tool"]["setuptools"]
     patterns = globs["package-data"]["leolink"]
-    shipped = {p for pattern in patterns for p in (HERE.parent).glob(pattern)}
-    files = {p for p in HERE.rglob("*") if p.is_file() and p.suffix in {".toml", ".tle", ".csv"}}
+    shipped = {p for pattern in patterns for p in SOURCE.parent.glob(pattern)}
+    files = {p for p in SOURCE.rglob("*") if p.is_file() and p.suffix in {".toml", ".tle", ".csv"}}
     assert files and files <= shipped
 
 
