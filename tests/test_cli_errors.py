@@ -157,7 +157,7 @@ def test_validate_derived_roi_covers_but_the_papers_codebook_cannot(capsys):
 def test_the_command_is_console_and_exits_with_mains_code_collector_frozen():
     """The installed ``leolink`` script is :func:`leolink.cli.console`: main's exit code,
     with the collector's objects frozen for the interpreter's teardown (the exit's speed,
-    README "Speed")."""
+    docs/speed_history.md)."""
     import tomllib
 
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
@@ -179,7 +179,7 @@ def test_the_command_is_console_and_exits_with_mains_code_collector_frozen():
     [({}, "1"), ({"OMP_NUM_THREADS": "2"}, None), ({"OPENBLAS_NUM_THREADS": "4"}, "4")],
 )
 def test_the_command_gives_blas_one_thread_unless_the_environment_says(given, expected):
-    """OpenBLAS's idle threads spin on the cores leolink's kernels use (README "Speed"):
+    """OpenBLAS's idle threads spin on the cores leolink's kernels use (docs/speed_history.md):
     ``console`` sets ``OPENBLAS_NUM_THREADS=1`` before numpy loads, and leaves a count the
     user chose (by any of the variables BLAS reads) alone."""
     from leolink.compiled import BLAS_THREAD_VARIABLES

@@ -101,17 +101,21 @@ def test_roi_semi_axes_explicit_are_the_tables():
     assert ry_m == pytest.approx(170.5e3, abs=1e-6)
 
 
-def test_roi_semi_axes_derived_when_lines_removed(tmp_path):
+def test_roi_semi_axes_default_to_the_tables_when_lines_removed(tmp_path):
     cfg = load_config(_without_semi_axes(tmp_path))
-    assert cfg.roi.semi_axis_x_m is None and cfg.roi.semi_axis_y_m is None
+    assert cfg.roi_semi_axes_m() == load_config(PAPER).roi_semi_axes_m()
+    assert parse_config({}).roi_semi_axes_m() == (534.1e3, 170.5e3)
+
+
+def test_roi_semi_axes_derived_on_request():
+    cfg = _parse_with(['roi.semi_axis_x_m="derived"', 'roi.semi_axis_y_m="derived"'])
     rx_m, ry_m = cfg.roi_semi_axes_m()
     assert rx_m == pytest.approx(DERIVED_ROI_KM[0] * 1e3, abs=PRINTED_KM_TOL_M)
     assert ry_m == pytest.approx(DERIVED_ROI_KM[1] * 1e3, abs=PRINTED_KM_TOL_M)
 
 
 def test_roi_semi_axes_mix_explicit_and_derived():
-    cfg = _parse_with(["roi.semi_axis_y_m=100000"])
-    cfg = cfg.model_copy(update={"roi": cfg.roi.model_copy(update={"semi_axis_x_m": None})})
+    cfg = _parse_with(["roi.semi_axis_y_m=100000", "roi.semi_axis_x_m=derived"])
     rx_m, ry_m = cfg.roi_semi_axes_m()
     assert rx_m == pytest.approx(DERIVED_ROI_KM[0] * 1e3, abs=PRINTED_KM_TOL_M)
     assert ry_m == 100000.0

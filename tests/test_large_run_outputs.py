@@ -14,7 +14,7 @@ from leolink.io.summary.accumulator import PER_UT_IN_JSON_MAX
 from report_helpers import PAPER, cli
 
 N_UT = PER_UT_IN_JSON_MAX + 1
-PER_UT_BIN_DB = 0.1  # README output contract: per-UT percentiles from 0.1 dB bins
+PER_UT_BIN_DB = 0.1  # docs/outputs.md: per-UT percentiles from 0.1 dB bins
 
 
 @pytest.fixture(scope="module")

@@ -75,7 +75,54 @@ def test_dense_and_to_xarray_are_time_by_ut(result):
     assert snr.shape == (120, 7) and t[0] == 0.0 and list(u) == list(range(7))
     row = result.trace[(result.trace["time_s"] == 14.0) & (result.trace["ut_id"] == 3)]
     assert snr[14, 3] == row["snr_db"].item()
-    pytest.importorskip("xarray")
     ds = result.to_xarray()
-    assert ds["snr_db"].dims == ("time_s", "ut_id")
-    assert float(ds["beam_id"].sel(time_s=14.0, ut_id=3)) == row["beam_id"].item()
+    assert ds["snr_db"].dims == ("time", "ut_id")
+    assert ds["beam_id"].sel(time=14.0, ut_id=3).item() == row["beam_id"].item()
+
+
+def test_to_xarray_holds_every_trace_column_with_its_type_and_units(result):
+    ds, trace = result.to_xarray(), result.trace
+    assert set(ds.data_vars) == set(trace.columns) - {"time_s", "ut_id", "population"}
+    for column in ds.data_vars:  # pandas' own reshaping, column by column
+        wide = trace.pivot(index="time_s", columns="ut_id", values=column)
+        np.testing.assert_array_equal(
+            ds[column].to_numpy(), wide.to_numpy().astype(ds[column].dtype)
+        )
+    for column in ("ut_id", "sat_id", "beam_id", "n_visible"):
+        assert np.issubdtype(ds[column].dtype, np.integer), column
+    assert (
+        ds["snr_db"].attrs["units"] == "dB"
+        and "signal-to-noise" in ds["snr_db"].attrs["description"]
+    )
+    assert ds["lat_deg"].attrs["units"] == "degrees_north"
+    assert ds["throughput_bps"].attrs["units"] == "bit s-1"
+    assert "units" not in ds["beam_id"].attrs and ds["beam_id"].attrs["description"]
+    assert ds["time"].attrs["units"] == "s"
+    assert ds["population"].dims == ("ut_id",)
+    assert ds["population"].sel(ut_id=[0, 1, 5, 6]).to_numpy().tolist() == [
+        "centre", "static", "car", "aircraft"
+    ]  # fmt: skip
+    assert "time_utc" not in ds.coords  # the paper's run has no UTC
+
+
+def test_every_trace_column_has_units_and_a_description():
+    from leolink.io.table_schemas import ENVIRONMENT_COLUMNS, TRACE_COLUMN_DOCS, TRACE_COLUMNS
+
+    assert set(TRACE_COLUMN_DOCS) == set(TRACE_COLUMNS + ENVIRONMENT_COLUMNS)
+    assert all(description for _, description in TRACE_COLUMN_DOCS.values())
+
+
+def test_to_xarray_time_utc_follows_start_utc_and_start_s():
+    import leolink
+    from leolink.config import load_config
+
+    over = ["run.start_utc='2026-03-01T12:00:00Z'", "run.start_s=10.0", "run.duration_s=4.0",
+            "output.plots.enabled=false"]  # fmt: skip
+    res = leolink.run(load_config("configs/paper.toml", over))
+    ds = res.to_xarray()
+    assert ds["time"].to_numpy().tolist() == [10.0, 11.0, 12.0, 13.0]
+    utc = ds["time_utc"].to_numpy()
+    assert utc[0] == np.datetime64("2026-03-01T12:00:00", "ns")  # the first epoch: start_utc
+    assert utc[3] - utc[0] == np.timedelta64(3, "s")
+    assert len(repr(res)) <= 1000 and repr(res).startswith("<leolink.Result: 7 UTs x 4 epochs")
+    assert "in memory" in repr(res) and "7 UTs x 4 epochs" in res._repr_html_()

@@ -64,7 +64,12 @@ def _waypoints(rows):
 
 # (id, config, overrides (or a function of tmp_path giving them), message regex)
 BROKEN = [
-    ("empty_config", None, [], r"oversampling = 1\.2 gives 21 beams .* 15 RF chains"),
+    (
+        "derived_roi",
+        None,
+        ["roi.semi_axis_y_m=derived"],
+        r"oversampling = 1\.2 gives 21 beams .* 15 RF chains",
+    ),
     (
         "decayed_tle",
         TLE_CONFIG,

@@ -74,7 +74,7 @@ def test_handover_counts_snr_stats_and_extremes(result):
         rows = trace[trace.ut_id == i]
         snr = rows.snr_db.dropna()
         assert ut["snr_db"]["mean"] == pytest.approx(snr.mean(), rel=1e-12)
-        # Per-UT percentiles from 0.1 dB bins (README output contract): within half a bin.
+        # Per-UT percentiles from 0.1 dB bins (docs/outputs.md): within half a bin.
         assert ut["snr_db"]["p50"] == pytest.approx(np.percentile(snr, 50), abs=0.05 + 1e-5)
         assert ut["max_abs_doppler_hz"] == pytest.approx(rows.doppler_hz.abs().max(), rel=1e-15)
         assert ut["max_angular_speed_deg_s"] == pytest.approx(
@@ -125,7 +125,7 @@ def test_overall_statistics_against_the_trace(result):
     for key in ("snr_db", "sinr_db"):
         v = trace[key].dropna().to_numpy()
         assert o[key]["mean"] == pytest.approx(v.mean(), rel=1e-12)
-        for q in (5, 50, 95):  # pooled: 0.01 dB bins (README output contract), float32 samples
+        for q in (5, 50, 95):  # pooled: 0.01 dB bins (docs/outputs.md), float32 samples
             assert o[key][f"p{q}"] == pytest.approx(np.percentile(v, q), abs=0.005 + 1e-5)
     assert o["mean_throughput_bps"] == pytest.approx(
         trace.throughput_bps.fillna(0).mean(), rel=1e-12

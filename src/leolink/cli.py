@@ -1,5 +1,5 @@
 """Command line: ``leolink run | coverage | budget | codebook | sweep | compare | report |
-validate``.
+validate | examples | init``.
 
 Errors leolink raises on purpose, and errors of the environment (a folder that cannot
 be written, a full disk, an unreachable dask scheduler), are printed as one line (exit
@@ -289,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     def add(name, func, help_):
         p = sub.add_parser(name, help=help_)
-        p.add_argument("config", help="TOML config file (e.g. configs/paper.toml)")
+        p.add_argument("config", help="TOML config file, or an example's name (leolink examples)")
         p.add_argument(
             "--set",
             action="append",
@@ -322,6 +322,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries"))
     _compare_parser(add("compare", cmd_compare, "run policies on the same seeds, compare KPIs"))
     _add_report(sub.add_parser("report", help="rebuild report.html of a run folder, no rerun"))
+    _add_examples(sub)
     return parser
 
 
@@ -353,6 +354,34 @@ def _add_report(p):
     p.add_argument("--exports", action="store_true", help="also write run.geojson and run.czml")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_report)
+
+
+def _add_examples(sub):
+    p = sub.add_parser("examples", help="list the example configs that ship with leolink")
+    p.set_defaults(func=cmd_examples)
+    p = sub.add_parser("init", help="copy an example config (and its TLE/track files)")
+    p.add_argument("name", help="an example's name (leolink examples)")
+    p.add_argument("dir", nargs="?", default=".", help="folder to copy into (default: .)")
+    p.set_defaults(func=cmd_init)
+
+
+def cmd_examples(args) -> int:
+    from leolink.examples import EXAMPLES
+
+    width = max(map(len, EXAMPLES))
+    for name, what in EXAMPLES.items():
+        print(f"{name:<{width}}  {what}")
+    return 0
+
+
+def cmd_init(args) -> int:
+    from leolink.examples import copy_example
+
+    written = copy_example(args.name, args.dir)
+    print(f"{written[0]}: run it with  leolink run {written[0]} --out out/{args.name}")
+    for path in written[1:]:
+        print(f"{path}: read by {written[0].name}")
+    return 0
 
 
 def main(argv=None) -> int:

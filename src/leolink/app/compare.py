@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from leolink import examples
 from leolink.app.guard import raise_pending
 from leolink.app.sweep import Execution, _base_overrides, _progress_bar, _run_point
 from leolink.errors import ConfigError
@@ -151,7 +152,7 @@ def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, ho
 
     Parameters
     ----------
-    cfg_path : path-like, the scenario.
+    cfg_path : path-like, the scenario (a TOML file, or an example's name).
     policies : list of str, ``NAME[,KEY=VALUE...]`` each (at least one).
     out_dir : path-like
     base_overrides : list of str, ``section.key=value`` applied to every run.
@@ -175,7 +176,7 @@ def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, ho
     how = Execution() if how is None else how
     check_runs(len(policies) * seeds, f"--seeds {seeds} x {len(policies)} policies")
     check_workers(how.workers)
-    cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
+    cfg_path, out_dir = examples.resolve(cfg_path).resolve(), Path(out_dir).absolute()
     base = _base_overrides(base_overrides, [], False)
     triples = _jobs(cfg_path, list(policies), seeds, base, out_dir, how.resume)
     out_dir = claim_out_dir(

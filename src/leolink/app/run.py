@@ -42,7 +42,7 @@ if TYPE_CHECKING:  # pandas is imported when a table is asked for (~0.5 s of sta
 __all__ = ["Result", "run", "run_notes"]
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(repr=False)  # ResultViews.__repr__: one line, not the summary
 class Result(ResultViews):
     """What a run produced: the summary, the trace and events (in memory, or read back from
     the files this run wrote, never from another run's files in the same folder), and the
@@ -55,6 +55,7 @@ class Result(ResultViews):
     _memory: MemorySink | None = None
     report_stats: object = None  # ReportStats of the report sink, when it ran
     _per_ut: dict | None = None
+    time_zero_utc: str | None = None  # ISO 8601 UTC of simulation time 0, when known
 
     @property
     def per_ut(self) -> pd.DataFrame:
@@ -263,7 +264,7 @@ def _write(cfg, scen, where, summary, sinks, stats):
     report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
     per_ut = summary.per_ut_table()
     if out_dir is None:
-        return Result(result_summary, None, [], sinks[1], report, per_ut)
+        return Result(result_summary, None, [], sinks[1], report, per_ut, _epoch_utc(cfg))
     if "per_ut" not in result_summary:  # a large run: the tables beside summary.json
         files.append(write_parquet_atomic(per_ut, out_dir / "per_ut.parquet"))
         files.append(write_parquet_atomic(summary.dwell_table(), out_dir / "dwells.parquet"))
@@ -281,4 +282,4 @@ def _write(cfg, scen, where, summary, sinks, stats):
     raise_pending()  # a stop caught inside a library: no run.json (leolink.app.guard)
     files.append(write_manifest(out_dir, files, "run", config_text, version=leolink.__version__,
                                 digests=digests))  # fmt: skip
-    return Result(result_summary, out_dir, files, None, report, per_ut)
+    return Result(result_summary, out_dir, files, None, report, per_ut, _epoch_utc(cfg))

@@ -26,6 +26,7 @@ from pathlib import Path
 import pandas as pd
 import tomli_w
 
+from leolink import examples
 from leolink.config.overrides import loads_toml
 from leolink.errors import ConfigError, LeolinkError
 
@@ -268,7 +269,7 @@ def run_sweep(cfg_path, params, out_dir, base_overrides=None, *, run_plots=False
     Parameters
     ----------
     cfg_path : path-like
-        TOML config file (e.g. ``configs/paper.toml``).
+        TOML config file (e.g. ``configs/paper.toml``), or an example's name (``paper``).
     params : list of str
         ``section.key=v1,v2,...``, one per swept parameter; the grid is their product.
     out_dir : path-like
@@ -301,7 +302,7 @@ def run_sweep(cfg_path, params, out_dir, base_overrides=None, *, run_plots=False
     check_workers(how.workers)
     # Absolute paths: workers (dask's, on other machines' working directories) resolve
     # the config's own relative paths from its folder, and write where this process does.
-    cfg_path, out_dir = Path(cfg_path).resolve(), Path(out_dir).absolute()
+    cfg_path, out_dir = examples.resolve(cfg_path).resolve(), Path(out_dir).absolute()
     keys, points = _grid(params)
     base = _base_overrides(base_overrides, keys, run_plots)
     failed = _validated_points(cfg_path, points, base)

@@ -140,7 +140,7 @@ class ConfigBase(Section):
         cap_m = radius * math.tan(theta)
         for axis in ("x", "y"):
             value = getattr(r, f"semi_axis_{axis}_m")
-            if value is not None and value > 1.005 * cap_m:
+            if value != "derived" and value > 1.005 * cap_m:
                 raise ValueError(
                     f"roi.semi_axis_{axis}_m = {value!r} is not allowed: it must be at most "
                     f"{cap_m:.4g} m, the ROI-plane radius of the cap where a satellite at "
@@ -158,15 +158,16 @@ class ConfigBase(Section):
         return self.run.utc_of_time_zero()
 
     def roi_semi_axes_m(self) -> tuple[float, float]:
-        """ROI semi-axes: the configured ones, else the paper's design (Sec. 3.1)."""
+        """ROI semi-axes [m]: the configured ones; ``"derived"``: the paper's design
+        (Sec. 3.1)."""
         from leolink.roi import roi_semi_axes_m
 
         c, r = self.constellation, self.roi
         rx, ry = roi_semi_axes_m(
             c.n_planes, c.sats_per_plane, math.radians(c.inclination_deg), self.earth.radius_m
         )
-        rx = r.semi_axis_x_m if r.semi_axis_x_m is not None else float(rx)
-        ry = r.semi_axis_y_m if r.semi_axis_y_m is not None else float(ry)
+        rx = float(rx) if r.semi_axis_x_m == "derived" else r.semi_axis_x_m
+        ry = float(ry) if r.semi_axis_y_m == "derived" else r.semi_axis_y_m
         return rx, ry
 
     def to_dict(self) -> dict[str, Any]:
@@ -266,8 +267,11 @@ def _file(key, value, base):
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> ConfigBase:
-    """Read, override and validate a TOML config file."""
-    path = Path(path)
+    """Read, override and validate a TOML config file, or an example's by its name
+    (``"paper"``: :func:`leolink.examples.resolve`; a file of that path wins)."""
+    from leolink.examples import resolve
+
+    path = resolve(path)
     text = read_text(path, "config file", ConfigError)
     try:
         data = loads_toml(text, str(path))

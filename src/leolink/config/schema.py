@@ -188,20 +188,24 @@ class ConstellationSection(Section):
         return self
 
 
+RoiAxis = Annotated[float, Field(gt=0.0, le=MAX_ROI_M)] | Literal["derived"]
+
+
 class RoiSection(Section):
     center_lat_deg: float = _f(42.24, ge=-90.0, le=90.0, doc="ROI centre latitude [deg]")
     center_lon_deg: float = _f(-8.72, ge=-180.0, le=360.0, doc="ROI centre longitude [deg]")
-    semi_axis_x_m: float | None = _f(
-        None,
-        gt=0,
-        le=MAX_ROI_M,
-        doc="ROI semi-axis along-track [m]; none: derived (Sec. 3.1); at most the visible cap",
+    # The defaults are the paper's Table (534.1 x 170.5 km), which its 15 beams cover
+    # without holes; "derived" is Sec. 3.1's ROI (534.1 x 272.4 km for the Table's
+    # constellation), which 15 RF chains cannot cover (docs/errata.md).
+    semi_axis_x_m: RoiAxis = _f(
+        534.1e3,
+        doc="ROI semi-axis along-track [m] (the Table's), or 'derived' (Sec. 3.1); at most "
+        "the visible cap",
     )
-    semi_axis_y_m: float | None = _f(
-        None,
-        gt=0,
-        le=MAX_ROI_M,
-        doc="ROI semi-axis cross-track [m]; none: derived (Sec. 3.1); at most the visible cap",
+    semi_axis_y_m: RoiAxis = _f(
+        170.5e3,
+        doc="ROI semi-axis cross-track [m] (the Table's), or 'derived' (Sec. 3.1); at most "
+        "the visible cap",
     )
 
 

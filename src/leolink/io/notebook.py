@@ -3,7 +3,7 @@
 :class:`ResultViews` is a mixin for the run result (``leolink.run(...)`` returns an object
 with ``trace``, ``events`` and ``summary``); it adds ``plot_sinr(ut_ids=...)``,
 ``plot_map()``, ``plot_dwell()`` and friends (each returns a matplotlib Figure),
-``_repr_html_`` (Jupyter shows the KPI table) and :meth:`to_xarray`.
+a one-line ``repr``, ``_repr_html_`` (Jupyter shows the KPI table) and :meth:`to_xarray`.
 
 The figures come from a :class:`~leolink.io.report.stats.ReportStats`: the result's own
 ``report_stats`` when the run kept one (large runs: no trace in memory), else one built
@@ -61,11 +61,15 @@ def dense(trace, column):
 
     Returns ``time_s (n_time,)``, ``ut_id (n_ut,)``, ``values (n_time, n_ut)``.
     """
+    t, it, u, iu = _axes(trace)
+    return t, u, _grid(trace[column].to_numpy(float), it, iu, (t.size, u.size))
+
+
+def _axes(trace):
+    """The epochs and UTs of a trace, and each row's index into them."""
     t, it = np.unique(trace["time_s"].to_numpy(float), return_inverse=True)
-    u, iu = np.unique(trace["ut_id"].to_numpy(int), return_inverse=True)
-    out = np.full((t.size, u.size), np.nan)
-    out[it, iu] = trace[column].to_numpy(float)
-    return t, u, out
+    u, iu = np.unique(trace["ut_id"].to_numpy(), return_inverse=True)
+    return t, it, u, iu
 
 
 class ResultViews:
@@ -134,6 +138,23 @@ class ResultViews:
 
         return run_map_figure(self._stats())
 
+    def __repr__(self):
+        return f"<leolink.Result: {self._headline()}>"
+
+    def _headline(self):
+        """One line: size of the run, handovers, outage, mean SNR/SINR, where it wrote."""
+        run, o = self.summary["run"], self.summary["overall"]
+        h = o["handovers"]
+        db = lambda k: "n/a" if o[k]["mean"] is None else f"{o[k]['mean']:.2f} dB"  # noqa: E731
+        where = getattr(self, "out_dir", None)
+        return (
+            f"{run['n_ut']} UTs x {run['n_epochs']} epochs of {run['epoch_s']:g} s, "
+            f"{run['n_sat']} satellite(s), {run['n_beam']} beams; handovers "
+            f"{h['beam_handover']} beam / {h['sat_handover']} satellite; outage "
+            f"{100 * o['outage_fraction']:.2f} %; mean SNR {db('snr_db')}, SINR "
+            f"{db('sinr_db')}; {'in memory' if where is None else f'in {where}'}"
+        )
+
     def _repr_html_(self):
         from leolink.io.report.page import kpi_rows
 
@@ -141,20 +162,65 @@ class ResultViews:
             f"<tr><td>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>"
             for k, v in kpi_rows(self.summary)
         )
-        return f"<table><tr><th colspan='2'>leolink run</th></tr>{rows}</table>"
+        head = html.escape(self._headline())
+        return (
+            f"<p><b>leolink run</b>: {head}</p><details open><summary>key figures</summary>"
+            f"<table>{rows}</table></details><p><code>.trace</code>, <code>.events</code>, "
+            "<code>.summary</code>, <code>.plot_map()</code>, <code>.plot_sinr(ut_ids)</code>, "
+            "<code>.to_xarray()</code></p>"
+        )
 
-    def to_xarray(self, columns=("snr_db", "sinr_db", "throughput_bps", "doppler_hz", "beam_id")):
-        """The trace as an ``xarray.Dataset`` with dimensions ``(time_s, ut_id)``.
+    def to_xarray(self):
+        """The trace as an ``xarray.Dataset`` over ``(time, ut_id)``.
 
-        Needs xarray (``pip install xarray``); integer columns become float (NaN where a
-        UT has no row at an epoch).
+        Every trace column but ``time_s``, ``ut_id`` and ``population`` is a variable of
+        shape ``(n_time, n_ut)``, with CF-style ``units`` and a ``description``
+        (:data:`~leolink.io.table_schemas.TRACE_COLUMN_DOCS`); integer columns stay
+        integers (-1 where a UT has no row at an epoch, as for "no beam"), floats are NaN
+        there, names ``""``. Coordinates: ``time`` [s], ``ut_id``, ``population`` (per
+        UT) and, when the run's UTC is known (``run.start_utc``, TLE runs),
+        ``time_utc`` (``datetime64[ns]``, UTC).
+
+        Needs xarray (``pip install "leolink[notebook]"``).
         """
         try:
             import xarray as xr
         except ImportError as exc:  # optional dependency
-            raise ImportError("to_xarray() needs xarray: pip install xarray") from exc
-        data = {}
-        for col in columns:
-            t, u, values = dense(self.trace, col)
-            data[col] = (("time_s", "ut_id"), values)
-        return xr.Dataset(data, coords={"time_s": t, "ut_id": u})
+            raise ImportError('to_xarray() needs xarray: pip install "leolink[notebook]"') from exc
+        trace = self.trace
+        t, it, u, iu = _axes(trace)
+        data = {
+            c: (("time", "ut_id"), _grid(trace[c].to_numpy(), it, iu, (t.size, u.size)), _attrs(c))
+            for c in trace.columns
+            if c not in ("time_s", "ut_id", "population")
+        }
+        coords = {"time": ("time", t, _attrs("time_s")), "ut_id": ("ut_id", u, _attrs("ut_id"))}
+        if "population" in trace:
+            names = np.empty(u.size, dtype=object)
+            names[iu] = trace["population"].to_numpy()
+            coords["population"] = ("ut_id", names.astype(str), _attrs("population"))
+        zero = getattr(self, "time_zero_utc", None)
+        if zero:
+            ns = np.round(t * 1e9).astype("timedelta64[ns]")
+            utc = np.datetime64(zero.rstrip("Z"), "ns") + ns
+            coords["time_utc"] = ("time", utc, {"description": "UTC of the epoch"})
+        return xr.Dataset(data, coords=coords, attrs={"source": "leolink trace"})
+
+
+def _grid(values, it, iu, shape):
+    """Rows ``values`` at ``(it, iu)`` of a ``shape`` grid, of their dtype; holes are -1
+    (integers), NaN (floats) or ``""`` (names)."""
+    kind = values.dtype.kind
+    fill = -1 if kind in "iu" else np.nan if kind == "f" else ""
+    out = np.full(shape, fill, dtype=values.dtype if kind in "iuf" else object)
+    out[it, iu] = values
+    return out if kind in "iuf" else out.astype(str)
+
+
+def _attrs(column):
+    """CF-style attributes of a trace column: ``units`` (none for ids and names) and
+    ``description`` (:data:`~leolink.io.table_schemas.TRACE_COLUMN_DOCS`)."""
+    from leolink.io.table_schemas import TRACE_COLUMN_DOCS
+
+    units, description = TRACE_COLUMN_DOCS.get(column, ("", ""))
+    return {"units": units, "description": description} if units else {"description": description}

@@ -28,6 +28,7 @@ __all__ = [
     "FORMATS",
     "NO_MODCOD_NAME",
     "TRACE_COLUMNS",
+    "TRACE_COLUMN_DOCS",
     "TRACE_FLOAT64_COLUMNS",
     "TRACE_SCHEMA",
     "float32_schema",
@@ -59,6 +60,49 @@ TRACE_COLUMNS = (
 #: ``TRACE_COLUMNS``: the serving path's LoS state (1 / 0, NaN without a link) and its
 #: shadowing, clutter and scintillation losses [dB] (:mod:`leolink.sim.environment`).
 ENVIRONMENT_COLUMNS = ("los", "shadow_db", "clutter_db", "scintillation_db")
+#: Trace column -> (CF ``units``, description): ``Result.to_xarray()``'s attributes and
+#: the docs. Units are UDUNITS strings; the dB family (``dB``, ``dBW``, ``dB-Hz``) is a
+#: label (UDUNITS has no logarithmic units); ids, names and counts have none (``""``).
+TRACE_COLUMN_DOCS = {
+    "time_s": ("s", "simulation time of the epoch"),
+    "ut_id": ("", "user terminal id"),
+    "sat_id": ("", "serving satellite id (-1: none)"),
+    "beam_id": ("", "serving beam id of the codebook (-1: none)"),
+    "lat_deg": ("degrees_north", "UT latitude"),
+    "lon_deg": ("degrees_east", "UT longitude"),
+    "elevation_deg": ("degree", "elevation of the link (in outage: the best candidate's)"),
+    "slant_range_m": ("m", "slant range UT-satellite"),
+    "gain_tx_db": ("dB", "satellite array gain towards the UT"),
+    "gain_rx_db": ("dB", "UT antenna gain towards the satellite"),
+    "fspl_db": ("dB", "free-space path loss"),
+    "atm_db": ("dB", "atmospheric loss"),
+    "snr_db": ("dB", "signal-to-noise ratio of the serving link"),
+    "sinr_db": ("dB", "signal-to-interference-plus-noise ratio of the serving link"),
+    "se_bps_hz": ("bit s-1 Hz-1", "spectral efficiency (served part of the epoch)"),
+    "throughput_bps": ("bit s-1", "throughput (served part of the epoch)"),
+    "doppler_hz": ("Hz", "Doppler shift, satellite and UT parts"),
+    "doppler_sat_hz": ("Hz", "Doppler shift of the satellite's motion"),
+    "doppler_ut_hz": ("Hz", "Doppler shift of the UT's motion"),
+    "doppler_rate_hz_s": ("Hz s-1", "rate of change of the Doppler shift"),
+    "angular_speed_deg_s": ("degree s-1", "angular speed of the satellite seen from the UT"),
+    "service": ("", "served, handover or outage"),
+    "outage_reason": ("", "why the UT is not served (none if it is)"),
+    "n_visible": ("", "satellites above the minimum elevation"),
+    "best_snr_db": ("dB", "SNR of the best candidate beam, also in outage"),
+    "azimuth_deg": ("degree", "azimuth of the link, clockwise from north"),
+    "alt_m": ("m", "UT height above the Earth model"),
+    "population": ("", "name of the UT's population"),
+    "interruption_s": ("s", "part of the epoch without service (handover execution)"),
+    "eirp_dbw": ("dBW", "EIRP of the serving beam"),
+    "cn0_dbhz": ("dB-Hz", "thermal carrier-to-noise density C/N0"),
+    "esn0_db": ("dB", "Es/N0 of the link (from the SINR, with the roll-off)"),
+    "margin_db": ("dB", "margin against the chosen MODCOD's required Es/N0"),
+    "modcod": ("", "best DVB-S2X MODCOD that closes the link (none: no MODCOD)"),
+    "los": ("1", "line of sight of the serving path (1 / 0)"),
+    "shadow_db": ("dB", "shadow fading loss (TR 38.811 clause 6.6.2)"),
+    "clutter_db": ("dB", "clutter loss (TR 38.811 clause 6.6.2)"),
+    "scintillation_db": ("dB", "tropospheric scintillation loss (TR 38.811 clause 6.6.6)"),
+}
 _INT_COLUMNS = {
     "ut_id", "sat_id", "beam_id", "from_sat", "from_beam", "to_sat", "to_beam", "n_visible",
     "n_sharing",

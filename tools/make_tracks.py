@@ -1,6 +1,7 @@
 """Write the example recorded tracks ``ship.csv`` and ``car.csv`` (deterministic, no RNG).
 
-Run from anywhere: ``python configs/examples/tracks/make_tracks.py``. The tracks are
+Run from anywhere: ``python tools/make_tracks.py`` (it writes into
+``src/leolink/examples/tracks/``, the packaged examples). The tracks are
 synthetic: dead reckoning along great circles with a slowly turning heading, using
 ``leolink.geometry.destination_point`` on the spherical Earth.
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from leolink.geometry import destination_point
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1] / "src" / "leolink" / "examples" / "tracks"
 
 
 def dead_reckon(lat_deg, lon_deg, heading_deg, speed_m_s, step_s, n_fix):
