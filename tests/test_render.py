@@ -44,6 +44,7 @@ def _without_wall_time(path):
         summary["run"].pop("wall_time_s")
         return json.dumps(summary).encode()
     if path.name == "report.html":
+        data = re.sub(rb'<p class="meta">[^<]*</p>', b"", data)  # run time and date
         return re.sub(rb"<td>wall_time_s</td><td>[^<]*</td>", b"", data)
     return data
 
