@@ -72,13 +72,30 @@ return {
 """
 
 
-def open_page(html_path, screenshot=None, width=1200, height=1600):
+def _fit_viewport(driver, width, height):
+    """Resize the window so that the page itself (the first screen) is ``width x height``
+    CSS px: the window size includes the browser's own bars."""
+    inner = driver.execute_script("return [window.innerWidth, window.innerHeight];")
+    driver.set_window_size(2 * width - inner[0], 2 * height - inner[1])
+
+
+_RECTS = """
+return Object.fromEntries(arguments[0].map(s => [s, [...document.querySelectorAll(s)].map(
+  e => { const r = e.getBoundingClientRect(); return {top: r.top, bottom: r.bottom,
+                                                      left: r.left, right: r.right}; })]));
+"""
+
+
+def open_page(html_path, screenshot=None, width=1200, height=1600, selectors=()):
     """Load ``html_path``; return the images' load state (and whether each decodes), the
     fetched resources and the console log (list of ``{"level", "message"}``); optionally
-    save a screenshot PNG."""
+    save a screenshot PNG. ``selectors``: CSS selectors whose elements' bounding boxes
+    (CSS px, relative to the top of the page as first shown) are returned as ``rects``,
+    with the first screen's size as ``viewport`` (``width x height`` CSS px)."""
     with tempfile.TemporaryDirectory() as profile:
         driver = _driver(width, height, profile)
         try:
+            _fit_viewport(driver, width, height)
             driver.get(Path(html_path).resolve().as_uri())
             decoded = driver.execute_async_script(
                 "const done = arguments[arguments.length - 1];"
@@ -88,6 +105,10 @@ def open_page(html_path, screenshot=None, width=1200, height=1600):
             state = driver.execute_script(_PAGE_STATE)
             state["console"] = driver.get_log("browser")
             state["decoded"] = decoded  # img.decode() resolved: the whole image decodes
+            state["rects"] = driver.execute_script(_RECTS, list(selectors))
+            state["viewport"] = driver.execute_script(
+                "return [window.innerWidth, window.innerHeight];"
+            )
             if screenshot is not None:
                 driver.save_screenshot(str(screenshot))
             return state

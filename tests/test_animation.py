@@ -157,3 +157,15 @@ def test_build_frames_without_serving_satellite_draws_no_cell():
         (12, 24),
     )
     assert len(frames[0].footprints["beam_id"]) == 0
+
+
+def test_each_frame_labels_the_time_plot_uts_at_their_trace_position(paper):
+    out, trace = paper
+    stats = stats_from_dir(out, series_ut=[0, 6])
+    frames = frames_from_stats(stats, max_frames=10)
+    rows = trace.set_index(["time_s", "ut_id"])
+    for f in frames:
+        assert f.ut_labels["ut_id"].tolist() == [0, 6]
+        want = rows.loc[[(f.time_s, 0), (f.time_s, 6)], ["lon_deg", "lat_deg"]].to_numpy()
+        got = np.column_stack([f.ut_labels["lon_deg"], f.ut_labels["lat_deg"]])
+        np.testing.assert_allclose(got, want)

@@ -151,3 +151,15 @@ def test_footprints_keep_order_skip_short_rings_and_stay_whole_across_180():
     assert labels == [("4", (180.0, 2.0)), ("7", (32 / 3, 17 / 3)), ("2", (-19.0, 0.0))]
     assert draw_footprints(ax, {**fp, "beam_id": fp["beam_id"][:0], "lat_deg": lat[:0],
                                 "lon_deg": lon[:0]}) is None  # fmt: skip
+
+
+def test_run_map_labels_the_time_plot_uts_where_they_are(paper_stats):
+    from matplotlib.text import Annotation
+
+    stats, trace = paper_stats
+    ax = run_map_figure(stats).axes[0]
+    labels = {a.get_text(): a.xy for a in ax.texts if isinstance(a, Annotation)}
+    assert sorted(labels) == ["UT 0", "UT 5", "UT 6"]  # series_ut of the fixture
+    now = trace[trace["time_s"] == 60.0].set_index("ut_id")  # the map's instant
+    for ut in (0, 5, 6):
+        np.testing.assert_allclose(labels[f"UT {ut}"], now.loc[ut, ["lon_deg", "lat_deg"]])

@@ -8,6 +8,7 @@ import json
 import re
 import shutil
 
+import numpy as np
 import pandas as pd
 import pytest
 from PIL import Image
@@ -49,6 +50,84 @@ def test_page_has_no_external_resource(paper):
         with Image.open(io.BytesIO(base64.b64decode(data))) as im:
             assert im.format.lower() == kind and im.size[0] > 100 and im.size[1] > 100
             im.load()  # the whole image decodes, not just its header
+
+
+FIRST_SCREEN = (1280, 800)  # CSS px: a laptop's browser window, the page as it opens
+
+
+def test_first_screen_holds_the_header_and_the_headline_figures(paper):
+    require_browser()
+    state = open_page(paper[1]["report"], width=FIRST_SCREEN[0], height=FIRST_SCREEN[1],
+                      selectors=["header h1", "header .meta", ".headline .fig"])  # fmt: skip
+    assert state["viewport"] == list(FIRST_SCREEN)
+    rects = state["rects"]
+    assert len(rects["header h1"]) == 1 and len(rects["header .meta"]) == 1
+    assert 5 <= len(rects[".headline .fig"]) <= 6
+    for box in (b for boxes in rects.values() for b in boxes):
+        assert 0 <= box["top"] and box["bottom"] <= FIRST_SCREEN[1], box
+        assert 0 <= box["left"] and box["right"] <= FIRST_SCREEN[0], box
+
+
+def _headline(page, label):
+    """The value shown under a headline figure's label."""
+    m = re.search(rf'<div class="label">{re.escape(label)}</div><div class="value">([^<]*)<',
+                  page)  # fmt: skip
+    return m.group(1)
+
+
+def test_header_names_the_run_and_headline_figures_are_the_summary_in_human_units(paper):
+    out, built = paper
+    page = built["report"].read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    o, run = summary["overall"], summary["run"]
+    assert run["scenario"] == "paper" and run["config_file"].endswith("configs/paper.toml")
+    meta = re.search(r'<p class="meta">([^<]*)</p>', page).group(1)
+    manifest = json.loads((out / "run.json").read_text())
+    assert f"leolink {manifest['leolink_version']}" in meta
+    assert manifest["finished_utc"][:10] in meta and " UTC" in meta  # the run's date
+    assert "config " + html.escape(run["config_file"]) in meta and "simulated in" in meta
+    mbit = float(_headline(page, "Throughput per UT").removesuffix(" Mbit/s"))
+    assert mbit == pytest.approx(o["mean_throughput_bps"] / 1e6, rel=5e-3)  # 3 digits
+    assert float(_headline(page, "Median SINR").removesuffix(" dB")) == pytest.approx(
+        o["sinr_db"]["p50"], abs=0.005
+    )
+    rate = float(_headline(page, "Handovers").removesuffix(" per UT-minute"))
+    minutes = run["n_ut"] * (run["end_s"] - run["start_s"]) / 60.0
+    assert rate == pytest.approx(o["handovers"]["handovers_total"] / minutes, rel=5e-3)
+    khz = float(_headline(page, "Largest Doppler shift").removesuffix(" kHz"))
+    assert khz == pytest.approx(o["max_abs_doppler_hz"] / 1e3, rel=5e-3)
+    assert _headline(page, "Outage") == "0 %" and o["outage_fraction"] == 0.0
+
+
+def test_one_mean_dwell_everywhere(paper):
+    # The page's headline, its folded table and the histogram legend show summary.json's
+    # mean of the complete dwells; the mean of the bin centres (the old legend) differs.
+    from leolink.io.report.figures import fig_dwell
+    from leolink.io.report.headline import fmt_si
+
+    out, built = paper
+    page = built["report"].read_text()
+    d = json.loads((out / "summary.json").read_text())["overall"]["dwell"]
+    shown = fmt_si(d["mean_s"])
+    assert _headline(page, "Mean time in a beam") == f"{shown} s"
+    assert f"<td>dwell.mean_s</td><td>{d['mean_s']:.4g}</td>" in page
+    stats = stats_from_dir(out)
+    assert stats.dwell_mean_s == pytest.approx(d["mean_s"], rel=1e-12)
+    edges, counts = stats.dwell_edges_s, stats.dwell_complete
+    centres = np.sum(0.5 * (edges[:-1] + edges[1:]) * counts) / counts.sum()
+    assert fmt_si(centres) != shown  # the check can tell the two definitions apart
+    fig = fig_dwell(edges, counts, stats.dwell_censored, stats.dwell_mean_s)
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert legend == [f"mean {shown} s"]
+
+
+def test_each_table_once_and_folded_after_the_figures(paper):
+    page = paper[1]["report"].read_text()
+    assert page.count("<td>dwell.mean_s</td>") == 1
+    assert page.count("<td>kpi.handover_rate_per_ut_min</td>") == 1
+    first_details, last_img = page.index("<details>"), page.rindex("<img ")
+    assert last_img < first_details  # story first, tables at the end
+    assert page.count("<details>") == 4  # summary, run, per UT, config
 
 
 def test_page_tables_show_the_summary(paper):

@@ -31,6 +31,7 @@ from leolink.config import dump_toml
 from leolink.errors import LeolinkError
 from leolink.io.atomic import write_json_atomic, write_parquet_atomic, write_text_atomic
 from leolink.io.notebook import ResultViews
+from leolink.io.report.headline import config_description
 from leolink.io.run_dir import UNFINISHED, claim_out_dir, held_out_dirs, write_manifest
 from leolink.io.sinks import SINKS, MemorySink
 from leolink.io.summary.accumulator import SummaryAccumulator
@@ -166,7 +167,12 @@ def run_notes(cfg, scen):
 def _run_section(cfg, scen, stats):
     info = stats.info
     notes, coverage, design = run_notes(cfg, scen)
+    source = Path(cfg.source) if cfg.source else None
     return {
+        "scenario": source.stem if source else None,
+        "description": config_description(source) if source else "",
+        "config_file": cfg.source or None,
+        "leolink_version": leolink.__version__,
         "n_ut": info.n_ut,
         "n_epochs": info.n_epochs,
         "epoch_s": info.epoch_s,

@@ -120,7 +120,9 @@ class ResultViews:
     def plot_dwell(self):
         """Dwell histograms, complete and censored apart (Figure)."""
         s = self._stats()
-        return _figures().fig_dwell(s.dwell_edges_s, s.dwell_complete, s.dwell_censored)
+        return _figures().fig_dwell(
+            s.dwell_edges_s, s.dwell_complete, s.dwell_censored, s.dwell_mean_s
+        )
 
     def plot_cdfs(self):
         """SNR, SINR and throughput CDFs over all UT-epochs (Figure)."""

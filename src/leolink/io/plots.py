@@ -19,6 +19,7 @@ import numpy as np
 
 from leolink.errors import LeolinkError
 from leolink.io.atomic import PendingFiles
+from leolink.io.report.headline import fmt_si
 
 DPI = 150
 MAX_PANELS_UT = 6  # snr_time.png: one panel per UT, at most this many
@@ -191,10 +192,13 @@ def _dwell_hist(summary, dwells=None):
         if edges.size > MAX_DWELL_BINS + 1:  # one drawn patch per bin: bounded memory
             edges = np.histogram_bin_edges(every, bins=MAX_DWELL_BINS)
         ax.hist(complete_s, bins=edges, color="tab:blue", edgecolor="white", label="complete")
-        ax.axvline(np.mean(complete_s), color="black", linestyle="--",
-                   label=f"mean {np.mean(complete_s):.1f} s")  # fmt: skip
-        ax.axvline(np.median(complete_s), color="tab:red", linestyle=":",
-                   label=f"median {np.median(complete_s):.1f} s")  # fmt: skip
+        d = summary["overall"].get("dwell", {})  # the one mean and median: summary.json's
+        mean, median = (
+            d.get("mean_s", np.mean(complete_s)),
+            d.get("median_s", np.median(complete_s)),
+        )
+        ax.axvline(mean, color="black", linestyle="--", label=f"mean {fmt_si(mean)} s")
+        ax.axvline(median, color="tab:red", linestyle=":", label=f"median {fmt_si(median)} s")
         if censored_s.size:
             ax.hist(censored_s, bins=edges, histtype="step", color="grey", linewidth=1.5,
                     label=f"censored ({censored_s.size}, cut by the run)")  # fmt: skip

@@ -14,17 +14,19 @@ Size: frames are first subsampled to ``max_frames``; if the GIF still exceeds
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass
+import io
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from leolink.antenna.footprint import beam_footprints_ground
+from leolink.io.atomic import atomic_file
 from leolink.io.report.maps import (
     N_BEAM_COLOURS,
     beam_colour,
     draw_footprints,
+    draw_ut_labels,
     draw_ut_points,
     map_extent,
     new_figure,
@@ -58,6 +60,8 @@ class Frame:
         Sampled UT positions [deg] (NaN: no trace row at that epoch).
     ut_beam : ndarray of int, shape (n_ut,)
         Serving beam (-1 in outage).
+    ut_labels : dict, optional
+        ``ut_id, lon_deg, lat_deg (j,)``: UTs labelled ``UT n`` in the frame.
     """
 
     time_s: float
@@ -65,6 +69,7 @@ class Frame:
     ut_lat_deg: np.ndarray
     ut_lon_deg: np.ndarray
     ut_beam: np.ndarray
+    ut_labels: dict | None = None
 
 
 def select_frames(n_available, max_frames):
@@ -177,8 +182,9 @@ def build_frames(
 
 
 def frames_from_stats(stats, max_frames=120):
-    """:func:`build_frames` on the arrays of a :class:`~leolink.io.report.stats.ReportStats`."""
-    return build_frames(
+    """:func:`build_frames` on the arrays of a :class:`~leolink.io.report.stats.ReportStats`,
+    the time-plot UTs (``series_ut``) labelled ``UT n``."""
+    frames = build_frames(
         stats.keep_times_s,
         stats.ut_lat_deg,
         stats.ut_lon_deg,
@@ -191,6 +197,13 @@ def frames_from_stats(stats, max_frames=120):
         stats.n_sub_xy,
         max_frames,
     )
+    j = np.searchsorted(stats.sample_ut, stats.series_ut)
+    k = np.searchsorted(stats.keep_times_s, [f.time_s for f in frames])
+    return [
+        replace(f, ut_labels={"ut_id": stats.series_ut, "lat_deg": stats.ut_lat_deg[i, j],
+                              "lon_deg": stats.ut_lon_deg[i, j]})
+        for f, i in zip(frames, k.tolist(), strict=True)
+    ]  # fmt: skip
 
 
 def frames_extent(frames):
@@ -214,6 +227,8 @@ def draw_frame(ax, frame, title_prefix=""):
     artists.append(
         draw_ut_points(ax, frame.ut_lon_deg[ok], frame.ut_lat_deg[ok], frame.ut_beam[ok], size=36.0)
     )
+    if frame.ut_labels is not None:
+        artists += draw_ut_labels(ax, frame.ut_labels)
     artists.append(ax.set_title(f"{title_prefix}t = {frame.time_s:.1f} s", fontsize=10))
     return artists
 
@@ -237,10 +252,10 @@ def _palette(background_rgb, fill_alpha):
     return pal
 
 
-def _render(path, frames, extent, fps, dpi, width_in):
+def _render(out, frames, extent, fps, dpi, width_in):
     """Draw the static map once, then only each frame's cells and UTs over a copy of it
     (blitting: ~10x faster than redrawing the coastlines per frame), and write the GIF
-    with Pillow (the writer behind matplotlib's ``PillowWriter``)."""
+    with Pillow (the writer behind matplotlib's ``PillowWriter``) to the file ``out``."""
     from PIL import Image
 
     fig, ax = new_figure(extent, width_in=width_in, dpi=dpi)
@@ -266,7 +281,8 @@ def _render(path, frames, extent, fps, dpi, width_in):
         for artist in artists[:-1]:  # the title text is reused by set_title
             artist.remove()
     images[0].save(
-        path,
+        out,
+        format="GIF",
         save_all=True,
         append_images=images[1:],
         loop=0,
@@ -285,7 +301,7 @@ def write_footprint_gif(
     Parameters
     ----------
     path : path-like
-        Output ``.gif``; written as ``NAME.partial.gif`` and renamed when complete.
+        Output ``.gif``, written atomically (:func:`leolink.io.atomic.atomic_file`).
     frames : list of Frame
     fps : float
         Frames per second of playback.
@@ -305,17 +321,14 @@ def write_footprint_gif(
     """
     path = Path(path)
     extent = tuple(extent_deg) if extent_deg is not None else frames_extent(frames)
-    tmp = path.with_name(path.stem + ".partial" + path.suffix)  # Pillow picks GIF by suffix
-    try:
-        for _ in range(_MAX_SHRINKS + 1):
-            fig, _ax = _render(tmp, frames, extent, fps, dpi, width_in)
-            if tmp.stat().st_size <= max_bytes or len(frames) <= 2:
-                break
-            frames = frames[::2]
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    for _ in range(_MAX_SHRINKS + 1):  # drawn in memory (at most ~max_bytes), then written
+        gif = io.BytesIO()
+        fig, _ax = _render(gif, frames, extent, fps, dpi, width_in)
+        if gif.tell() <= max_bytes or len(frames) <= 2:
+            break
+        frames = frames[::2]
+    with atomic_file(path) as fh:  # the one atomic writer (leolink.io.atomic)
+        fh.write(gif.getbuffer())
     size_px = tuple(int(round(v)) for v in fig.get_size_inches() * dpi)
 
     def to_pixel(lon_deg, lat_deg):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from leolink.io.report.headline import fmt_si
 from leolink.io.report.maps import beam_colour
 
 __all__ = [
@@ -148,7 +149,7 @@ def fig_angular_speed(series, ut_ids=None):
     return fig
 
 
-def fig_dwell(edges_s, complete, censored):
+def fig_dwell(edges_s, complete, censored, mean_s=None):
     """Histograms of dwell (time-of-stay) in a beam: complete dwells and censored apart.
 
     Parameters
@@ -157,12 +158,17 @@ def fig_dwell(edges_s, complete, censored):
         Bin edges [s].
     complete, censored : array_like of int, shape (n_bin,)
         Dwells per bin; censored = cut by the start or end of the run (a lower bound).
+    mean_s : float, optional
+        Mean of the complete dwells [s], drawn as a line: ``summary.json``'s
+        ``dwell.mean_s`` (:attr:`ReportStats.dwell_mean_s`), never recomputed from the
+        bins, so the figure and the tables show one number.
     """
     edges, parts = np.asarray(edges_s, float), (np.asarray(complete), np.asarray(censored))
     fig, axes = new_figure(1, 2, figsize=(10.0, 3.8))
     titles = ("complete dwells", "censored dwells (cut by the run start or end)")
-    for ax, counts, title, colour in zip(
-        axes[0], parts, titles, ("tab:blue", "tab:gray"), strict=True
+    means = (mean_s, None)  # a censored dwell is a lower bound: no mean of them
+    for ax, counts, title, colour, mean in zip(
+        axes[0], parts, titles, ("tab:blue", "tab:gray"), means, strict=True
     ):
         n = int(counts.sum())
         if n == 0:
@@ -170,9 +176,8 @@ def fig_dwell(edges_s, complete, censored):
         else:
             last = int(np.flatnonzero(counts)[-1]) + 1
             ax.stairs(counts[:last], edges[: last + 1], fill=True, color=colour, alpha=0.8)
-            centres = 0.5 * (edges[:-1] + edges[1:])
-            mean = float(np.sum(centres * counts) / n)
-            ax.axvline(mean, color="black", linestyle="--", label=f"mean {mean:.1f} s")
+        if n and mean is not None:
+            ax.axvline(mean, color="black", linestyle="--", label=f"mean {fmt_si(mean)} s")
             ax.legend(fontsize=8)
         ax.set_title(f"{title}: {n}", fontsize=10)
         ax.set_xlabel("dwell [s]")

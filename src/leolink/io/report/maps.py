@@ -28,6 +28,7 @@ __all__ = [
     "coastlines",
     "draw_base",
     "draw_footprints",
+    "draw_ut_labels",
     "draw_ut_points",
     "draw_ut_tracks",
     "map_extent",
@@ -222,6 +223,20 @@ def draw_ut_points(ax, lon_deg, lat_deg, beam_id, *, size=30.0, zorder=5, linewi
         linewidths=linewidths,
         zorder=zorder,
     )
+
+
+def draw_ut_labels(ax, ut_labels, *, fontsize=7, zorder=6):
+    """``UT n`` beside each UT of ``ut_labels`` (``ut_id, lon_deg, lat_deg (j,)``) with a
+    finite position; returns the text artists."""
+    ut = np.asarray(ut_labels["ut_id"], int)
+    lon, lat = (np.asarray(ut_labels[k], float) for k in ("lon_deg", "lat_deg"))
+    ok = np.isfinite(lon) & np.isfinite(lat)
+    return [
+        ax.annotate(f"UT {u}", (x, y), xytext=(4, 4), textcoords="offset points",
+                    fontsize=fontsize, zorder=zorder, clip_on=True,
+                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.7})
+        for u, x, y in zip(ut[ok].tolist(), lon[ok].tolist(), lat[ok].tolist(), strict=True)
+    ]  # fmt: skip
 
 
 def _unwrap_deg(lon_deg):

@@ -19,6 +19,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,8 @@ import pandas as pd
 
 from leolink.io.atomic import write_text_atomic
 from leolink.io.report import figures as F
-from leolink.io.report.maps import plot_map, subsatellite_points
+from leolink.io.report.headline import header_lines, headline_figures
+from leolink.io.report.maps import draw_ut_labels, plot_map, subsatellite_points
 
 __all__ = [
     "KPIS",
@@ -39,6 +41,7 @@ __all__ = [
     "run_figures",
 ]
 
+N_TIME_FIGURES = 4  # run_figures: the map, 4 time series, then the distributions
 PER_UT_ROWS = 30  # per-UT table rows shown; the rest stay in summary.json
 _CSS = """
 body{font-family:sans-serif;margin:1.5em auto;max-width:1100px;color:#222;padding:0 1em}
@@ -49,6 +52,12 @@ td:first-child,th:first-child{text-align:left}pre{background:#f7f7f7;padding:.8e
 overflow:auto;font-size:.8em;max-height:30em}img{max-width:100%;height:auto;display:block;
 margin:.5em 0}figure{margin:1em 0}figcaption{font-size:.85em;color:#555}
 .row{display:flex;gap:2em;flex-wrap:wrap;align-items:flex-start}.wide{overflow-x:auto}
+header h1{margin:.2em 0 .1em}header p{margin:.2em 0}.meta{color:#555;font-size:.9em}
+.headline{display:grid;grid-template-columns:repeat(3,1fr);gap:.8em;margin:1em 0}
+.fig{border:1px solid #ddd;border-radius:6px;padding:.6em .8em;background:#fafafa}
+.fig .label{font-size:.85em;color:#555}.fig .value{font-size:1.7em;font-weight:bold;
+margin:.1em 0}.fig p{font-size:.82em;margin:.2em 0;color:#333}.fig.warn{border-color:#d9822b;
+background:#fff6ec}details{margin:1em 0}summary{cursor:pointer;font-weight:bold}
 """
 
 
@@ -178,7 +187,7 @@ def _per_ut_table(summary, first_uts, folder="."):
 def run_map_figure(stats):
     """Ground tracks (satellites serving a sampled UT), cells at the middle kept epoch, UTs."""
     if stats.sat_pos_m is None:
-        return plot_map(ut_tracks=_ut_tracks(stats))
+        return _labelled(plot_map(ut_tracks=_ut_tracks(stats)), _ut_labels(stats))
     serving = np.unique(stats.ut_sat[stats.ut_sat >= 0])
     cols = np.flatnonzero(np.isin(stats.sat_ids, serving))
     lat, lon = subsatellite_points(stats.sat_pos_m[:, cols])  # (n_k, n_serving)
@@ -211,7 +220,27 @@ def run_map_figure(stats):
     title = "Satellite ground tracks, UT tracks coloured by serving beam"
     if t_s is not None:
         title += f"\nbeam cells (half power) and UTs (dots) at t = {t_s:.0f} s"
-    return plot_map(tracks, footprints, _ut_tracks(stats), now_uts, title=title)
+    labels = _ut_labels(stats, k if t_s is not None else None)
+    return _labelled(plot_map(tracks, footprints, _ut_tracks(stats), now_uts, title=title), labels)
+
+
+def _labelled(fig, ut_labels):
+    """The map ``fig`` with ``UT n`` written beside the UTs of ``ut_labels``."""
+    draw_ut_labels(fig.axes[0], ut_labels)
+    return fig
+
+
+def _ut_labels(stats, k=None):
+    """Where to write ``UT n`` for the time-plot UTs: at kept epoch ``k``, or (None) at
+    each one's last sampled position."""
+    j = np.searchsorted(stats.sample_ut, stats.series_ut)
+    lat, lon = stats.ut_lat_deg[:, j], stats.ut_lon_deg[:, j]
+    if k is None:  # the last finite row of each column
+        k = np.maximum(lat.shape[0] - 1 - np.argmax(np.isfinite(lat[::-1]), axis=0), 0)
+        lat, lon = lat[k, np.arange(j.size)], lon[k, np.arange(j.size)]
+    else:
+        lat, lon = lat[k], lon[k]
+    return {"ut_id": stats.series_ut, "lat_deg": lat, "lon_deg": lon}
 
 
 def _ut_tracks(stats, max_uts=200):
@@ -243,7 +272,9 @@ def run_figures(stats, summary=None):
         ("Angular speed", F.fig_angular_speed(series)),
         (
             "Dwell (time of stay) in a beam, all UTs",
-            F.fig_dwell(stats.dwell_edges_s, stats.dwell_complete, stats.dwell_censored),
+            F.fig_dwell(
+                stats.dwell_edges_s, stats.dwell_complete, stats.dwell_censored, stats.dwell_mean_s
+            ),
         ),
         ("CDFs over all UT-epochs", F.fig_cdfs(cdfs)),
         (
@@ -258,12 +289,13 @@ def rendered_figures(stats):
     return [(cap, figure_data_uri(fig)) for cap, fig in run_figures(stats)]
 
 
-def _page(title, sections):
+def _page(title, sections, header=None):
     body = "".join(f"<h2>{html.escape(h)}</h2>{content}" for h, content in sections)
+    header = f"<h1>{html.escape(title)}</h1>" if header is None else header
     return (
         f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head>"
-        f"<body><h1>{html.escape(title)}</h1>{body}</body></html>\n"
+        f"<body>{header}{body}</body></html>\n"
     )
 
 
@@ -283,18 +315,56 @@ def _animation_html(path, page_dir, embed_max_bytes):
     return _img(uri, "Beam cells moving over the ground; UTs coloured by serving beam")
 
 
+def _header(summary, run_utc):
+    """The page's header: title, what was run, and the headline figures."""
+    title, meta, description = header_lines({**summary.get("run", {}), "run_utc": run_utc})
+    cards = "".join(
+        f'<div class="fig{" warn" if h.warn else ""}"><div class="label">{html.escape(h.label)}'
+        f'</div><div class="value">{html.escape(h.value)}</div><p>{html.escape(h.sentence)}</p>'
+        "</div>"
+        for h in headline_figures(summary)
+    )
+    return (
+        f"<header><h1>{html.escape(title)}</h1>"
+        + (f"<p>{html.escape(description)}</p>" if description else "")
+        + f'<p class="meta">{html.escape(meta)}</p></header>'
+        + f'<section class="headline">{cards}</section>'
+    )
+
+
+def _details(summary_text, content):
+    return f"<details><summary>{html.escape(summary_text)}</summary>{content}</details>"
+
+
+def _tables(summary, stats, config_text, folder):
+    """The full tables, each folded: every number of the summary once."""
+    run = dict(summary.get("run", {}))
+    notes = "".join(f"<li>{html.escape(str(n))}</li>" for n in run.get("notes", []))
+    return "".join(
+        [
+            _details("Summary, all UTs (summary.json)", _table(
+                ["quantity", "value"], _flatten(summary.get("overall", {})))),
+            _details("Run", _table(["run", "value"], _flatten(run))
+                     + (f"<ul>{notes}</ul>" if notes else "")),
+            _details("Per UT", _per_ut_table(summary, stats.series_ut.tolist(), folder)),
+            _details("Resolved config", f"<pre>{html.escape(config_text)}</pre>"),
+        ]
+    )  # fmt: skip
+
+
 def build_run_report(
     path,
     summary,
     stats,
     config_text="",
     *,
-    title="leolink run report",
     animation_path=None,
     embed_max_bytes=8_000_000,
     figures=None,
+    run_utc=None,
 ):
-    """Write ``report.html`` of a run.
+    """Write ``report.html`` of a run: the story first (header and headline figures), then
+    the map and animation, time series, distributions, and the full tables folded.
 
     Parameters
     ----------
@@ -309,31 +379,29 @@ def build_run_report(
         A GIF to embed (or link when over ``embed_max_bytes`` bytes).
     figures : list of (caption, str), optional
         :func:`rendered_figures` of ``stats``, if already drawn (default: drawn here).
+    run_utc : str, optional
+        ISO 8601 UTC of the run, shown in the header (default: now).
 
     Returns
     -------
     pathlib.Path
     """
     path = Path(path)
-    overall = summary.get("overall", {})
-    key_tables = (
-        '<div class="row">'
-        + _table(["key figure", "value"], kpi_rows(summary))
-        + _table(["run", "value"], _flatten(summary.get("run", {})))
-        + "</div>"
-    )
+    if run_utc is None:
+        run_utc = datetime.now(UTC).isoformat(timespec="seconds")
     figures = rendered_figures(stats) if figures is None else figures
-    figures = [(cap, _img(uri, cap)) for cap, uri in figures]
-    sections = [("Key figures", key_tables), figures[0]]
+    shown = [f"<h3>{html.escape(cap)}</h3>" + _img(uri, cap) for cap, uri in figures]
+    where = shown[0]
     if animation_path is not None and Path(animation_path).exists():
-        sections.append(
-            ("Animation", _animation_html(animation_path, path.parent, embed_max_bytes))
-        )
-    sections += figures[1:]
-    sections.append(("Per UT", _per_ut_table(summary, stats.series_ut.tolist(), path.parent)))
-    sections.append(("Summary, all UTs", _table(["quantity", "value"], _flatten(overall))))
-    sections.append(("Resolved config", f"<pre>{html.escape(config_text)}</pre>"))
-    return write_text_atomic(path, _page(title, sections))
+        where += _animation_html(animation_path, path.parent, embed_max_bytes)
+    sections = [
+        ("Where the UTs are served", where),
+        ("Over time", "".join(shown[1:N_TIME_FIGURES + 1])),
+        ("Distributions, all UTs", "".join(shown[N_TIME_FIGURES + 1:])),
+        ("Full tables", _tables(summary, stats, config_text, path.parent)),
+    ]  # fmt: skip
+    title = header_lines(summary.get("run", {}))[0]
+    return write_text_atomic(path, _page(title, sections, _header(summary, run_utc)))
 
 
 def _any_figure_uri(fig):

@@ -135,7 +135,11 @@ def build_report_from_dir(out_dir, series_ut=None, animate=True, exports=False):
         gif = out_dir / "footprint.gif"  # the run's animation, kept as it is
     config = out_dir / "config.resolved.toml"
     text = config.read_text() if config.exists() else ""
-    page = build_run_report(out_dir / "report.html", summary, stats, text, animation_path=gif)
+    manifest = out_dir / "run.json"  # the run's date, not the rebuild's
+    run_utc = json.loads(manifest.read_text()).get("finished_utc") if manifest.exists() else None
+    page = build_run_report(
+        out_dir / "report.html", summary, stats, text, animation_path=gif, run_utc=run_utc
+    )
     written = write_exports(stats, out_dir) if exports else ()
     return {"report": page, "animation": gif, "exports": written}
 

@@ -124,6 +124,7 @@ class ReportStats:
         )
         self.dwell_complete = np.zeros(n_dwell_bins, np.int64)
         self.dwell_censored = np.zeros(n_dwell_bins, np.int64)
+        self.dwell_complete_sum_s = np.zeros(())  # exact: the mean is summary.json's
         self.sat_ids = self.sat_pos_m = self.sat_vel_m_s = None
         self.beam_u_xy, self.n_sub_xy = None, None
 
@@ -188,6 +189,15 @@ class ReportStats:
         idx = np.clip(np.searchsorted(self.dwell_edges_s, d, side="right") - 1, 0, n - 1)
         self.dwell_complete += np.bincount(idx[~c], minlength=n)
         self.dwell_censored += np.bincount(idx[c], minlength=n)
+        self.dwell_complete_sum_s += d[~c].sum()
+
+    @property
+    def dwell_mean_s(self):
+        """Mean of the complete dwells [s] (``summary.json``'s ``dwell.mean_s``, the one
+        definition), None when there is none or the statistics predate the exact sum."""
+        n = int(self.dwell_complete.sum())
+        total = getattr(self, "dwell_complete_sum_s", None)
+        return float(total) / n if n and total is not None else None
 
     def add_dwells_from_summary(self, summary):
         """Dwells of ``summary.json``: ``overall.dwell.complete_s`` and the per-UT censored."""
