@@ -41,6 +41,21 @@ MISTAKES = [
     ("roi_lat", [PAPER, "--set", "roi.center_lat_deg=60"], "roi.center_lat_deg = 60"),
     ("bad_index", [PAPER, "--set", "population.7.count=3"], "population.7.count: index '7'"),
     ("no_equals", [PAPER, "--set", "link.freq_hz"], "--set 'link.freq_hz' is not allowed"),
+    (  # a value where a table with a kind is needed: the kinds are named (issue 46)
+        "trigger_not_a_table",
+        [PAPER, "--set", "controller.policy=cho", "--set", "controller.cho.prepare=3"],
+        "controller.cho.prepare = 3 is not allowed: use a table with kind one of 'a3', 'a4'",
+    ),
+    (
+        "trigger_kind",
+        [PAPER, "--set", "controller.cho.execute=[{kind='a9'}]"],
+        "controller.cho.execute.0.kind = 'a9' is not allowed: use one of 'a3', 'a4', 'a5'",
+    ),
+    (
+        "population_not_a_table",
+        [PAPER, "--set", "population=[3]"],
+        "population.0 = 3 is not allowed: use a table with kind one of 'static', ",
+    ),
     (
         "several",
         [str(DATA / "config_several_mistakes.toml")],
@@ -276,3 +291,18 @@ def test_only_the_command_builds_its_models_at_their_first_use():
     library = "import leolink.registry as r; print(r.Params.model_config['defer_build'])"
     proc = _console(library)
     assert proc.stdout.strip() == "False", proc.stderr
+
+
+def test_a_trigger_table_without_kind_amends_the_default_a3(capsys):
+    """Issue 46: ``--set controller.cho.prepare.offset_db=-3`` was refused with an empty
+    list of kinds; a trigger table without ``kind`` is the default conditions' A3."""
+    from leolink.config import load_config
+    from leolink.sim.handover.config import build_policy
+    from leolink.sim.handover.triggers import A3
+
+    sets = ["controller.policy=cho", "controller.cho.prepare.offset_db=-3"]
+    code = main(["validate", PAPER, *(x for s in sets for x in ("--set", s))])
+    _, err = capsys.readouterr()
+    assert code == 0, err
+    cfg = load_config(PAPER, sets)
+    assert build_policy(cfg.controller.cho).prepare == A3(-3.0)

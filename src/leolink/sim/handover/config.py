@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import Discriminator, Field, Tag
 
 from leolink.registry import Params
 from leolink.sim.handover.decisions import ConditionalHandover, TriggerPolicy
@@ -116,16 +116,27 @@ class TimeToExitConfig(Params):
     level: Level = _LEVEL
 
 
+#: The event a trigger table without ``kind`` is (the default conditions' event), so that
+#: ``--set controller.cho.prepare.offset_db=-3`` amends the default A3 condition.
+DEFAULT_TRIGGER_KIND = "a3"
+
+
+def _trigger_kind(value):
+    if isinstance(value, dict):
+        return value.get("kind", DEFAULT_TRIGGER_KIND)
+    return getattr(value, "kind", None)
+
+
 TriggerConfig = Annotated[
-    A3Config
-    | A4Config
-    | A5Config
-    | D1Config
-    | D2Config
-    | T1Config
-    | ElevationConfig
-    | TimeToExitConfig,
-    Field(discriminator="kind"),
+    Annotated[A3Config, Tag("a3")]
+    | Annotated[A4Config, Tag("a4")]
+    | Annotated[A5Config, Tag("a5")]
+    | Annotated[D1Config, Tag("d1")]
+    | Annotated[D2Config, Tag("d2")]
+    | Annotated[T1Config, Tag("t1")]
+    | Annotated[ElevationConfig, Tag("elevation")]
+    | Annotated[TimeToExitConfig, Tag("time_to_exit")],
+    Discriminator(_trigger_kind),
 ]
 
 
@@ -142,13 +153,15 @@ class ChoConfig(Params):
 
     kind: Literal["cho"] = "cho"
     prepare: TriggerConfig = Field(
-        default_factory=_default_prepare, description="trigger that prepares a candidate"
+        default_factory=_default_prepare,
+        description="trigger that prepares a candidate (a table without kind is an a3)",
     )
     execute: list[TriggerConfig] = Field(
         default_factory=_default_execute,
         min_length=1,
         max_length=2,
-        description="one or two execution conditions (all must be fulfilled)",
+        description="one or two execution conditions (all must be fulfilled; a table "
+        "without kind is an a3)",
     )
     max_prepared: int = Field(8, ge=1, description="prepared candidates per UT (maxNrofCondCells)")
     preparation_delay_s: float = Field(0.0, ge=0, description="network preparation time [s]")
