@@ -28,7 +28,7 @@ from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
 from leolink.sim.beams.service import BeamService
 from leolink.sim.environment import environment_models
-from leolink.sim.handover.config import build_rlf
+from leolink.sim.handover.config import build_rlf, build_signalling
 from leolink.sim.mobility.models import OnWgs84
 from leolink.sim.mobility.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
@@ -250,6 +250,7 @@ def build_scenario(cfg):
         ellipsoidal=cfg.earth.model == "wgs84",
         environments=_environments(cfg),
         rlf=build_rlf(cfg.controller.rlf),
+        signalling=build_signalling(cfg.controller.signalling),
         selector=selector,
         service=service,
         link=service_link(cfg, engine),

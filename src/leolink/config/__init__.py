@@ -34,7 +34,7 @@ from leolink.config.schema import (
 )
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
-from leolink.sim.handover.config import FilterConfig, KpiConfig, RlfConfig
+from leolink.sim.handover.config import FilterConfig, KpiConfig, RlfConfig, SignallingConfig
 from leolink.textfile import read_text
 
 __all__ = [
@@ -65,12 +65,26 @@ class ControllerBase(kinds.SelectorSection):
         default_factory=RlfConfig,  # type: ignore[arg-type]
         description="radio link failure on the serving SINR (TS 38.331 5.3.10), any policy",
     )
+    signalling: SignallingConfig = Field(
+        default_factory=SignallingConfig,  # type: ignore[arg-type]
+        description="the handover procedure in simulated time: report, command, T304, access",
+    )
     service_metric: Literal["snr", "sinr"] = Field(
         "snr",
         description="what min_snr_db is compared with: the SNR (the paper; beams and events) "
         "or also the serving link's SINR (a served epoch below it counts as outage, "
         "below_threshold; beams and events stay on SNR)",
     )
+
+    @model_validator(mode="after")
+    def _signalling_needs_rlf(self):
+        if self.signalling.enabled and not self.rlf.enabled:
+            raise ValueError(
+                "controller.signalling.enabled = true is not allowed with "
+                "controller.rlf.enabled = false: a failed handover re-establishes as after an "
+                "RLF; set controller.rlf.enabled = true"
+            )
+        return self
 
 
 class LinkBase(LinkSection, kinds.SelectorSection):

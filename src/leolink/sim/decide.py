@@ -25,6 +25,7 @@ from leolink.sim.candidates.search import CandidateSearch
 from leolink.sim.candidates.table import Candidates
 from leolink.sim.environment import candidate_margin_db
 from leolink.sim.handover.controller import concat_events, resumed_events, step
+from leolink.sim.handover.events import sorted_events
 from leolink.sim.handover.policies import neighbour_window_db
 
 __all__ = ["Decider"]
@@ -84,6 +85,7 @@ class Decider:
         self.panels = panels
         self.block = self.mb = self.cones = self.enu = self.panel = None
         self.channel = None  # ChannelTracker of the UTs' environments (None: open country)
+        self.procedure = None  # the handover procedure (leolink.sim.handover.procedure), if on
 
     def with_channel(self, tracker):
         """Decide on SNRs with each path's environment loss (:mod:`leolink.sim.environment`);
@@ -152,9 +154,15 @@ class Decider:
                                          mb.sat_pos_m[j], mb.sat_vel_m_s[j], up)  # fmt: skip
         res = step(t, decided, c, self.policy, self.min_snr_db, self.handover_time_s, nb,
                    future, target)  # fmt: skip
+        steps = None
+        if self.procedure is not None:  # signalling: the handovers' interruption and steps
+            j = k - blk.k0
+            steps = self.procedure.after_step(t, res, self.mb.ut_pos_m[j], self.mb.sat_pos_m[j])
         resumed = resumed_events(t, self.epoch_s, res.state, table)
         if resumed["ut_id"].size:  # (both tables have the same dtypes: nothing to join)
             res.events = concat_events(res.events, resumed)
+        if steps is not None and steps["ut_id"].size:
+            res.events = sorted_events(concat_events(res.events, steps))
         unserved = np.flatnonzero(res.sat_id < 0)
         state.best_unserved = (unserved, best_cell[unserved])
         cone = self.cones[k - blk.k0]

@@ -22,6 +22,7 @@ from pydantic import Discriminator, Field, Tag
 from leolink.registry import Params
 from leolink.sim.handover.decisions import ConditionalHandover, TriggerPolicy
 from leolink.sim.handover.measurements import FILTER_COEFFICIENTS, L3Filter
+from leolink.sim.handover.procedure import SignallingParams
 from leolink.sim.handover.rlf import RlfParams
 from leolink.sim.handover.triggers import A3, A4, A5
 from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
@@ -190,10 +191,50 @@ class RlfConfig(Params):
     reestablishment_s: float = Field(0.2, ge=0, description="RLF to service [s] (placeholder)")
 
 
+class SignallingConfig(Params):
+    """``[controller.signalling]``: the handover procedure in simulated time
+    (:mod:`leolink.sim.handover.procedure`); off: a handover takes ``handover_time_s``."""
+
+    enabled: bool = Field(
+        False,
+        description="report, command, T304 and access in simulated time; the interruption "
+        "replaces handover_time_s and a failed handover re-establishes (needs "
+        "controller.rlf.enabled)",
+    )
+    network_processing_s: float = Field(
+        0.01, ge=0, description="report received to command sent, preparation included [s]"
+    )
+    ue_processing_s: float = Field(
+        0.01,
+        ge=0,
+        description="command received to access start [s] (RRC procedure delay, TS 38.133: 10 ms)",
+    )
+    t304_s: float = Field(
+        1.0, description="T304 [s]: 0.05, 0.1, 0.15, 0.2, 0.5, 1, 2 or 10 (TS 38.331)"
+    )
+    access: Literal["rach", "rach_less"] = Field(
+        "rach",
+        description="four-step random access, or RACH-less (Rel-18: first uplink on "
+        "the configured grant, one way)",
+    )
+    rach_attempts: int = Field(
+        1, ge=1, le=200, description="random accesses until success (preambleTransMax <= 200)"
+    )
+    rach_processing_s: float = Field(
+        0.0, ge=0, description="per attempt, besides its two round trips to the target [s]"
+    )
+
+
 class KpiConfig(Params):
     """``[kpi]``."""
 
     ping_pong_s: float = Field(1.0, gt=0, description="minimum time of stay for ping-pong [s]")
+    mro_window_s: float = Field(
+        1.0,
+        gt=0,
+        description="an RLF this soon after a handover's trigger is too early or to a wrong "
+        "cell, later too late (TS 38.300 15.5.2.2.2; Tstore_UE_cntxt, set by OAM) [s]",
+    )
 
 
 _TRIGGER_OF = {
@@ -259,3 +300,10 @@ def build_rlf(config):
     if not getattr(config, "enabled", True):
         return None
     return RlfParams(**{k: v for k, v in dict(config).items() if k != "enabled"})
+
+
+def build_signalling(config):
+    """The procedure's parameters of ``[controller.signalling]``, None when it is off."""
+    if not config.enabled:
+        return None
+    return SignallingParams(**{k: v for k, v in dict(config).items() if k != "enabled"})
