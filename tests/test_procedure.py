@@ -191,3 +191,58 @@ def test_steps_are_ordered_report_command_complete(signalling_run):
             len(kinds) // 3
         )
     assert pd.Series(ev.time_s).is_monotonic_increasing
+
+
+# -- mobility robustness in runs: constructions whose counts are known ---------------------
+
+MRO = ["output.plots.enabled=false", "run.duration_s=300", "controller.policy=a3",
+       "controller.filter.k=0", "controller.rlf.enabled=true"]  # fmt: skip
+
+
+def _kpi(sets):
+    res = leolink.run(load_config(WALKER, MRO + sets))
+    return res, res.summary["overall"]["kpi"]
+
+
+def test_a_time_to_trigger_longer_than_the_run_makes_every_failure_too_late():
+    """No handover ever completes its TTT while the serving beam sweeps off the UT
+    (min_snr_db far down: the controller never hands over for lack of a link), so every
+    cell change is an RLF after a long stay, re-established in another cell: too late."""
+    sets = ["controller.a3.time_to_trigger_s=1000", "controller.min_snr_db=-100",
+            "controller.rlf.q_out_db=-12", "controller.rlf.q_in_db=-11"]  # fmt: skip
+    res, kpi = _kpi(sets)
+    assert res.summary["overall"]["handovers"]["handovers_total"] == 0
+    assert kpi["rlf_count"] >= 10
+    assert kpi["too_late_count"] == kpi["rlf_count"]
+    assert kpi["too_early_count"] == kpi["wrong_cell_count"] == kpi["handover_failure_count"] == 0
+    per_ut = [u["kpi"]["too_late_count"] for u in res.summary["per_ut"]]
+    assert sum(per_ut) == kpi["too_late_count"] and min(per_ut) > 0  # every UT's beam sweeps
+
+
+def test_a_negative_offset_makes_too_early_handovers_back_to_the_source():
+    """A3 with a -6 dB offset leaves the best cell for a worse one; with Q_out above the
+    worse cells' SINR the access fails (HOF) and the UT re-establishes in the best cell,
+    its source: too early. The same run with offset 0 has none."""
+    sets = ["controller.signalling.enabled=true", "controller.rlf.t310_s=6",
+            "controller.rlf.q_out_db=-8", "controller.rlf.q_in_db=-7"]  # fmt: skip
+    from leolink.sim.handover.kpi import mro_classes
+
+    _, control = _kpi([*sets, "controller.a3.offset_db=0"])
+    assert control["too_early_count"] == control["wrong_cell_count"] == 0
+    res, kpi = _kpi([*sets, "controller.a3.offset_db=-6"])
+    assert kpi["too_early_count"] >= 0.5 * kpi["handover_failure_count"] > 0
+    ev = res.events
+    early = ev[mro_classes({k: ev[k].to_numpy() for k in ev}, 1.0)["too_early"]]
+    assert len(early) == kpi["too_early_count"]
+    assert set(early.kind) == {"handover_failure"}
+    ho = ev[ev.kind.isin(["beam_handover", "sat_handover"])].set_index(["ut_id", "time_s"])
+    # each failed handover was triggered at the last handover event before its failure
+    worse = []
+    for _, f in early.iterrows():
+        h = ho.loc[f.ut_id]
+        h = h[h.index <= f.time_s].iloc[-1]
+        worse.append(h.snr_after_db < h.snr_before_db)
+        assert (h.from_sat, h.from_beam, h.to_sat, h.to_beam) == (
+            f.from_sat, f.from_beam, f.to_sat, f.to_beam)  # fmt: skip
+    # to a worse cell (by SNR: the trigger's quantity; Q_out is on SINR): the offset's doing
+    assert np.mean(worse) >= 0.9, np.mean(worse)

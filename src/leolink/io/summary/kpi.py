@@ -15,26 +15,30 @@ ping-pong after TR 36.839, time of stay without censored stays); besides them:
 - ``interruption_s``: UT-time without service by cause [s]: ``handover`` (execution
   times), ``rlf`` (re-establishment, whole epochs), ``outage`` (no usable candidate);
   ``interruption_per_handover_s``: the handover part per handover.
+- the mobility robustness counts of TS 38.300 15.5.2.2.2 (``handover_failure_count``,
+  ``too_early_count``, ``too_late_count``, ``wrong_cell_count``; window ``[kpi]
+  mro_window_s``): :func:`leolink.sim.handover.kpi.mro_classes`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from leolink.sim.handover.kpi import handover_rates, ping_pong_mask, summarize
+from leolink.sim.handover.kpi import handover_rates, mro_classes, ping_pong_mask, summarize
 from leolink.sim.histograms import PercentileHistogram
 
 __all__ = ["KpiAccumulator"]
 
-_KEPT = ("beam_handover", "sat_handover", "outage_start", "outage_end", "rlf")
+_KEPT = ("beam_handover", "sat_handover", "outage_start", "outage_end", "rlf", "handover_failure")
 _COLUMNS = ("time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat", "to_beam")
 
 
 class KpiAccumulator:
     """Serving-change events and SINR/throughput histograms of one run."""
 
-    def __init__(self, n_ut, ping_pong_s=1.0):
+    def __init__(self, n_ut, ping_pong_s=1.0, mro_window_s=1.0):
         self.n_ut, self.ping_pong_s = int(n_ut), float(ping_pong_s)
+        self.mro_window_s = float(mro_window_s)
         self._events = []
         self.sinr = PercentileHistogram(-60.0, 80.0, 0.01)
         self.throughput = PercentileHistogram(0.0, 1.0e10, 1.0e5, unserved_value=0.0)
@@ -71,7 +75,9 @@ class KpiAccumulator:
         events = self.events()
         if self.n_ut == 0 or not np.all(np.asarray(observed_s) > 0):
             return {}, [{} for _ in range(self.n_ut)]
-        overall = summarize(events, dwells, observed_s, self.n_ut, self.ping_pong_s)
+        overall = summarize(
+            events, dwells, observed_s, self.n_ut, self.ping_pong_s, self.mro_window_s
+        )
         n_ho = int(np.isin(events["kind"], ("beam_handover", "sat_handover")).sum())
         overall.update(
             interruption_s=interruption_s,
@@ -84,11 +90,14 @@ class KpiAccumulator:
         ut = np.asarray(events["ut_id"], np.int64)
         pp = np.bincount(ut[ping_pong_mask(events, self.ping_pong_s)], minlength=self.n_ut)
         rlf = np.bincount(ut[events["kind"] == "rlf"], minlength=self.n_ut)
+        mro = {f"{name}_count": np.bincount(ut[mask], minlength=self.n_ut)
+               for name, mask in mro_classes(events, self.mro_window_s).items()}  # fmt: skip
         per_ut = [
             {
                 "handover_rate_per_ut_min": float(rates["per_ut"][i]),
                 "ping_pong_count": int(pp[i]),
                 "rlf_count": int(rlf[i]),
+                **{name: int(count[i]) for name, count in mro.items()},
             }
             for i in range(self.n_ut)  # output formatting only
         ]
