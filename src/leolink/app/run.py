@@ -183,6 +183,17 @@ def _run_section(cfg, scen, stats):
     }
 
 
+def _summary(cfg):
+    """The run's summary accumulator with the ``[kpi]`` and ``[cells]`` settings."""
+    satellites = cfg.cells.per == "satellite"
+    return SummaryAccumulator(
+        ping_pong_s=cfg.kpi.ping_pong_s,
+        mro_window_s=cfg.kpi.mro_window_s,
+        mro_level="satellite" if satellites else "cell",
+        beam_switch_s=cfg.cells.beam_switch_s if satellites else None,
+    )
+
+
 def run(cfg, out_dir=None, progress=None, overwrite=False):
     """Run the simulation of ``cfg``.
 
@@ -215,10 +226,7 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     fix_heap_thresholds()  # memory flat in run length, few page faults (leolink.app.heap)
     if out_dir is not None:  # after the scenario built: a bad config removes nothing
         out_dir = claim_out_dir(out_dir, overwrite)
-    summary, position = (
-        SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s, mro_window_s=cfg.kpi.mro_window_s),
-        _Position(),
-    )
+    summary, position = _summary(cfg), _Position()
     sinks = _sinks(cfg, out_dir, summary, scen)
     try:
         return _run_and_write(cfg, scen, out_dir, summary, [*sinks, position], progress)

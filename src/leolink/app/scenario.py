@@ -237,7 +237,12 @@ def build_scenario(cfg):
         engine=engine,
         ephemeris=ephemeris,
         populations=populations,
-        policy=cfg.controller.build(SimpleNamespace(filter=cfg.controller.filter)),
+        policy=cfg.controller.build(
+            SimpleNamespace(
+                filter=cfg.controller.filter,
+                level="satellite" if cfg.cells.per == "satellite" else None,
+            )
+        ),  # fmt: skip
         min_snr_db=cfg.controller.min_snr_db,
         handover_time_s=cfg.controller.handover_time_s,
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
@@ -251,6 +256,7 @@ def build_scenario(cfg):
         environments=_environments(cfg),
         rlf=build_rlf(cfg.controller.rlf),
         signalling=build_signalling(cfg.controller.signalling),
+        beam_switch_s=cfg.cells.beam_switch_s if cfg.cells.per == "satellite" else None,
         selector=selector,
         service=service,
         link=service_link(cfg, engine),

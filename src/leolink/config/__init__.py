@@ -34,7 +34,13 @@ from leolink.config.schema import (
 )
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
-from leolink.sim.handover.config import FilterConfig, KpiConfig, RlfConfig, SignallingConfig
+from leolink.sim.handover.config import (
+    CellsConfig,
+    FilterConfig,
+    KpiConfig,
+    RlfConfig,
+    SignallingConfig,
+)
 from leolink.textfile import read_text
 
 __all__ = [
@@ -107,6 +113,9 @@ class ConfigBase(Section):
         earth: Any
         link: Any
         scheduler: Any
+        cells: Any
+        controller: Any
+        kpi: Any
 
     @model_validator(mode="after")
     def _check(self):
@@ -121,6 +130,13 @@ class ConfigBase(Section):
         if c.kind == "tle" and not c.tle_file:
             raise ValueError("constellation.tle_file is required when constellation.kind = 'tle'")
         self._check_roi_cap()
+        level = getattr(self.controller.params, "level", None)
+        if self.cells.per == "satellite" and level == "cell":
+            raise ValueError(
+                f"controller.{self.controller.policy}.level = 'cell' is not allowed with "
+                "cells.per = 'satellite': a cell is a satellite; leave level out or use "
+                "'satellite'"
+            )
         if self.link.precoder != "none" and self.scheduler.kind == "none":
             raise ValueError(
                 f"link.precoder = {self.link.precoder!r} is not allowed with scheduler.kind = "
@@ -226,6 +242,7 @@ def _model(gen):
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),
         "output": kinds.output_section(REGISTRIES["output"]),
+        "cells": CellsConfig,
         "kpi": KpiConfig,
     }  # fmt: skip
     fields: dict[str, Any] = {k: (m, Field(default_factory=m)) for k, m in sections.items()}

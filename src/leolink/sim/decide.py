@@ -24,6 +24,7 @@ from leolink.sim.beams.selectors import restrict
 from leolink.sim.candidates.search import CandidateSearch
 from leolink.sim.candidates.table import Candidates
 from leolink.sim.environment import candidate_margin_db
+from leolink.sim.handover.cells import beam_switches
 from leolink.sim.handover.controller import concat_events, resumed_events, step
 from leolink.sim.handover.events import sorted_events
 from leolink.sim.handover.policies import neighbour_window_db
@@ -86,6 +87,7 @@ class Decider:
         self.block = self.mb = self.cones = self.enu = self.panel = None
         self.channel = None  # ChannelTracker of the UTs' environments (None: open country)
         self.procedure = None  # the handover procedure (leolink.sim.handover.procedure), if on
+        self.beam_switch_s = None  # cells are satellites: a beam change is a beam_switch
 
     def with_channel(self, tracker):
         """Decide on SNRs with each path's environment loss (:mod:`leolink.sim.environment`);
@@ -154,6 +156,8 @@ class Decider:
                                          mb.sat_pos_m[j], mb.sat_vel_m_s[j], up)  # fmt: skip
         res = step(t, decided, c, self.policy, self.min_snr_db, self.handover_time_s, nb,
                    future, target)  # fmt: skip
+        if self.beam_switch_s is not None:
+            beam_switches(t, res, self.beam_switch_s)
         steps = None
         if self.procedure is not None:  # signalling: the handovers' interruption and steps
             j = k - blk.k0

@@ -79,6 +79,9 @@ class Scenario:
         (:mod:`leolink.sim.handover.rlf_run`); None: off.
     signalling : leolink.sim.handover.procedure.SignallingParams or None, the handover
         procedure in simulated time (needs ``rlf``); None: ``handover_time_s`` per handover.
+    beam_switch_s : float or None, cells are satellites (:mod:`leolink.sim.handover.cells`):
+        a beam change inside one is a ``beam_switch`` of this interruption [s]; None:
+        cells are beams.
     link : ServiceLink or None, the link figures and the SINR service threshold (None:
         default figures, service on SNR).
     panels : PanelOrientation or None, the UTs' turned or tilted panels (None: flat).
@@ -116,6 +119,7 @@ class Scenario:
     environments: list | None = None
     rlf: object | None = None
     signalling: object | None = None
+    beam_switch_s: float | None = None
     selector: BeamSelector | None = None
     service: BeamService | None = None
     estimated_ephemeris: Callable | None = None
@@ -233,6 +237,7 @@ def run_simulation(
         ellipsoidal=scen.ellipsoidal, prune=scen.prune, panels=scen.panels, rlf=rlf,
         selector=scen.selector,
     )  # fmt: skip
+    decide.beam_switch_s = scen.beam_switch_s
     if scen.signalling is not None:
         if rlf is None:
             raise ValueError("the handover procedure (signalling) needs RLF monitoring (rlf)")

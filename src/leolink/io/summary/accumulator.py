@@ -117,13 +117,17 @@ class SummaryAccumulator:
     (:mod:`leolink.io.summary.environment`).
 
     Handover KPIs (``overall.kpi``, each UT's ``kpi``): :mod:`leolink.io.summary.kpi`,
-    with ``ping_pong_s`` and ``mro_window_s`` [s] (``[kpi]``). The link figures (margin,
-    MODCOD usage, ACM and Shannon throughput): ``link``, :class:`leolink.io.summary.link.LinkStats`.
+    with ``ping_pong_s`` and ``mro_window_s`` [s] (``[kpi]``), the MRO cells at
+    ``mro_level`` (``"cell"``, or ``"satellite"`` when cells are satellites: then the
+    beam switches of ``beam_switch_s`` each are counted apart). The link
+    figures (margin, MODCOD usage, ACM and Shannon throughput): ``link``,
+    :class:`leolink.io.summary.link.LinkStats`.
     """
 
-    def __init__(self, n_ut=0, epoch_s=1.0, ping_pong_s=1.0, environment=(), mro_window_s=1.0):
+    def __init__(self, n_ut=0, epoch_s=1.0, ping_pong_s=1.0, environment=(), mro_window_s=1.0,
+                 mro_level="cell", beam_switch_s=None):  # fmt: skip
         self.epoch_s, self.ping_pong_s = float(epoch_s), float(ping_pong_s)
-        self.mro_window_s = float(mro_window_s)
+        self.mro = (float(mro_window_s), mro_level, beam_switch_s)
         self._reset(n_ut)
         self.environment = tuple(environment)  # per UT; empty: open country, no env block
 
@@ -160,7 +164,7 @@ class SummaryAccumulator:
         for name in _REASON_COUNTERS:
             setattr(self, name, zeros())
         self.n_los, self.n_link = zeros(), zeros()  # LoS epochs / epochs with a link
-        self.kpi = KpiAccumulator(self.n_ut, self.ping_pong_s, self.mro_window_s)
+        self.kpi = KpiAccumulator(self.n_ut, self.ping_pong_s, *self.mro)
         self.throughput_sum = zeros(np.float64)
         self.max_abs_doppler_hz = np.full(self.n_ut, np.nan)
         self.max_angular_speed_deg_s = np.full(self.n_ut, np.nan)

@@ -225,6 +225,20 @@ class SignallingConfig(Params):
     )
 
 
+class CellsConfig(Params):
+    """``[cells]``: what a cell is (:mod:`leolink.sim.handover.cells`)."""
+
+    per: Literal["beam", "satellite"] = Field(
+        "beam",
+        description="'beam': every beam is a cell, a beam change is a beam_handover; "
+        "'satellite': a satellite is one cell, a beam change inside it is a beam_switch "
+        "(L1/L2, not a handover) and the trigger policies compare satellites",
+    )
+    beam_switch_s: float = Field(
+        0.0, ge=0, le=3600, description="service interruption per beam_switch [s]"
+    )
+
+
 class KpiConfig(Params):
     """``[kpi]``."""
 
@@ -278,17 +292,18 @@ def build_trigger(config):
 
 
 def build_policy(config, context=None):
-    """The policy of a validated policy config (the registry's ``build`` hook)."""
-    del context  # the policies need nothing of the scenario at build time
+    """The policy of a validated policy config (the registry's ``build`` hook); a
+    ``context.level`` (cells = satellites) is the level where the config gives none."""
+    level = config.level or getattr(context, "level", None)
     if config.kind == "cho":
         return ConditionalHandover(
             build_trigger(config.prepare),
             [build_trigger(c) for c in config.execute],
             config.max_prepared,
             config.preparation_delay_s,
-            config.level,
+            level,
         )
-    return TriggerPolicy(build_trigger(config), config.level)
+    return TriggerPolicy(build_trigger(config), level)
 
 
 def build_filter(config):

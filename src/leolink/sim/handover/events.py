@@ -24,6 +24,7 @@ EVENT_KINDS = (
     "handover_command",
     "handover_complete",
     "handover_failure",
+    "beam_switch",  # cells = satellites (leolink.sim.handover.cells): a beam change inside one
 )
 SERVICE_RESUMED = EVENT_KINDS.index("service_resumed")
 _KIND_NAMES = np.asarray(EVENT_KINDS)

@@ -297,7 +297,8 @@ def mro_counts(events, window_s=1.0, level="cell"):
     return {f"{name}_count": int(mask.sum()) for name, mask in classes.items()}
 
 
-def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0, mro_window_s=1.0):
+def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0, mro_window_s=1.0,
+              mro_level="cell"):  # fmt: skip
     """The ``overall.kpi`` block of summary.json from the event and dwell tables.
 
     SINR/throughput percentiles and interruption/outage times come from the streamed
@@ -318,7 +319,7 @@ def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0, mro_window_s=1.
         "ping_pong_fraction_satellite": pp_sat,
         "ping_pong_count_satellite": n_pp_sat,
         "rlf_count": n_rlf,
-        **mro_counts(events, mro_window_s),
+        **mro_counts(events, mro_window_s, mro_level),
         "mro_window_s": float(mro_window_s),
         "rlf_rate_per_ut_min": n_rlf / minutes,
         "mean_time_of_stay_s": {k: v["mean_s"] for k, v in stay.items()},

@@ -104,7 +104,7 @@ def entry(name, policy, context=None, horizon=DEFAULT_HORIZON_S):
 
 def _builder(name):
     def build(params, context=None):
-        return entry(name, build_policy(params), context, horizon_s(params))
+        return entry(name, build_policy(params, context), context, horizon_s(params))
 
     return build
 
