@@ -227,3 +227,42 @@ def test_policies_declare_what_the_controller_must_provide():
     assert set(TriggerPolicy(Elevation()).needs) == {"elevation_rad", "meas"}
     cho = ConditionalHandover(A4(0.0), [D2(1.0, 2.0), T1()])
     assert set(cho.needs) == {"meas", "ut_pos_m", "moving_ref_pos_m", "service_end_s"}
+
+
+# -- A4 gated by A2 (the a2a4 policy) ------------------------------------------------------
+
+
+def _a2a4(a2_db=0.0, a4_db=3.0, hys_db=0.0, a2_ttt_s=0.0, ttt_s=0.0):
+    from leolink.sim.handover.decisions import GatedTriggerPolicy
+    from leolink.sim.handover.triggers import A2
+
+    return GatedTriggerPolicy(A2(a2_db, hys_db, a2_ttt_s), A4(a4_db, hys_db, ttt_s))
+
+
+def test_a2a4_measures_a4_only_while_the_serving_is_below_the_a2_threshold():
+    # cell 0 serves at 5 dB, falls to -1 dB at 0.5 s; cell 1 at 4 dB all along (A4 holds)
+    n_t = 10
+    meas = np.zeros((n_t, 1, 2))
+    meas[:, 0, 0] = np.where(np.arange(n_t) * DT_S < 0.5 - 1e-9, 5.0, -1.0)
+    meas[:, 0, 1] = 4.0
+    _, hos, _ = run_policy(_a2a4(a2_db=0.0, a4_db=3.0), meas, serving0=[0])
+    assert hos == [(0.5, 0, 0, 1)]  # A4 would have fired at t = 0 without its gate
+    _, hos, _ = run_policy(TriggerPolicy(A4(3.0)), meas, serving0=[0])
+    assert hos[0] == (0.0, 0, 0, 1)
+
+
+def test_a2a4_gate_has_its_own_ttt_and_hysteresis():
+    n_t = 20
+    meas = np.zeros((n_t, 1, 2))
+    meas[:, 0, 0] = np.where(np.arange(n_t) * DT_S < 0.5 - 1e-9, 5.0, -0.5)
+    meas[:, 0, 1] = 4.0
+    _, hos, _ = run_policy(_a2a4(a2_ttt_s=0.3), meas, serving0=[0])
+    assert hos == [(0.8, 0, 0, 1)]  # A2 from 0.5 s holds for 0.3 s, then A4 (TTT 0) fires
+    _, hos, _ = run_policy(_a2a4(hys_db=1.0), meas, serving0=[0])
+    assert hos == []  # -0.5 + 1 dB is not below 0 dB: the gate never opens
+
+
+def test_a2a4_with_the_gate_always_open_is_a4():
+    meas = random_walks(7)
+    always = _a2a4(a2_db=1e9, a4_db=1.0, hys_db=0.5, ttt_s=0.2)
+    assert run_policy(always, meas)[1] == run_policy(TriggerPolicy(A4(1.0, 0.5, 0.2)), meas)[1]

@@ -20,11 +20,15 @@ from typing import Annotated, Literal
 from pydantic import Discriminator, Field, Tag
 
 from leolink.registry import Params
-from leolink.sim.handover.decisions import ConditionalHandover, TriggerPolicy
+from leolink.sim.handover.decisions import (
+    ConditionalHandover,
+    GatedTriggerPolicy,
+    TriggerPolicy,
+)
 from leolink.sim.handover.measurements import FILTER_COEFFICIENTS, L3Filter
 from leolink.sim.handover.procedure import SignallingParams
 from leolink.sim.handover.rlf import RlfParams
-from leolink.sim.handover.triggers import A3, A4, A5
+from leolink.sim.handover.triggers import A2, A3, A4, A5
 from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
 
 Level = Literal["cell", "satellite"] | None
@@ -50,6 +54,19 @@ class A4Config(Params):
     kind: Literal["a4"] = "a4"
     threshold_db: float = Field(-10.0, description="a4-Threshold, in the trigger quantity's unit")
     hysteresis_db: float = Field(0.0, ge=0, description="hysteresis Hys [dB]")
+    time_to_trigger_s: float = _TTT
+    level: Level = _LEVEL
+
+
+class A2A4Config(Params):
+    """A4 measured while A2 holds (:class:`~leolink.sim.handover.decisions.GatedTriggerPolicy`)."""
+
+    kind: Literal["a2a4"] = "a2a4"
+    a2_threshold_db: float = Field(0.0, description="a2-Threshold: serving below it opens "
+                                   "the A4 measurement, above it closes it")  # fmt: skip
+    a4_threshold_db: float = Field(3.0, description="a4-Threshold: neighbour above it")
+    hysteresis_db: float = Field(0.0, ge=0, description="hysteresis Hys of both events [dB]")
+    a2_time_to_trigger_s: float = Field(0.0, ge=0, description="A2's time-to-trigger [s]")
     time_to_trigger_s: float = _TTT
     level: Level = _LEVEL
 
@@ -283,6 +300,7 @@ POLICY_CONFIGS: dict[str, type[Params]] = {
     "elevation": ElevationConfig,
     "time_to_exit": TimeToExitConfig,
     "cho": ChoConfig,
+    "a2a4": A2A4Config,
 }
 
 
@@ -295,6 +313,10 @@ def build_policy(config, context=None):
     """The policy of a validated policy config (the registry's ``build`` hook); a
     ``context.level`` (cells = satellites) is the level where the config gives none."""
     level = config.level or getattr(context, "level", None)
+    if config.kind == "a2a4":
+        gate = A2(config.a2_threshold_db, config.hysteresis_db, config.a2_time_to_trigger_s)
+        trigger = A4(config.a4_threshold_db, config.hysteresis_db, config.time_to_trigger_s)
+        return GatedTriggerPolicy(gate, trigger, level)
     if config.kind == "cho":
         return ConditionalHandover(
             build_trigger(config.prepare),

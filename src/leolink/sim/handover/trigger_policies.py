@@ -17,6 +17,7 @@ t1             satellite    time, from the serving's planned end of service (5.5
 elevation      satellite    serving below, candidate above (leolink)
 time_to_exit   satellite    longest remaining time above the service threshold (leolink)
 cho            its first    conditional handover: prepare, then execute (5.3.5.13)
+a2a4           cell         A4 measured only while A2 holds (serving below a threshold)
                execution
                condition's
 =============  ===========  ====================================================
@@ -119,6 +120,7 @@ _DOCS = {
     "elevation": "Serving below, candidate above an elevation (leolink); the satellite.",
     "time_to_exit": "Longest remaining service time, ephemeris look-ahead; the satellite.",
     "cho": "Conditional handover (5.3.5.13): prepare candidates, execute on a condition.",
+    "a2a4": "Event A4 measured while A2 (5.5.4.3) holds: serving weak, neighbour good; the cell.",
 }
 
 for _name, _config in POLICY_CONFIGS.items():

@@ -120,7 +120,8 @@ class TriggerRun:
         prepared = None if ps.prepared is None else old.remap(axis, ps.prepared, False)
         serving = axis.local_cell(old.global_cell(ps.serving))
         filt = L3State(old.remap(axis, self.filt.value, np.nan), self.filt.t_s)
-        return PolicyState(serving, trig, prepared), filt
+        # (a per-UT gate has no cell axis: it is carried as it is)
+        return PolicyState(serving, trig, prepared, ps.gate), filt
 
     # -- the epoch's inputs ----------------------------------------------------------------
     def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up):

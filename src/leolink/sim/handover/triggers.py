@@ -264,6 +264,31 @@ class A3(_Signal):
 
 
 @dataclasses.dataclass(frozen=True)
+class A2(_Signal):
+    """Event A2, serving becomes worse than threshold (TS 38.331 5.5.4.3).
+
+    Entering A2-1: ``Ms + Hys < Thresh``; leaving A2-2: ``Ms - Hys > Thresh`` (``Ms``
+    without offsets). A serving-cell event: its conditions are one column ``(n_ut, 1)``;
+    no serving measurement leaves it.
+    """
+
+    threshold_db: float = 0.0
+    hysteresis_db: float = 0.0
+    time_to_trigger_s: float = 0.0
+
+    def __post_init__(self):
+        check_param("a2a4.a2_threshold_db", self.threshold_db, -math.inf, "a2-Threshold")
+        check_param("a2a4.hysteresis_db", self.hysteresis_db, 0.0, "hysteresis [dB]")
+        check_ttt(self.time_to_trigger_s)
+
+    def conditions(self, epoch):
+        ms = epoch.at_serving(epoch.need("meas", "A2"))
+        enter = ms + self.hysteresis_db < self.threshold_db
+        leave = (ms - self.hysteresis_db > self.threshold_db) | np.isnan(ms)
+        return enter, leave
+
+
+@dataclasses.dataclass(frozen=True)
 class A4(_Signal):
     """Event A4, neighbour becomes better than threshold (TS 38.331 5.5.4.5).
 
