@@ -51,6 +51,43 @@ MISTAKES = [
         [PAPER, "--set", "controller.cho.execute=[{kind='a9'}]"],
         "controller.cho.execute.0.kind = 'a9' is not allowed: use one of 'a3', 'a4', 'a5'",
     ),
+    (  # TS 38.331 condExecutionCond: at most one of d1, d2, t1; Rel-17 pairs it with a3-a5
+        "cho_two_location_time_events",
+        [
+            PAPER,
+            "--set",
+            "controller.policy=cho",
+            "--set",
+            "controller.cho.execute=[{kind='t1'}, {kind='d1'}]",
+        ],
+        "controller.cho.execute kinds ['t1', 'd1'] are not allowed: at most one of d1, d2, t1",
+    ),
+    (
+        "cho_rel17_unpaired_t1",
+        [
+            PAPER,
+            "--set",
+            "controller.policy=cho",
+            "--set",
+            "controller.cho.release=17",
+            "--set",
+            "controller.cho.execute=[{kind='t1'}]",
+        ],
+        "with release = 17: t1 must be paired with a3, a4 or a5",
+    ),
+    (
+        "cho_rel17_d2",
+        [
+            PAPER,
+            "--set",
+            "controller.policy=cho",
+            "--set",
+            "controller.cho.release=17",
+            "--set",
+            "controller.cho.execute=[{kind='d2'}, {kind='a3'}]",
+        ],
+        "with release = 17: d2 is Rel-18",
+    ),
     (
         "population_not_a_table",
         [PAPER, "--set", "population=[3]"],

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import Discriminator, Field, Tag
+from pydantic import Discriminator, Field, Tag, model_validator
 
 from leolink.registry import Params
 from leolink.sim.handover.decisions import (
@@ -181,9 +181,34 @@ class ChoConfig(Params):
         description="one or two execution conditions (all must be fulfilled; a table "
         "without kind is an a3)",
     )
+    release: Literal[17, 18] = Field(
+        18,
+        description="3GPP release of the execution rules: at most one of d1, d2, t1 per "
+        "candidate; 17 also pairs d1 or t1 with a3, a4 or a5 and has no d2 (TS 38.331 "
+        "condExecutionCond)",
+    )
     max_prepared: int = Field(8, ge=1, description="prepared candidates per UT (maxNrofCondCells)")
     preparation_delay_s: float = Field(0.0, ge=0, description="network preparation time [s]")
     level: Level = _LEVEL
+
+    @model_validator(mode="after")
+    def _execution_rule(self):
+        """TS 38.331 condExecutionCond (Rel-18): "The network configures at most one from
+        condEventD1, condEventD2 or condEventT1 for the same candidate cell"; Rel-17 (no D2)
+        pairs condEventD1 or condEventT1 with condEventA3, A4 or A5 (Rel-18 lets them alone)."""
+        kinds = [c.kind for c in self.execute]
+        ntn = [k for k in kinds if k in ("d1", "d2", "t1")]
+        said = f"controller.cho.execute kinds {kinds} are not allowed"
+        if len(ntn) > 1:
+            raise ValueError(f"{said}: at most one of d1, d2, t1 per candidate (TS 38.331)")
+        if self.release == 17 and "d2" in ntn:
+            raise ValueError(f"{said} with release = 17: d2 is Rel-18; use release = 18")
+        if self.release == 17 and ntn and not {"a3", "a4", "a5"} & set(kinds):
+            raise ValueError(
+                f"{said} with release = 17: {ntn[0]} must be paired with a3, a4 or a5 "
+                "(TS 38.331 Rel-17); add one, or use release = 18"
+            )
+        return self
 
 
 class FilterConfig(Params):
