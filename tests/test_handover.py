@@ -266,3 +266,17 @@ def test_a2a4_with_the_gate_always_open_is_a4():
     meas = random_walks(7)
     always = _a2a4(a2_db=1e9, a4_db=1.0, hys_db=0.5, ttt_s=0.2)
     assert run_policy(always, meas)[1] == run_policy(TriggerPolicy(A4(1.0, 0.5, 0.2)), meas)[1]
+
+
+def test_cell_offsets_act_as_a_shift_of_the_cells_measurement_in_a3_a4():
+    """Ocn added to cell j's measurement (A3-1: Mn + Ocn - Hys > Mp + Ocp + Off) decides as
+    the same measurement shifted by Ocn, the offset also counting when j serves (Ocp)."""
+    meas = random_walks(11, n_ut=30, n_cand=5)
+    ocn = np.array([0.0, 2.5, -4.0, 0.0, 1.0])
+    shifted = meas + ocn
+    offsets = [np.broadcast_to(ocn, meas.shape[1:])] * meas.shape[0]  # (n_ut, n_cand) form
+    for trig in (A3(1.0, 0.5, 0.2), A4(2.0, 0.5, 0.1)):
+        with_ocn = run_policy(TriggerPolicy(trig), meas, serving0=np.nanargmax(shifted[0], 1),
+                              offset_db=offsets)  # fmt: skip
+        by_shift = run_policy(TriggerPolicy(trig), shifted)
+        assert with_ocn[1] == by_shift[1] and len(by_shift[1]) > 20

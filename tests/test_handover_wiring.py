@@ -212,3 +212,15 @@ def test_a2a4_cuts_the_handovers_of_a4_to_worse_cells():
 
     (w4, n4), (wg, ng) = worse(a4), worse(a2a4)
     assert w4 > 100 and wg < w4 / 10 and ng < n4 / 10
+
+
+def test_a_negative_cell_offset_keeps_the_trigger_policies_off_that_satellite():
+    sets = ["run.duration_s=200", "controller.policy=a3", "controller.filter.k=0"]
+    base = _run(WALKER, sets)
+    ho = base.events[base.events.kind.isin(["beam_handover", "sat_handover"])]
+    sat = int(ho.to_sat.value_counts().index[0])
+    off = _run(WALKER, [*sets, f"controller.cell_offsets=[{{sat_id={sat}, offset_db=-20}}]"])
+    ho_off = off.events[off.events.kind.isin(["beam_handover", "sat_handover"])]
+    assert (ho.to_sat == sat).sum() >= 5 and (ho_off.to_sat == sat).sum() == 0
+    with pytest.raises(leolink.errors.ConfigError, match=r"cell_offsets.0.sat_id = 999 is not"):
+        _run(WALKER, [*sets, "controller.cell_offsets=[{sat_id=999, offset_db=3}]"])

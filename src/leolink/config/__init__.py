@@ -35,6 +35,7 @@ from leolink.config.schema import (
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
 from leolink.sim.handover.config import (
+    CellOffsetConfig,
     CellsConfig,
     FilterConfig,
     KpiConfig,
@@ -70,6 +71,12 @@ class ControllerBase(kinds.SelectorSection):
     rlf: RlfConfig = Field(
         default_factory=RlfConfig,  # type: ignore[arg-type]
         description="radio link failure on the serving SINR (TS 38.331 5.3.10), any policy",
+    )
+    cell_offsets: list[CellOffsetConfig] = Field(
+        default_factory=list,
+        description="cellIndividualOffset Ocn of cells (TS 38.331 5.5.4): added to the cell's "
+        "measurement in A3 (Ocn and Ocp), A4, A5 and a2a4's A4; at satellite level a "
+        "satellite's offset is its beams' largest",
     )
     signalling: SignallingConfig = Field(
         default_factory=SignallingConfig,  # type: ignore[arg-type]

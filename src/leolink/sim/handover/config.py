@@ -233,6 +233,16 @@ class RlfConfig(Params):
     reestablishment_s: float = Field(0.2, ge=0, description="RLF to service [s] (placeholder)")
 
 
+class CellOffsetConfig(Params):
+    """One ``[[controller.cell_offsets]]`` entry: the cellIndividualOffset of a cell."""
+
+    sat_id: int = Field(ge=0, description="satellite of the cell")
+    beam_id: int | None = Field(None, ge=0, description="beam of the cell; none: every beam")
+    offset_db: float = Field(
+        ge=-24, le=24, description="Ocn [dB] (Q-OffsetRange -24..24 dB, TS 38.331)"
+    )
+
+
 class SignallingConfig(Params):
     """``[controller.signalling]``: the handover procedure in simulated time
     (:mod:`leolink.sim.handover.procedure`); off: a handover takes ``handover_time_s``."""

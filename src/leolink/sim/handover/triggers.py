@@ -60,8 +60,8 @@ class Epoch:
     meas : float (n_ut, n_cand) or None, trigger quantity after layer-3 filtering
         (RSRP [dBm] or SINR [dB]; ``Mn``, and ``Mp`` at the serving index); NaN = not
         measurable.
-    offset_db : float or (n_cand,) [dB], ``Ofn + Ocn`` of each candidate (``Ofp + Ocp``
-        at the serving index), default 0.
+    offset_db : float, (n_cand,) or (n_ut, n_cand) [dB], ``Ofn + Ocn`` of each candidate
+        (``Ofp + Ocp`` at the serving index), default 0.
     ut_pos_m : (n_ut, 3) [m] or None, UT positions (D1, D2), any Cartesian frame.
     ref_pos_m : (n_cand, 3) [m] or None, D1 fixed reference locations (cells' ground centres).
     moving_ref_pos_m : (n_cand, 3) [m] or None, D2 moving reference locations at ``t_s``
@@ -229,11 +229,13 @@ class _Signal:
     needs = ("meas",)
 
     def rank(self, epoch):
-        return epoch.need("meas", type(self).__name__)
+        """Triggered cells rank by ``Mn + Ofn + Ocn``: an offset biases the choice as the
+        trigger (the order is leolink's; the standard leaves the target to the network)."""
+        return self._mn_mp(epoch)[0]
 
     def _mn_mp(self, epoch):
         meas = epoch.need("meas", type(self).__name__)
-        offset = np.broadcast_to(np.asarray(epoch.offset_db, float), meas.shape[-1:])
+        offset = np.broadcast_to(np.asarray(epoch.offset_db, float), meas.shape)
         return meas + offset, meas, epoch.at_serving(meas + offset), epoch.at_serving(meas)
 
 
