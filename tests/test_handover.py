@@ -280,3 +280,33 @@ def test_cell_offsets_act_as_a_shift_of_the_cells_measurement_in_a3_a4():
                               offset_db=offsets)  # fmt: skip
         by_shift = run_policy(TriggerPolicy(trig), shifted)
         assert with_ocn[1] == by_shift[1] and len(by_shift[1]) > 20
+
+
+# -- the targets the standard leaves open (docs/handover_notes.md) ----------------------------
+
+
+def _target(trigger, **fields):
+    """The target of one epoch at t = 10 s where UT 0 is served by cell 0 of 4."""
+    policy = TriggerPolicy(trigger, level="cell")
+    state = policy.initial_state(1, 4, 1)
+    ep = Epoch(t_s=10.0, serving=np.array([0]), **fields)
+    return int(policy.decide(ep, state, 1)[0].target[0])
+
+
+def test_d1_hands_over_to_the_triggered_cell_nearest_its_reference():
+    ut = np.zeros((1, 3))
+    ref = np.array([[9e5, 0, 0], [4e5, 0, 0], [2e5, 0, 0], [3e5, 0, 0]])  # serving far away
+    meas = np.array([[0.0, 9.0, 1.0, 5.0]])  # the best SNR is not the nearest
+    assert _target(D1(5e5, 5e5), ut_pos_m=ut, ref_pos_m=ref, meas=meas) == 2
+
+
+def test_elevation_hands_over_to_the_highest_triggered_satellite():
+    el = np.radians([[20.0, 50.0, 70.0, 60.0]])
+    meas = np.array([[0.0, 9.0, 1.0, 5.0]])
+    assert _target(Elevation(np.radians(30), np.radians(40)), elevation_rad=el, meas=meas) == 2
+
+
+def test_t1_hands_over_to_the_triggered_cell_of_best_filtered_snr():
+    end = np.array([[10.5, 100.0, 200.0, 300.0]])  # every neighbour outlasts the serving
+    meas = np.array([[0.0, 9.0, 1.0, 5.0]])
+    assert _target(T1(duration_s=5.0, lead_s=1.0), service_end_s=end, meas=meas) == 1

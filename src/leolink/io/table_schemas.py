@@ -54,6 +54,9 @@ TRACE_COLUMNS = (
     "population",
     "interruption_s",  # part of the epoch without service: handover execution [s]
     *FIGURE_COLUMNS,  # eirp_dbw, cn0_dbhz, esn0_db, margin_db, modcod (leolink.link.acm)
+    # Timing (DESIGN output contract): one-way UT-satellite delay [s] and its rate [s/s].
+    "delay_s",
+    "delay_rate_s_s",
 )
 #: Columns of a run that models UT environments (``RunInfo.environment``), after
 #: ``TRACE_COLUMNS``: the serving path's LoS state (1 / 0, NaN without a link) and its

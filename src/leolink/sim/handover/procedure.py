@@ -52,11 +52,11 @@ import dataclasses
 
 import numpy as np
 
-from leolink.constants import SPEED_OF_LIGHT_M_S
 from leolink.errors import ConfigError, require_at_least
+from leolink.kinematics import propagation_delay_s as one_way_delay_s
 from leolink.sim.handover.events import EVENT_COLUMNS, no_events, sorted_events, split_cells
 
-__all__ = ["T304_VALUES_S", "Procedure", "SignallingParams", "one_way_delay_s", "timeline"]
+__all__ = ["T304_VALUES_S", "Procedure", "SignallingParams", "timeline"]
 
 #: T304 values of ReconfigurationWithSync (TS 38.331 6.3.2): ms50 ... ms10000, nothing else.
 T304_VALUES_S = (0.05, 0.1, 0.15, 0.2, 0.5, 1.0, 2.0, 10.0)
@@ -64,20 +64,6 @@ ACCESS = ("rach", "rach_less")
 # Event times are sums of float seconds; 1 ns is far below any delay modelled here.
 TIME_TOL_S = 1e-9
 _HANDOVERS = ("beam_handover", "sat_handover")
-
-
-def one_way_delay_s(slant_range_m):
-    """Propagation delay over a slant range [s]: ``d / c`` (free space).
-
-    Parameters
-    ----------
-    slant_range_m : array_like [m]
-
-    Returns
-    -------
-    ndarray [s], the shape of the input.
-    """
-    return np.asarray(slant_range_m, float) / SPEED_OF_LIGHT_M_S
 
 
 @dataclasses.dataclass(frozen=True)
