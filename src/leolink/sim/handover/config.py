@@ -123,10 +123,15 @@ class ElevationConfig(Params):
 class TimeToExitConfig(Params):
     kind: Literal["time_to_exit"] = "time_to_exit"
     offset_s: float = Field(0.0, description="candidate must outlast the serving by this [s]")
-    hysteresis_s: float = Field(0.0, ge=0, description="hysteresis [s]")
+    hysteresis_s: float = Field(
+        0.0, ge=0, description="hysteresis [s], on the offset and on serving_below_s alike"
+    )
     time_to_trigger_s: float = _TTT
     serving_below_s: float | None = Field(
-        None, gt=0, description="only once the serving has less than this left [s]; none: always"
+        None,
+        gt=0,
+        description="only once the serving has less than this minus hysteresis_s left; "
+        "leaves above it plus hysteresis_s [s]; none: always",
     )
     horizon_s: float = Field(
         300.0, gt=0, description="look-ahead of the end of service; beyond it: inf [s]"
