@@ -20,6 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PAPER = str(ROOT / "configs" / "paper.toml")
 DATA = Path(__file__).resolve().parent / "data"
 
+CHO = [PAPER, "--set", "controller.policy=cho"]
+CHO_REL17 = [*CHO, "--set", "controller.cho.release=17", "--set"]
 # (id, argv after "validate", text the one error line must contain)
 MISTAKES = [
     ("missing_file", ["nope/missing.toml"], "missing.toml' does not exist"),
@@ -53,39 +55,17 @@ MISTAKES = [
     ),
     (  # TS 38.331 condExecutionCond: at most one of d1, d2, t1; Rel-17 pairs it with a3-a5
         "cho_two_location_time_events",
-        [
-            PAPER,
-            "--set",
-            "controller.policy=cho",
-            "--set",
-            "controller.cho.execute=[{kind='t1'}, {kind='d1'}]",
-        ],
+        [*CHO, "--set", "controller.cho.execute=[{kind='t1'}, {kind='d1'}]"],
         "controller.cho.execute kinds ['t1', 'd1'] are not allowed: at most one of d1, d2, t1",
     ),
     (
         "cho_rel17_unpaired_t1",
-        [
-            PAPER,
-            "--set",
-            "controller.policy=cho",
-            "--set",
-            "controller.cho.release=17",
-            "--set",
-            "controller.cho.execute=[{kind='t1'}]",
-        ],
+        [*CHO_REL17, "controller.cho.execute=[{kind='t1'}]"],
         "with release = 17: t1 must be paired with a3, a4 or a5",
     ),
     (
         "cho_rel17_d2",
-        [
-            PAPER,
-            "--set",
-            "controller.policy=cho",
-            "--set",
-            "controller.cho.release=17",
-            "--set",
-            "controller.cho.execute=[{kind='d2'}, {kind='a3'}]",
-        ],
+        [*CHO_REL17, "controller.cho.execute=[{kind='d2'}, {kind='a3'}]"],
         "with release = 17: d2 is Rel-18",
     ),
     (

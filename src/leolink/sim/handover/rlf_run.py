@@ -18,6 +18,11 @@ An RLF declared at epoch ``t`` (T310 expired) takes effect at once:
   serves the UT again (its best usable cell: an ``outage_end`` event, like the end of
   any outage). Until then :meth:`RlfRun.blocked` masks the UT's candidates. Outage time
   is counted in whole epochs, so an RLF costs at least one epoch of service.
+
+With the handover procedure on (:mod:`leolink.sim.handover.procedure`, ``procedure``), a
+handover failure is handled the same way: a ``handover_failure`` event (``from_*`` the
+source, ``to_*`` the target) at its own time, the dwell on the target closed then, and
+re-establishment from that time; the failed procedure's completion events are dropped.
 """
 
 from __future__ import annotations
