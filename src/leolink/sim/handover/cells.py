@@ -33,7 +33,7 @@ def beam_switches(t_s, res, beam_switch_s):
     switch = kind == "beam_handover"
     if not switch.any():
         return
-    res.events = {**res.events, "kind": np.where(switch, "beam_switch", kind)}
+    res.events = {**res.events, "kind": np.where(switch, "beam_switch", kind).astype(kind.dtype)}
     st = res.state
     st.interrupted_until_s = st.interrupted_until_s.copy()
     st.interrupted_until_s[np.asarray(res.events["ut_id"])[switch]] = t_s + beam_switch_s

@@ -28,6 +28,14 @@ EVENT_KINDS = (
 )
 SERVICE_RESUMED = EVENT_KINDS.index("service_resumed")
 _KIND_NAMES = np.asarray(EVENT_KINDS)
+
+
+def kind_column(kind, n):
+    """A ``kind`` column of ``n`` events of one kind, in the dtype every event table's
+    ``kind`` has (that of :data:`EVENT_KINDS`: joining tables changes no dtype)."""
+    return np.full(n, kind, _KIND_NAMES.dtype)
+
+
 EVENT_COLUMNS = (
     "time_s",
     "ut_id",

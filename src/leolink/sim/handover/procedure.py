@@ -54,7 +54,13 @@ import numpy as np
 
 from leolink.errors import ConfigError, require_at_least
 from leolink.kinematics import propagation_delay_s as one_way_delay_s
-from leolink.sim.handover.events import EVENT_COLUMNS, no_events, sorted_events, split_cells
+from leolink.sim.handover.events import (
+    EVENT_COLUMNS,
+    kind_column,
+    no_events,
+    sorted_events,
+    split_cells,
+)
 
 __all__ = ["T304_VALUES_S", "Procedure", "SignallingParams", "timeline"]
 
@@ -190,7 +196,7 @@ class Procedure:
         )
         nan = np.full(ut.size, np.nan)
         return {"time_s": time_s[ut].astype(float), "ut_id": ut.astype(np.int64),
-                "kind": np.full(ut.size, kind), "from_sat": fs, "from_beam": fb, "to_sat": ts,
+                "kind": kind_column(kind, ut.size), "from_sat": fs, "from_beam": fb, "to_sat": ts,
                 "to_beam": tb, "snr_before_db": nan, "snr_after_db": nan.copy()}  # fmt: skip
 
     def failures(self, t_s, sinr_db, q_out_db):

@@ -32,8 +32,8 @@ import dataclasses
 import numpy as np
 
 from leolink.sim.handover import rlf
-from leolink.sim.handover.controller import EVENT_KINDS, SERVICE_OUTAGE, SERVICE_SERVED
-from leolink.sim.handover.events import sorted_events
+from leolink.sim.handover.controller import SERVICE_OUTAGE, SERVICE_SERVED
+from leolink.sim.handover.events import kind_column, sorted_events
 
 __all__ = ["RLF_REASON", "RlfRun"]
 
@@ -106,7 +106,7 @@ class RlfRun:
         rlf_events = {
             "time_s": t_s.copy(),
             "ut_id": ut.astype(np.int64),
-            "kind": np.full(ut.size, EVENT_KINDS[EVENT_KINDS.index("rlf")]),
+            "kind": kind_column("rlf", ut.size),
             "from_sat": sat,
             "from_beam": beam,
             "to_sat": none,
