@@ -20,6 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PAPER = str(ROOT / "configs" / "paper.toml")
 DATA = Path(__file__).resolve().parent / "data"
 
+CHO = [PAPER, "--set", "controller.policy=cho"]
+CHO_REL17 = [*CHO, "--set", "controller.cho.release=17", "--set"]
 # (id, argv after "validate", text the one error line must contain)
 MISTAKES = [
     ("missing_file", ["nope/missing.toml"], "missing.toml' does not exist"),
@@ -41,6 +43,36 @@ MISTAKES = [
     ("roi_lat", [PAPER, "--set", "roi.center_lat_deg=60"], "roi.center_lat_deg = 60"),
     ("bad_index", [PAPER, "--set", "population.7.count=3"], "population.7.count: index '7'"),
     ("no_equals", [PAPER, "--set", "link.freq_hz"], "--set 'link.freq_hz' is not allowed"),
+    (  # a value where a table with a kind is needed: the kinds are named (issue 46)
+        "trigger_not_a_table",
+        [PAPER, "--set", "controller.policy=cho", "--set", "controller.cho.prepare=3"],
+        "controller.cho.prepare = 3 is not allowed: use a table with kind one of 'a3', 'a4'",
+    ),
+    (
+        "trigger_kind",
+        [PAPER, "--set", "controller.cho.execute=[{kind='a9'}]"],
+        "controller.cho.execute.0.kind = 'a9' is not allowed: use one of 'a3', 'a4', 'a5'",
+    ),
+    (  # TS 38.331 condExecutionCond: at most one of d1, d2, t1; Rel-17 pairs it with a3-a5
+        "cho_two_location_time_events",
+        [*CHO, "--set", "controller.cho.execute=[{kind='t1'}, {kind='d1'}]"],
+        "controller.cho.execute kinds ['t1', 'd1'] are not allowed: at most one of d1, d2, t1",
+    ),
+    (
+        "cho_rel17_unpaired_t1",
+        [*CHO_REL17, "controller.cho.execute=[{kind='t1'}]"],
+        "with release = 17: t1 must be paired with a3, a4 or a5",
+    ),
+    (
+        "cho_rel17_d2",
+        [*CHO_REL17, "controller.cho.execute=[{kind='d2'}, {kind='a3'}]"],
+        "with release = 17: d2 is Rel-18",
+    ),
+    (
+        "population_not_a_table",
+        [PAPER, "--set", "population=[3]"],
+        "population.0 = 3 is not allowed: use a table with kind one of 'static', ",
+    ),
     (
         "several",
         [str(DATA / "config_several_mistakes.toml")],
@@ -271,3 +303,18 @@ def test_the_command_builds_its_models_as_a_library_does():
     proc = _console(probe, "validate", PAPER, env={"LEOLINK_MODELS_ON_FIRST_USE": "1"})
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[-1] == "deferred False"
+
+
+def test_a_trigger_table_without_kind_amends_the_default_a3(capsys):
+    """Issue 46: ``--set controller.cho.prepare.offset_db=-3`` was refused with an empty
+    list of kinds; a trigger table without ``kind`` is the default conditions' A3."""
+    from leolink.config import load_config
+    from leolink.sim.handover.config import build_policy
+    from leolink.sim.handover.triggers import A3
+
+    sets = ["controller.policy=cho", "controller.cho.prepare.offset_db=-3"]
+    code = main(["validate", PAPER, *(x for s in sets for x in ("--set", s))])
+    _, err = capsys.readouterr()
+    assert code == 0, err
+    cfg = load_config(PAPER, sets)
+    assert build_policy(cfg.controller.cho).prepare == A3(-3.0)

@@ -227,3 +227,86 @@ def test_policies_declare_what_the_controller_must_provide():
     assert set(TriggerPolicy(Elevation()).needs) == {"elevation_rad", "meas"}
     cho = ConditionalHandover(A4(0.0), [D2(1.0, 2.0), T1()])
     assert set(cho.needs) == {"meas", "ut_pos_m", "moving_ref_pos_m", "service_end_s"}
+
+
+# -- A4 gated by A2 (the a2a4 policy) ------------------------------------------------------
+
+
+def _a2a4(a2_db=0.0, a4_db=3.0, hys_db=0.0, a2_ttt_s=0.0, ttt_s=0.0):
+    from leolink.sim.handover.decisions import GatedTriggerPolicy
+    from leolink.sim.handover.triggers import A2
+
+    return GatedTriggerPolicy(A2(a2_db, hys_db, a2_ttt_s), A4(a4_db, hys_db, ttt_s))
+
+
+def test_a2a4_measures_a4_only_while_the_serving_is_below_the_a2_threshold():
+    # cell 0 serves at 5 dB, falls to -1 dB at 0.5 s; cell 1 at 4 dB all along (A4 holds)
+    n_t = 10
+    meas = np.zeros((n_t, 1, 2))
+    meas[:, 0, 0] = np.where(np.arange(n_t) * DT_S < 0.5 - 1e-9, 5.0, -1.0)
+    meas[:, 0, 1] = 4.0
+    _, hos, _ = run_policy(_a2a4(a2_db=0.0, a4_db=3.0), meas, serving0=[0])
+    assert hos == [(0.5, 0, 0, 1)]  # A4 would have fired at t = 0 without its gate
+    _, hos, _ = run_policy(TriggerPolicy(A4(3.0)), meas, serving0=[0])
+    assert hos[0] == (0.0, 0, 0, 1)
+
+
+def test_a2a4_gate_has_its_own_ttt_and_hysteresis():
+    n_t = 20
+    meas = np.zeros((n_t, 1, 2))
+    meas[:, 0, 0] = np.where(np.arange(n_t) * DT_S < 0.5 - 1e-9, 5.0, -0.5)
+    meas[:, 0, 1] = 4.0
+    _, hos, _ = run_policy(_a2a4(a2_ttt_s=0.3), meas, serving0=[0])
+    assert hos == [(0.8, 0, 0, 1)]  # A2 from 0.5 s holds for 0.3 s, then A4 (TTT 0) fires
+    _, hos, _ = run_policy(_a2a4(hys_db=1.0), meas, serving0=[0])
+    assert hos == []  # -0.5 + 1 dB is not below 0 dB: the gate never opens
+
+
+def test_a2a4_with_the_gate_always_open_is_a4():
+    meas = random_walks(7)
+    always = _a2a4(a2_db=1e9, a4_db=1.0, hys_db=0.5, ttt_s=0.2)
+    assert run_policy(always, meas)[1] == run_policy(TriggerPolicy(A4(1.0, 0.5, 0.2)), meas)[1]
+
+
+def test_cell_offsets_act_as_a_shift_of_the_cells_measurement_in_a3_a4():
+    """Ocn added to cell j's measurement (A3-1: Mn + Ocn - Hys > Mp + Ocp + Off) decides as
+    the same measurement shifted by Ocn, the offset also counting when j serves (Ocp)."""
+    meas = random_walks(11, n_ut=30, n_cand=5)
+    ocn = np.array([0.0, 2.5, -4.0, 0.0, 1.0])
+    shifted = meas + ocn
+    offsets = [np.broadcast_to(ocn, meas.shape[1:])] * meas.shape[0]  # (n_ut, n_cand) form
+    for trig in (A3(1.0, 0.5, 0.2), A4(2.0, 0.5, 0.1)):
+        with_ocn = run_policy(TriggerPolicy(trig), meas, serving0=np.nanargmax(shifted[0], 1),
+                              offset_db=offsets)  # fmt: skip
+        by_shift = run_policy(TriggerPolicy(trig), shifted)
+        assert with_ocn[1] == by_shift[1] and len(by_shift[1]) > 20
+
+
+# -- the targets the standard leaves open (docs/handover_notes.md) ----------------------------
+
+
+def _target(trigger, **fields):
+    """The target of one epoch at t = 10 s where UT 0 is served by cell 0 of 4."""
+    policy = TriggerPolicy(trigger, level="cell")
+    state = policy.initial_state(1, 4, 1)
+    ep = Epoch(t_s=10.0, serving=np.array([0]), **fields)
+    return int(policy.decide(ep, state, 1)[0].target[0])
+
+
+def test_d1_hands_over_to_the_triggered_cell_nearest_its_reference():
+    ut = np.zeros((1, 3))
+    ref = np.array([[9e5, 0, 0], [4e5, 0, 0], [2e5, 0, 0], [3e5, 0, 0]])  # serving far away
+    meas = np.array([[0.0, 9.0, 1.0, 5.0]])  # the best SNR is not the nearest
+    assert _target(D1(5e5, 5e5), ut_pos_m=ut, ref_pos_m=ref, meas=meas) == 2
+
+
+def test_elevation_hands_over_to_the_highest_triggered_satellite():
+    el = np.radians([[20.0, 50.0, 70.0, 60.0]])
+    meas = np.array([[0.0, 9.0, 1.0, 5.0]])
+    assert _target(Elevation(np.radians(30), np.radians(40)), elevation_rad=el, meas=meas) == 2
+
+
+def test_t1_hands_over_to_the_triggered_cell_of_best_filtered_snr():
+    end = np.array([[10.5, 100.0, 200.0, 300.0]])  # every neighbour outlasts the serving
+    meas = np.array([[0.0, 9.0, 1.0, 5.0]])
+    assert _target(T1(duration_s=5.0, lead_s=1.0), service_end_s=end, meas=meas) == 1

@@ -87,3 +87,12 @@ def test_filter_and_rlf_tables_build_their_parameters():
     assert build_rlf(RlfConfig(t310_s=2.0)) is None  # off unless enabled
     p = build_rlf(RlfConfig(enabled=True, t310_s=2.0, n310=6, n311=2))
     assert (p.t310_s, p.n310, p.n311, p.q_out_db, p.q_in_db) == (2.0, 6, 2, -8.0, -6.0)
+
+
+@pytest.mark.parametrize(
+    "release, kinds",
+    [(18, ["t1"]), (18, ["d2"]), (17, ["t1", "a4"]), (17, ["a3", "d1"]), (17, ["a3"])],
+)
+def test_cho_execution_rule_admits_what_each_release_allows(release, kinds):
+    cfg = ChoConfig.model_validate({"release": release, "execute": [{"kind": k} for k in kinds]})
+    assert [t.kind for t in cfg.execute] == kinds

@@ -194,3 +194,33 @@ def test_rlf_that_never_fires_leaves_the_run_as_without_rlf(walker_max_snr):
     res = _run(WALKER, [*sets, "controller.rlf.q_out_db=-200", "controller.rlf.q_in_db=-199"])
     pd.testing.assert_frame_equal(res.trace, walker_max_snr.trace)
     pd.testing.assert_frame_equal(res.events, walker_max_snr.events)
+
+
+def test_a2a4_cuts_the_handovers_of_a4_to_worse_cells():
+    """Issue 46: A4 alone hands over to worse cells; gated by A2 it waits for a weak serving
+    cell. With the gate always open the run is A4's, event for event."""
+    sets = ["run.duration_s=200", "controller.filter.k=0"]
+    a4 = _run(WALKER, [*sets, "controller.policy=a4", "controller.a4.threshold_db=-2"])
+    gated = ["controller.policy=a2a4", "controller.a2a4.a4_threshold_db=-2"]
+    open_gate = _run(WALKER, [*sets, *gated, "controller.a2a4.a2_threshold_db=1000"])
+    pd.testing.assert_frame_equal(open_gate.events, a4.events)
+    a2a4 = _run(WALKER, [*sets, *gated, "controller.a2a4.a2_threshold_db=-1"])
+
+    def worse(res):
+        ho = res.events[res.events.kind.isin(["beam_handover", "sat_handover"])]
+        return int((ho.snr_after_db < ho.snr_before_db).sum()), len(ho)
+
+    (w4, n4), (wg, ng) = worse(a4), worse(a2a4)
+    assert w4 > 100 and wg < w4 / 10 and ng < n4 / 10
+
+
+def test_a_negative_cell_offset_keeps_the_trigger_policies_off_that_satellite():
+    sets = ["run.duration_s=200", "controller.policy=a3", "controller.filter.k=0"]
+    base = _run(WALKER, sets)
+    ho = base.events[base.events.kind.isin(["beam_handover", "sat_handover"])]
+    sat = int(ho.to_sat.value_counts().index[0])
+    off = _run(WALKER, [*sets, f"controller.cell_offsets=[{{sat_id={sat}, offset_db=-20}}]"])
+    ho_off = off.events[off.events.kind.isin(["beam_handover", "sat_handover"])]
+    assert (ho.to_sat == sat).sum() >= 5 and (ho_off.to_sat == sat).sum() == 0
+    with pytest.raises(leolink.errors.ConfigError, match=r"cell_offsets.0.sat_id = 999 is not"):
+        _run(WALKER, [*sets, "controller.cell_offsets=[{sat_id=999, offset_db=3}]"])

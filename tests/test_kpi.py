@@ -291,3 +291,76 @@ def test_grouped_histogram_empty_groups_are_nan():
     got = acc.percentiles([50])
     assert np.isnan(got[0, 0]) and np.isnan(got[2, 0])
     assert got[1, 0] == pytest.approx(0.5, abs=0.05 + 1e-9)
+
+
+# -- mobility robustness (TS 38.300 15.5.2.2.2) -----------------------------------------
+
+
+def _mro_events(*rows):
+    """Events from (time_s, ut, kind, from (sat, beam), to (sat, beam)) rows."""
+    cols = {k: [] for k in ("time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat",
+                            "to_beam")}  # fmt: skip
+    for t, ut, kind, src, dst in rows:
+        for k, v in zip(cols, (t, ut, kind, *src, *dst), strict=True):
+            cols[k].append(v)
+    return {k: np.asarray(v) for k, v in cols.items()}
+
+
+S_, T_, X_, NONE = (1, 0), (2, 0), (3, 0), (-1, -1)  # source, target, a third cell
+
+
+def _classes(*rows, window_s=1.0, level="cell"):
+    from leolink.sim.handover.kpi import mro_counts
+
+    return mro_counts(_mro_events(*rows), window_s, level)
+
+
+def test_rlf_soon_after_a_handover_back_in_the_source_is_too_early():
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.6, 0, "rlf", T_, NONE),
+                   (11.0, 0, "outage_end", NONE, S_))  # fmt: skip
+    assert got == {"handover_failure_count": 0, "too_early_count": 1, "too_late_count": 0,
+                   "wrong_cell_count": 0}  # fmt: skip
+
+
+def test_a_handover_failure_back_in_the_source_is_too_early_whatever_the_window():
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.03, 0, "handover_failure", S_, T_),
+                   (11.0, 0, "outage_end", NONE, S_), window_s=0.01)  # fmt: skip
+    assert (got["handover_failure_count"], got["too_early_count"]) == (1, 1)
+
+
+def test_rlf_soon_after_a_handover_in_a_third_cell_is_wrong_cell():
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.5, 0, "rlf", T_, NONE),
+                   (11.0, 0, "outage_end", NONE, X_))  # fmt: skip
+    assert (got["wrong_cell_count"], got["too_early_count"], got["too_late_count"]) == (1, 0, 0)
+
+
+def test_rlf_after_a_long_stay_in_another_cell_is_too_late_and_in_the_same_cell_nothing():
+    late = _classes((10.0, 0, "sat_handover", S_, T_), (11.0, 0, "rlf", T_, NONE),
+                    (12.0, 0, "outage_end", NONE, X_))  # fmt: skip
+    assert (late["too_late_count"], late["wrong_cell_count"]) == (1, 0)  # 1 s: not < 1 s
+    same = _classes((10.0, 0, "sat_handover", S_, T_), (15.0, 0, "rlf", T_, NONE),
+                    (16.0, 0, "outage_end", NONE, T_))  # fmt: skip
+    assert sum(same.values()) == 0
+    never = _classes((15.0, 0, "rlf", T_, NONE), (16.0, 0, "outage_end", NONE, S_))
+    assert never["too_late_count"] == 1  # no handover at all
+
+
+def test_rlf_soon_after_a_handover_back_in_the_target_has_no_class():
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.2, 0, "rlf", T_, NONE),
+                   (11.0, 0, "outage_end", NONE, T_))  # fmt: skip
+    assert sum(got.values()) == 0
+
+
+def test_mro_pairs_each_failure_with_its_own_uts_events_and_needs_a_reestablishment():
+    got = _classes((10.0, 1, "sat_handover", S_, T_), (10.5, 0, "rlf", T_, NONE),
+                   (11.0, 0, "outage_end", NONE, S_), (12.0, 1, "rlf", T_, NONE))  # fmt: skip
+    # UT 0 had no handover: too late (S_ != T_); UT 1 never re-establishes: no class
+    assert (got["too_late_count"], got["too_early_count"]) == (1, 0)
+
+
+def test_satellite_level_compares_satellites():
+    rows = ((10.0, 0, "beam_handover", (1, 0), (1, 4)), (10.5, 0, "rlf", (1, 4), NONE),
+            (11.0, 0, "outage_end", NONE, (1, 7)))  # fmt: skip
+    assert _classes(*rows)["wrong_cell_count"] == 1  # beam (1, 7) is a third cell
+    sat = _classes(*rows, level="satellite")
+    assert (sat["wrong_cell_count"], sat["too_early_count"]) == (0, 1)  # satellite 1: source

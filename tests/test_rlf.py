@@ -165,3 +165,28 @@ def test_invalid_parameters_are_refused():
         RlfParams(q_out_db=-5.0, q_in_db=-6.0)
     with pytest.raises(ConfigError, match="n310"):
         RlfParams(n310=0)
+
+
+def test_a_serving_change_in_the_expiry_epoch_pre_empts_the_rlf():
+    """docs/handover_notes.md: the controller decides first; an outage_start (SNR below the
+    service threshold) or an immediate handover in the epoch T310 expires stops T310 (a
+    serving change), so no RLF is declared for that UT. The other UT, unchanged, fails."""
+    from leolink.sim.handover.controller import SERVICE_OUTAGE, SERVICE_SERVED, ControllerState
+    from leolink.sim.handover.events import events_table, split_cells
+    from leolink.sim.handover.rlf_run import RlfRun
+
+    run = RlfRun(RlfParams(t310_s=1.0), n_ut=3, n_beam=4, reason_code=5)
+    run.state = RlfState(np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros(3),
+                         np.full(3, np.nan))  # T310 running since t = 0 for all  # fmt: skip
+    c = ControllerState.initial(3)
+    old, new = np.array([4, 4, 4]), np.array([-1, 8, 4])  # UT 0 outage, UT 1 handover
+    c.serving = new
+    kind = np.array([2, 1, -1])  # outage_start, sat_handover, nothing
+    events = events_table(1.0, kind, old, split_cells(old, 4), split_cells(new, 4),
+                          np.zeros(3), np.zeros(3))  # fmt: skip
+    cols = {"service": np.array([SERVICE_OUTAGE, SERVICE_SERVED, SERVICE_SERVED], np.int8),
+            "sinr_db": np.array([np.nan, 5.0, -20.0]), "snr_db": np.zeros(3),
+            "outage_reason": np.zeros(3, np.int8), "sat_id": np.array([-1, 2, 1]),
+            "beam_id": np.array([-1, 0, 0]), "interruption_s": np.zeros(3)}  # fmt: skip
+    _, rlf_events, _ = run.after_links(1.0, c, events, cols, np.zeros(3, bool))
+    assert rlf_events["ut_id"].tolist() == [2]

@@ -32,6 +32,8 @@ __all__ = [
     "max_doppler_sat_small_roi_hz",
     "mean_abs_doppler_ut_hz",
     "range_rate_m_s",
+    "propagation_delay_s",
+    "delay_rate_from_doppler_s_s",
 ]
 
 
@@ -88,6 +90,32 @@ def range_rate_m_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
     _, _, l_us = _los(ut_pos_m, sat_pos_m)
     v_rel = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
     return _dot(v_rel, l_us)
+
+
+def propagation_delay_s(slant_range_m):
+    """One-way propagation delay over a slant range, ``d / c`` [s] (free space).
+
+    Parameters
+    ----------
+    slant_range_m : array_like [m]
+
+    Returns
+    -------
+    ndarray [s], the shape of the input.
+    """
+    return np.asarray(slant_range_m, float) / SPEED_OF_LIGHT_M_S
+
+
+def delay_rate_from_doppler_s_s(doppler_hz, freq_hz):
+    """Rate of the one-way delay ``rho' / c`` [s/s] from the total Doppler of the same link:
+    :func:`doppler_hz` is ``-(f / c) rho'``, so ``rho' / c = -Delta f / f``.
+
+    Parameters
+    ----------
+    doppler_hz : array_like [Hz], total Doppler shift (satellite and UT motion).
+    freq_hz : float [Hz], carrier frequency.
+    """
+    return -np.asarray(doppler_hz, float) / freq_hz
 
 
 def doppler_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s, freq_hz):

@@ -191,6 +191,17 @@ def _run_section(cfg, scen, stats):
     }
 
 
+def _summary(cfg):
+    """The run's summary accumulator with the ``[kpi]`` and ``[cells]`` settings."""
+    satellites = cfg.cells.per == "satellite"
+    return SummaryAccumulator(
+        ping_pong_s=cfg.kpi.ping_pong_s,
+        mro_window_s=cfg.kpi.mro_window_s,
+        mro_level="satellite" if satellites else "cell",
+        beam_switch_s=cfg.cells.beam_switch_s if satellites else None,
+    )
+
+
 def run(cfg, out_dir=None, progress=None, overwrite=False):
     """Run the simulation of ``cfg``.
 
@@ -228,7 +239,7 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
 
 
 def _run(cfg, scen, out_dir, progress):
-    summary, position = SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s), _Position()
+    summary, position = _summary(cfg), _Position()
     sinks, files = _sinks(cfg, out_dir, summary, scen), []
     try:
         return _run_and_write(cfg, scen, (out_dir, files), summary, [*sinks, position], progress)

@@ -28,7 +28,7 @@ from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
 from leolink.sim.beams.service import BeamService
 from leolink.sim.environment import environment_models
-from leolink.sim.handover.config import build_rlf
+from leolink.sim.handover.config import build_rlf, build_signalling
 from leolink.sim.mobility.models import OnWgs84
 from leolink.sim.mobility.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
@@ -238,7 +238,7 @@ def build_scenario(cfg):
         engine=engine,
         ephemeris=ephemeris,
         populations=populations,
-        policy=cfg.controller.build(SimpleNamespace(filter=cfg.controller.filter)),
+        policy=cfg.controller.build(_policy_context(cfg, ephemeris.n_sat, engine.n_beam)),
         min_snr_db=cfg.controller.min_snr_db,
         handover_time_s=cfg.controller.handover_time_s,
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
@@ -251,12 +251,31 @@ def build_scenario(cfg):
         ellipsoidal=cfg.earth.model == "wgs84",
         environments=_environments(cfg),
         rlf=build_rlf(cfg.controller.rlf),
+        signalling=build_signalling(cfg.controller.signalling),
+        beam_switch_s=cfg.cells.beam_switch_s if cfg.cells.per == "satellite" else None,
         selector=selector,
         service=service,
         link=service_link(cfg, engine),
         panels=panel_orientation(cfg, populations),
         estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
         roi_frame=frame,
+    )
+
+
+def _policy_context(cfg, n_sat, n_beam):
+    """What the policies are built with: the L3 filter, the level of ``[cells]`` and the
+    ``[[controller.cell_offsets]]`` (each cell checked against the constellation)."""
+    for i, c in enumerate(cfg.controller.cell_offsets):
+        for key, value, n in (("sat_id", c.sat_id, n_sat), ("beam_id", c.beam_id, n_beam)):
+            if value is not None and value >= n:
+                raise ConfigError(
+                    f"controller.cell_offsets.{i}.{key} = {value} is not allowed: use 0 .. "
+                    f"{n - 1} (the run has {n})"
+                )
+    return SimpleNamespace(
+        filter=cfg.controller.filter,
+        level="satellite" if cfg.cells.per == "satellite" else None,
+        cell_offsets=cfg.controller.cell_offsets,
     )
 
 

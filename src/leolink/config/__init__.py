@@ -34,7 +34,14 @@ from leolink.config.schema import (
 )
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
-from leolink.sim.handover.config import FilterConfig, KpiConfig, RlfConfig
+from leolink.sim.handover.config import (
+    CellOffsetConfig,
+    CellsConfig,
+    FilterConfig,
+    KpiConfig,
+    RlfConfig,
+    SignallingConfig,
+)
 from leolink.textfile import read_text
 
 __all__ = [
@@ -65,12 +72,32 @@ class ControllerBase(kinds.SelectorSection):
         default_factory=RlfConfig,  # type: ignore[arg-type]
         description="radio link failure on the serving SINR (TS 38.331 5.3.10), any policy",
     )
+    cell_offsets: list[CellOffsetConfig] = Field(
+        default_factory=list,
+        description="cellIndividualOffset Ocn of cells (TS 38.331 5.5.4): added to the cell's "
+        "measurement in A3 (Ocn and Ocp), A4, A5 and a2a4's A4; at satellite level a "
+        "satellite's offset is its beams' largest",
+    )
+    signalling: SignallingConfig = Field(
+        default_factory=SignallingConfig,  # type: ignore[arg-type]
+        description="the handover procedure in simulated time: report, command, T304, access",
+    )
     service_metric: Literal["snr", "sinr"] = Field(
         "snr",
         description="what min_snr_db is compared with: the SNR (the paper; beams and events) "
         "or also the serving link's SINR (a served epoch below it counts as outage, "
         "below_threshold; beams and events stay on SNR)",
     )
+
+    @model_validator(mode="after")
+    def _signalling_needs_rlf(self):
+        if self.signalling.enabled and not self.rlf.enabled:
+            raise ValueError(
+                "controller.signalling.enabled = true is not allowed with "
+                "controller.rlf.enabled = false: a failed handover re-establishes as after an "
+                "RLF; set controller.rlf.enabled = true"
+            )
+        return self
 
 
 class LinkBase(LinkSection, kinds.SelectorSection):
@@ -93,6 +120,9 @@ class ConfigBase(Section):
         earth: Any
         link: Any
         scheduler: Any
+        cells: Any
+        controller: Any
+        kpi: Any
 
     @model_validator(mode="after")
     def _check(self):
@@ -107,6 +137,13 @@ class ConfigBase(Section):
         if c.kind == "tle" and not c.tle_file:
             raise ValueError("constellation.tle_file is required when constellation.kind = 'tle'")
         self._check_roi_cap()
+        level = getattr(self.controller.params, "level", None)
+        if self.cells.per == "satellite" and level == "cell":
+            raise ValueError(
+                f"controller.{self.controller.policy}.level = 'cell' is not allowed with "
+                "cells.per = 'satellite': a cell is a satellite; leave level out or use "
+                "'satellite'"
+            )
         if self.link.precoder != "none" and self.scheduler.kind == "none":
             raise ValueError(
                 f"link.precoder = {self.link.precoder!r} is not allowed with scheduler.kind = "
@@ -212,6 +249,7 @@ def _model(gen):
         "controller": sel("ControllerSection", REGISTRIES["controller.policy"], "policy",
                           "max_snr", base=ControllerBase, doc="beam selection policy"),
         "output": kinds.output_section(REGISTRIES["output"]),
+        "cells": CellsConfig,
         "kpi": KpiConfig,
     }  # fmt: skip
     fields: dict[str, Any] = {k: (m, Field(default_factory=m)) for k, m in sections.items()}

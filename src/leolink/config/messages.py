@@ -67,7 +67,7 @@ def field_info(model, loc):
     return info
 
 
-def _special(where, loc, err) -> str | None:
+def _special(model, where, loc, err) -> str | None:
     """The line of an error that is not about a value's type or bounds, else None."""
     msg = err["msg"].removeprefix("Value error, ")
     kind = err["type"]
@@ -79,10 +79,19 @@ def _special(where, loc, err) -> str | None:
         named = not loc or msg.startswith(str(loc[0]))
         return msg if named else f"{where}: {msg}"
     if kind in ("union_tag_invalid", "union_tag_not_found"):
-        tags = err.get("ctx", {}).get("expected_tags", "")
-        value = err.get("ctx", {}).get("tag", err.get("input"))
+        value, tags = err.get("ctx", {}).get("tag", err.get("input")), _tags(model, loc)
+        if not isinstance(value, dict | str):  # not a table at all
+            return f"{where} = {value!r} is not allowed: use a table with kind one of {tags}"
         return f"{where}.kind = {value!r} is not allowed: use one of {tags}"
     return None
+
+
+def _tags(model, loc) -> str:
+    """The ``kind`` tags of the union at ``loc``, quoted (pydantic gives them only for an
+    unknown tag, not for a missing one)."""
+    info = field_info(model, loc)
+    models = _models_in(info.annotation) if info is not None else []
+    return ", ".join(repr(t) for t in dict.fromkeys(_tag(m) for m in models) if t is not None)
 
 
 def _lines(model, errors) -> list[str]:
@@ -91,7 +100,7 @@ def _lines(model, errors) -> list[str]:
     for err in errors:
         loc = _clean_loc(model, err["loc"])
         where = ".".join(str(p) for p in loc)
-        special = _special(where, loc, err)
+        special = _special(model, where, loc, err)
         if special is not None:
             lines.setdefault(special, [])
             continue

@@ -55,6 +55,9 @@ TRACE_COLUMNS = (
     "population",
     "interruption_s",  # part of the epoch without service: handover execution [s]
     *FIGURE_COLUMNS,  # eirp_dbw, cn0_dbhz, esn0_db, margin_db, modcod (leolink.link.acm)
+    # Timing (DESIGN output contract): one-way UT-satellite delay [s] and its rate [s/s].
+    "delay_s",
+    "delay_rate_s_s",
 )
 #: Columns of a run that models UT environments (``RunInfo.environment``), after
 #: ``TRACE_COLUMNS``: the serving path's LoS state (1 / 0, NaN without a link) and its
@@ -98,6 +101,8 @@ TRACE_COLUMN_DOCS = {
     "esn0_db": ("dB", "Es/N0 of the link (from the SINR, with the roll-off)"),
     "margin_db": ("dB", "margin against the chosen MODCOD's required Es/N0"),
     "modcod": ("", "best DVB-S2X MODCOD that closes the link (none: no MODCOD)"),
+    "delay_s": ("s", "one-way UT-satellite propagation delay (slant range / c)"),
+    "delay_rate_s_s": ("1", "rate of change of the one-way delay (range rate / c)"),
     "los": ("1", "line of sight of the serving path (1 / 0)"),
     "shadow_db": ("dB", "shadow fading loss (TR 38.811 clause 6.6.2)"),
     "clutter_db": ("dB", "clutter loss (TR 38.811 clause 6.6.2)"),

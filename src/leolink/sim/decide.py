@@ -23,7 +23,9 @@ from leolink.geometry import enu_basis
 from leolink.sim.beams.selectors import restrict
 from leolink.sim.candidates.search import CandidateSearch
 from leolink.sim.candidates.table import Candidates
+from leolink.sim.handover.cells import beam_switches
 from leolink.sim.handover.controller import concat_events, resumed_events, step
+from leolink.sim.handover.events import sorted_events
 from leolink.sim.handover.policies import neighbour_window_db
 
 __all__ = ["Decider"]
@@ -84,6 +86,8 @@ class Decider:
         self.block = self.mb = self.cones = self.enu = self.panel = None
         self.channel = None  # ChannelTracker of the UTs' environments (None: open country)
         self.channels = []  # its EpochChannel of each epoch of the current block
+        self.procedure = None  # the handover procedure (leolink.sim.handover.procedure), if on
+        self.beam_switch_s = None  # cells are satellites: a beam change is a beam_switch
 
     def with_channel(self, tracker):
         """Decide on SNRs with each path's environment loss (:mod:`leolink.sim.environment`).
@@ -160,9 +164,17 @@ class Decider:
                                          mb.sat_pos_m[j], mb.sat_vel_m_s[j], up)  # fmt: skip
         res = step(t, decided, c, self.policy, self.min_snr_db, self.handover_time_s, nb,
                    future, target)  # fmt: skip
+        if self.beam_switch_s is not None:
+            beam_switches(t, res, self.beam_switch_s)
+        steps = None
+        if self.procedure is not None:  # signalling: the handovers' interruption and steps
+            j = k - blk.k0
+            steps = self.procedure.after_step(t, res, self.mb.ut_pos_m[j], self.mb.sat_pos_m[j])
         resumed = resumed_events(t, self.epoch_s, res.state, table)
         if resumed["ut_id"].size:  # (both tables have the same dtypes: nothing to join)
             res.events = concat_events(res.events, resumed)
+        if steps is not None and steps["ut_id"].size:
+            res.events = sorted_events(concat_events(res.events, steps))
         unserved = np.flatnonzero(res.sat_id < 0)
         state.best_unserved = (unserved, best_cell[unserved])
         cone = self.cones[k - blk.k0]

@@ -18,6 +18,10 @@ this epoch's serving SINR, so the links are evaluated every epoch (warm-up inclu
 the RLF state machine may end a UT's service before the frame is sent; without it,
 recording waits for the end of the block.
 
+Timing: ``delay_s`` is the link's slant range / c, ``delay_rate_s_s`` its rate, the
+range rate / c (from the link's total Doppler, :mod:`leolink.kinematics`); in outage rows
+those of the best candidate, as the geometry.
+
 Beyond the engine's columns (:class:`~leolink.sim.service_link.ServiceLink`): the link
 figures (EIRP, C/N0, Es/N0, margin, MODCOD, ACM throughput), and with a SINR service
 threshold the served rows below it turned to outage (``below_threshold``, no interruption).
@@ -31,6 +35,7 @@ import numpy as np
 
 from leolink.arrays import take_rows
 from leolink.engine.links import Links
+from leolink.kinematics import delay_rate_from_doppler_s_s, propagation_delay_s
 from leolink.link.acm import LinkFigureParams
 from leolink.link.fading import mean_rician_gain_lin, rician_gain_from_draws_lin
 from leolink.rng import complex_normal
@@ -112,6 +117,7 @@ class Monitor:
         self.engine, self.sink, self.decider = decider.engine, sink, decider
         self.rlf, self.epoch_s = decider.rlf, decider.epoch_s
         self.service, self.fading = service, fading
+        self.freq_hz = float(self.engine.params.freq_hz)
         self.population = np.asarray(population, dtype=object)
         self._tiled = {}
         self.pending = []
@@ -366,6 +372,8 @@ class Monitor:
             alt_m=mb.ut_alt_m[j].reshape(-1),
             population=self._population(n),
             interruption_s=gap_s,
+            delay_s=propagation_delay_s(cols["slant_range_m"]),
+            delay_rate_s_s=delay_rate_from_doppler_s_s(cols["doppler_hz"], self.freq_hz),
         )
         return cols
 

@@ -24,7 +24,9 @@ from leolink.sim.decide import Decider
 from leolink.sim.environment import ChannelTracker
 from leolink.sim.ephemeris_monitor import TrueLinkMonitor
 from leolink.sim.handover.controller import ControllerState
+from leolink.sim.handover.decisions import ConditionalHandover
 from leolink.sim.handover.policies import Policy
+from leolink.sim.handover.procedure import Procedure
 from leolink.sim.handover.rlf_run import RLF_REASON, RlfRun
 from leolink.sim.mobility.models import concat_states
 from leolink.sim.mobility.populations import MotionModel
@@ -75,6 +77,11 @@ class Scenario:
         evaluates every pair of the cone-selected satellites (the reference).
     rlf : leolink.sim.handover.rlf.RlfParams or None, radio link failure monitoring
         (:mod:`leolink.sim.handover.rlf_run`); None: off.
+    signalling : leolink.sim.handover.procedure.SignallingParams or None, the handover
+        procedure in simulated time (needs ``rlf``); None: ``handover_time_s`` per handover.
+    beam_switch_s : float or None, cells are satellites (:mod:`leolink.sim.handover.cells`):
+        a beam change inside one is a ``beam_switch`` of this interruption [s]; None:
+        cells are beams.
     link : ServiceLink or None, the link figures and the SINR service threshold (None:
         default figures, service on SNR).
     panels : PanelOrientation or None, the UTs' turned or tilted panels (None: flat).
@@ -111,6 +118,8 @@ class Scenario:
     panels: PanelOrientation | None = None
     environments: list | None = None
     rlf: object | None = None
+    signalling: object | None = None
+    beam_switch_s: float | None = None
     selector: BeamSelector | None = None
     service: BeamService | None = None
     estimated_ephemeris: Callable | None = None
@@ -229,6 +238,14 @@ def run_simulation(
         ellipsoidal=scen.ellipsoidal, prune=scen.prune, panels=scen.panels, rlf=rlf,
         selector=scen.selector,
     )  # fmt: skip
+    decide.beam_switch_s = scen.beam_switch_s
+    if scen.signalling is not None:
+        if rlf is None:
+            raise ValueError("the handover procedure (signalling) needs RLF monitoring (rlf)")
+        conditional = isinstance(getattr(scen.policy, "inner", None), ConditionalHandover)
+        decide.procedure = rlf.procedure = Procedure(
+            scen.signalling, n_ut, scen.engine.n_beam, scen.epoch_s, conditional
+        )
     keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None or scen.environments else None
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
     environment = ()

@@ -54,7 +54,9 @@ __all__ = [
 #: Runs with more UTs keep per-UT statistics out of summary.json (``per_ut.parquet``).
 PER_UT_IN_JSON_MAX = 1000
 #: The per-UT handover KPIs (each UT's ``kpi`` block), also columns of ``per_ut.parquet``.
-KPI_COLUMNS = ("handover_rate_per_ut_min", "ping_pong_count", "rlf_count")
+KPI_COLUMNS = ("handover_rate_per_ut_min", "ping_pong_count", "rlf_count",
+               "handover_failure_count", "too_early_count", "too_late_count",
+               "wrong_cell_count")  # fmt: skip
 # Trace rows buffered before they are folded into the statistics (~4 MiB): one set of
 # numpy calls per 64 Ki rows, not per epoch (the fixed cost of a small run's epoch).
 _POOL_BUFFER = 1 << 16
@@ -114,12 +116,17 @@ class SummaryAccumulator:
     (:mod:`leolink.io.summary.environment`).
 
     Handover KPIs (``overall.kpi``, each UT's ``kpi``): :mod:`leolink.io.summary.kpi`,
-    with ``ping_pong_s`` [s] (``[kpi]``). The link figures (margin, MODCOD usage, ACM and
-    Shannon throughput): ``link``, :class:`leolink.io.summary.link.LinkStats`.
+    with ``ping_pong_s`` and ``mro_window_s`` [s] (``[kpi]``), the MRO cells at
+    ``mro_level`` (``"cell"``, or ``"satellite"`` when cells are satellites: then the
+    beam switches of ``beam_switch_s`` each are counted apart). The link
+    figures (margin, MODCOD usage, ACM and Shannon throughput): ``link``,
+    :class:`leolink.io.summary.link.LinkStats`.
     """
 
-    def __init__(self, n_ut=0, epoch_s=1.0, ping_pong_s=1.0, environment=()):
+    def __init__(self, n_ut=0, epoch_s=1.0, ping_pong_s=1.0, environment=(), mro_window_s=1.0,
+                 mro_level="cell", beam_switch_s=None):  # fmt: skip
         self.epoch_s, self.ping_pong_s = float(epoch_s), float(ping_pong_s)
+        self.mro = (float(mro_window_s), mro_level, beam_switch_s)
         self._reset(n_ut)
         self.environment = tuple(environment)  # per UT; empty: open country, no env block
 
@@ -156,7 +163,7 @@ class SummaryAccumulator:
         for name in _REASON_COUNTERS:
             setattr(self, name, zeros())
         self.n_los, self.n_link = zeros(), zeros()  # LoS epochs / epochs with a link
-        self.kpi = KpiAccumulator(self.n_ut, self.ping_pong_s)
+        self.kpi = KpiAccumulator(self.n_ut, self.ping_pong_s, *self.mro)
         self.throughput_sum = zeros(np.float64)
         self.max_abs_doppler_hz = np.full(self.n_ut, np.nan)
         self.max_angular_speed_deg_s = np.full(self.n_ut, np.nan)

@@ -15,26 +15,34 @@ ping-pong after TR 36.839, time of stay without censored stays); besides them:
 - ``interruption_s``: UT-time without service by cause [s]: ``handover`` (execution
   times), ``rlf`` (re-establishment, whole epochs), ``outage`` (no usable candidate);
   ``interruption_per_handover_s``: the handover part per handover.
+- the mobility robustness counts of TS 38.300 15.5.2.2.2 (``handover_failure_count``,
+  ``too_early_count``, ``too_late_count``, ``wrong_cell_count``; window ``[kpi]
+  mro_window_s``): :func:`leolink.sim.handover.kpi.mro_classes`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from leolink.sim.handover.kpi import handover_rates, ping_pong_mask, summarize
+from leolink.sim.handover.kpi import handover_rates, mro_classes, ping_pong_mask, summarize
 from leolink.sim.histograms import PercentileHistogram
 
 __all__ = ["KpiAccumulator"]
 
-_KEPT = ("beam_handover", "sat_handover", "outage_start", "outage_end", "rlf")
+# (not beam_switch: a change inside one cell changes no cell of the KPIs)
+_KEPT = ("beam_handover", "sat_handover", "outage_start", "outage_end", "rlf", "handover_failure")
 _COLUMNS = ("time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat", "to_beam")
 
 
 class KpiAccumulator:
     """Serving-change events and SINR/throughput histograms of one run."""
 
-    def __init__(self, n_ut, ping_pong_s=1.0):
+    def __init__(self, n_ut, ping_pong_s=1.0, mro_window_s=1.0, mro_level="cell",
+                 beam_switch_s=None):  # fmt: skip
         self.n_ut, self.ping_pong_s = int(n_ut), float(ping_pong_s)
+        self.mro_window_s, self.mro_level = float(mro_window_s), mro_level
+        self.beam_switch_s = beam_switch_s  # cells are satellites (None: beams)
+        self.n_beam_switch = np.zeros(self.n_ut, np.int64)
         self._events = []
         self.sinr = PercentileHistogram(-60.0, 80.0, 0.01)
         self.throughput = PercentileHistogram(0.0, 1.0e10, 1.0e5, unserved_value=0.0)
@@ -50,6 +58,8 @@ class KpiAccumulator:
 
     def add_events(self, events):
         kind = np.asarray(events["kind"]).astype(str)
+        switch = np.asarray(events["ut_id"], np.int64)[kind == "beam_switch"]
+        self.n_beam_switch += np.bincount(switch, minlength=self.n_ut)
         keep = np.isin(kind, _KEPT)
         if keep.any():
             self._events.append({k: np.asarray(events[k])[keep] for k in _COLUMNS})
@@ -71,8 +81,11 @@ class KpiAccumulator:
         events = self.events()
         if self.n_ut == 0 or not np.all(np.asarray(observed_s) > 0):
             return {}, [{} for _ in range(self.n_ut)]
-        overall = summarize(events, dwells, observed_s, self.n_ut, self.ping_pong_s)
+        overall = summarize(events, dwells, observed_s, self.n_ut, self.ping_pong_s,
+                            self.mro_window_s, self.mro_level)  # fmt: skip
         n_ho = int(np.isin(events["kind"], ("beam_handover", "sat_handover")).sum())
+        if self.beam_switch_s is not None:
+            interruption_s = self._beam_switches(overall, interruption_s, observed_s)
         overall.update(
             interruption_s=interruption_s,
             interruption_per_handover_s=interruption_s["handover"] / n_ho if n_ho else None,
@@ -84,12 +97,32 @@ class KpiAccumulator:
         ut = np.asarray(events["ut_id"], np.int64)
         pp = np.bincount(ut[ping_pong_mask(events, self.ping_pong_s)], minlength=self.n_ut)
         rlf = np.bincount(ut[events["kind"] == "rlf"], minlength=self.n_ut)
+        classes = mro_classes(events, self.mro_window_s, self.mro_level)
+        mro = {f"{k}_count": np.bincount(ut[m], minlength=self.n_ut) for k, m in classes.items()}
         per_ut = [
             {
                 "handover_rate_per_ut_min": float(rates["per_ut"][i]),
                 "ping_pong_count": int(pp[i]),
                 "rlf_count": int(rlf[i]),
+                **{name: int(count[i]) for name, count in mro.items()},
             }
             for i in range(self.n_ut)  # output formatting only
         ]
+        if self.beam_switch_s is not None:
+            for i, row in enumerate(per_ut):  # output formatting only
+                row["beam_switch_count"] = int(self.n_beam_switch[i])
         return overall, per_ut
+
+    def _beam_switches(self, overall, interruption_s, observed_s):
+        """Cells are satellites: the beam switches counted apart from the handovers, their
+        interruption (``beam_switch_s`` each: exact while a switch ends within its epoch)
+        taken out of the handovers'."""
+        n = int(self.n_beam_switch.sum())
+        switch_s = n * self.beam_switch_s
+        overall.update(
+            beam_switch_count=n,
+            beam_switch_rate_per_ut_min=n / (np.sum(observed_s) / 60.0),
+            interruption_per_beam_switch_s=self.beam_switch_s if n else None,
+        )
+        return {**interruption_s, "handover": max(interruption_s["handover"] - switch_s, 0.0),
+                "beam_switch": switch_s}  # fmt: skip

@@ -17,13 +17,18 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import Discriminator, Field, Tag, model_validator
 
 from leolink.registry import Params
-from leolink.sim.handover.decisions import ConditionalHandover, TriggerPolicy
+from leolink.sim.handover.decisions import (
+    ConditionalHandover,
+    GatedTriggerPolicy,
+    TriggerPolicy,
+)
 from leolink.sim.handover.measurements import FILTER_COEFFICIENTS, L3Filter
+from leolink.sim.handover.procedure import SignallingParams
 from leolink.sim.handover.rlf import RlfParams
-from leolink.sim.handover.triggers import A3, A4, A5
+from leolink.sim.handover.triggers import A2, A3, A4, A5
 from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
 
 Level = Literal["cell", "satellite"] | None
@@ -49,6 +54,19 @@ class A4Config(Params):
     kind: Literal["a4"] = "a4"
     threshold_db: float = Field(-10.0, description="a4-Threshold, in the trigger quantity's unit")
     hysteresis_db: float = Field(0.0, ge=0, description="hysteresis Hys [dB]")
+    time_to_trigger_s: float = _TTT
+    level: Level = _LEVEL
+
+
+class A2A4Config(Params):
+    """A4 measured while A2 holds (:class:`~leolink.sim.handover.decisions.GatedTriggerPolicy`)."""
+
+    kind: Literal["a2a4"] = "a2a4"
+    a2_threshold_db: float = Field(0.0, description="a2-Threshold: serving below it opens "
+                                   "the A4 measurement, above it closes it")  # fmt: skip
+    a4_threshold_db: float = Field(3.0, description="a4-Threshold: neighbour above it")
+    hysteresis_db: float = Field(0.0, ge=0, description="hysteresis Hys of both events [dB]")
+    a2_time_to_trigger_s: float = Field(0.0, ge=0, description="A2's time-to-trigger [s]")
     time_to_trigger_s: float = _TTT
     level: Level = _LEVEL
 
@@ -105,10 +123,15 @@ class ElevationConfig(Params):
 class TimeToExitConfig(Params):
     kind: Literal["time_to_exit"] = "time_to_exit"
     offset_s: float = Field(0.0, description="candidate must outlast the serving by this [s]")
-    hysteresis_s: float = Field(0.0, ge=0, description="hysteresis [s]")
+    hysteresis_s: float = Field(
+        0.0, ge=0, description="hysteresis [s], on the offset and on serving_below_s alike"
+    )
     time_to_trigger_s: float = _TTT
     serving_below_s: float | None = Field(
-        None, gt=0, description="only once the serving has less than this left [s]; none: always"
+        None,
+        gt=0,
+        description="only once the serving has less than this minus hysteresis_s left; "
+        "leaves above it plus hysteresis_s [s]; none: always",
     )
     horizon_s: float = Field(
         300.0, gt=0, description="look-ahead of the end of service; beyond it: inf [s]"
@@ -116,16 +139,27 @@ class TimeToExitConfig(Params):
     level: Level = _LEVEL
 
 
+#: The event a trigger table without ``kind`` is (the default conditions' event), so that
+#: ``--set controller.cho.prepare.offset_db=-3`` amends the default A3 condition.
+DEFAULT_TRIGGER_KIND = "a3"
+
+
+def _trigger_kind(value):
+    if isinstance(value, dict):
+        return value.get("kind", DEFAULT_TRIGGER_KIND)
+    return getattr(value, "kind", None)
+
+
 TriggerConfig = Annotated[
-    A3Config
-    | A4Config
-    | A5Config
-    | D1Config
-    | D2Config
-    | T1Config
-    | ElevationConfig
-    | TimeToExitConfig,
-    Field(discriminator="kind"),
+    Annotated[A3Config, Tag("a3")]
+    | Annotated[A4Config, Tag("a4")]
+    | Annotated[A5Config, Tag("a5")]
+    | Annotated[D1Config, Tag("d1")]
+    | Annotated[D2Config, Tag("d2")]
+    | Annotated[T1Config, Tag("t1")]
+    | Annotated[ElevationConfig, Tag("elevation")]
+    | Annotated[TimeToExitConfig, Tag("time_to_exit")],
+    Discriminator(_trigger_kind),
 ]
 
 
@@ -142,17 +176,44 @@ class ChoConfig(Params):
 
     kind: Literal["cho"] = "cho"
     prepare: TriggerConfig = Field(
-        default_factory=_default_prepare, description="trigger that prepares a candidate"
+        default_factory=_default_prepare,
+        description="trigger that prepares a candidate (a table without kind is an a3)",
     )
     execute: list[TriggerConfig] = Field(
         default_factory=_default_execute,
         min_length=1,
         max_length=2,
-        description="one or two execution conditions (all must be fulfilled)",
+        description="one or two execution conditions (all must be fulfilled; a table "
+        "without kind is an a3)",
+    )
+    release: Literal[17, 18] = Field(
+        18,
+        description="3GPP release of the execution rules: at most one of d1, d2, t1 per "
+        "candidate; 17 also pairs d1 or t1 with a3, a4 or a5 and has no d2 (TS 38.331 "
+        "condExecutionCond)",
     )
     max_prepared: int = Field(8, ge=1, description="prepared candidates per UT (maxNrofCondCells)")
     preparation_delay_s: float = Field(0.0, ge=0, description="network preparation time [s]")
     level: Level = _LEVEL
+
+    @model_validator(mode="after")
+    def _execution_rule(self):
+        """TS 38.331 condExecutionCond (Rel-18): "The network configures at most one from
+        condEventD1, condEventD2 or condEventT1 for the same candidate cell"; Rel-17 (no D2)
+        pairs condEventD1 or condEventT1 with condEventA3, A4 or A5 (Rel-18 lets them alone)."""
+        kinds = [c.kind for c in self.execute]
+        ntn = [k for k in kinds if k in ("d1", "d2", "t1")]
+        said = f"controller.cho.execute kinds {kinds} are not allowed"
+        if len(ntn) > 1:
+            raise ValueError(f"{said}: at most one of d1, d2, t1 per candidate (TS 38.331)")
+        if self.release == 17 and "d2" in ntn:
+            raise ValueError(f"{said} with release = 17: d2 is Rel-18; use release = 18")
+        if self.release == 17 and ntn and not {"a3", "a4", "a5"} & set(kinds):
+            raise ValueError(
+                f"{said} with release = 17: {ntn[0]} must be paired with a3, a4 or a5 "
+                "(TS 38.331 Rel-17); add one, or use release = 18"
+            )
+        return self
 
 
 class FilterConfig(Params):
@@ -177,10 +238,74 @@ class RlfConfig(Params):
     reestablishment_s: float = Field(0.2, ge=0, description="RLF to service [s] (placeholder)")
 
 
+class CellOffsetConfig(Params):
+    """One ``[[controller.cell_offsets]]`` entry: the cellIndividualOffset of a cell."""
+
+    sat_id: int = Field(ge=0, description="satellite of the cell")
+    beam_id: int | None = Field(None, ge=0, description="beam of the cell; none: every beam")
+    offset_db: float = Field(
+        ge=-24, le=24, description="Ocn [dB] (Q-OffsetRange -24..24 dB, TS 38.331)"
+    )
+
+
+class SignallingConfig(Params):
+    """``[controller.signalling]``: the handover procedure in simulated time
+    (:mod:`leolink.sim.handover.procedure`); off: a handover takes ``handover_time_s``."""
+
+    enabled: bool = Field(
+        False,
+        description="report, command, T304 and access in simulated time; the interruption "
+        "replaces handover_time_s and a failed handover re-establishes (needs "
+        "controller.rlf.enabled)",
+    )
+    network_processing_s: float = Field(
+        0.01, ge=0, description="report received to command sent, preparation included [s]"
+    )
+    ue_processing_s: float = Field(
+        0.01,
+        ge=0,
+        description="command received to access start [s] (RRC procedure delay, TS 38.133: 10 ms)",
+    )
+    t304_s: float = Field(
+        1.0, description="T304 [s]: 0.05, 0.1, 0.15, 0.2, 0.5, 1, 2 or 10 (TS 38.331)"
+    )
+    access: Literal["rach", "rach_less"] = Field(
+        "rach",
+        description="four-step random access, or RACH-less (Rel-18: first uplink on "
+        "the configured grant, one way)",
+    )
+    rach_attempts: int = Field(
+        1, ge=1, le=200, description="random accesses until success (preambleTransMax <= 200)"
+    )
+    rach_processing_s: float = Field(
+        0.0, ge=0, description="per attempt, besides its two round trips to the target [s]"
+    )
+
+
+class CellsConfig(Params):
+    """``[cells]``: what a cell is (:mod:`leolink.sim.handover.cells`)."""
+
+    per: Literal["beam", "satellite"] = Field(
+        "beam",
+        description="'beam': every beam is a cell, a beam change is a beam_handover; "
+        "'satellite': a satellite is one cell, a beam change inside it is a beam_switch "
+        "(L1/L2, not a handover) and the trigger policies compare satellites",
+    )
+    beam_switch_s: float = Field(
+        0.0, ge=0, le=3600, description="service interruption per beam_switch [s]"
+    )
+
+
 class KpiConfig(Params):
     """``[kpi]``."""
 
     ping_pong_s: float = Field(1.0, gt=0, description="minimum time of stay for ping-pong [s]")
+    mro_window_s: float = Field(
+        1.0,
+        gt=0,
+        description="an RLF this soon after a handover's trigger is too early or to a wrong "
+        "cell, later too late (TS 38.300 15.5.2.2.2; Tstore_UE_cntxt, set by OAM) [s]",
+    )
 
 
 _TRIGGER_OF = {
@@ -215,6 +340,7 @@ POLICY_CONFIGS: dict[str, type[Params]] = {
     "elevation": ElevationConfig,
     "time_to_exit": TimeToExitConfig,
     "cho": ChoConfig,
+    "a2a4": A2A4Config,
 }
 
 
@@ -224,17 +350,22 @@ def build_trigger(config):
 
 
 def build_policy(config, context=None):
-    """The policy of a validated policy config (the registry's ``build`` hook)."""
-    del context  # the policies need nothing of the scenario at build time
+    """The policy of a validated policy config (the registry's ``build`` hook); a
+    ``context.level`` (cells = satellites) is the level where the config gives none."""
+    level = config.level or getattr(context, "level", None)
+    if config.kind == "a2a4":
+        gate = A2(config.a2_threshold_db, config.hysteresis_db, config.a2_time_to_trigger_s)
+        trigger = A4(config.a4_threshold_db, config.hysteresis_db, config.time_to_trigger_s)
+        return GatedTriggerPolicy(gate, trigger, level)
     if config.kind == "cho":
         return ConditionalHandover(
             build_trigger(config.prepare),
             [build_trigger(c) for c in config.execute],
             config.max_prepared,
             config.preparation_delay_s,
-            config.level,
+            level,
         )
-    return TriggerPolicy(build_trigger(config), config.level)
+    return TriggerPolicy(build_trigger(config), level)
 
 
 def build_filter(config):
@@ -246,3 +377,10 @@ def build_rlf(config):
     if not getattr(config, "enabled", True):
         return None
     return RlfParams(**{k: v for k, v in dict(config).items() if k != "enabled"})
+
+
+def build_signalling(config):
+    """The procedure's parameters of ``[controller.signalling]``, None when it is off."""
+    if not config.enabled:
+        return None
+    return SignallingParams(**{k: v for k, v in dict(config).items() if k != "enabled"})

@@ -33,6 +33,7 @@ from leolink.sim.handover.events import (  # noqa: F401  (the tables' names, re-
     concat_events,
     dwells_table,
     events_table,
+    kind_column,
     no_dwells,
     no_events,
     split_cells,
@@ -355,7 +356,7 @@ def resumed_events(t_s, epoch_s, state, snr_db):
     return {
         "time_s": until[ut].astype(float),
         "ut_id": ut.astype(np.int64),
-        "kind": np.full(ut.size, EVENT_KINDS[SERVICE_RESUMED]),
+        "kind": kind_column(EVENT_KINDS[SERVICE_RESUMED], ut.size),
         "from_sat": none,
         "from_beam": none.copy(),
         "to_sat": to_sat,

@@ -73,11 +73,13 @@ class Decision:
 @dataclasses.dataclass(frozen=True)
 class PolicyState:
     """``serving`` (n_ut,) seen at the last call; one TriggerState per trigger; ``prepared``
-    (CHO only) the admitted candidates."""
+    (CHO only) the admitted candidates; ``gate`` (gated policies only) the serving-cell
+    event's TriggerState, one column ``(n_ut, 1)``."""
 
     serving: np.ndarray
     triggers: tuple
     prepared: np.ndarray | None = None
+    gate: object = None
 
 
 def _reduce_beams(x, n_beam):
@@ -174,6 +176,44 @@ class TriggerPolicy:
 
     def __repr__(self):
         return f"TriggerPolicy({self.trigger!r}, level={self.level!r})"
+
+
+class GatedTriggerPolicy(TriggerPolicy):
+    """A neighbour event measured only while a serving-cell event holds: A4 gated by A2.
+
+    The network configures the neighbour measurement (``trigger``, e.g. A4) once the gate
+    (``gate``, A2: serving worse than a threshold) has triggered, and removes it when the
+    gate leaves (A2-2, what an A1 at the same threshold would report): while the gate is
+    not triggered no neighbour has a run. A serving change clears both (38.331 5.5.6.1).
+    """
+
+    def __init__(self, gate, trigger, level=None):
+        super().__init__(trigger, level)
+        self.gate = gate
+
+    def initial_state(self, n_ut, n_cand, n_beam):
+        state = super().initial_state(n_ut, n_cand, n_beam)
+        return PolicyState(state.serving, state.triggers, gate=TriggerState.initial(n_ut, 1))
+
+    def decide(self, epoch, state, n_beam):
+        changed = _changed(epoch, state, self.level, n_beam)
+        (trig,) = (s.reset(changed) for s in state.triggers)
+        gate = state.gate.reset(changed)
+        ep = self._axis(epoch, n_beam)
+        enter, leave = self.gate.conditions(ep)
+        served = (np.asarray(ep.serving) >= 0)[:, None]
+        gate, _ = advance(gate, ep.t_s, enter, leave, self.gate.time_to_trigger_s, served)
+        entering, leaving = self.trigger.conditions(ep)
+        applicable = neighbours(ep, entering.shape[1]) & ~np.isnan(gate.triggered_at_s)
+        trig, report = advance(trig, ep.t_s, entering, leaving, self.trigger.time_to_trigger_s,
+                               applicable)  # fmt: skip
+        unit = pick(trig.triggered, self.trigger.rank(ep))
+        target = _level_target(unit, epoch, self.level, n_beam)
+        serving = np.asarray(epoch.serving, np.int64).copy()
+        return Decision(target, None, report), PolicyState(serving, (trig,), gate=gate)
+
+    def __repr__(self):
+        return f"GatedTriggerPolicy({self.gate!r}, {self.trigger!r}, level={self.level!r})"
 
 
 def _admit(admitted, ready, score, max_prepared):

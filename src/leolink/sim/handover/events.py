@@ -19,9 +19,23 @@ EVENT_KINDS = (
     "outage_end",
     "service_resumed",
     "rlf",  # radio link failure (leolink.sim.handover.rlf_run): from_* the failed cell, to_* -1
+    # the handover procedure (leolink.sim.handover.procedure): from_* source, to_* target
+    "measurement_report",
+    "handover_command",
+    "handover_complete",
+    "handover_failure",
+    "beam_switch",  # cells = satellites (leolink.sim.handover.cells): a beam change inside one
 )
 SERVICE_RESUMED = EVENT_KINDS.index("service_resumed")
 _KIND_NAMES = np.asarray(EVENT_KINDS)
+
+
+def kind_column(kind, n):
+    """A ``kind`` column of ``n`` events of one kind, in the dtype every event table's
+    ``kind`` has (that of :data:`EVENT_KINDS`: joining tables changes no dtype)."""
+    return np.full(n, kind, _KIND_NAMES.dtype)
+
+
 EVENT_COLUMNS = (
     "time_s",
     "ut_id",
@@ -121,3 +135,9 @@ _NO_DWELLS = {
 def concat_events(*tables):
     """Join event tables (dicts of ``EVENT_COLUMNS`` arrays) in the order given."""
     return {k: np.concatenate([np.asarray(t[k]) for t in tables]) for k in EVENT_COLUMNS}
+
+
+def sorted_events(table):
+    """An event table sorted by time, then UT (stable: rows of one instant keep their order)."""
+    order = np.lexsort((table["ut_id"], table["time_s"]))
+    return {k: np.asarray(v)[order] for k, v in table.items()}

@@ -24,11 +24,31 @@ consecutive dwells on one satellite joined where one ends as the next starts). A
 by the start or end of the run (``censored_*``) is not complete: it is excluded from the
 mean and the distribution and counted apart.
 
+Mobility robustness (TS 38.300 15.5.2.2.2, "Connection failure due to intra-system
+mobility"). A connection failure is an ``rlf`` or a ``handover_failure`` (HOF); the cell
+the UT re-establishes in is the ``to_*`` cell of its next ``outage_end`` (a failure whose
+re-establishment the run does not reach is not classified). With ``S -> T`` the UT's last
+handover before the failure, initiated at ``t_h`` (the trigger: 38.300 times "since the
+last handover initialisation"), and the failure at ``t_f``:
+
+- *too early*: an HOF, or an RLF with ``t_f - t_h < mro_window_s``, re-established in
+  ``S``;
+- *wrong cell*: the same, re-established in a cell other than ``S``, ``T`` and the cell
+  that failed;
+- *too late*: an RLF without a handover in the window, re-established in a cell other
+  than the one that failed.
+
+The window stands for Tstore_UE_cntxt, which OAM sets (38.300 15.5.2.5 gives no value;
+leolink's default is 1 s). An HOF re-established in its target is counted as a handover
+failure of no class. Cells are ``(sat, beam)``, or satellites at ``level="satellite"``.
+
 References
 ----------
 .. [1] 3GPP TR 36.839 V11.1.0, "E-UTRA; Mobility enhancements in heterogeneous
    networks", 5.2.2 Ping-pong modelling, 5.4.2 handover performance metrics, 5.4.3
    short time-of-stay.
+.. [2] 3GPP TS 38.300 V18.6.0, 15.5.2.2.2 connection failure due to intra-system
+   mobility, 15.5.2.5 (Tstore_UE_cntxt).
 """
 
 from __future__ import annotations
@@ -179,7 +199,81 @@ def time_of_stay(dwells, level="beam"):
     }
 
 
-def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0):
+#: Connection failures of the MRO classes and the classes (:func:`mro_classes`).
+FAILURE_KINDS = ("rlf", "handover_failure")
+MRO_CLASSES = ("too_early", "too_late", "wrong_cell")
+
+
+def _last_of(is_kind, ut, reverse=False):
+    """Per row (in UT-then-time order) the nearest earlier (later, ``reverse``) row of its
+    UT where ``is_kind``, inclusive of itself; -1 where none."""
+    n = is_kind.size
+    idx = np.arange(n)
+    if reverse:
+        found = np.minimum.accumulate(np.where(is_kind, idx, n)[::-1])[::-1]
+        found = np.where(found < n, found, -1)
+    else:
+        found = np.maximum.accumulate(np.where(is_kind, idx, -1)) if n else idx
+    ok = found >= 0
+    return np.where(ok & (ut[np.maximum(found, 0)] == ut), found, -1)
+
+
+def mro_classes(events, window_s=1.0, level="cell"):
+    """The MRO class of every connection failure (module docstring, TS 38.300 15.5.2.2.2).
+
+    Parameters
+    ----------
+    events : dict of arrays (``time_s, ut_id, kind, from_sat, from_beam, to_sat, to_beam``)
+    window_s : float [s], the "shortly after" a handover (Tstore_UE_cntxt).
+    level : "cell" (sat, beam) or "satellite"
+
+    Returns
+    -------
+    dict of bool arrays, one per event row: ``handover_failure`` and each of
+    :data:`MRO_CLASSES` (False on rows that are not failures).
+    """
+    kind = np.asarray(events["kind"]).astype(str)
+    t_all, ut_all = np.asarray(events["time_s"], float), np.asarray(events["ut_id"], np.int64)
+    order = np.lexsort((np.arange(kind.size), t_all, ut_all))
+    k, t, ut = kind[order], t_all[order], ut_all[order]
+    beam = (lambda c: np.asarray(events[c])[order]) if level == "cell" else (
+        lambda c: np.zeros(order.size, np.int64))  # fmt: skip
+    cell = {e: (np.asarray(events[f"{e}_sat"])[order], beam(f"{e}_beam")) for e in ("from", "to")}
+    ho = _last_of(np.isin(k, HANDOVER_KINDS), ut)
+    re = _last_of(k == "outage_end", ut, reverse=True)
+    hof, failure = k == "handover_failure", np.isin(k, FAILURE_KINDS)
+    h, r = np.maximum(ho, 0), np.maximum(re, 0)
+
+    def same(a, i, b, j):  # cell a of rows i == cell b of rows j
+        return (cell[a][0][i] == cell[b][0][j]) & (cell[a][1][i] == cell[b][1][j])
+
+    rows = np.arange(k.size)
+    known = failure & (re >= 0)
+    recent = hof | ((ho >= 0) & (t - t[h] < window_s - TIME_TOL_S))
+    # the failed cell: an RLF's from_*, an HOF's target
+    failed_in = np.where(hof, same("to", r, "to", rows), same("to", r, "from", rows))
+    in_source, in_target = same("to", r, "from", h), same("to", r, "to", h)
+    out = {
+        "handover_failure": hof,
+        "too_early": known & recent & in_source,
+        "wrong_cell": known & recent & ~in_source & ~in_target & ~failed_in,
+        "too_late": known & ~recent & (k == "rlf") & ~failed_in,
+    }
+    result = {}
+    for name, mask in out.items():
+        result[name] = np.zeros(kind.size, bool)
+        result[name][order] = mask
+    return result
+
+
+def mro_counts(events, window_s=1.0, level="cell"):
+    """``{handover_failure_count, too_early_count, too_late_count, wrong_cell_count}``."""
+    classes = mro_classes(events, window_s, level)
+    return {f"{name}_count": int(mask.sum()) for name, mask in classes.items()}
+
+
+def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0, mro_window_s=1.0,
+              mro_level="cell"):  # fmt: skip
     """The ``overall.kpi`` block of summary.json from the event and dwell tables.
 
     SINR/throughput percentiles and interruption/outage times are streamed by the caller
@@ -200,6 +294,8 @@ def summarize(events, dwells, observed_s, n_ut, ping_pong_s=1.0):
         "ping_pong_fraction_satellite": pp_sat,
         "ping_pong_count_satellite": n_pp_sat,
         "rlf_count": n_rlf,
+        **mro_counts(events, mro_window_s, mro_level),
+        "mro_window_s": float(mro_window_s),
         "rlf_rate_per_ut_min": n_rlf / minutes,
         "mean_time_of_stay_s": {k: v["mean_s"] for k, v in stay.items()},
         "time_of_stay_s": {

@@ -171,3 +171,18 @@ def step(state, t_s, sinr_db, params, monitored=None):
         rlf_at_s=np.where(rlf, t_s, np.where(recovered, np.nan, state.rlf_at_s)),
     )
     return new, rlf, recovered
+
+
+def declare(state, ut_mask, t_s):
+    """Start re-establishment at ``t_s`` (n_ut,) [s] for ``ut_mask`` without an RLF of
+    this module (a handover failure, :mod:`leolink.sim.handover.procedure`): T310 stopped,
+    counters cleared, as after an RLF (TS 38.331 5.3.7 follows either)."""
+    m = np.asarray(ut_mask, bool)
+    if not m.any():
+        return state
+    return RlfState(
+        np.where(m, 0, state.n_oos),
+        np.where(m, 0, state.n_is),
+        np.where(m, np.nan, state.t310_start_s),
+        np.where(m, t_s, state.rlf_at_s),
+    )

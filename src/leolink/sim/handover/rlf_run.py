@@ -18,6 +18,11 @@ An RLF declared at epoch ``t`` (T310 expired) takes effect at once:
   serves the UT again (its best usable cell: an ``outage_end`` event, like the end of
   any outage). Until then :meth:`RlfRun.blocked` masks the UT's candidates. Outage time
   is counted in whole epochs, so an RLF costs at least one epoch of service.
+
+With the handover procedure on (:mod:`leolink.sim.handover.procedure`, ``procedure``), a
+handover failure is handled the same way: a ``handover_failure`` event (``from_*`` the
+source, ``to_*`` the target) at its own time, the dwell on the target closed then, and
+re-establishment from that time; the failed procedure's completion events are dropped.
 """
 
 from __future__ import annotations
@@ -27,7 +32,8 @@ import dataclasses
 import numpy as np
 
 from leolink.sim.handover import rlf
-from leolink.sim.handover.controller import EVENT_KINDS, SERVICE_OUTAGE, SERVICE_SERVED
+from leolink.sim.handover.controller import SERVICE_OUTAGE, SERVICE_SERVED
+from leolink.sim.handover.events import kind_column, sorted_events
 
 __all__ = ["RLF_REASON", "RlfRun"]
 
@@ -38,6 +44,7 @@ RLF_REASON = "rlf"
 _LINK = ("snr_db", "sinr_db", "se_bps_hz", "throughput_bps", "cn0_dbhz", "esn0_db",
          "margin_db", "throughput_dvbs2x_bps", "throughput_shannon_bps")  # fmt: skip
 _SERVING_CHANGES = ("beam_handover", "sat_handover", "outage_start", "outage_end")
+_COMPLETIONS = ("service_resumed", "handover_complete")
 # Epoch times accumulate float rounding; 1 ns is far below any timer value.
 TIME_TOL_S = 1e-9
 
@@ -52,6 +59,7 @@ class RlfRun:
     def __init__(self, params, n_ut, n_beam, reason_code):
         self.params, self.n_beam, self.reason_code = params, int(n_beam), int(reason_code)
         self.state = rlf.RlfState.initial(n_ut)
+        self.procedure = None  # the handover procedure (leolink.sim.handover.procedure), if on
 
     def blocked(self, t_s):
         """bool (n_ut,): UTs still re-establishing at ``t_s`` (no service yet)."""
@@ -72,15 +80,33 @@ class RlfRun:
         state = rlf.reset(self.state, changed)
         monitored = np.asarray(columns["service"]) == SERVICE_SERVED
         state, failed, _ = rlf.step(state, t_s, columns["sinr_db"], self.params, monitored)
+        hof, hof_events = np.zeros_like(failed), None
+        if self.procedure is not None:  # handover failures re-establish as an RLF does
+            hof, hof_s, hof_events = self.procedure.failures(
+                t_s, columns["sinr_db"], self.params.q_out_db
+            )
+            state = rlf.declare(state, hof, hof_s)
         self.state = state
+        rlf_events, dwells = self._failed(t_s, controller, columns, failed)
+        if hof.any():
+            hof_dwells = self._failed(hof_s, controller, columns, hof)[1]
+            dwells = {k: np.concatenate([dwells[k], hof_dwells[k]]) for k in dwells}
+            rlf_events = {k: np.concatenate([rlf_events[k], hof_events[k]]) for k in rlf_events}
+        self._outage_rows(columns, failed | blocked | hof)
+        return _drop_serving(controller, failed | hof), rlf_events, dwells
+
+    def _failed(self, t_s, controller, columns, failed):
+        """The ``rlf`` events and the closed dwells of the UTs ``failed`` at ``t_s`` (a
+        float, or per UT)."""
         ut = np.flatnonzero(failed)
+        t_s = np.broadcast_to(np.asarray(t_s, float), failed.shape)[ut]
         serving = controller.serving[ut]
         sat, beam = np.divmod(serving, self.n_beam)
         none = np.full(ut.size, -1, np.int64)
         rlf_events = {
-            "time_s": np.full(ut.size, float(t_s)),
+            "time_s": t_s.copy(),
             "ut_id": ut.astype(np.int64),
-            "kind": np.full(ut.size, EVENT_KINDS[EVENT_KINDS.index("rlf")]),
+            "kind": kind_column("rlf", ut.size),
             "from_sat": sat,
             "from_beam": beam,
             "to_sat": none,
@@ -93,12 +119,11 @@ class RlfRun:
             "sat_id": sat,
             "beam_id": beam,
             "start_s": controller.serving_since_s[ut],
-            "end_s": np.full(ut.size, float(t_s)),
+            "end_s": t_s.copy(),
             "censored_start": controller.dwell_censored_start[ut].copy(),
             "censored_end": np.zeros(ut.size, bool),
         }
-        self._outage_rows(columns, failed | blocked)
-        return _drop_serving(controller, failed), rlf_events, dwells
+        return rlf_events, dwells
 
     def merge(self, state, columns, events, dwells):
         """:meth:`after_links` on a :class:`~leolink.sim.processes.SimState`; returns
@@ -112,9 +137,12 @@ class RlfRun:
         )
         if rlf_events["ut_id"].size == 0:
             return controller, events, dwells
-        joined = {k: np.concatenate([np.asarray(events[k]), rlf_events[k]]) for k in events}
-        order = np.lexsort((joined["ut_id"], joined["time_s"]))
-        joined = {k: v[order] for k, v in joined.items()}
+        failed = rlf_events["ut_id"][rlf_events["kind"] == "handover_failure"]
+        if failed.size:  # a failed procedure does not complete
+            kind, ut = np.asarray(events["kind"]), np.asarray(events["ut_id"])
+            keep = ~(np.isin(ut, failed) & np.isin(kind, _COMPLETIONS))
+            events = {k: np.asarray(v)[keep] for k, v in events.items()}
+        joined = sorted_events({k: np.concatenate([events[k], rlf_events[k]]) for k in events})
         both = {k: np.concatenate([np.asarray(dwells[k]), rlf_dwells[k]]) for k in dwells}
         return controller, joined, both
 

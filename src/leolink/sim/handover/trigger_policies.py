@@ -17,6 +17,7 @@ t1             satellite    time, from the serving's planned end of service (5.5
 elevation      satellite    serving below, candidate above (leolink)
 time_to_exit   satellite    longest remaining time above the service threshold (leolink)
 cho            its first    conditional handover: prepare, then execute (5.3.5.13)
+a2a4           cell         A4 measured only while A2 holds (serving below a threshold)
                execution
                condition's
 =============  ===========  ====================================================
@@ -71,8 +72,9 @@ class TriggerPolicyEntry:
     neighbour_window_db = math.inf
     usable_cells_only = True  # blind below the service threshold (module docstring)
 
-    def __init__(self, name, inner, l3, horizon):
+    def __init__(self, name, inner, l3, horizon, cell_offsets=()):
         self.name, self.inner, self.l3, self.horizon_s = name, inner, l3, float(horizon)
+        self.cell_offsets = tuple(cell_offsets)  # (sat_id, beam_id or None, offset_db)
 
     @property
     def level(self):
@@ -86,9 +88,11 @@ class TriggerPolicyEntry:
 
     def run(self, engine, min_snr_db, radius_m, future_state, epoch_s):
         """A fresh :class:`~leolink.sim.handover.trigger_run.TriggerRun` for one run."""
-        return TriggerRun(
+        run = TriggerRun(
             self.inner, self.l3, engine, min_snr_db, radius_m, future_state, epoch_s, self.horizon_s
         )
+        run.cell_offsets = self.cell_offsets
+        return run
 
     def __repr__(self):
         return f"TriggerPolicyEntry({self.name!r}, {self.inner!r}, {self.l3!r})"
@@ -96,15 +100,17 @@ class TriggerPolicyEntry:
 
 def entry(name, policy, context=None, horizon=DEFAULT_HORIZON_S):
     """The registry's object for ``policy`` (a TriggerPolicy or ConditionalHandover), with
-    the layer-3 filter of the build context (``[controller.filter]``; fc4 without one)."""
+    the layer-3 filter of the build context (``[controller.filter]``; fc4 without one) and
+    its cell offsets (``[[controller.cell_offsets]]``)."""
     section = getattr(context, "filter", None)
     l3 = build_filter(section if section is not None else FilterConfig())
-    return TriggerPolicyEntry(name, policy, l3, horizon)
+    offsets = [(c.sat_id, c.beam_id, c.offset_db) for c in getattr(context, "cell_offsets", ())]
+    return TriggerPolicyEntry(name, policy, l3, horizon, offsets)
 
 
 def _builder(name):
     def build(params, context=None):
-        return entry(name, build_policy(params), context, horizon_s(params))
+        return entry(name, build_policy(params, context), context, horizon_s(params))
 
     return build
 
@@ -119,6 +125,7 @@ _DOCS = {
     "elevation": "Serving below, candidate above an elevation (leolink); the satellite.",
     "time_to_exit": "Longest remaining service time, ephemeris look-ahead; the satellite.",
     "cho": "Conditional handover (5.3.5.13): prepare candidates, execute on a condition.",
+    "a2a4": "Event A4 measured while A2 (5.5.4.3) holds: serving weak, neighbour good; the cell.",
 }
 
 for _name, _config in POLICY_CONFIGS.items():

@@ -73,6 +73,8 @@ class TriggerRun:
             else None
         )
         self.axis, self.pstate, self.filt = None, None, None
+        self.cell_offsets = ()  # (sat_id, beam_id or None, Ocn [dB]): the entry sets them
+        self._ocn = None  # (global cells, Ocn) sorted, built at the first epoch
 
     # -- state across epochs ---------------------------------------------------------------
     def _live_sats(self):
@@ -120,9 +122,29 @@ class TriggerRun:
         prepared = None if ps.prepared is None else old.remap(axis, ps.prepared, False)
         serving = axis.local_cell(old.global_cell(ps.serving))
         filt = L3State(old.remap(axis, self.filt.value, np.nan), self.filt.t_s)
-        return PolicyState(serving, trig, prepared), filt
+        # (a per-UT gate has no cell axis: it is carried as it is)
+        return PolicyState(serving, trig, prepared, ps.gate), filt
 
     # -- the epoch's inputs ----------------------------------------------------------------
+    def _offsets(self, axis):
+        """Ocn of every local cell ``(n_ut, n_local * n_beam)`` [dB], 0 where none is set
+        (a later entry for a cell wins)."""
+        nb = self.n_beam
+        if self._ocn is None:
+            cells, values = [], []
+            for sat, beam, db in self.cell_offsets:
+                beams = np.arange(nb) if beam is None else np.array([beam])
+                cells.append(sat * nb + beams)
+                values.append(np.full(beams.size, float(db)))
+            cells, values = np.concatenate(cells), np.concatenate(values)
+            last = len(cells) - 1 - np.unique(cells[::-1], return_index=True)[1]
+            self._ocn = (cells[last], values[last])
+        keys, values = self._ocn
+        local = (axis.sats[:, :, None] * nb + np.arange(nb)).reshape(axis.n_ut, -1)
+        at = np.minimum(np.searchsorted(keys, local), len(keys) - 1)
+        hit = (keys[at] == local) & (np.repeat(axis.sats, nb, axis=1) >= 0)
+        return np.where(hit, values[at], 0.0)
+
     def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up):
         """The Epoch fields of ``policy.needs`` besides ``meas``, NaN where not usable."""
         needs, nb = self.policy.needs, self.n_beam
@@ -211,6 +233,8 @@ class TriggerRun:
         filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)
         extra = self._fields(t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up)
         local_serving = axis.local_cell(serving)
+        if self.cell_offsets:
+            extra["offset_db"] = self._offsets(axis)
         epoch = Epoch(t_s=float(t_s), serving=local_serving, meas=meas, **extra)
         decision, pstate = self.policy.decide(epoch, pstate, self.n_beam)
         self.axis, self.pstate, self.filt = axis, pstate, filt

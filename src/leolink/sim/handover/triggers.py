@@ -60,8 +60,8 @@ class Epoch:
     meas : float (n_ut, n_cand) or None, trigger quantity after layer-3 filtering
         (RSRP [dBm] or SINR [dB]; ``Mn``, and ``Mp`` at the serving index); NaN = not
         measurable.
-    offset_db : float or (n_cand,) [dB], ``Ofn + Ocn`` of each candidate (``Ofp + Ocp``
-        at the serving index), default 0.
+    offset_db : float, (n_cand,) or (n_ut, n_cand) [dB], ``Ofn + Ocn`` of each candidate
+        (``Ofp + Ocp`` at the serving index), default 0.
     ut_pos_m : (n_ut, 3) [m] or None, UT positions (D1, D2), any Cartesian frame.
     ref_pos_m : (n_cand, 3) [m] or None, D1 fixed reference locations (cells' ground centres).
     moving_ref_pos_m : (n_cand, 3) [m] or None, D2 moving reference locations at ``t_s``
@@ -229,11 +229,13 @@ class _Signal:
     needs = ("meas",)
 
     def rank(self, epoch):
-        return epoch.need("meas", type(self).__name__)
+        """Triggered cells rank by ``Mn + Ofn + Ocn``: an offset biases the choice as the
+        trigger (the order is leolink's; the standard leaves the target to the network)."""
+        return self._mn_mp(epoch)[0]
 
     def _mn_mp(self, epoch):
         meas = epoch.need("meas", type(self).__name__)
-        offset = np.broadcast_to(np.asarray(epoch.offset_db, float), meas.shape[-1:])
+        offset = np.broadcast_to(np.asarray(epoch.offset_db, float), meas.shape)
         return meas + offset, meas, epoch.at_serving(meas + offset), epoch.at_serving(meas)
 
 
@@ -260,6 +262,31 @@ class A3(_Signal):
         left, right = mn, mp + self.offset_db
         enter = left - self.hysteresis_db > right
         leave = (left + self.hysteresis_db < right) | any_nan(left, right)
+        return enter, leave
+
+
+@dataclasses.dataclass(frozen=True)
+class A2(_Signal):
+    """Event A2, serving becomes worse than threshold (TS 38.331 5.5.4.3).
+
+    Entering A2-1: ``Ms + Hys < Thresh``; leaving A2-2: ``Ms - Hys > Thresh`` (``Ms``
+    without offsets). A serving-cell event: its conditions are one column ``(n_ut, 1)``;
+    no serving measurement leaves it.
+    """
+
+    threshold_db: float = 0.0
+    hysteresis_db: float = 0.0
+    time_to_trigger_s: float = 0.0
+
+    def __post_init__(self):
+        check_param("a2a4.a2_threshold_db", self.threshold_db, -math.inf, "a2-Threshold")
+        check_param("a2a4.hysteresis_db", self.hysteresis_db, 0.0, "hysteresis [dB]")
+        check_ttt(self.time_to_trigger_s)
+
+    def conditions(self, epoch):
+        ms = epoch.at_serving(epoch.need("meas", "A2"))
+        enter = ms + self.hysteresis_db < self.threshold_db
+        leave = (ms - self.hysteresis_db > self.threshold_db) | np.isnan(ms)
         return enter, leave
 
 
