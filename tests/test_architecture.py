@@ -42,8 +42,8 @@ LAYERS = {
     "constants": 0, "errors": 0, "registry": 0, "rng": 0, "textfile": 0, "arrays": 0,
     "examples": 0,  # the packaged example configs: data, and where a name leads
     "background": 0, "_kernels": 0,  # the compiled loops (C): they import nothing
-    "geometry": 1, "geodesy": 1, "greatcircle": 1,
-    "orbit": 2, "roi": 2, "placement": 2, "visibility": 2, "visibility_kernel": 2,
+    "geometry": 1, "geodesy": 1, "greatcircle": 1, "land": 1,
+    "orbit": 2, "roi": 2, "placement": 2, "passes": 2, "visibility": 2, "visibility_kernel": 2,
     "ephemeris_error": 2, "compiled": 0,
     "antenna": 3, "link": 3, "kinematics": 3, "coverage": 3,
     "engine": 4,

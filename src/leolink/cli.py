@@ -1,5 +1,5 @@
 """Command line: ``leolink run | coverage | budget | codebook | sweep | compare | report |
-validate | examples | init``.
+validate | examples | init | passes``.
 
 Errors leolink raises on purpose, and errors of the environment (a folder that cannot
 be written, a full disk, an unreachable dask scheduler), are printed as one line (exit
@@ -152,6 +152,24 @@ def cmd_run(args) -> int:
             f"{o['handovers']['beam_handover']} beam and {o['handovers']['sat_handover']} "
             f"satellite handovers, mean SNR {_db(o['snr_db']['mean'])}"
         )
+    return 0
+
+
+def cmd_passes(args) -> int:
+    from leolink.app.passes import parse_site, site_passes
+
+    site = parse_site(args.site)
+    passes = site_passes(_config(args), site, args.min_elevation_deg)
+    if args.json:
+        keys = ("sat_id", "rise_utc", "culmination_utc", "set_utc", "max_elevation_deg")
+        print(json.dumps([{k: p[k] for k in (*keys, "name", "rise_s", "set_s")} for p in passes]))
+        return 0
+    print(f"{len(passes)} passes over {args.site}")
+    for p in passes:
+        when = [p[f"{k}_utc"] or (None if p[f"{k}_s"] is None else f"t={p[f'{k}_s']:.3f} s")
+                for k in ("rise", "culmination", "set")]  # fmt: skip
+        print(f"{p['name']:>12}  rise {when[0]}  culmination {when[1]}  set {when[2]}  "
+              f"max {p['max_elevation_deg']:.2f} deg")  # fmt: skip
     return 0
 
 
@@ -319,6 +337,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--parquet", action="store_true", help="also write trace.parquet")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
+    p = add("passes", cmd_passes, "rise, culmination and set of every satellite over a site")
+    p.add_argument("--site", required=True, metavar="LAT,LON[,ALT]", help="deg, deg, m")
+    p.add_argument("--min-elevation-deg", type=float, help="mask (default: the config's)")
+    p.add_argument("--json", action="store_true", help="print a JSON list of passes")
     _add_sweep(add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries"))
     _compare_parser(add("compare", cmd_compare, "run policies on the same seeds, compare KPIs"))
     _add_report(sub.add_parser("report", help="rebuild report.html of a run folder, no rerun"))

@@ -24,12 +24,16 @@ from leolink.geometry import (
     roi_to_ground,
 )
 from leolink.greatcircle import great_circle_velocity
+from leolink.land import coastline_arcs, is_land
 
 __all__ = [
     "geodetic_to_roi_points",
     "grid_points",
+    "has_land",
+    "lat_lon_grid",
     "place_grid",
     "place_random",
+    "random_region",
     "roi_points_to_geodetic",
 ]
 
@@ -144,3 +148,83 @@ def grid_points(count, rx_m, ry_m):
             keep = np.round(np.linspace(0, len(x) - 1, count)).astype(int)
             return x[keep], y[keep]
         n += 1
+
+
+# --- Placement by geography (latitude and longitude) -------------------------------------
+
+
+def lat_lon_grid(spacing_deg, lat_band_deg=(-90.0, 90.0), lon_range_deg=(-180.0, 180.0)):
+    """Points of a near-equal-area grid in a latitude band and longitude range.
+
+    Rows every ``spacing_deg`` of latitude, at the centres of the band's rows; along a
+    row at latitude ``phi`` the points are ``spacing_deg / cos(phi)`` of longitude apart
+    (rounded to fill the range evenly), so each point stands for about the same area,
+    ``(spacing_deg * pi / 180)^2 R^2``, and per-UT statistics average over area.
+
+    Parameters
+    ----------
+    spacing_deg : float
+        Spacing of the rows, and along the equator [deg], > 0.
+    lat_band_deg, lon_range_deg : (float, float)
+        ``(low, high)`` latitude in [-90, 90] and longitude in [-180, 180] [deg].
+
+    Returns
+    -------
+    lat_deg, lon_deg : ndarray, shape (n,)
+        Ordered by row (south to north), then by longitude (west to east).
+    """
+    (lat_lo, lat_hi), (lon_lo, lon_hi) = lat_band_deg, lon_range_deg
+    n_rows = math.floor((lat_hi - lat_lo) / spacing_deg + 0.5)
+    if n_rows < 1:
+        return np.empty(0), np.empty(0)
+    lat = lat_lo + (np.arange(n_rows) + 0.5) * (lat_hi - lat_lo) / n_rows
+    width = lon_hi - lon_lo
+    per_row = np.maximum(1, np.round(width * np.cos(np.radians(lat)) / spacing_deg)).astype(int)
+    row = np.repeat(np.arange(n_rows), per_row)
+    k = np.arange(len(row)) - np.repeat(np.cumsum(per_row) - per_row, per_row)
+    return lat[row], lon_lo + (k + 0.5) * width / per_row[row]
+
+
+def random_region(n, lat_band_deg, lon_range_deg, rng, land_only=False):
+    """``n`` points uniform on the sphere's area inside a latitude band and longitude range.
+
+    ``sin(lat)`` is uniform between the band's sines (the area between two parallels is
+    proportional to the difference of their sines), the longitude uniform in its range.
+    With ``land_only``, points at sea are drawn again (rejection: still uniform over the
+    land of the region, :func:`leolink.land.is_land`), in batches of ``n`` / (the land
+    fraction so far); the caller checks first that the region has land
+    (:func:`has_land`).
+
+    Returns
+    -------
+    lat_deg, lon_deg : ndarray, shape (n,)
+    """
+    s_lo, s_hi = (math.sin(math.radians(v)) for v in lat_band_deg)
+
+    def draw(k):
+        lat = np.degrees(np.arcsin(np.clip(rng.uniform(s_lo, s_hi, k), -1.0, 1.0)))
+        return lat, rng.uniform(*lon_range_deg, k)
+
+    if not land_only:
+        return draw(n)
+    lats, lons, n_drawn, n_kept = [], [], 0, 0
+    while n_kept < n:
+        k = max(64, math.ceil(1.2 * (n - n_kept) * max(n_drawn, 1) / max(n_kept, 1)))
+        lat, lon = draw(min(k, 4_000_000))
+        keep = is_land(lat, lon)
+        lats.append(lat[keep])
+        lons.append(lon[keep])
+        n_drawn, n_kept = n_drawn + len(lat), n_kept + int(keep.sum())
+    return np.concatenate(lats)[:n], np.concatenate(lons)[:n]
+
+
+def has_land(lat_band_deg, lon_range_deg):
+    """Whether a region has land: a coastline vertex inside it, or one of a 5 x 5 grid of
+    its points on land (a region without coastline is all land or all sea)."""
+    (lat_lo, lat_hi), (lon_lo, lon_hi) = lat_band_deg, lon_range_deg
+    lon, lat = coastline_arcs()
+    if np.any((lat > lat_lo) & (lat < lat_hi) & (lon > lon_lo) & (lon < lon_hi)):
+        return True
+    step = min(lat_hi - lat_lo, (lon_hi - lon_lo) * 0.5) / 5.0
+    probe_lat, probe_lon = lat_lon_grid(max(step, 1e-6), lat_band_deg, lon_range_deg)
+    return bool(is_land(probe_lat, probe_lon).any())

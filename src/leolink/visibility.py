@@ -24,7 +24,7 @@ from leolink import compiled
 from leolink.compiled import run_rows
 from leolink.geodesy import wgs84_to_ecef
 
-__all__ = ["gmst82_rad", "teme_to_ecef_m", "tle_elevations_rad"]
+__all__ = ["gmst82_rad", "site_elevations_rad", "teme_to_ecef_m", "tle_elevations_rad"]
 
 SECONDS_PER_DAY = 86_400.0
 #: Default memory of one block of work [bytes] (a few float64 arrays of the block's size).
@@ -158,6 +158,28 @@ def _kernel(n):
     from leolink.visibility_kernel import elevations
 
     return elevations
+
+
+def site_elevations_rad(sat_pos_m, site_m, normal):
+    """Elevation of satellites over one site, ``asin(n . d / |d|)``, ``d = r - s``.
+
+    Parameters
+    ----------
+    sat_pos_m : array_like, shape (..., 3)
+        Satellite positions, the site's frame [m].
+    site_m, normal : array_like, shape (3,)
+        The site's position [m] and its local vertical (unit; the ellipsoid normal on
+        WGS 84, the radial direction on the sphere).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        [rad]
+    """
+    r = np.asarray(sat_pos_m, float)
+    flat = np.ascontiguousarray(r.reshape(-1, 3).T)
+    site, normal = (np.asarray(a, float).reshape(1, 3) for a in (site_m, normal))
+    return _elevations(flat, site, normal)[0].reshape(r.shape[:-1])
 
 
 def _elevations(r, site, normal):

@@ -119,12 +119,19 @@ class _Position:
         )
 
 
-def _epoch_utc(cfg):
-    """ISO 8601 UTC (``...Z``) of simulation time 0 for the report's CZML, by the
-    scenario's own rule (:func:`~leolink.app.orbits.tle_time_zero_utc` for TLE runs);
-    None when the run has no calendar time (the exports then count from J2000)."""
+def time_zero_utc(cfg):
+    """Aware UTC ``datetime`` of simulation time 0, by the scenario's own rule
+    (:func:`~leolink.app.orbits.tle_time_zero_utc` for TLE runs); None when the run has
+    no calendar time."""
     c = cfg.constellation
-    when = tle_time_zero_utc(cfg) if c.kind == "tle" else cfg.utc_of_time_zero()
+    return tle_time_zero_utc(cfg) if c.kind == "tle" else cfg.utc_of_time_zero()
+
+
+def _epoch_utc(cfg):
+    """ISO 8601 UTC (``...Z``) of simulation time 0 for the report's CZML
+    (:func:`time_zero_utc`); None when the run has no calendar time (the exports then
+    count from J2000)."""
+    when = time_zero_utc(cfg)
     if when is None:
         return None
     return when.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
@@ -139,9 +146,10 @@ def _sinks(cfg, out_dir, summary, scen):
         ephemeris=scen.ephemeris,
         codebook=scen.engine.codebook,
         epoch_utc=_epoch_utc(cfg),
+        time_zero_utc=time_zero_utc(cfg),  # the trace's time_utc
     )
     if out_dir is None:
-        sinks = [summary, MemorySink()]
+        sinks = [summary, MemorySink(context.time_zero_utc)]
         if cfg.output.report.enabled:
             sinks.append(SINKS.build("report", cfg.output.report, context))
         return sinks

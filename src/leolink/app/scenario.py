@@ -23,6 +23,7 @@ from leolink.app.steering import steering_from_config
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.ephemeris_error import EstimatedEphemeris
 from leolink.errors import ConfigError
+from leolink.io.sites import with_sites
 from leolink.link.acm import LinkFigureParams
 from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
@@ -182,7 +183,7 @@ def build_populations(cfg, heading_rad, rng):
         time_zero_utc=cfg.utc_of_time_zero(),
     )
     mobility = REGISTRIES["population.kind"]
-    pops = [(p.name, mobility.build(p.kind, p, ctx)) for p in cfg.population]
+    pops = [(p.name, mobility.build(p.kind, with_sites(p), ctx)) for p in cfg.population]
     if cfg.earth.model == "wgs84":
         pops = [(name, OnWgs84(model, cfg.earth.radius_m)) for name, model in pops]
     return pops

@@ -46,9 +46,10 @@ def check_files(cfg):
     if c.kind == "tle" and not Path(c.tle_file).is_file():
         raise ConfigError(f"constellation.tle_file = {c.tle_file!r} does not exist")
     for i, p in enumerate(cfg.population):
-        path = getattr(p, "track_file", "")
-        if path and not Path(path).is_file():
-            raise ConfigError(f"population.{i}.track_file = {path!r} does not exist")
+        for key in ("track_file", "sites_file"):
+            path = getattr(p, key, "")
+            if path and not Path(path).is_file():
+                raise ConfigError(f"population.{i}.{key} = {path!r} does not exist")
 
 
 def _sample(times_s, n_sat):

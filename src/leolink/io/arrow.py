@@ -12,10 +12,13 @@ import numpy as np
 import pyarrow as pa
 
 __all__ = ["NUMPY_TYPES", "Vocabulary", "decoded_array", "dictionary_array", "numeric_array"]
-__all__ += ["string_array"]
+__all__ += ["UTC_TIMESTAMP", "iso_utc_text", "string_array"]
 
+#: The writers' UTC timestamps: microseconds since 1970-01-01T00:00:00Z (int64).
+UTC_TIMESTAMP = pa.timestamp("us", tz="UTC")
 #: numpy dtype of each Arrow numeric type the writers use.
 NUMPY_TYPES = {
+    UTC_TIMESTAMP: np.int64,
     pa.int8(): np.int8,
     pa.int32(): np.int32,
     pa.int64(): np.int64,
@@ -29,6 +32,14 @@ def numeric_array(values, arrow_type):
     numpy casts (no copy when the dtype is already that type)."""
     data = np.ascontiguousarray(values, NUMPY_TYPES[arrow_type])
     return pa.Array.from_buffers(arrow_type, data.size, [None, pa.py_buffer(data)])
+
+
+def iso_utc_text(timestamps):
+    """ISO 8601 text (``2026-03-21T12:00:00.250000Z``) of an Arrow array of
+    :data:`UTC_TIMESTAMP` (the CSV form of a timestamp column)."""
+    import pyarrow.compute as pc  # ~50 ms, only for a table with timestamps
+
+    return pc.strftime(timestamps, format="%Y-%m-%dT%H:%M:%SZ")
 
 
 def string_array(names):

@@ -15,6 +15,7 @@ written, for outputs drawn from the final summary (the report page).
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Literal
 
@@ -22,11 +23,13 @@ import numpy as np
 import pyarrow as pa
 from pydantic import AfterValidator, Field
 
+from leolink.io.arrow import UTC_TIMESTAMP, numeric_array
 from leolink.io.tables import (
     EVENT_SCHEMA,
     TRACE_SCHEMA,
     EventLog,
     TraceWriter,
+    schema_for,
     to_table,
     trace_schema,
 )
@@ -44,6 +47,7 @@ __all__ = [
     "ReportParams",
     "SinkParams",
     "TraceSink",
+    "utc_us",
 ]
 
 #: Output sinks by config name (``[output.<name>]``).
@@ -61,19 +65,30 @@ def _trace_columns(columns, schema=TRACE_SCHEMA):
 
 
 class TraceSink:
-    """``trace.csv`` and/or ``trace.parquet``, chunk by chunk (:class:`TraceWriter`)."""
+    """``trace.csv`` and/or ``trace.parquet``, chunk by chunk (:class:`TraceWriter`).
 
-    def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000):
+    With ``time_zero_utc`` (an aware ``datetime``: the UTC instant of simulation time 0)
+    the trace ends with ``time_utc``: ISO 8601 text in CSV, a timestamp in Parquet
+    (microseconds, UTC), ``time_zero_utc + time_s`` (:func:`utc_us`).
+    """
+
+    def __init__(self, out_dir, formats=("csv",), chunk_rows=200_000, time_zero_utc=None):
         self.out_dir, self.formats, self.chunk_rows = Path(out_dir), tuple(formats), chunk_rows
         self.writer, self.files, self.digests = None, [], {}
+        self.time_zero_utc = time_zero_utc
 
     def start(self, info):
         self.schema = trace_schema(info)
+        if self.time_zero_utc is not None:
+            self.schema = schema_for((*self.schema.names, "time_utc"))
         self.writer = TraceWriter(self.out_dir, formats=self.formats, chunk_rows=self.chunk_rows,
                                   columns=tuple(self.schema.names))  # fmt: skip
 
     def epoch(self, frame):
-        self.writer.append(_trace_columns(frame.columns, self.schema))
+        columns = frame.columns
+        if self.time_zero_utc is not None:
+            columns = {**columns, "time_utc": utc_us(self.time_zero_utc, columns["time_s"])}
+        self.writer.append(_trace_columns(columns, self.schema))
 
     block = epoch  # the writer cuts chunks of ``chunk_rows`` whatever it is given
 
@@ -84,6 +99,15 @@ class TraceSink:
     def abort(self):
         if self.writer is not None:
             self.writer.abort()
+
+
+def utc_us(time_zero_utc, time_s):
+    """The trace's ``time_utc``: microseconds since 1970-01-01T00:00:00Z (UTC, int64) of
+    simulation times ``time_s`` (n,) [s] after the aware ``datetime`` ``time_zero_utc``,
+    rounded to the microsecond."""
+    delta = time_zero_utc - datetime(1970, 1, 1, tzinfo=UTC)
+    t0_us = (delta.days * 86_400 + delta.seconds) * 1_000_000 + delta.microseconds
+    return t0_us + np.round(np.asarray(time_s, float) * 1e6).astype(np.int64)
 
 
 class EventSink:
@@ -113,11 +137,12 @@ class EventSink:
 
 
 class MemorySink:
-    """Trace and events kept in memory as Arrow tables (a run without an output folder)."""
+    """Trace and events kept in memory as Arrow tables (a run without an output folder);
+    with ``time_zero_utc`` the trace gains ``time_utc`` as :class:`TraceSink`'s."""
 
-    def __init__(self):
+    def __init__(self, time_zero_utc=None):
         self._trace, self._events = [], []
-        self.schema = TRACE_SCHEMA
+        self.schema, self.time_zero_utc = TRACE_SCHEMA, time_zero_utc
 
     def start(self, info):
         self._trace, self._events = [], []
@@ -139,7 +164,11 @@ class MemorySink:
     def trace(self) -> pd.DataFrame:
         if not self._trace:
             return self.schema.empty_table().to_pandas()
-        return pa.concat_tables(self._trace).to_pandas()
+        table = pa.concat_tables(self._trace)
+        if self.time_zero_utc is not None:
+            t_us = utc_us(self.time_zero_utc, table.column("time_s").to_numpy())
+            table = table.append_column("time_utc", numeric_array(t_us, UTC_TIMESTAMP))
+        return table.to_pandas()
 
     def events(self) -> pd.DataFrame:
         return pa.concat_tables([EVENT_SCHEMA.empty_table(), *self._events]).to_pandas()
@@ -286,7 +315,9 @@ def _report_sink(p, ctx):
 
 SINKS.add(
     "trace",
-    lambda p, ctx: TraceSink(ctx.out_dir, p.formats, p.chunk_rows),
+    lambda p, ctx: TraceSink(
+        ctx.out_dir, p.formats, p.chunk_rows, getattr(ctx, "time_zero_utc", None)
+    ),
     config=TraceParams,
     doc="one row per UT per epoch (CSV and/or Parquet)",
 )

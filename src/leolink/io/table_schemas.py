@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow as pa
 
 from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
-from leolink.io.arrow import decoded_array, numeric_array
+from leolink.io.arrow import UTC_TIMESTAMP, decoded_array, numeric_array
 from leolink.link.acm import FIGURE_COLUMNS
 from leolink.link.modcod import modcod_table
 from leolink.sim.handover.controller import EVENT_COLUMNS, SERVICE_NAMES
@@ -30,7 +30,9 @@ __all__ = [
     "TRACE_COLUMNS",
     "TRACE_COLUMN_DOCS",
     "TRACE_FLOAT64_COLUMNS",
+    "TIMESTAMP_COLUMNS",
     "TRACE_SCHEMA",
+    "csv_schema",
     "float32_schema",
     "schema_for",
     "to_table",
@@ -122,12 +124,17 @@ _CODED_COLUMNS = {
     "modcod": (*modcod_table().names, NO_MODCOD_NAME),
 }
 FORMATS = ("csv", "parquet")
+#: Columns of UTC instants: a timestamp in Parquet, ISO 8601 text in CSV
+#: (:func:`csv_schema`); given to a writer as int64 microseconds since 1970 (UTC).
+TIMESTAMP_COLUMNS = ("time_utc",)
 #: Float columns of ``trace.parquet`` that stay float64: epoch times (float32 would round
 #: 86,400 s to 8 ms) and positions (float32 would round a longitude to 1.7 m).
 TRACE_FLOAT64_COLUMNS = ("time_s", "lat_deg", "lon_deg")
 
 
 def _arrow_type(name):
+    if name in TIMESTAMP_COLUMNS:
+        return UTC_TIMESTAMP
     if name in _INT_COLUMNS:
         return pa.int32()
     if name in _STRING_COLUMNS:
@@ -149,6 +156,12 @@ def schema_for(columns):
     a NaN, :mod:`leolink.io.arrow`): Parquet then stores no definition levels, 20 % of
     the writer's time (``bench_sim``'s 3.6 M-row trace: 0.73-0.78 -> 0.57-0.62 s)."""
     return pa.schema([pa.field(name, _arrow_type(name), nullable=False) for name in columns])
+
+
+def csv_schema(schema):
+    """``schema`` with its timestamp columns as strings: the CSV's ISO 8601 text."""
+    text = lambda f: f.name in TIMESTAMP_COLUMNS  # noqa: E731
+    return pa.schema([f.with_type(pa.string()) if text(f) else f for f in schema])
 
 
 def float32_schema(schema, keep=TRACE_FLOAT64_COLUMNS):

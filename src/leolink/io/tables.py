@@ -33,9 +33,11 @@ from leolink.background import BackgroundWorker
 from leolink.errors import ConfigError, require_at_least
 from leolink.io.arrow import (
     NUMPY_TYPES,
+    UTC_TIMESTAMP,
     Vocabulary,
     decoded_array,
     dictionary_array,
+    iso_utc_text,
     numeric_array,
 )
 from leolink.io.atomic import PendingFiles
@@ -48,11 +50,13 @@ from leolink.io.table_schemas import (  # noqa: F401  (the schemas' names, re-ex
     EVENT_SCHEMA,
     FORMATS,
     NO_MODCOD_NAME,
+    TIMESTAMP_COLUMNS,
     TRACE_COLUMNS,
     TRACE_FLOAT64_COLUMNS,
     TRACE_SCHEMA,
     _check,
     _coded,
+    csv_schema,
     float32_schema,
     schema_for,
     to_table,
@@ -113,7 +117,7 @@ class TableWriter:
         if bad or not formats:
             raise ConfigError(f"output formats = {list(formats)!r}; use some of {list(FORMATS)}")
         require_at_least("output.chunk_rows", chunk_rows, 1, "rows per chunk")
-        self.schema = schema
+        self.schema, self._csv_schema = schema, csv_schema(schema)
         self.parquet_schema = schema if parquet_schema is None else parquet_schema
         self.chunk_rows = max(1, min(int(chunk_rows), CHUNK_BYTES // (8 * len(schema))))
         out_dir = Path(out_dir)
@@ -142,7 +146,7 @@ class TableWriter:
             csv_file = self._pending.open_native(self.paths["csv"])
             csv_file.write((",".join(self.schema.names) + "\n").encode())
             options = pacsv.WriteOptions(include_header=False, quoting_style="none")
-            self._csv = pacsv.CSVWriter(csv_file, self.schema, write_options=options)
+            self._csv = pacsv.CSVWriter(csv_file, self._csv_schema, write_options=options)
             self._growing["csv"] = GrowingDigest(self._pending.partial_path(self.paths["csv"]))
         if "parquet" in self.paths:
             import pyarrow.parquet as pq
@@ -217,17 +221,19 @@ class TableWriter:
                 else decoded_array(codes, names, by_take=by_take)
             )
 
-        arrays = [
-            strings(f.name) if f.name in self._vocab else numeric_array(cols[f.name], f.type)
-            for f in schema
-        ]
+        def values(f):
+            if f.name in TIMESTAMP_COLUMNS and pa.types.is_string(f.type):  # the CSV's text
+                return iso_utc_text(numeric_array(cols[f.name], UTC_TIMESTAMP))
+            return numeric_array(cols[f.name], f.type)
+
+        arrays = [strings(f.name) if f.name in self._vocab else values(f) for f in schema]
         return pa.Table.from_arrays(arrays, schema=self._coded_schema if coded else schema)
 
     def _flush(self):
         """Hand the filled part of the chunk to the writer and start a new chunk (the
         tables hold the old one's memory until they are written)."""
         cols = {n: column[: self._n_filled] for n, column in self._chunk.items()}
-        csv = self._arrow(cols, self.schema) if self._csv is not None else None
+        csv = self._arrow(cols, self._csv_schema) if self._csv is not None else None
         parquet = None if self._parquet is None else self._arrow(cols, self.parquet_schema, True)
         if self._thread is None:
             self._write((csv, parquet))

@@ -14,11 +14,11 @@ by its serving beam has the colour of that beam's cell.
 from __future__ import annotations
 
 from functools import lru_cache
-from importlib import resources
 
 import numpy as np
 
 from leolink.geometry import ecef_to_geodetic
+from leolink.land import coastline_arcs
 
 __all__ = [
     "N_BEAM_COLOURS",
@@ -77,18 +77,17 @@ def _palette():
     return palette
 
 
-@lru_cache(maxsize=1)
 def coastlines():
-    """World coastlines, Natural Earth 4.1.0 1:50m land (public domain).
+    """World coastlines, Natural Earth 4.1.0 1:50m land (public domain): copies of
+    :func:`leolink.land.coastline_arcs`.
 
     Returns
     -------
     lon_deg, lat_deg : ndarray of float32, shape (n_point,)
         Polylines separated by NaN [deg].
     """
-    ref = resources.files("leolink") / "data" / "coastlines_50m.npz"
-    with resources.as_file(ref) as path, np.load(path) as data:
-        return data["lon_deg"].copy(), data["lat_deg"].copy()
+    lon, lat = coastline_arcs()
+    return lon.copy(), lat.copy()
 
 
 def subsatellite_points(sat_pos_m):

@@ -18,7 +18,16 @@ from typing import Annotated, Literal, Protocol, runtime_checkable
 import numpy as np
 from pydantic import Field, model_validator
 
-from leolink.placement import grid_points, place_random, roi_points_to_geodetic
+from leolink.errors import ConfigError
+from leolink.land import is_land
+from leolink.placement import (
+    grid_points,
+    has_land,
+    lat_lon_grid,
+    place_random,
+    random_region,
+    roi_points_to_geodetic,
+)
 from leolink.registry import Params, Registry
 from leolink.sim.environment import ChannelParams
 from leolink.sim.mobility.models import (
@@ -30,6 +39,7 @@ from leolink.sim.mobility.models import (
 )
 
 __all__ = [
+    "GEOGRAPHIC_PLACEMENTS",
     "MOBILITY",
     "MotionModel",
     "PopulationContext",
@@ -103,12 +113,57 @@ class PopulationParams(Params):
         return -1
 
 
-class PlacedParams(PopulationParams):
-    """Populations placed in the ROI plane."""
+_Lat = Annotated[float, Field(ge=-90.0, le=90.0)]
+_Lon = Annotated[float, Field(ge=-180.0, le=180.0)]
+_Alt = Annotated[float, Field(ge=-500.0, le=20_000.0)]
+#: Placements by latitude and longitude (the others are in the ROI plane).
+GEOGRAPHIC_PLACEMENTS = ("sites", "lat_lon_grid", "random_region")
 
-    count: int = Field(1, ge=1, le=10_000_000, description="number of UTs (random/grid/center)")
-    placement: Literal["center", "points", "random", "grid"] = Field(
-        "center", description="where the UTs start"
+
+class PlacedParams(PopulationParams):
+    """Populations placed in the ROI plane (``center``, ``points``, ``random``, ``grid``)
+    or by geography (``sites``, ``lat_lon_grid``, ``random_region``)."""
+
+    count: int = Field(
+        1, ge=1, le=10_000_000, description="number of UTs (random/grid/center/random_region)"
+    )
+    placement: Literal[
+        "center", "points", "random", "grid", "sites", "lat_lon_grid", "random_region"
+    ] = Field("center", description="where the UTs start")
+    lat_deg: list[_Lat] = Field(
+        default_factory=list, description="placement = 'sites': latitudes [deg], in [-90, 90]"
+    )
+    lon_deg: list[_Lon] = Field(
+        default_factory=list,
+        description="placement = 'sites': longitudes [deg], in [-180, 180]",
+    )
+    site_names: list[str] = Field(
+        default_factory=list, description="placement = 'sites': a name per site (optional)"
+    )
+    sites_file: str = Field(
+        "",
+        description="placement = 'sites': CSV with a header name, lat_deg, lon_deg[, alt_m] "
+        "(relative to the config), instead of the lists",
+    )
+    spacing_deg: float = Field(
+        1.0, gt=0.0, le=90.0, description="placement = 'lat_lon_grid': row spacing [deg]"
+    )
+    lat_band_deg: list[_Lat] = Field(
+        [-90.0, 90.0],
+        min_length=2,
+        max_length=2,
+        description="lat_lon_grid / random_region: [south, north] latitude limits [deg]",
+    )
+    lon_range_deg: list[_Lon] = Field(
+        [-180.0, 180.0],
+        min_length=2,
+        max_length=2,
+        description="lat_lon_grid / random_region: [west, east] longitude limits [deg]",
+    )
+    land_only: bool = Field(
+        False,
+        description="lat_lon_grid / random_region: keep only points on land (Natural Earth "
+        "1:50m coastlines)",
     )
     x_m: list[_RoiCoordinate] = Field(
         default_factory=list, description="placement points: ROI-plane x [m]"
@@ -116,11 +171,10 @@ class PlacedParams(PopulationParams):
     y_m: list[_RoiCoordinate] = Field(
         default_factory=list, description="placement points: ROI-plane y [m]"
     )
-    alt_m: float = Field(
+    alt_m: _Alt | list[_Alt] = Field(
         0.0,
-        ge=-500.0,
-        le=20_000.0,
-        description="height above the Earth model (sphere or WGS 84) [m]",
+        description="height above the Earth model (sphere or WGS 84) [m], in [-500, 20000]; "
+        "placement = 'sites': one per site",
     )
 
     @model_validator(mode="after")
@@ -130,11 +184,44 @@ class PlacedParams(PopulationParams):
                 f"population '{self.name}': placement = 'points' needs x_m and y_m lists of one "
                 f"length (got {len(self.x_m)} and {len(self.y_m)})"
             )
+        if self.placement == "sites":
+            self._check_sites()
+        elif isinstance(self.alt_m, list):
+            raise ValueError(f"population '{self.name}': alt_m is a list only for sites")
+        for key in ("lat_band_deg", "lon_range_deg"):
+            low, high = getattr(self, key)
+            if not low < high:
+                raise ValueError(
+                    f"population '{self.name}': {key} = [{low:g}, {high:g}] is an empty "
+                    "region; use [low, high] with low < high"
+                )
         return self
+
+    def _check_sites(self):
+        where = f"population '{self.name}': placement = 'sites'"
+        if self.sites_file and (self.lat_deg or self.lon_deg):
+            raise ValueError(f"{where} takes sites_file or lat_deg/lon_deg lists, not both")
+        if self.sites_file:
+            return
+        n = len(self.lat_deg)
+        lengths = {len(self.lon_deg), *(len(v) for v in (self.site_names,) if v)}
+        if isinstance(self.alt_m, list):
+            lengths.add(len(self.alt_m))
+        if not n or lengths != {n}:
+            raise ValueError(
+                f"{where} needs lat_deg and lon_deg lists (and alt_m, site_names if given) of "
+                f"one length (got {n} latitudes and {len(self.lon_deg)} longitudes)"
+            )
 
     @property
     def n_ut(self) -> int:
-        return len(self.x_m) if self.placement == "points" else self.count
+        if self.placement == "points":
+            return len(self.x_m)
+        if self.placement == "sites":
+            return len(self.lat_deg) if not self.sites_file else -1
+        if self.placement == "lat_lon_grid":
+            return -1  # known once the grid (and the land) is drawn
+        return self.count
 
 
 class MovingParams(PlacedParams):
@@ -196,7 +283,36 @@ class WaypointsParams(PopulationParams):
         return 1
 
 
+def _geographic_points(p, ctx):
+    """``(lat_rad, lon_rad, alt_m)`` of a placement by latitude and longitude."""
+    if p.placement == "sites":
+        return np.radians(p.lat_deg), np.radians(p.lon_deg), np.asarray(p.alt_m, float)
+    region = (tuple(p.lat_band_deg), tuple(p.lon_range_deg))
+    if p.land_only and not has_land(*region):
+        raise ConfigError(
+            f"population '{p.name}': land_only = true, but lat_band_deg = "
+            f"{list(region[0])} x lon_range_deg = {list(region[1])} has no land"
+        )
+    if p.placement == "random_region":
+        lat, lon = random_region(p.count, *region, ctx.rng, land_only=p.land_only)
+    else:
+        lat, lon = lat_lon_grid(p.spacing_deg, *region)
+        if p.land_only:
+            on_land = is_land(lat, lon)
+            lat, lon = lat[on_land], lon[on_land]
+        if not len(lat):
+            raise ConfigError(
+                f"population '{p.name}': lat_lon_grid with spacing_deg = {p.spacing_deg:g} "
+                f"has no point {'on land ' if p.land_only else ''}in lat_band_deg = "
+                f"{list(region[0])} x lon_range_deg = {list(region[1])}; use a finer spacing"
+            )
+    return np.radians(lat), np.radians(lon), p.alt_m
+
+
 def _start_points(p, ctx):
+    """``(lat_rad, lon_rad, alt_m)`` where the population's UTs start."""
+    if p.placement in GEOGRAPHIC_PLACEMENTS:
+        return _geographic_points(p, ctx)
     rx, ry = ctx.semi_axes_m
     if p.placement == "center":
         x, y = np.zeros(p.count), np.zeros(p.count)
@@ -206,9 +322,10 @@ def _start_points(p, ctx):
         x, y = place_random(p.count, rx, ry, ctx.rng)
     else:
         x, y = grid_points(p.count, rx, ry)
-    return roi_points_to_geodetic(
+    lat, lon = roi_points_to_geodetic(
         x, y, ctx.center_lat_rad, ctx.center_lon_rad, ctx.track_heading_rad, ctx.radius_m
     )
+    return lat, lon, p.alt_m
 
 
 _RELATIVE_HEADING_RAD = {"along_track": 0.0, "against_track": math.pi, "cross_track": math.pi / 2}
@@ -223,17 +340,16 @@ def _headings(p, n, ctx):
 
 
 def _static(p, ctx):
-    lat, lon = _start_points(p, ctx)
-    return Static(lat, lon, p.alt_m)
+    return Static(*_start_points(p, ctx))
 
 
 def _moving(p, ctx):
-    lat, lon = _start_points(p, ctx)
+    lat, lon, alt = _start_points(p, ctx)
     speed = p.speed_m_s if p.speed_m_s is not None else SPEED_PRESETS_M_S[p.speed]
     if speed == 0.0:
-        return Static(lat, lon, p.alt_m)
+        return Static(lat, lon, alt)
     heading = _headings(p, len(lat), ctx)
-    return ConstantVelocity(lat, lon, p.alt_m, heading, speed, t0_s=ctx.t0_s, radius_m=ctx.radius_m)
+    return ConstantVelocity(lat, lon, alt, heading, speed, t0_s=ctx.t0_s, radius_m=ctx.radius_m)
 
 
 def _waypoints(p, ctx):
