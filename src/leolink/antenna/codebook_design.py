@@ -184,8 +184,8 @@ def _best_gain_lin(codebook, u_xy, trig=(None, None)):
         rows = np.flatnonzero(present[i])  # sorted, as np.unique of iy[ix == i]
         contiguous = rows[-1] - rows[0] + 1 == rows.size  # the usual case: a run of rows
         columns.append(slice(rows[0], rows[-1] + 1) if contiguous else rows)
-    kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x, trig[0], compiled=True)
-    ky = dirichlet_kernels(u_xy[:, 1], by, codebook.n_sub_y, trig[1], compiled=True)
+    kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x, trig[0])
+    ky = dirichlet_kernels(u_xy[:, 1], by, codebook.n_sub_y, trig[1])
     best = np.zeros(u_xy.shape[0])
     column = np.empty(min(best.size, _CHUNK))
     for lo in range(0, best.size, _CHUNK):  # chunks of directions that stay in cache

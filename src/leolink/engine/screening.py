@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink import compiled
 from leolink.arrays import nonzero_2d
 from leolink.engine.links import rows_gain_db
 from leolink.engine.steered import steered_bound_lin
@@ -113,12 +112,7 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     ut_id = np.arange(len(ut_pos_m)) if ut_id is None else ut_id
     factor = _ut_factor(engine, ut_id)
     known = np.where(np.isnan(factor), 1.0, factor)
-    if compiled.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]) and engine.steering is None:
-        code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
-    else:
-        code, bound, sin_el = _screen_numpy(
-            engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known, sat_id
-        )
+    code, bound, sin_el = _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known, sat_id)
     rows = np.flatnonzero(np.isnan(factor))
     if rows.size:  # UTs whose gain or loss depends on the elevation: per pair
         r, s = nonzero_2d(code[rows] > 0)
@@ -156,24 +150,6 @@ def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_i
         bound *= envelope(uy, engine.beam_uy, cb.n_sub_y)
     bound *= (engine._k_lin * (1.0 + BOUND_SLACK)) * ut_factor[:, None] / rho2
     return code, np.where(code > 0, bound, -1.0), sin_el
-
-
-def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
-    """:func:`screen` by the compiled kernel (:func:`leolink.engine.jit.screen_kernel`)."""
-    from leolink.engine import jit
-
-    shape = (ut_pos_m.shape[0], sat_pos_m.shape[0])
-    code, bound, sin_el = np.empty(shape, np.int8), np.empty(shape), np.empty(shape)
-    up = np.zeros((0, 3)) if ut_up is None else np.ascontiguousarray(ut_up, float)
-    jit.run_rows(
-        jit.screen_kernel(), shape[0], np.ascontiguousarray(ut_pos_m, float), up, ut_up is None,
-        np.ascontiguousarray(sat_pos_m, float),
-        np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
-        engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
-        engine._k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
-        np.ascontiguousarray(ut_factor, float), code, bound, sin_el, row_size=shape[1],
-    )  # fmt: skip
-    return code, bound, sin_el
 
 
 _SLACK_DB = 10.0 * np.log10(1.0 + BOUND_SLACK)
