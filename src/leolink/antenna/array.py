@@ -186,7 +186,7 @@ def dirichlet_kernels(u, beam_u, n, trig=None):
 
 @leolink.compiled.jit
 def _dirichlet_rows(u, beam_u, n, out, lo, hi):
-    """``out[j, p] = ula_gain(u[p] - beam_u[j], n)`` for the directions ``lo .. hi - 1``."""
+    """:func:`ula_gain` of each direction ``lo .. hi - 1`` against each beam, into ``out``."""
     for p in range(lo, hi):
         for j in range(beam_u.size):
             out[j, p] = ula_gain(u[p] - beam_u[j], n)

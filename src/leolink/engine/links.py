@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from leolink import compiled
-from leolink.antenna.array import dirichlet_kernels
+from leolink.antenna.array import dirichlet_kernels, ula_gain
 from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame
 
@@ -325,6 +325,8 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_
     ``sat_id``: the global satellite of each satellite row (None: row = satellite);
     ``steer``: ``(pos, vel)`` the satellites steer their beams by (an estimated ephemeris;
     None: the true states)."""
+    if engine.steering is None and compiled.use(ut.shape[0]):  # one pass per pair
+        return _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up)
     u_pos = ut_pos_m[ut]
     rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
     rho2 = np.einsum("pk,pk->p", rel, rel)
@@ -349,6 +351,65 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_
     kx = dirichlet_kernels(ux, engine.beam_ux, engine.codebook.n_sub_x)
     ky = dirichlet_kernels(uy, engine.beam_uy, engine.codebook.n_sub_y)
     return rel, rho2, rho, elevation, visible, kx, ky
+
+
+def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
+    """:func:`pair_geometry` of the codebook's lattice by the compiled :func:`_pair_rows`."""
+    m, cb = ut.shape[0], engine.codebook
+    if ut_up is None:  # the sphere's radial up
+        ut_up = ut_pos_m / np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))[:, None]
+    frames = (
+        np.ascontiguousarray(ut_pos_m, float),
+        np.ascontiguousarray(ut_up, float),
+        np.ascontiguousarray(sat_pos_m, float),
+        body_frame(sat_pos_m, sat_vel_m_s),
+    )
+    lattice = (
+        engine.beam_ux,
+        engine.beam_uy,
+        float(cb.n_sub_x),
+        float(cb.n_sub_y),
+        float(engine.params.min_elevation_rad),
+    )
+    out = (
+        np.empty((m, 3)),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m, bool),
+        np.empty((engine.beam_ux.size, m)),
+        np.empty((engine.beam_uy.size, m)),
+    )
+    pairs = (np.asarray(ut, np.int64), np.asarray(sat, np.int64))
+    compiled.run_rows(_pair_rows, m, frames, pairs, lattice, out)
+    return out
+
+
+@compiled.jit
+def _pair_rows(frames, pairs, lattice, out, lo, hi):
+    """:func:`pair_geometry` of the pairs ``lo .. hi - 1``, each in one pass: the vector
+    satellite -> UT, its length, the elevation over the UT's up, the direction cosines in
+    the satellite body frame and their Dirichlet kernels (:func:`ula_gain`)."""
+    ut_pos, up, sat_pos, axes = frames
+    ut, sat = pairs
+    beam_ux, beam_uy, n_x, n_y, min_el = lattice
+    rel, rho2, rho, elevation, visible, kx, ky = out
+    for p in range(lo, hi):
+        u, s = ut[p], sat[p]
+        for k in range(3):
+            rel[p, k] = ut_pos[u, k] - sat_pos[s, k]
+        d = rel[p]
+        rho2[p] = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        rho[p] = np.sqrt(rho2[p])
+        sin_el = -(d[0] * up[u, 0] + d[1] * up[u, 1] + d[2] * up[u, 2]) / rho[p]
+        elevation[p] = np.arcsin(min(max(sin_el, -1.0), 1.0))
+        visible[p] = elevation[p] >= min_el
+        ux = (d[0] * axes[s, 0, 0] + d[1] * axes[s, 0, 1] + d[2] * axes[s, 0, 2]) / rho[p]
+        uy = (d[0] * axes[s, 1, 0] + d[1] * axes[s, 1, 1] + d[2] * axes[s, 1, 2]) / rho[p]
+        for j in range(beam_ux.size):
+            kx[j, p] = ula_gain(ux - beam_ux[j], n_x)
+        for j in range(beam_uy.size):
+            ky[j, p] = ula_gain(uy - beam_uy[j], n_y)
 
 
 def panel_elevation_of_pairs(rel_m, slant_range_m, ut_normal, ut):
