@@ -198,6 +198,10 @@ def _best_gain_lin(codebook, u_xy, trig=(None, None)):
     return best
 
 
+#: Relative gap below which two sampled points' gains tie (the kernels' rounding: ~1e-13).
+TIE_REL = 1e-9
+
+
 def worst_roi_loss(
     codebook, rx_m, ry_m, altitude_m, radius_m=EARTH_RADIUS_M, n_grid=N_GRID, n_edge=N_EDGE
 ):
@@ -223,7 +227,9 @@ def worst_roi_loss(
         return RoiLoss(np.inf, float(x[0]), float(y[0]))
     trig = _roi_trig(key, int(codebook.n_sub_x), int(codebook.n_sub_y))
     gain = _best_gain_lin(codebook, u, trig) / (codebook.n_sub_x * codebook.n_sub_y)
-    k = int(np.argmin(gain))
+    # Symmetric points of the ROI tie: the first within TIE_REL of the least, so that the
+    # point reported does not depend on how the kernels were rounded.
+    k = int(np.argmax(gain <= gain.min() * (1.0 + TIE_REL)))
     with np.errstate(divide="ignore"):
         return RoiLoss(float(-10.0 * np.log10(gain[k])), float(x[k]), float(y[k]))
 
