@@ -163,7 +163,7 @@ def dirichlet_kernels(u, beam_u, n, trig=None):
     k = beam_u.size
     if u.ndim == 1 and k and leolink.compiled.use(u.size):
         g = np.empty((k, u.size))
-        leolink.compiled.run_rows(_dirichlet_rows, u.size, u, beam_u, float(n), g)
+        _dirichlet_rows(u, beam_u, float(n), g, 0, u.size)  # (one thread: no pool to start)
         return g
     trig = dirichlet_trig(u, n) if trig is None else trig
     coef = dirichlet_coefficients(beam_u, n)

@@ -149,8 +149,8 @@ def sinr_lin(signal_lin, interference_lin, noise_lin):
     The one place the SINR is formed: the engine's serving links
     (:meth:`leolink.engine.LinkEngine.serve_pairs`), the precoded path
     (:func:`leolink.link.precoder.sinr_after_precoding`) and the active-beam choice
-    (:mod:`leolink.sim.beams.active`) call it, on arrays; the compiled loops on scalars
-    (arithmetic only, so numba compiles the same source: :mod:`leolink.compiled`).
+    (:mod:`leolink.sim.beams.active`) call it, on arrays. Arithmetic only: a compiled loop
+    may call it on scalars as it is (:mod:`leolink.compiled`).
 
     Parameters
     ----------
