@@ -274,3 +274,29 @@ def test_compiled_pair_geometry_agrees_with_numpy(wgs84_up, monkeypatch):
     np.testing.assert_allclose(
         got.elevation_rad[away], want.elevation_rad[away], 0, PATHS_ANGLE_RAD
     )
+
+
+#: The compiled screening loop and the numpy matrix products round differently: far below
+#: the bound's own slack (screening.BOUND_SLACK = 1e-6) and the visibility band (1e-9).
+SCREEN_REL = 1e-12
+
+
+@pytest.mark.parametrize("wgs84_up", [False, True])
+def test_compiled_screening_agrees_with_numpy(wgs84_up, monkeypatch):
+    """``screening.screen`` by the compiled loop and by the numpy code: the same classes,
+    bounds within SCREEN_REL, for satellites above, near and below the mask."""
+    import leolink.compiled
+    from leolink.engine.screening import screen
+    from leolink.geometry import body_frame
+
+    eng = _engine()
+    ut = _sphere_points(200)
+    up = _unit(ut + 2e5 * RNG.normal(size=ut.shape)) if wgs84_up else None
+    sat = 1.1 * _sphere_points(60)
+    axes = body_frame(sat, np.cross(sat, [0, 0, 1.0]))
+    got = screen(eng, ut, sat, axes, up)
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
+    want = screen(eng, ut, sat, axes, up)
+    np.testing.assert_array_equal(got[0], want[0])
+    assert 50 < (want[0] > 0).sum() < want[0].size  # above and below the mask
+    np.testing.assert_allclose(got[1], want[1], rtol=SCREEN_REL, atol=0)

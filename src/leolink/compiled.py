@@ -4,7 +4,8 @@ call them, one switch for every layer, and how large calls are split over thread
 A physics function that a compiled loop calls is written once, in the module named after
 its physics, with arithmetic and numpy ufuncs only, so that it takes arrays (numpy
 callers) and scalars (the loops) alike; :func:`jitable` marks it. A loop is decorated with
-:func:`jit`: ``numba.njit(cache=True, nogil=True)``, compiled at its first call. With
+:func:`jit`: ``numba.njit(cache=True, nogil=True)`` (numpy's error model), compiled at its
+first call. With
 ``LEOLINK_JIT=0`` in the environment (or without numba) :func:`enabled` is False: callers
 take their numpy code, which calls the same physics functions on arrays, and :func:`jit`
 gives the loop's Python function itself (the tests run both and compare them to a stated
@@ -102,7 +103,8 @@ def _compile(fn):
         register_jitable(_JITABLE.pop())
     saved, config.CACHE_DIR = config.CACHE_DIR, str(_cache_dir())
     try:  # numba's cache locator reads the folder when the dispatcher is made
-        return numba.njit(cache=True, nogil=True)(fn)
+        # numpy's error model: x / 0 is inf or NaN, as in the numpy code, not an exception
+        return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
     finally:
         config.CACHE_DIR = saved
 

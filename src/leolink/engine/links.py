@@ -356,11 +356,10 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_
 def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
     """:func:`pair_geometry` of the codebook's lattice by the compiled :func:`_pair_rows`."""
     m, cb = ut.shape[0], engine.codebook
-    if ut_up is None:  # the sphere's radial up
-        ut_up = ut_pos_m / np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))[:, None]
+    ut_pos_m = np.ascontiguousarray(ut_pos_m, float)
     frames = (
-        np.ascontiguousarray(ut_pos_m, float),
-        np.ascontiguousarray(ut_up, float),
+        ut_pos_m,
+        ut_pos_m if ut_up is None else np.ascontiguousarray(ut_up, float),
         np.ascontiguousarray(sat_pos_m, float),
         body_frame(sat_pos_m, sat_vel_m_s),
     )
@@ -370,6 +369,7 @@ def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
         float(cb.n_sub_x),
         float(cb.n_sub_y),
         float(engine.params.min_elevation_rad),
+        ut_up is None,
     )
     out = (
         np.empty((m, 3)),
@@ -389,10 +389,11 @@ def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
 def _pair_rows(frames, pairs, lattice, out, lo, hi):
     """:func:`pair_geometry` of the pairs ``lo .. hi - 1``, each in one pass: the vector
     satellite -> UT, its length, the elevation over the UT's up, the direction cosines in
-    the satellite body frame and their Dirichlet kernels (:func:`ula_gain`)."""
+    the satellite body frame and their Dirichlet kernels (:func:`ula_gain`). ``sphere``:
+    ``up`` holds the UTs' positions, the sphere's radial up once divided by their norm."""
     ut_pos, up, sat_pos, axes = frames
     ut, sat = pairs
-    beam_ux, beam_uy, n_x, n_y, min_el = lattice
+    beam_ux, beam_uy, n_x, n_y, min_el, sphere = lattice
     rel, rho2, rho, elevation, visible, kx, ky = out
     for p in range(lo, hi):
         u, s = ut[p], sat[p]
@@ -402,6 +403,8 @@ def _pair_rows(frames, pairs, lattice, out, lo, hi):
         rho2[p] = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
         rho[p] = np.sqrt(rho2[p])
         sin_el = -(d[0] * up[u, 0] + d[1] * up[u, 1] + d[2] * up[u, 2]) / rho[p]
+        if sphere:
+            sin_el /= np.sqrt(up[u, 0] * up[u, 0] + up[u, 1] * up[u, 1] + up[u, 2] * up[u, 2])
         elevation[p] = np.arcsin(min(max(sin_el, -1.0), 1.0))
         visible[p] = elevation[p] >= min_el
         ux = (d[0] * axes[s, 0, 0] + d[1] * axes[s, 0, 1] + d[2] * axes[s, 0, 2]) / rho[p]
