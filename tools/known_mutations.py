@@ -144,8 +144,8 @@ MUTATIONS = (
     Mutation(
         "screening_bound_without_grating_lobes",
         "src/leolink/engine/screening.py",
-        "np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u), out=d)",
-        "pass",
+        "d = np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u))",
+        "d = d",
         ("tests/test_search.py",),
     ),
     Mutation(
