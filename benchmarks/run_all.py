@@ -1,11 +1,14 @@
 """Every benchmark, one command: ``python benchmarks/run_all.py [--quick] [--json FILE]
-[--compare BEFORE.json]``.
+[--compare BEFORE.json | --compare REF_CHECKOUT] [--only MODULE ...]``.
 
 Runs each ``bench_*`` module of :data:`MODULES` that exists (a missing one is skipped with
 a note), prints its figures, then one table of every figure by name with its aim and the
 ratio to the aim (> 1 is better than the aim either way) and, with ``--compare``, the
-ratio to the same figure of an earlier run (e.g. of the main branch:
-``PYTHONPATH=<main>/src python benchmarks/run_all.py --json before.json``).
+ratio to the same figure of another run (``head / ref``: > 1 is faster for a rate, slower
+for a time). ``--compare`` takes the figures of an earlier ``--json`` run, or another
+checkout's folder (e.g. ``/work/main``): then each module runs twice, side by side, in
+fresh processes, first with that checkout's ``src`` first on ``PYTHONPATH`` (its compiled
+extension as built there), then with this tree's, so that both see the same load.
 ``--quick`` shrinks the work for a fast look; the README's figures come from the default.
 """
 
@@ -17,7 +20,9 @@ import inspect
 import json
 import os
 import platform
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -48,13 +53,14 @@ AIMS = {
     # process (bench_peer: the issue's ~15 k UT-epochs/s of the peer is the latter's rate).
     "peer.ratio_peer_loop_over_leolink_process": ("x", ">=", 1.0),
     "peer.ratio_peer_process_over_leolink_process": ("x", ">=", 1.0),
+    "peer.ratio_peer_loop_over_leolink_warm": ("x", ">=", 1.0),
 }
 
 
-def run_modules(quick):
+def run_modules(quick, names=MODULES):
     """``{module short name: figures}`` of every module present."""
     out = {}
-    for name in MODULES:
+    for name in names:
         try:
             mod = importlib.import_module(name)
         except ModuleNotFoundError as exc:
@@ -89,16 +95,52 @@ def print_table(flat, before=None):
         if before and isinstance(before.get(name), (int, float)) and before[name]:
             line += f" {value / before[name]:9.2f}x"
         print(f"{line} {unit}")
+    if before:
+        print(
+            "(vs before: this tree's figure / the other's; > 1 is faster for a rate, slower"
+            " for a time)"
+        )
+
+
+def _module_in_process(tree, name, quick):
+    """The figures of module ``name`` run in a fresh process with ``tree/src`` first on
+    ``PYTHONPATH``."""
+    with tempfile.TemporaryDirectory(prefix="bench_") as tmp:
+        out = Path(tmp) / "figures.json"
+        cmd = [sys.executable, __file__, "--only", name, "--json", str(out)]
+        env = dict(os.environ, PYTHONPATH=str(Path(tree).resolve() / "src"))
+        subprocess.run(cmd + ["--quick"] * quick, env=env, check=True, cwd=ROOT)
+        return json.loads(out.read_text())["figures"]
+
+
+def side_by_side(ref, quick, names=MODULES):
+    """``(figures of this tree, figures of the checkout ref)``, module by module."""
+    head, before = {}, {}
+    for name in names:
+        print(f"=== {name}: {ref}")
+        before.update(_module_in_process(ref, name, quick))
+        print(f"=== {name}: this tree")
+        head.update(_module_in_process(ROOT, name, quick))
+    return head, before
+
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--json", type=Path, help="write the figures by name to this file")
-    ap.add_argument("--compare", type=Path, help="figures of an earlier --json run")
+    ap.add_argument("--compare", type=Path, help="an earlier --json run, or a checkout's folder")
+    ap.add_argument("--only", nargs="+", choices=MODULES, help="these modules only")
     args = ap.parse_args(argv)
-    flat = flatten(run_modules(args.quick))
-    before = json.loads(args.compare.read_text())["figures"] if args.compare else None
+    names = tuple(args.only or MODULES)
+    before = None
+    if args.compare and args.compare.is_dir():
+        flat, before = side_by_side(args.compare, args.quick, names)
+    else:
+        flat = flatten(run_modules(args.quick, names))
+        before = json.loads(args.compare.read_text())["figures"] if args.compare else None
     if args.json:  # first: a figures table that fails to print loses no run
         meta = {"quick": args.quick, "python": platform.python_version(),
                 "load_average_1_5_15": os.getloadavg(),

@@ -1,31 +1,20 @@
-"""leolink.sim.candidates.table.Candidates: slot lookups against a loop over each row, on the
-numpy path and on the compiled one (leolink.sim.candidates.table_kernels, taken wherever
-the compiled extension is built)."""
+"""leolink.sim.candidates.table.Candidates: slot lookups against a loop over each row."""
 
 import contextlib
-from unittest import mock
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import leolink.compiled
 from leolink.sim.candidates.table import Candidates
 
-PATHS = ["numpy", "kernels"]
+PATHS = ["numpy"]  # (the one path: the compiled lookups were removed, issue 43)
 
 
 @contextlib.contextmanager
 def _path(name, table):
-    """Within: ``table``'s lookups take the path ``name`` (asserted)."""
-    if name == "numpy":
-        with mock.patch.object(leolink.compiled, "use", lambda n: False):  # as LEOLINK_JIT=0
-            assert not table._compiled()
-            yield
-        return
-    pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
-    assert table._compiled() or table.cell.size == 0
+    """Within: ``table``'s lookups take the path ``name``."""
     yield
 
 
@@ -111,17 +100,11 @@ def test_best_and_at_against_a_loop_over_each_row(path, n_ut, n_slot, seed):
         np.testing.assert_array_equal(got, want)
 
 
-def test_a_query_of_another_length_is_numpys_on_both_paths():
-    """A one-cell query broadcasts over the rows as numpy's comparison does; the kernel,
-    which reads one query per row, is not given it (found in review)."""
+def test_a_query_of_another_length_broadcasts_over_the_rows():
+    """A one-cell query broadcasts over the rows as numpy's comparison does."""
     cell = np.array([[3, 4], [4, 5], [6, 4]], np.int64)
     table = Candidates(cell, np.zeros(cell.shape))
-    want = np.array([1, 0, 1])
-    with mock.patch.object(leolink.compiled, "use", lambda n: False):
-        np.testing.assert_array_equal(table.slot_of(np.array([4])), want)
-    pytest.importorskip("leolink._kernels")
-    assert table._compiled()
-    np.testing.assert_array_equal(table.slot_of(np.array([4])), want)
+    np.testing.assert_array_equal(table.slot_of(np.array([4])), np.array([1, 0, 1]))
 
 
 @settings(max_examples=100, deadline=None)

@@ -17,9 +17,6 @@ from leolink.sim.handover.controller import (
 )
 from leolink.sim.handover.policies import Hysteresis, MaxSnr, Predictive
 
-# Every test on the compiled step (leolink.sim.handover.step_kernel) and on the numpy one.
-pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
-
 HANDOVER_KINDS = ("beam_handover", "sat_handover")
 
 

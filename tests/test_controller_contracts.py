@@ -28,9 +28,6 @@ from leolink.sim.handover.controller import (
 )
 from leolink.sim.handover.policies import Hysteresis, MaxSnr
 
-# Every test on the compiled step (leolink.sim.handover.step_kernel) and on the numpy one.
-pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
-
 TOL_S = 1e-9  # the documented epoch-time tolerance (1 ns)
 
 

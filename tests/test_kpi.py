@@ -2,7 +2,6 @@
 against numpy.percentile on the same samples."""
 
 import math
-from unittest import mock
 
 import numpy as np
 import pytest
@@ -137,33 +136,6 @@ def test_time_of_stay_without_complete_stays_is_nan():
 
 
 RES_DB = 0.01
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    lo=st.floats(-100.0, 0.0), width=st.floats(1e-3, 200.0), res=st.floats(1e-3, 5.0),
-    unserved=st.sampled_from([-math.inf, 0.0, math.inf]), seed=st.integers(0, 2**32 - 1),
-)  # fmt: skip
-def test_histogram_slots_compiled_are_numpys(lo, width, res, unserved, seed):
-    """The compiled slots (leolink._kernels.histogram_slots) against the numpy code, on
-    values spread over the bins, their edges, the ends (a value just below hi may round
-    into the overflow slot: the same on both), NaN and the infinities."""
-    import leolink.compiled
-
-    pytest.importorskip("leolink._kernels")
-    acc = PercentileHistogram(lo, lo + width, res, unserved)
-    rng = np.random.default_rng(seed)
-    edges = acc.lo + np.arange(acc.n_bins + 1) * acc.resolution
-    x = np.concatenate([
-        rng.uniform(acc.lo - res, acc.hi + res, 300), edges, np.nextafter(edges, -np.inf),
-        np.nextafter(edges, np.inf), [np.nan, np.inf, -np.inf, acc.hi, acc.lo, 1e300, -1e300],
-    ])  # fmt: skip
-    assert leolink.compiled.use(x.size)
-    got = acc.slots(x)
-    with mock.patch.object(leolink.compiled, "use", lambda n: False):
-        want = acc.slots(x)
-    assert got.dtype == want.dtype == np.int64
-    np.testing.assert_array_equal(got, want)
 
 
 def test_histogram_percentiles_match_numpy_within_half_a_bin():

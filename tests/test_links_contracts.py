@@ -237,3 +237,66 @@ def test_snr_of_some_pairs_is_that_of_the_pairs_taken(n_ut, jit_on, monkeypatch)
         )
     want[:, ~links.visible[pairs]] = np.nan
     np.testing.assert_allclose(snr, want, rtol=0, atol=1e-11)
+
+
+#: The compiled pair loop and the numpy geometry round differently (a division for a product
+#: by 1 / rho, the kernels by ula_gain vs angle subtraction): angles, distances and kernels.
+PATHS_REL = 1e-10
+PATHS_ANGLE_RAD = 1e-12
+
+
+@pytest.mark.parametrize("wgs84_up", [False, True])
+def test_compiled_pair_geometry_agrees_with_numpy(wgs84_up, monkeypatch):
+    """``LinkEngine.evaluate_pairs`` by the compiled loop (engine.links._pair_rows) and by
+    the numpy code (as ``LEOLINK_JIT=0``): every geometry field and kernel, with the sphere's
+    radial up and with tilted local ups (as WGS 84 normals are), pairs above and below the
+    mask."""
+    import leolink.compiled
+
+    eng = _engine()
+    ut = _sphere_points(300)
+    up = _unit(ut + 2e5 * RNG.normal(size=ut.shape)) if wgs84_up else None
+    sat = 1.1 * ut[:4]
+    iu, js = np.meshgrid(np.arange(300), np.arange(4), indexing="ij")
+    args = (ut, sat, np.cross(sat, [0, 0, 1.0]), iu.ravel(), js.ravel(), up)
+    got = eng.evaluate_pairs(*args)
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
+    want = eng.evaluate_pairs(*args)
+    assert 4 <= want.visible.sum() < want.n_pair
+    np.testing.assert_array_equal(got.visible, want.visible)
+    for name in ("rel_m", "slant_range_m", "path_lin", "kx", "ky"):
+        want_x = getattr(want, name)
+        atol = 1e-12 * np.abs(want_x).max()
+        np.testing.assert_allclose(getattr(got, name), want_x, PATHS_REL, atol, err_msg=name)
+    # At the zenith the arcsine amplifies an ulp of its argument to ~1e-8 rad: compare sines
+    np.testing.assert_allclose(np.sin(got.elevation_rad), np.sin(want.elevation_rad), 0, 1e-15)
+    away = np.abs(want.elevation_rad) < np.radians(89.0)
+    np.testing.assert_allclose(
+        got.elevation_rad[away], want.elevation_rad[away], 0, PATHS_ANGLE_RAD
+    )
+
+
+#: The compiled screening loop and the numpy matrix products round differently: far below
+#: the bound's own slack (screening.BOUND_SLACK = 1e-6) and the visibility band (1e-9).
+SCREEN_REL = 1e-12
+
+
+@pytest.mark.parametrize("wgs84_up", [False, True])
+def test_compiled_screening_agrees_with_numpy(wgs84_up, monkeypatch):
+    """``screening.screen`` by the compiled loop and by the numpy code: the same classes,
+    bounds within SCREEN_REL, for satellites above, near and below the mask."""
+    import leolink.compiled
+    from leolink.engine.screening import screen
+    from leolink.geometry import body_frame
+
+    eng = _engine()
+    ut = _sphere_points(200)
+    up = _unit(ut + 2e5 * RNG.normal(size=ut.shape)) if wgs84_up else None
+    sat = 1.1 * _sphere_points(60)
+    axes = body_frame(sat, np.cross(sat, [0, 0, 1.0]))
+    got = screen(eng, ut, sat, axes, up)
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
+    want = screen(eng, ut, sat, axes, up)
+    np.testing.assert_array_equal(got[0], want[0])
+    assert 50 < (want[0] > 0).sum() < want[0].size  # above and below the mask
+    np.testing.assert_allclose(got[1], want[1], rtol=SCREEN_REL, atol=0)

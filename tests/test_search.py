@@ -328,8 +328,7 @@ def test_pruned_tables_of_tilted_panels_are_the_exhaustive_tables(block, tilted)
 def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_db):
     """The tables are built in chunks of whole rows (bounded memory): chunks of one pair
     (every row longer than a chunk), of 37 pairs (cuts inside rows moved to the next row)
-    and of 1024 give the tables of one chunk, bit for bit (in a run every chunk takes the
-    same path, compiled or numpy, whatever its size: leolink.compiled.use)."""
+    and of 1024 give the tables of one chunk, bit for bit."""
     eng, n_ut, mb, cones = block
     window_db = np.inf if floor_db > -np.inf else 3.0
     cells_ref, snr_ref, ref = _tables(eng, n_ut, mb, cones, window_db, True, floor_db)
@@ -339,27 +338,6 @@ def test_tables_do_not_depend_on_their_chunks(block, monkeypatch, pairs, floor_d
     assert np.array_equal(cells, cells_ref) and np.array_equal(snr, snr_ref, equal_nan=True)
     assert np.array_equal(blk.best_cell, ref.best_cell)
     assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
-    assert np.array_equal(blk.n_visible, ref.n_visible)
-
-
-@pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
-def test_compiled_window_tables_are_the_numpy_tables(block, monkeypatch, window_db):
-    """Without a floor, the tables take leolink.sim.candidates.table_kernels.window_entries:
-    the same table slot for slot, the same diagnostics, as the numpy path's."""
-    import leolink.compiled
-
-    pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
-    eng, n_ut, mb, cones = block
-    assert search._window_kernel(1) is not None and leolink.compiled.use(1)  # (the path compared)
-    _, _, blk = _tables(eng, n_ut, mb, cones, window_db, True)
-    with monkeypatch.context() as m:
-        m.setattr(search, "_window_kernel", lambda n: None)  # the engine's path kept
-        _, _, ref = _tables(eng, n_ut, mb, cones, window_db, True)
-    assert ref.table.n_slot >= (3 if window_db > 0.0 else 1)
-    assert np.array_equal(blk.table.cell, ref.table.cell)
-    assert np.array_equal(blk.table.snr_db, ref.table.snr_db, equal_nan=True)
-    assert np.array_equal(blk.best_snr_db, ref.best_snr_db, equal_nan=True)
-    assert np.array_equal(blk.best_cell, ref.best_cell)
     assert np.array_equal(blk.n_visible, ref.n_visible)
 
 
@@ -449,35 +427,6 @@ def test_screening_of_satellites_at_the_zenith(block):
     best = links.gain_tx_bm(scan.beam_ix, scan.beam_iy).max(axis=0) * links.path_snr_lin
     b = bound[pair, pair]
     assert (code[pair, pair] == VISIBLE).all() and np.isfinite(b).all() and (b >= best).all()
-
-
-def test_compiled_find_pairs_is_numpys(block, monkeypatch):
-    """BlockCandidates.find_pairs by the compiled loop (galloping over ascending queries,
-    bisection otherwise) against the numpy code: the block's own pairs, row after row as the
-    monitor asks and shuffled, pairs never evaluated, satellites out of range."""
-    import leolink.compiled
-
-    pytest.importorskip("leolink._kernels")  # (built at install: setup.py)
-    eng, n_ut, mb, cones = block
-    _, _, blk = _tables(eng, n_ut, mb, cones, 3.0, True)
-    rng = np.random.default_rng(4)
-    n_rows = blk.best_cell.size
-    rows = np.sort(rng.integers(0, n_rows, 20_000))
-    own = rng.integers(0, blk.links.n_pair, 20_000)
-    sats = np.where(
-        rng.random(rows.size) < 0.5, blk.links.sat[own], rng.integers(-3, 5000, rows.size)
-    )
-    rows = np.where(rng.random(rows.size) < 0.5, blk.links.ut[own], rows)
-    order = np.argsort(rows, kind="stable")
-    cases = [(rows[order], sats[order]), (rows, sats), (rows[::-1], sats[::-1])]
-    for r, s in cases:
-        assert leolink.compiled.use(r.size)
-        got = blk.find_pairs(r, s)
-        with monkeypatch.context() as m:
-            m.setattr(leolink.compiled, "use", lambda n: False)
-            want = blk.find_pairs(r, s)
-        np.testing.assert_array_equal(got, want)
-        assert (got >= 0).sum() > 5000 and (got < 0).sum() > 1000
 
 
 @settings(max_examples=80, deadline=None)

@@ -1,44 +1,130 @@
-"""Whether the compiled kernels (``leolink._kernels``, C) run, and on how many threads: one
-answer for every layer (:mod:`leolink.engine.jit` for the engine, :mod:`leolink.visibility`).
+"""Compiled speed from the same source: numba on the physics functions and the loops that
+call them, one switch for every layer, and how large calls are split over threads.
 
-The extension is built when leolink is installed (``setup.py``; optional: without a C
-compiler leolink installs without it). ``LEOLINK_JIT=0`` in the environment turns every
-kernel off (the numpy code then runs everywhere); ``LEOLINK_THREADS=N`` sets the threads a
-large call is split over (:func:`run_rows`). The ``leolink`` command gives BLAS one thread
+A physics function that a compiled loop calls is written once, in the module named after
+its physics, with arithmetic and numpy ufuncs only, so that it takes arrays (numpy
+callers) and scalars (the loops) alike; :func:`jitable` marks it. A loop is decorated with
+:func:`jit`: ``numba.njit(cache=True, nogil=True)`` (numpy's error model), compiled at its
+first call. With
+``LEOLINK_JIT=0`` in the environment (or without numba) :func:`enabled` is False: callers
+take their numpy code, which calls the same physics functions on arrays, and :func:`jit`
+gives the loop's Python function itself (the tests run both and compare them to a stated
+tolerance). ``LEOLINK_THREADS=N`` sets the threads a large call is split over
+(:func:`run_rows`). The ``leolink`` command gives BLAS one thread
 (:func:`single_threaded_blas`).
+
+numba's cache invalidates a loop when the loop's own file changes, not when a function it
+calls changes in another file: the cache folder is therefore keyed by the sizes and times
+of every leolink source file (:func:`_cache_dir`), so that editing a formula in its one
+place recompiles every loop that calls it.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import os
+import threading
+from pathlib import Path
 
-__all__ = ["SPLIT_MIN_ROWS", "enabled", "n_threads", "run_rows"]
-__all__ += ["single_threaded_blas", "use"]
+__all__ = ["SPLIT_MIN_ROWS", "enabled", "jit", "jitable", "n_threads"]
+__all__ += ["run_rows", "single_threaded_blas", "use"]
 
 #: The variables BLAS libraries take their thread count from (OpenBLAS, numpy's own, reads
 #: the first three in this order; MKL its own).
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS",
                          "MKL_NUM_THREADS")  # fmt: skip
+#: The physics functions the compiled loops call (:func:`jitable`), registered with numba
+#: when a loop is first compiled.
+_JITABLE: list = []
+#: Held while a loop compiles (numba's cache folder is set for it: :func:`_compile`).
+_COMPILE_LOCK = threading.Lock()
 
 
 @functools.cache
 def enabled():
-    """Whether the compiled extension is built and not turned off (``LEOLINK_JIT=0``)."""
+    """Whether the compiled loops run: numba installed and ``LEOLINK_JIT`` not 0."""
     if os.environ.get("LEOLINK_JIT", "1").strip() in ("0", "false", "no", "off"):
         return False
-    try:
-        import leolink._kernels  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    import importlib.util
+
+    return importlib.util.find_spec("numba") is not None
 
 
 def use(n):
-    """Whether a call over ``n`` pairs or rows runs a compiled kernel: every non-empty call
-    when :func:`enabled` (the one switch of every layer: the tests turn the kernels off by
-    replacing it, so callers look it up here at each call)."""
+    """Whether a call over ``n`` pairs or rows takes a compiled loop: every non-empty call
+    when :func:`enabled` (the tests turn the loops off by replacing it, so callers look it
+    up here at each call)."""
     return n >= 1 and enabled()
+
+
+def jitable(fn):
+    """Mark a physics function as callable from the compiled loops (numba's
+    ``register_jitable``, applied when a loop is first compiled); returns ``fn``."""
+    _JITABLE.append(fn)
+    return fn
+
+
+def jit(fn):
+    """``numba.njit(cache=True, nogil=True)`` of the loop ``fn``, compiled at its first call
+    (``fn`` itself, in Python, where numba is absent)."""
+    compiled = None
+
+    @functools.wraps(fn)
+    def call(*args):
+        nonlocal compiled
+        if compiled is None:
+            with _COMPILE_LOCK:  # the threads of a split call arrive together
+                if compiled is None:
+                    compiled = _compile(fn) if _numba_present() else fn
+        return compiled(*args)
+
+    return call
+
+
+@functools.cache
+def _numba_present():
+    import importlib.util
+
+    return importlib.util.find_spec("numba") is not None
+
+
+def _compile(fn):
+    """numba's dispatcher of ``fn``, its cache in :func:`_cache_dir`."""
+    import numba
+    from numba.core import config
+    from numba.extending import register_jitable
+
+    while _JITABLE:
+        register_jitable(_JITABLE.pop())
+    saved, config.CACHE_DIR = config.CACHE_DIR, str(_cache_dir())
+    try:  # numba's cache locator reads the folder when the dispatcher is made
+        # numpy's error model: x / 0 is inf or NaN, as in the numpy code, not an exception
+        return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+    finally:
+        config.CACHE_DIR = saved
+
+
+@functools.cache
+def _cache_dir():
+    """``__pycache__/numba-<key>`` of the package (else of the user's cache folder), ``key``
+    a hash of every leolink source file's path, size and modification time."""
+    root = Path(__file__).resolve().parent
+    stamp = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        st = path.stat()
+        stamp.update(f"{path.relative_to(root)} {st.st_size} {st.st_mtime_ns}\n".encode())
+    name = f"numba-{stamp.hexdigest()[:16]}"
+    for base in (root / "__pycache__", Path.home() / ".cache" / "leolink"):
+        try:
+            base.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(base, os.W_OK):
+            return base / name
+    import tempfile
+
+    return Path(tempfile.gettempdir()) / "leolink" / name
 
 
 @functools.cache
@@ -76,7 +162,7 @@ if hasattr(os, "register_at_fork"):
 
 def run_rows(kernel, n, *args, row_size=1):
     """``kernel(*args, lo, hi)`` over the rows ``0 .. n - 1``, split over
-    :func:`n_threads` threads when large (the kernels release the GIL). Each row is
+    :func:`n_threads` threads when large (the compiled loops release the GIL). Each row is
     computed by one thread with the same operations: the bits of a single call.
     ``row_size``: the work of a row, in units of a pair (a UT's row of satellites)."""
     k = min(n_threads(), n * row_size // SPLIT_MIN_ROWS, n)

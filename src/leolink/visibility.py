@@ -8,20 +8,12 @@ angle between the site-to-satellite vector ``d = r - s`` and the ellipsoid norma
 ``asin((n . d) / |d|)``, over all (site, satellite x time) pairs, block by block.
 Rounding: < 1e-12 rad, but within ~0.1 deg of the zenith, where the arcsine of a value
 near 1 leaves ~1e-8 rad (6e-7 deg).
-
-With the compiled extension (and ``LEOLINK_JIT`` not 0) the elevations are computed by a kernel
-(:mod:`leolink.visibility_kernel`) split over the CPUs (``LEOLINK_THREADS``), with no
-temporaries; its ``sin(elevation)`` has the bits of the numpy code's, its arcsine
-(fdlibm's, vectorized) is within 1 ulp of numpy's (2.2e-16 rad; the bits do not depend on
-the thread count).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from leolink import compiled
-from leolink.compiled import run_rows
 from leolink.geodesy import wgs84_to_ecef
 
 __all__ = ["gmst82_rad", "site_elevations_rad", "teme_to_ecef_m", "tle_elevations_rad"]
@@ -29,8 +21,6 @@ __all__ = ["gmst82_rad", "site_elevations_rad", "teme_to_ecef_m", "tle_elevation
 SECONDS_PER_DAY = 86_400.0
 #: Default memory of one block of work [bytes] (a few float64 arrays of the block's size).
 BLOCK_BYTES = 64 * 2**20
-#: Fewest blocks of times of the compiled path (sgp4 of one overlaps the kernel of another).
-PIPELINE_BLOCKS = 8
 
 
 def gmst82_rad(jd_ut1, fr_ut1=0.0):
@@ -111,11 +101,7 @@ def tle_elevations_rad(
     # Blocks of times (the satellites' states: ~64 B per satellite-time), then of sites
     # (~6 float64 temporaries per site, satellite and time). Elementwise arithmetic, not
     # matrix products: the result does not depend on the blocks (BLAS rounding does).
-    kernel = _kernel(out.size)
     t_step = max(1, min(n_time, int(block_bytes // (64 * max(n_sat, 1)))))
-    if kernel is not None:
-        _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step)
-        return out
     for t0 in range(0, n_time, t_step):
         t = slice(t0, t0 + t_step)
         r = _earth_fixed_states(sats, jd[t], fr[t], ut1[t])  # (3, n_sat * n_t)
@@ -124,40 +110,6 @@ def tle_elevations_rad(
             elev = _elevations(r, site[lo : lo + s_step], normal[lo : lo + s_step])
             out[lo : lo + s_step, :, t] = elev.reshape(len(elev), n_sat, -1)
     return out
-
-
-def _pipelined(kernel, sats, jd, fr, ut1, site, normal, out, t_step):
-    """The compiled path, every site at once (the kernel keeps no temporaries), in at
-    least :data:`PIPELINE_BLOCKS` blocks of times: sgp4, which holds the GIL, propagates
-    the next block on a thread while the kernel, which releases it, fills this one (so two
-    blocks' states are alive at once: twice ``block_bytes``), its sites split over
-    threads by :func:`~leolink.compiled.run_rows` (each site is one thread's: the bits do
-    not depend on the split)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    t_step = max(1, min(t_step, -(-jd.size // PIPELINE_BLOCKS)))
-    blocks = [slice(t0, t0 + t_step) for t0 in range(0, jd.size, t_step)]
-    with ThreadPoolExecutor(1, thread_name_prefix="leolink-sgp4") as sgp4:
-
-        def states(t):
-            return sgp4.submit(_earth_fixed_states, sats, jd[t], fr[t], ut1[t])
-
-        pending = states(blocks[0]) if blocks else None
-        for i, t in enumerate(blocks):  # (no block: no time, nothing to fill)
-            r = pending.result()
-            if i + 1 < len(blocks):
-                pending = states(blocks[i + 1])
-            run_rows(kernel, len(site), r, site, normal, out, t.start, row_size=r.shape[1])
-
-
-def _kernel(n):
-    """The compiled :func:`leolink.visibility_kernel.elevations`, or None (the extension
-    not built, or ``LEOLINK_JIT=0``: the numpy code below)."""
-    if not compiled.use(n):
-        return None
-    from leolink.visibility_kernel import elevations
-
-    return elevations
 
 
 def site_elevations_rad(sat_pos_m, site_m, normal):

@@ -39,6 +39,7 @@ _SIN_RECOMPUTE = 5e-6
 _CHUNK = 1024
 
 
+@leolink.compiled.jitable
 def ula_gain(du, n):
     """Normalized gain of an n-element half-wavelength ULA steered off by ``du``.
 
@@ -59,15 +60,13 @@ def ula_gain(du, n):
     ndarray, broadcast shape of the inputs
         Linear gain in ``[0, n]``; ``n`` at ``du = 0`` and at the grating lobes ``du = +-2``.
     """
-    du = np.asarray(du, dtype=float)
-    n = np.asarray(n)
-    du_red = du - 2.0 * np.round(0.5 * du)  # in [-1, 1]; exact for |du| <= 4 (Sterbenz)
-    x = 0.5 * np.pi * du_red
+    # Arithmetic and ufuncs only: numpy arrays and the compiled loops' scalars alike.
+    du = np.float64(du)  # float64 whatever the input (float32, ints, a list)
+    x = 0.5 * np.pi * (du - 2.0 * np.rint(0.5 * du))  # in [-pi/2, pi/2]; exact (Sterbenz)
     s = np.sin(x)
-    small = np.abs(s) < _SIN_TINY
-    safe_s = np.where(small, 1.0, s)
-    g = np.sin(n * x) ** 2 / (n * safe_s**2)
-    return np.clip(np.where(small, n, g), 0.0, n).astype(float)
+    small = np.abs(s) < _SIN_TINY  # the limit n there: s + small = 1 + s, no 0 / 0
+    g = np.sin(n * x) ** 2 / (n * (s + small) ** 2)
+    return np.minimum(g + small * (n - g), n)  # (rounding may overshoot n by an ulp)
 
 
 def upa_gain(dux, duy, nx, ny):
@@ -146,7 +145,7 @@ def dirichlet_trig(u, n):
     return trig
 
 
-def dirichlet_kernels(u, beam_u, n, trig=None, compiled=False):
+def dirichlet_kernels(u, beam_u, n, trig=None):
     """Dirichlet kernels of ``u (m,)`` against each ``beam_u (k,)`` -> (k, m).
 
     ``sin(n (x - b)) / sin(x - b)`` by angle subtraction, with ``x = pi u / 2``: four
@@ -154,27 +153,20 @@ def dirichlet_kernels(u, beam_u, n, trig=None, compiled=False):
     ``trig`` if given: those of ``u`` and ``n``), and one small matrix product for all
     ``k`` beams. Where ``|sin(x - b)|`` is tiny (at a beam peak or a grating lobe)
     cancellation would cost accuracy, so those few entries are recomputed directly with
-    :func:`ula_gain`. ``compiled``: by the compiled loop where it is built
-    (``leolink._kernels``; the ROI searches of :mod:`leolink.antenna.codebook_design`):
-    every entry as ``fma(c1, t1, c0 t0)``, which is how OpenBLAS's product rounds it for
-    up to 16 beams, so the same bits there. With more beams OpenBLAS computes the last
-    ``m mod 4`` directions on another path, without the fused multiply-add: those entries
-    differ by up to ~1e-13 relative (here: 17 to 64 beams), and the numpy result of a
-    direction then depends on its position in the call, the compiled one's does not
-    (``tests/test_array_kernels.py``). This numpy code is the engine's reference, which
-    its own kernels are tested against.
+    :func:`ula_gain`. Where the compiled loops run (:mod:`leolink.compiled`) a 1-D ``u``
+    takes :func:`_dirichlet_rows` instead: :func:`ula_gain` of every entry, two sines
+    each, faster than this product and its temporaries; the two agree to ~1e-13 of the
+    peak (``tests/test_array_kernels.py``).
     """
     u = np.asarray(u, dtype=float)
     beam_u = np.asarray(beam_u, dtype=float)
     k = beam_u.size
+    if u.ndim == 1 and k and leolink.compiled.use(u.size):
+        g = np.empty((k, u.size))
+        _dirichlet_rows(u, beam_u, float(n), g, 0, u.size)  # (one thread: no pool to start)
+        return g
     trig = dirichlet_trig(u, n) if trig is None else trig
     coef = dirichlet_coefficients(beam_u, n)
-    if compiled and u.ndim == 1 and k and leolink.compiled.use(u.size):
-        from leolink import _kernels
-
-        g = np.empty((k, u.size))
-        _kernels.dirichlet_kernels(u, trig, beam_u, coef, float(n), _SIN_RECOMPUTE, _SIN_TINY, g)
-        return g
     # BLAS computes a 1-column product on another path (matrix-vector), which rounds
     # differently: a second column keeps every direction's kernel the same bit for bit
     # whatever the number of directions in the call.
@@ -190,6 +182,14 @@ def dirichlet_kernels(u, beam_u, n, trig=None, compiled=False):
         kk, mm = nonzero_2d(near)
         g[kk, mm] = ula_gain(u[mm] - beam_u[kk], n)
     return g
+
+
+@leolink.compiled.jit
+def _dirichlet_rows(u, beam_u, n, out, lo, hi):
+    """:func:`ula_gain` of each direction ``lo .. hi - 1`` against each beam, into ``out``."""
+    for p in range(lo, hi):
+        for j in range(beam_u.size):
+            out[j, p] = ula_gain(u[p] - beam_u[j], n)
 
 
 def dirichlet_coefficients(beam_u, n):

@@ -184,8 +184,8 @@ def _best_gain_lin(codebook, u_xy, trig=(None, None)):
         rows = np.flatnonzero(present[i])  # sorted, as np.unique of iy[ix == i]
         contiguous = rows[-1] - rows[0] + 1 == rows.size  # the usual case: a run of rows
         columns.append(slice(rows[0], rows[-1] + 1) if contiguous else rows)
-    kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x, trig[0], compiled=True)
-    ky = dirichlet_kernels(u_xy[:, 1], by, codebook.n_sub_y, trig[1], compiled=True)
+    kx = dirichlet_kernels(u_xy[:, 0], bx, codebook.n_sub_x, trig[0])
+    ky = dirichlet_kernels(u_xy[:, 1], by, codebook.n_sub_y, trig[1])
     best = np.zeros(u_xy.shape[0])
     column = np.empty(min(best.size, _CHUNK))
     for lo in range(0, best.size, _CHUNK):  # chunks of directions that stay in cache
@@ -196,6 +196,10 @@ def _best_gain_lin(codebook, u_xy, trig=(None, None)):
             col *= kx[i, part]
             np.maximum(out, col, out=out)
     return best
+
+
+#: Relative gap below which two sampled points' gains tie (the kernels' rounding: ~1e-13).
+TIE_REL = 1e-9
 
 
 def worst_roi_loss(
@@ -223,7 +227,9 @@ def worst_roi_loss(
         return RoiLoss(np.inf, float(x[0]), float(y[0]))
     trig = _roi_trig(key, int(codebook.n_sub_x), int(codebook.n_sub_y))
     gain = _best_gain_lin(codebook, u, trig) / (codebook.n_sub_x * codebook.n_sub_y)
-    k = int(np.argmin(gain))
+    # Symmetric points of the ROI tie: the first within TIE_REL of the least, so that the
+    # point reported does not depend on how the kernels were rounded.
+    k = int(np.argmax(gain <= gain.min() * (1.0 + TIE_REL)))
     with np.errstate(divide="ignore"):
         return RoiLoss(float(-10.0 * np.log10(gain[k])), float(x[k]), float(y[k]))
 

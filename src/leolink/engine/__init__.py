@@ -22,11 +22,10 @@ import functools
 
 import numpy as np
 
-from leolink import compiled
 from leolink.antenna.array import dirichlet_coefficients
 from leolink.antenna.panel import panel_basis, panel_direction_cosines
 from leolink.constants import SPEED_OF_LIGHT_M_S
-from leolink.engine import interference, jit
+from leolink.engine import interference
 from leolink.engine.links import (
     LinkParams,
     Links,
@@ -39,9 +38,8 @@ from leolink.engine.links import (
     rows_gain_db,
 )
 from leolink.engine.steered import kernel_rows, per_beam_steering
-from leolink.geometry import body_frame
 from leolink.kinematics import link_kinematics
-from leolink.link.budget import fspl_db, noise_power_dbw
+from leolink.link.budget import fspl_db, noise_power_dbw, sinr_lin, spectral_efficiency_bps_hz
 
 __all__ = ["SERVE_COLUMNS", "SERVE_GEOMETRY_COLUMNS", "LinkEngine", "LinkParams", "Links"]
 __all__ += ["Snapshot", "reuse_colors"]
@@ -205,14 +203,9 @@ class LinkEngine:
         -------
         Links
         """
-        if compiled.use(ut.shape[0]) and self.steering is None:  # fused, bit for bit the same
-            axes = body_frame(sat_pos_m, sat_vel_m_s)
-            arrays = jit.links_arrays(self, ut_pos_m, sat_pos_m, axes, ut, sat, ut_up)
-            rel, rho2, rho, elevation, visible, kx, ky = arrays
-        else:
-            rel, rho2, rho, elevation, visible, kx, ky = pair_geometry(
-                self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id, steer
-            )
+        rel, rho2, rho, elevation, visible, kx, ky = pair_geometry(
+            self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id, steer
+        )
         rx_db = self._rx_const
         if rx_db is None:
             rows = ut if ut_id is None else ut_id[ut]
@@ -328,11 +321,6 @@ class LinkEngine:
             return {name: np.full(n, np.nan) for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
         pr = np.where(served, pair, 0)
         b = np.where(served, beam_idx, 0)
-        if compiled.use(n) and self._full_reuse_lattice and lit is None:  # the same, fused
-            rows = dict(fading=rx_fading_lin, i_other=i_other, ut_vel=ut_vel_m_s,
-                        ut_acc=ut_acc_m_s2, sat_vel=sat_vel_m_s, sat_acc=sat_acc_m_s2,
-                        ut_pos=ut_pos_m, enu=ut_enu)  # fmt: skip
-            return jit.serve_pairs(self, links, pr, served, b, rows)
         # Flat gathers: several times faster than fancy indexing with 3 index arrays.
         kx, ky = links.kx[:, pr], links.ky[:, pr]
         g_sig = kx[self.beam_ix[b], np.arange(n)] * ky[self.beam_iy[b], np.arange(n)]
@@ -341,9 +329,9 @@ class LinkEngine:
         if rx_fading_lin is not None:
             path = path * rx_fading_lin
         snr = g_sig * path
-        # S / (I + N), Eqs. (18)-(19), over N
-        sinr = snr / (g_int * path + (0.0 if i_other is None else i_other) + 1.0)
-        se = np.log1p(sinr) / np.log(2.0)  # log2(1 + SINR), accurate at low SINR
+        # Eqs. (18)-(19) in units of the noise: I = same-colour beams + other satellites
+        sinr = sinr_lin(snr, g_int * path + (0.0 if i_other is None else i_other), 1.0)
+        se = spectral_efficiency_bps_hz(sinr)
 
         rho, elevation = links.slant_range_m[pr], links.elevation_rad[pr]
         los = -links.rel_m[pr]  # UT -> satellite
@@ -378,7 +366,7 @@ class LinkEngine:
 
     @property
     def _full_reuse_lattice(self):
-        """Every beam of the lattice, one colour (the fused serving kernel's case)."""
+        """Every beam of the lattice, one colour (the same-colour sum's shortcut)."""
         lattice = self.n_beam == len(self.beam_ux) * len(self.beam_uy)
         return self.n_colors == 1 and lattice and self.steering is None
 

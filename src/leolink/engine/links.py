@@ -16,8 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from leolink import compiled
-from leolink.antenna.array import dirichlet_kernels
-from leolink.engine import jit
+from leolink.antenna.array import dirichlet_kernels, ula_gain
 from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame
 
@@ -126,8 +125,6 @@ class Links:
         kx, ky, path_snr_lin = self.kx, self.ky, self.path_snr_lin
         if pairs is not None:
             kx, ky, path_snr_lin = kx[:, pairs], ky[:, pairs], path_snr_lin[pairs]
-        if compiled.use(path_snr_lin.size):  # the same operations, fused
-            return jit.snr_db_bm(kx, ky, path_snr_lin, beam_ix, beam_iy)
         with np.errstate(divide="ignore"):
             lx, ly = 10.0 * np.log10(kx), 10.0 * np.log10(ky)
             path_db = 10.0 * np.log10(path_snr_lin)
@@ -137,22 +134,49 @@ class Links:
         """Each pair's beam of largest SNR (the paper's max-SNR beam), and its SNR [dB].
 
         ``numpy.argmax`` of :meth:`snr_db_bm` over the beams: ties go to the first beam,
-        a pair not visible (every beam NaN) to beam 0. The compiled kernel gives the same
-        beams and values without the (n_beam, m) matrix: it compares every beam's linear
-        SNR and takes logarithms for the largest only (every beam on near ties).
+        a pair not visible (every beam NaN) to beam 0. The compiled loop
+        (:func:`_best_beam_rows`) forms the same sums pair by pair, without the
+        (n_beam, m) matrix.
 
         Returns
         -------
         beam : ndarray of int64, shape (m,)
         snr_db : ndarray, shape (m,), or None
             With ``with_snr_db``: that beam's entry of :meth:`snr_db_bm` (NaN where not
-            visible); None otherwise (the kernel then skips its logarithms).
+            visible); None otherwise.
         """
         if compiled.use(self.n_pair):
-            return jit.best_beam(self, beam_ix, beam_iy, with_snr_db)
+            best, best_db = np.empty(self.n_pair, np.int64), np.empty(self.n_pair)
+            beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
+            compiled.run_rows(_best_beam_rows, self.n_pair, self.kx, self.ky,
+                              self.path_snr_lin, beams, best, best_db)  # fmt: skip
+            return best, (best_db if with_snr_db else None)
         snr = self.snr_db_bm(beam_ix, beam_iy)
         beam = np.argmax(snr, axis=0)
         return beam, (snr[beam, np.arange(self.n_pair)] if with_snr_db else None)
+
+
+@compiled.jit
+def _best_beam_rows(kx, ky, path_snr_lin, beams, best, best_db, lo, hi):
+    """:meth:`Links.best_beam` of the pairs ``lo .. hi - 1`` (``beams``: the rows of
+    ``kx`` and ``ky`` of each beam, (2, n_beam)): each beam's
+    ``10 log10 k_x + 10 log10 k_y + 10 log10 p`` as :meth:`Links.snr_db_bm` sums it, the
+    first maximum, or the first NaN (``numpy.argmax``'s rule)."""
+    beam_ix, beam_iy = beams[0], beams[1]
+    lx, ly = np.empty(kx.shape[0]), np.empty(ky.shape[0])
+    for p in range(lo, hi):
+        for i in range(lx.size):
+            lx[i] = 10.0 * np.log10(kx[i, p])
+        for i in range(ly.size):
+            ly[i] = 10.0 * np.log10(ky[i, p])
+        path_db = 10.0 * np.log10(path_snr_lin[p])
+        best[p], best_db[p] = 0, lx[beam_ix[0]] + ly[beam_iy[0]] + path_db
+        for b in range(1, beam_ix.size):
+            if np.isnan(best_db[p]):
+                break
+            v = lx[beam_ix[b]] + ly[beam_iy[b]] + path_db
+            if v > best_db[p] or np.isnan(v):
+                best[p], best_db[p] = b, v
 
 
 _PAIR_FIELDS = ("ut", "sat", "rel_m", "slant_range_m", "elevation_rad", "visible", "path_lin")
@@ -296,11 +320,13 @@ def group_constants_db(terminal):
 def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_id=None,
                   steer=None):  # fmt: skip
     """The numpy reference of ``LinkEngine.evaluate_pairs``'s geometry and beam kernels:
-    rel, rho2, rho, elevation, visible, kx, ky (the compiled kernel repeats it; re-steered
-    or quantized beams, :mod:`leolink.engine.steered`, have no compiled kernel).
+    rel, rho2, rho, elevation, visible, kx, ky (the Dirichlet kernels by the compiled loop
+    of :func:`~leolink.antenna.array.dirichlet_kernels` where it runs).
     ``sat_id``: the global satellite of each satellite row (None: row = satellite);
     ``steer``: ``(pos, vel)`` the satellites steer their beams by (an estimated ephemeris;
     None: the true states)."""
+    if engine.steering is None and compiled.use(ut.shape[0]):  # one pass per pair
+        return _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up)
     u_pos = ut_pos_m[ut]
     rel = u_pos - sat_pos_m[sat]  # satellite -> UT, (m, 3)
     rho2 = np.einsum("pk,pk->p", rel, rel)
@@ -327,14 +353,75 @@ def pair_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up, sat_
     return rel, rho2, rho, elevation, visible, kx, ky
 
 
+def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
+    """:func:`pair_geometry` of the codebook's lattice by the compiled :func:`_pair_rows`."""
+    m, cb = ut.shape[0], engine.codebook
+    ut_pos_m = np.ascontiguousarray(ut_pos_m, float)
+    frames = (
+        ut_pos_m,
+        ut_pos_m if ut_up is None else np.ascontiguousarray(ut_up, float),
+        np.ascontiguousarray(sat_pos_m, float),
+        body_frame(sat_pos_m, sat_vel_m_s),
+    )
+    lattice = (
+        engine.beam_ux,
+        engine.beam_uy,
+        float(cb.n_sub_x),
+        float(cb.n_sub_y),
+        float(engine.params.min_elevation_rad),
+        ut_up is None,
+    )
+    out = (
+        np.empty((m, 3)),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m, bool),
+        np.empty((engine.beam_ux.size, m)),
+        np.empty((engine.beam_uy.size, m)),
+    )
+    pairs = (np.asarray(ut, np.int64), np.asarray(sat, np.int64))
+    compiled.run_rows(_pair_rows, m, frames, pairs, lattice, out)
+    return out
+
+
+@compiled.jit
+def _pair_rows(frames, pairs, lattice, out, lo, hi):
+    """:func:`pair_geometry` of the pairs ``lo .. hi - 1``, each in one pass: the vector
+    satellite -> UT, its length, the elevation over the UT's up, the direction cosines in
+    the satellite body frame and their Dirichlet kernels (:func:`ula_gain`). ``sphere``:
+    ``up`` holds the UTs' positions, the sphere's radial up once divided by their norm."""
+    ut_pos, up, sat_pos, axes = frames
+    ut, sat = pairs
+    beam_ux, beam_uy, n_x, n_y, min_el, sphere = lattice
+    rel, rho2, rho, elevation, visible, kx, ky = out
+    for p in range(lo, hi):
+        u, s = ut[p], sat[p]
+        for k in range(3):
+            rel[p, k] = ut_pos[u, k] - sat_pos[s, k]
+        d = rel[p]
+        rho2[p] = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        rho[p] = np.sqrt(rho2[p])
+        sin_el = -(d[0] * up[u, 0] + d[1] * up[u, 1] + d[2] * up[u, 2]) / rho[p]
+        if sphere:
+            sin_el /= np.sqrt(up[u, 0] * up[u, 0] + up[u, 1] * up[u, 1] + up[u, 2] * up[u, 2])
+        elevation[p] = np.arcsin(min(max(sin_el, -1.0), 1.0))
+        visible[p] = elevation[p] >= min_el
+        ux = (d[0] * axes[s, 0, 0] + d[1] * axes[s, 0, 1] + d[2] * axes[s, 0, 2]) / rho[p]
+        uy = (d[0] * axes[s, 1, 0] + d[1] * axes[s, 1, 1] + d[2] * axes[s, 1, 2]) / rho[p]
+        for j in range(beam_ux.size):
+            kx[j, p] = ula_gain(ux - beam_ux[j], n_x)
+        for j in range(beam_uy.size):
+            ky[j, p] = ula_gain(uy - beam_uy[j], n_y)
+
+
 def panel_elevation_of_pairs(rel_m, slant_range_m, ut_normal, ut):
     """Angle above the panel plane ``arcsin(v . n)`` of each pair [rad], shape (m,).
 
     ``v = -rel / rho`` is the unit vector UT -> satellite (``rel_m (m, 3)``, satellite ->
     UT, and ``slant_range_m (m,)`` as :func:`pair_geometry` gives them), ``n`` the panel
     normal of the pair's UT row (``ut_normal[ut]``, ``(n_u, 3)``): the elevation itself for
-    a panel lying flat. The same numpy operations after the numpy and the compiled geometry
-    (which give the same ``rel`` and ``rho`` bits), so both paths agree bit for bit.
+    a panel lying flat.
     """
     v = -rel_m / slant_range_m[:, None]
     s = np.einsum("pk,pk->p", v, ut_normal[ut])

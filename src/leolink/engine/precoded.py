@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.antenna.response import chain_response
+from leolink.link.precoder import sinr_after_precoding
 
 __all__ = ["channel", "precoded_sinr"]
 
@@ -84,8 +85,5 @@ def precoded_sinr(precoder, h_true, member, i_other_lin, h_est=None):
     serving = np.broadcast_to(np.arange(member.shape[1]), member.shape)
     h_est = h_true if h_est is None else h_est
     f = precoder(h_est, 1.0, serving_beam=serving, ut_mask=member, beam_mask=member)
-    g = np.abs(h_true @ f) ** 2
-    signal = np.diagonal(g, axis1=-2, axis2=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sinr = signal / (g.sum(axis=-1) - signal + 1.0 + i_other_lin)
-    return np.where(member, sinr, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):  # padding: 0 / 0, masked
+        return sinr_after_precoding(h_true, f, member, 1.0 + i_other_lin)

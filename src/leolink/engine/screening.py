@@ -53,34 +53,43 @@ UNCERTAIN, VISIBLE = 1, 2
 def envelope(u, beam_u, n):
     """Upper bound of ``max_b dirichlet(u - b, n)`` over the beam cosines ``beam_u``.
 
+    :func:`_envelope` (which the compiled screening loop calls on scalars), without numpy's
+    warning where the bound is ``n`` (``1 / 0``).
+
     Parameters
     ----------
-    u : ndarray
+    u : float or ndarray
         Direction cosines [-], any shape.
     beam_u : ndarray, shape (k,)
         Distinct beam cosines, sorted.
-    n : int
+    n : int or float
         Elements along the axis.
 
     Returns
     -------
-    ndarray, shape of ``u``
+    float or ndarray, shape of ``u``
         ``min(n, 1 / (n sin^2(pi d / 2)))``, ``d`` the distance to the nearest beam
         modulo 2 (so the grating lobes at ``|u - b| = 2`` are counted), with the sine
         replaced by a polynomial below it (the bound only grows).
     """
+    with np.errstate(divide="ignore", over="ignore"):
+        return _envelope(u, beam_u, n)
+
+
+@compiled.jitable
+def _envelope(u, beam_u, n):
+    """:func:`envelope`'s formula, arithmetic and ufuncs only (arrays and scalars alike)."""
     d = np.abs(u - beam_u[0])
     for b in beam_u[1:]:
-        np.minimum(d, np.abs(u - b), out=d)
+        d = np.minimum(d, np.abs(u - b))
     # Modulo 2: the farthest beam is the nearest one through the grating lobe.
-    np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u), out=d)
-    x = (0.5 * np.pi) * np.clip(d, 0.0, 1.0)
+    d = np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u))
+    x = (0.5 * np.pi) * np.minimum(np.maximum(d, 0.0), 1.0)
     # sin x from below, by its Taylor polynomial to x^7 (an alternating series: the partial
     # sum after a negative term is below sin x on [0, pi]): the bound only grows.
     x2 = x * x
     s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0)))
-    with np.errstate(divide="ignore", over="ignore"):  # tiny s: 1 / (n s^2) -> inf -> n
-        return np.minimum(float(n), 1.0 / (n * s * s))
+    return np.minimum(np.float64(n), 1.0 / (n * s * s))  # tiny s: 1 / (n s^2) -> inf -> n
 
 
 def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_normal=None,
@@ -117,8 +126,8 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     rx = _rx_bound(engine.terminal)
     factor = _ut_factor(engine, rx, ut_id)
     known = np.where(np.isnan(factor), 1.0, factor)
-    if compiled.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]) and engine.steering is None:
-        code, bound, sin_el = _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
+    if engine.steering is None and compiled.use(ut_pos_m.shape[0] * sat_pos_m.shape[0]):
+        code, bound, sin_el = _screen_compiled(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known)
     else:
         code, bound, sin_el = _screen_numpy(
             engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known, sat_id
@@ -162,22 +171,60 @@ def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_i
     return code, np.where(code > 0, bound, -1.0), sin_el
 
 
-def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
-    """:func:`screen` by the compiled kernel (:func:`leolink.engine.jit.screen_kernel`)."""
-    from leolink.engine import jit
-
+def _screen_compiled(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
+    """:func:`screen`'s code, bound and sin(elevation) by the compiled :func:`_screen_rows`
+    (the same quantities as :func:`_screen_numpy`, rounded otherwise: both bounds carry
+    :data:`BOUND_SLACK`, both classes the :data:`SIN_EL_BAND`)."""
     shape = (ut_pos_m.shape[0], sat_pos_m.shape[0])
-    code, bound, sin_el = np.empty(shape, np.int8), np.empty(shape), np.empty(shape)
-    up = np.zeros((0, 3)) if ut_up is None else np.ascontiguousarray(ut_up, float)
-    jit.run_rows(
-        jit.screen_kernel(), shape[0], np.ascontiguousarray(ut_pos_m, float), up, ut_up is None,
+    if ut_up is None:  # the sphere's radial up
+        ut_up = ut_pos_m / np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))[:, None]
+    frames = (
+        np.ascontiguousarray(ut_pos_m, float),
+        np.ascontiguousarray(ut_up, float),
         np.ascontiguousarray(sat_pos_m, float),
-        np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
-        engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
-        engine.k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
-        np.ascontiguousarray(ut_factor, float), code, bound, sin_el, row_size=shape[1],
-    )  # fmt: skip
-    return code, bound, sin_el
+        np.ascontiguousarray(sat_axes, float),
+    )
+    cb = engine.codebook
+    lattice = (
+        engine.beam_ux,
+        engine.beam_uy,
+        float(cb.n_sub_x),
+        float(cb.n_sub_y),
+        float(np.sin(engine.params.min_elevation_rad)),
+    )
+    scale = np.ascontiguousarray(ut_factor, float) * (engine.k_lin * (1.0 + BOUND_SLACK))
+    out = (np.empty(shape, np.int8), np.empty(shape), np.empty(shape))
+    compiled.run_rows(_screen_rows, shape[0], frames, lattice, scale, out, row_size=shape[1])
+    return out
+
+
+@compiled.jit
+def _screen_rows(frames, lattice, scale, out, lo, hi):
+    """The code, bound (:func:`_envelope` of both axes, times ``scale[u] / rho^2``) and
+    sin(elevation) of the UT rows ``lo .. hi - 1`` against every satellite."""
+    ut_pos, up, sat_pos, axes = frames
+    beam_ux, beam_uy, n_x, n_y, s_min = lattice
+    code, bound, sin_el = out
+    for u in range(lo, hi):
+        for s in range(sat_pos.shape[0]):
+            d0, d1, d2 = (
+                ut_pos[u, 0] - sat_pos[s, 0],
+                ut_pos[u, 1] - sat_pos[s, 1],
+                ut_pos[u, 2] - sat_pos[s, 2],
+            )
+            rho2 = d0 * d0 + d1 * d1 + d2 * d2
+            rho = np.sqrt(rho2)
+            se = -(d0 * up[u, 0] + d1 * up[u, 1] + d2 * up[u, 2]) / rho
+            sin_el[u, s] = se
+            c = (se >= s_min - SIN_EL_BAND) + (se >= s_min + SIN_EL_BAND)
+            code[u, s] = c
+            if c == 0:
+                bound[u, s] = -1.0
+                continue
+            ux = (d0 * axes[s, 0, 0] + d1 * axes[s, 0, 1] + d2 * axes[s, 0, 2]) / rho
+            uy = (d0 * axes[s, 1, 0] + d1 * axes[s, 1, 1] + d2 * axes[s, 1, 2]) / rho
+            g = _envelope(ux, beam_ux, n_x) * _envelope(uy, beam_uy, n_y)
+            bound[u, s] = g * scale[u] / rho2
 
 
 _SLACK_DB = 10.0 * np.log10(1.0 + BOUND_SLACK)

@@ -143,14 +143,35 @@ def snr_db(rss_dbw, noise_dbw):
     return np.asarray(rss_dbw, dtype=float) - noise_dbw
 
 
-def sinr_lin(signal_w, interference_w, noise_w):
-    """SINR = RSS / (I + sigma^2), linear, Eq. (19) of [1]. Inputs in [W]."""
-    return np.asarray(signal_w, dtype=float) / (np.asarray(interference_w) + noise_w)
+def sinr_lin(signal_lin, interference_lin, noise_lin):
+    """SINR ``S / (I + sigma^2)``, linear, Eq. (19) of [1].
+
+    The one place the SINR is formed: the engine's serving links
+    (:meth:`leolink.engine.LinkEngine.serve_pairs`), the precoded path
+    (:func:`leolink.link.precoder.sinr_after_precoding`) and the active-beam choice
+    (:mod:`leolink.sim.beams.active`) call it, on arrays. Arithmetic only: a compiled loop
+    may call it on scalars as it is (:mod:`leolink.compiled`).
+
+    Parameters
+    ----------
+    signal_lin, interference_lin, noise_lin : float or ndarray, broadcastable
+        Received signal, interference and noise powers, in one linear unit ([W], or
+        normalized to the noise).
+
+    Returns
+    -------
+    float or ndarray, broadcast shape of the inputs
+        SINR [-] (linear).
+    """
+    return np.float64(signal_lin) / (interference_lin + noise_lin)
 
 
 def spectral_efficiency_bps_hz(sinr_lin):
-    """Shannon spectral efficiency ``log2(1 + SINR)`` [bit/s/Hz], Sec. 4.2 of [1] (unnumbered)."""
-    return np.log2(1.0 + np.asarray(sinr_lin, dtype=float))
+    """Shannon spectral efficiency ``log2(1 + SINR)`` [bit/s/Hz], Sec. 4.2 of [1] (unnumbered).
+
+    As ``log1p(SINR) / ln 2``: accurate at low SINR, where ``1 + SINR`` would round.
+    """
+    return np.log1p(np.float64(sinr_lin)) / np.log(2.0)
 
 
 def throughput_bps(se_bps_hz, bandwidth_hz):

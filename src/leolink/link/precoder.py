@@ -65,6 +65,7 @@ import numpy as np
 from pydantic import Field
 
 from leolink.errors import ConfigError
+from leolink.link.budget import sinr_lin
 from leolink.registry import Params, Registry
 
 __all__ = [
@@ -263,8 +264,8 @@ def sinr_after_precoding(h_true, f_bb, ut_mask=None, noise_lin=1.0):
         Precoder from :func:`precoder_matrix` (computed from the estimated channel).
     ut_mask : array_like of bool, shape (..., n_ut), optional
         False for padding rows (SINR NaN there).
-    noise_lin : float
-        Noise power in the unit of ``H``.
+    noise_lin : float or ndarray, shape (..., n_ut)
+        Noise (and any interference outside ``H``) power in the unit of ``H``.
 
     Returns
     -------
@@ -273,7 +274,7 @@ def sinr_after_precoding(h_true, f_bb, ut_mask=None, noise_lin=1.0):
     """
     g = np.abs(np.asarray(h_true, dtype=complex) @ np.asarray(f_bb, dtype=complex)) ** 2
     signal = np.diagonal(g, axis1=-2, axis2=-1)
-    sinr = signal / (g.sum(axis=-1) - signal + noise_lin)
+    sinr = sinr_lin(signal, g.sum(axis=-1) - signal, noise_lin)
     if ut_mask is not None:
         sinr = np.where(ut_mask, sinr, np.nan)
     return sinr

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.engine import jit
 from leolink.geometry import enu_basis
 from leolink.sim.beams.selectors import restrict
 from leolink.sim.candidates.search import CandidateSearch
@@ -213,31 +212,21 @@ class Decider:
         mask (an extra column; -1/NaN elsewhere), lowered by its path's loss in
         ``channel`` (the epoch's :class:`~leolink.sim.environment.EpochChannel`, if any:
         the table's cells have theirs)."""
-        if table._compiled():  # the same column, in one loop
-            cell, snr_db, missing, n_need = jit.serving_column(table, serving, rows.start,
-                                                               self.block)  # fmt: skip
-            if n_need == 0:
-                return table
-            need = np.flatnonzero(missing)  # pairs the search left out: evaluated now
-            if need.size:
-                val, vis = self._evaluated_snr_db(rows.start + need, serving[need])
-                cell[need[vis]], snr_db[need[vis]] = serving[need[vis]], val[vis]
-        else:
-            nb, blk = self.engine.n_beam, self.block
-            need = np.flatnonzero((serving >= 0) & (table.slot_of(serving) < 0))
-            if need.size == 0:
-                return table
-            r = rows.start + need
-            sat, beam = serving[need] // nb, serving[need] % nb
-            val, vis = np.full(need.size, np.nan), np.zeros(need.size, bool)
-            pair = blk.find_pairs(r, sat)
-            hit = pair >= 0
-            val[hit], vis[hit] = blk.snr_db_of(pair[hit], beam[hit])
-            miss = np.flatnonzero(~hit)
-            if miss.size:  # pairs the search left out: evaluated now
-                val[miss], vis[miss] = self._evaluated_snr_db(r[miss], serving[need[miss]])
-            cell, snr_db = np.full(table.n_ut, -1, np.int64), np.full(table.n_ut, np.nan)
-            cell[need[vis]], snr_db[need[vis]] = serving[need[vis]], val[vis]
+        nb, blk = self.engine.n_beam, self.block
+        need = np.flatnonzero((serving >= 0) & (table.slot_of(serving) < 0))
+        if need.size == 0:
+            return table
+        r = rows.start + need
+        sat, beam = serving[need] // nb, serving[need] % nb
+        val, vis = np.full(need.size, np.nan), np.zeros(need.size, bool)
+        pair = blk.find_pairs(r, sat)
+        hit = pair >= 0
+        val[hit], vis[hit] = blk.snr_db_of(pair[hit], beam[hit])
+        miss = np.flatnonzero(~hit)
+        if miss.size:  # pairs the search left out: evaluated now
+            val[miss], vis[miss] = self._evaluated_snr_db(r[miss], serving[need[miss]])
+        cell, snr_db = np.full(table.n_ut, -1, np.int64), np.full(table.n_ut, np.nan)
+        cell[need[vis]], snr_db[need[vis]] = serving[need[vis]], val[vis]
         if channel is not None:
             sat = np.where(cell >= 0, cell // self.engine.n_beam, -1)
             snr_db = snr_db - channel.loss_db(sat[:, None])[:, 0]

@@ -11,8 +11,6 @@ import math
 
 import numpy as np
 
-from leolink import compiled
-
 __all__ = ["PERCENTILES", "GroupedPercentileHistogram", "PercentileHistogram"]
 __all__ += ["interpolated_percentiles"]
 
@@ -53,13 +51,6 @@ class PercentileHistogram:
         """Slot of every value: 0 below ``lo``, ``1 .. n_bins`` the bins, ``n_bins + 1``
         at or above ``hi`` (NaN read as ``unserved_value``)."""
         x = np.asarray(values, float).reshape(-1)
-        if compiled.use(x.size):  # the compiled loop: the same slots, one pass, not seven
-            from leolink import _kernels
-
-            out = np.empty(x.size, np.int64)
-            _kernels.histogram_slots(x, self.lo, self.resolution, self.hi, self.n_bins,
-                                     self.unserved_value, out)  # fmt: skip
-            return out
         x = np.where(np.isnan(x), self.unserved_value, x)
         with np.errstate(invalid="ignore"):
             idx = np.floor((x - self.lo) / self.resolution)

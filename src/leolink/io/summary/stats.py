@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink import compiled
 from leolink.io.summary.records import STAT_KEYS
 from leolink.sim.histograms import GroupedPercentileHistogram, PercentileHistogram
 
@@ -88,31 +87,6 @@ class DbStats:
 
     def add(self, ut, values):
         """Add the finite ``values`` (1-D float) of UTs ``ut`` (1-D int)."""
-        if compiled.use(values.size):  # the compiled loop: the same counts and sums, one pass
-            from leolink import _kernels
-
-            keys = np.empty(values.size, np.int64)
-            p, g = self.pooled, self.per_ut.grid
-            # The finite values' per-UT counts and sums (added in order, as the running sum
-            # below), the pooled counts, in place; the per-UT keys into ``keys``: n of them.
-            n = _kernels.db_stats_add(
-                np.asarray(ut, np.int64),
-                np.asarray(values, float),
-                self.count,
-                self.sum,
-                p.counts,
-                p.lo,
-                p.resolution,
-                p.hi,
-                p.n_bins,
-                g.lo,
-                g.resolution,
-                g.hi,
-                g.n_bins,
-                keys,
-            )
-            self.per_ut.add_keys(keys[:n])
-            return
         ok = np.isfinite(values)
         ut, values = ut[ok], values[ok]
         self.count += np.bincount(ut, minlength=self.count.size)

@@ -36,6 +36,7 @@ References
 import numpy as np
 
 from leolink.errors import ConfigError
+from leolink.link.budget import sinr_lin, spectral_efficiency_bps_hz
 
 __all__ = [
     "DARK_BEAM_FALLBACKS",
@@ -120,7 +121,7 @@ def _delivered_sum_rate(snr, trial):
     s = snr * trial[:, :, None, :]
     best = np.argmax(s, axis=-1)  # each UT on its best lit beam
     sig = np.take_along_axis(s, best[..., None], axis=-1)[..., 0]
-    rate = np.log2(1.0 + sig / (s.sum(-1) - sig + 1.0))
+    rate = spectral_efficiency_bps_hz(sinr_lin(sig, s.sum(-1) - sig, 1.0))
     present = sig > 0.0
     one_hot = (best[..., None] == np.arange(s.shape[-1])) & present[..., None]
     rate_sum = np.einsum("scub,scu->scb", one_hot, rate)

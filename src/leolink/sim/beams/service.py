@@ -25,6 +25,7 @@ import numpy as np
 from leolink.arrays import nonzero_2d
 from leolink.engine import precoded
 from leolink.geometry import direction_cosines
+from leolink.link.budget import spectral_efficiency_bps_hz
 from leolink.sim.beams.active import assign_chains
 from leolink.sim.beams.scheduler import beam_groups
 
@@ -125,7 +126,7 @@ class BeamService:
             h_est = precoded.channel(u_est, path, beam_u, np.where(ok, chain, -1),
                                      eng.colors[b], ok, self.array)  # fmt: skip
         sinr = precoded.precoded_sinr(self.precoder, h, ok, i_other, h_est)
-        rate = np.log1p(np.where(ok, sinr, 0.0)) / np.log(2.0)
+        rate = spectral_efficiency_bps_hz(np.where(ok, sinr, 0.0))
         n_ut = sat_id.size
         total = np.bincount(member[ok], weights=rate[ok], minlength=n_ut)
         count = np.bincount(member[ok], minlength=n_ut)

@@ -42,9 +42,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink import compiled
 from leolink.arrays import nonzero_2d, take_rows
-from leolink.engine import jit
 from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
 from leolink.geometry import body_frame
@@ -106,8 +104,6 @@ class BlockCandidates:
         n = self.links.n_pair
         if n == 0:
             return np.full(np.shape(rows), -1, np.int64)
-        if compiled.use(np.size(rows)):  # the same indices, ascending queries by galloping
-            return jit.find_pairs(self.pair_key, self.n_key, rows, sats)
         ok = (sats >= 0) & (sats < self.n_key)
         key = rows * self.n_key + np.where(ok, sats, 0)
         i = np.minimum(np.searchsorted(self.pair_key, key), n - 1)
@@ -301,7 +297,6 @@ class CandidateSearch:
         best_db = np.full(n_rows, np.nan)
         best_cell = np.full(n_rows, -1, np.int64)
         every = vis.size == links.n_pair  # every pair visible: slices, not gathers
-        window = _window_kernel(vis.size) if self.floor_db == -np.inf else None
         open_db = None if pair_loss is None else np.full(n_rows, np.nan)
         entries = []
         for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
@@ -311,9 +306,6 @@ class CandidateSearch:
             if pair_loss is not None:  # the open best, then every SNR after the environment
                 _row_best(rows, snr_bm.T, open_db)
                 snr_bm = snr_bm - pair_loss[pairs][None, :]
-            if window is not None:  # the same entries and best_db, no (pairs, beams) temporaries
-                entries.append(window(snr_bm, rows, sat, nb, float(self.window_db), best_db))
-                continue
             snr = snr_bm.T  # (m, nb)
             _row_best(rows, snr, best_db)
             with np.errstate(invalid="ignore"):
@@ -370,16 +362,6 @@ def _dense_pairs(ks, n_ut, cones):
     rows = [np.repeat(k * n_ut + np.arange(n_ut), len(cones[k])) for k in ks]
     sats = [np.tile(cones[k], n_ut) for k in ks]
     return np.concatenate(rows), np.concatenate(sats)
-
-
-def _window_kernel(n_pairs):
-    """:func:`leolink.sim.candidates.table_kernels.window_entries` where the kernels run
-    (:func:`leolink.compiled.use`), else None (the numpy code of ``_tables``)."""
-    if not compiled.use(n_pairs):
-        return None
-    from leolink.sim.candidates import table_kernels
-
-    return table_kernels.window_entries
 
 
 def _row_chunks(rows, size):

@@ -19,8 +19,6 @@ import dataclasses
 
 import numpy as np
 
-from leolink import compiled
-
 __all__ = ["Candidates"]
 
 _NO_CELL = np.iinfo(np.int64).max
@@ -77,18 +75,6 @@ class Candidates:
     def n_slot(self) -> int:
         return self.cell.shape[1]
 
-    def _compiled(self):
-        """Whether this table's lookups take :mod:`leolink.sim.candidates.table_kernels` (the same
-        results): the kernels on (:func:`leolink.compiled.use`) and a non-empty table in
-        one block of memory each (a dense table's broadcast cells take numpy)."""
-        return (
-            self.cell.flags.c_contiguous
-            and self.snr_db.flags.c_contiguous
-            and self.cell.dtype == np.int64
-            and self.snr_db.dtype == np.float64
-            and compiled.use(self.cell.size)
-        )
-
     def like(self, snr_db):
         """The same cells with other values (e.g. masked, or at a later time)."""
         return Candidates(self.cell, np.asarray(snr_db, float))
@@ -112,9 +98,6 @@ class Candidates:
         arrays = np.array((cells, *more), np.int64) if more else np.asarray(cells, np.int64)[None]
         if self.n_slot == 0:
             slots = np.full(arrays.shape, -1, np.int64)
-        elif arrays.shape[1:] == (self.n_ut,) and self._compiled():
-            slots = np.empty(arrays.shape, np.int64)
-            _kernels().slots(self.cell, np.ascontiguousarray(arrays), slots)
         else:
             hit = self.cell == arrays[..., None]  # (n_arrays, n_ut, n_slot)
             first = hit.argmax(axis=2)  # the first hit, or slot 0 where there is none
@@ -134,10 +117,6 @@ class Candidates:
             return np.full(slot.shape, np.nan)
         if self.n_slot == 1:
             return np.where(slot >= 0, self.snr_db[:, 0], np.nan)
-        if slot.dtype == np.int64 and slot.shape == (self.n_ut,) and self._compiled():
-            out = np.empty(self.n_ut)
-            _kernels().values_at(self.snr_db, slot, out)
-            return out
         val = self.snr_db[np.arange(slot.size), np.maximum(slot, 0)]
         return np.where(slot >= 0, val, np.nan)
 
@@ -151,19 +130,9 @@ class Candidates:
             val = self.snr_db[:, 0]
             ok = val > -np.inf
             return np.where(ok, self.cell[:, 0], -1).astype(np.int64), np.where(ok, val, np.nan)
-        if self._compiled():
-            cell, value = np.empty(self.n_ut, np.int64), np.empty(self.n_ut)
-            _kernels().best(self.cell, self.snr_db, cell, value)
-            return cell, value
         filled = np.where(np.isnan(self.snr_db), -np.inf, self.snr_db)
         val = filled.max(axis=1, initial=-np.inf)
         ok = val > -np.inf
         tied = (filled == val[:, None]) & ok[:, None]
         cell = np.where(tied, self.cell, _NO_CELL).min(axis=1, initial=_NO_CELL)
         return np.where(ok, cell, -1).astype(np.int64), np.where(ok, val, np.nan)
-
-
-def _kernels():
-    from leolink.sim.candidates import table_kernels
-
-    return table_kernels

@@ -23,7 +23,6 @@ import dataclasses
 
 import numpy as np
 
-from leolink import compiled
 from leolink.sim.candidates.table import Candidates
 from leolink.sim.handover.events import (  # noqa: F401  (the tables' names, re-exported)
     DWELL_COLUMNS,
@@ -193,11 +192,6 @@ def step(
     if target is None:
         target = policy.choose(t_s, usable_db, state, future_db)
     target = np.asarray(target, np.int64)
-    if compiled.use(state.n_ut):  # the same rules, UT by UT in one compiled loop
-        from leolink.sim.handover.step_kernel import compiled_step
-
-        return compiled_step(t_s, snr_db, state, policy, target, min_snr_db, handover_time_s,
-                             n_beam)  # fmt: skip
     old = state.serving
     # The usable table has the cells of the full one: each cell's slot is found once.
     slot_old, slot_target = snr_db.slot_of(old, target)
