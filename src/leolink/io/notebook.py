@@ -194,7 +194,7 @@ class ResultViews:
         data = {
             c: (("time", "ut_id"), _grid(trace[c].to_numpy(), it, iu, (t.size, u.size)), _attrs(c))
             for c in trace.columns
-            if c not in ("time_s", "ut_id", "population")
+            if c not in ("time_s", "ut_id", "population", "time_utc")  # (coordinates)
         }
         coords = {"time": ("time", t, _attrs("time_s")), "ut_id": ("ut_id", u, _attrs("ut_id"))}
         if "population" in trace:
