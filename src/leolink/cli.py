@@ -414,6 +414,7 @@ def main(argv=None) -> int:
         out_of_memory,
         quiet_warnings,
     )
+    from leolink.compiled import check_environment
     from leolink.io.run_dir import held_out_dirs
 
     parser = build_parser()
@@ -421,6 +422,7 @@ def main(argv=None) -> int:
     try:
         if getattr(args, "out", None) is not None and not args.out.strip():
             raise ConfigError("--out '' is not allowed; give a folder, e.g. --out results")
+        check_environment()  # LEOLINK_JIT, LEOLINK_THREADS: before --out is made
         with interruptible(), quiet_warnings(), held_out_dirs():
             return args.func(args)
     except LeolinkError as exc:
