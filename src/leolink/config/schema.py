@@ -93,8 +93,8 @@ class RunSection(Section):
     warmup_s: float = _f(0.0, ge=0, le=MAX_TIME_S, doc="simulated time before recording starts [s]")
     start_utc: str = _f(
         "",
-        doc="UTC instant of the first epoch, ISO 8601 (none: TLE runs start at the first "
-        "TLE's epoch; needed by tracks with UTC timestamps)",
+        doc="UTC instant of the first epoch, ISO 8601, years 1900-2100 (none: TLE runs start "
+        "at the first TLE's epoch; needed by tracks with UTC timestamps)",
     )
 
     def utc_of_time_zero(self):

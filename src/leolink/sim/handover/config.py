@@ -224,8 +224,7 @@ class FilterConfig(Params):
         0.2,
         ge=1e-3,
         le=60.0,
-        description="sample period the coefficient assumes [s] (L1 period of TS 38.133; "
-        "1 ms .. 60 s)",
+        description="sample period the coefficient assumes [s] (L1 period of TS 38.133)",
     )
 
 
