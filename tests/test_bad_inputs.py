@@ -145,14 +145,19 @@ BAD_INPUTS = [
 @pytest.mark.parametrize(("case", "build", "pattern"), BAD_INPUTS, ids=[b[0] for b in BAD_INPUTS])
 def test_validate_and_run_refuse_a_bad_input_alike(case, build, pattern, tmp_path, capsys):
     config, overrides = build(tmp_path)
-    sets = [a for o in [*FAST, *overrides] for a in ("--set", o)]
     out = tmp_path / "out"
+    _refused_alike(capsys, config, overrides, out, pattern)
+    assert files_in(out) == []
+
+
+def _refused_alike(capsys, config, overrides, out, pattern):
+    """``validate`` and ``run`` (into ``out``) both exit 2 with the same one line."""
+    sets = [a for o in [*FAST, *overrides] for a in ("--set", o)]
     code_v, _, err_v = cli(capsys, "validate", config, *sets)
     code_r, _, err_r = cli(capsys, "run", config, *sets, "--out", out, "--quiet")
     assert code_v == code_r == EXIT_USAGE, (err_v, err_r)
     assert err_v == err_r and err_v.count("\n") == 1 and err_v.startswith("leolink: error: ")
     assert re.search(pattern, err_v), err_v
-    assert files_in(out) == []
 
 
 # (variable, value, message regex): the environment is checked before --out is made.
@@ -171,12 +176,8 @@ def test_validate_and_run_refuse_a_bad_environment_alike(
 
     monkeypatch.setenv(name, value)
     monkeypatch.setattr(compiled, "n_threads", compiled.n_threads.__wrapped__)  # no cache
-    sets = [a for o in FAST for a in ("--set", o)]
     out = tmp_path / "out"
-    code_v, _, err_v = cli(capsys, "validate", PAPER, *sets)
-    code_r, _, err_r = cli(capsys, "run", PAPER, *sets, "--out", out, "--quiet")
-    assert code_v == code_r == EXIT_USAGE, (err_v, err_r)
-    assert err_v == err_r and err_v.count("\n") == 1 and re.search(pattern, err_v), err_v
+    _refused_alike(capsys, PAPER, [], out, pattern)
     assert not out.exists()  # not even an empty folder
 
 
