@@ -220,6 +220,7 @@ class FilterConfig(Params):
     """``[controller.filter]``: layer-3 filtering (TS 38.331 5.5.3.2)."""
 
     k: FilterCoefficient = Field(4, description="filterCoefficient (fc0..fc19; 0: off)")
+    # 1 ms (below any L1 measurement period of TS 38.133) to 60 s: 1e-300 was taken.
     reference_period_s: float = Field(
         0.2,
         ge=1e-3,
