@@ -30,7 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 #: The benchmark modules, in the order they run (each ``main(quick, argv) -> dict``).
 MODULES = ("bench_engine", "bench_sim", "bench_constellation", "bench_features",
-           "bench_small", "bench_memory", "bench_visibility", "bench_peer")  # fmt: skip
+           "bench_small", "bench_memory", "bench_visibility", "bench_peer",
+           "bench_atmosphere")  # fmt: skip
 #: Benchmarks run on their own, not by this command (minutes each, or a part's floor).
 RUN_ALONE = ("bench_report", "bench_writer")
 #: The variants of bench_features (its VARIANTS).

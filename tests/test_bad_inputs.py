@@ -5,6 +5,7 @@ what ``run`` says and nothing is written. The corpus is :data:`BAD_INPUTS` (conf
 
 from __future__ import annotations
 
+import os
 import re
 
 import pytest
@@ -48,6 +49,8 @@ def _sets_only(*overrides, config=PAPER):
 
 
 ONE_UT = "population=[{kind = 'static', name = 'one', placement = 'center'}]"
+#: 47 beams (O = 2) for the paper's 15 RF chains, lit by a hopping pattern.
+HOPPING = ["satellite_array.oversampling=2.0", "satellite_array.active_beams='hopping'"]
 
 # (id, config and overrides as a function of tmp_path, message regex)
 BAD_INPUTS = [
@@ -99,6 +102,39 @@ BAD_INPUTS = [
         r"wide\.csv: line 2: not a CSV line that leolink reads \(field larger than field limit",
     ),
     (
+        "hopping_16_beams_for_15_chains",
+        _sets_only(*HOPPING, "satellite_array.hopping.pattern=[" + str(list(range(16))) + "]"),
+        r"hopping\.pattern\[0\] = \[0, 1, .*, 15\] is not allowed: 16 beams for n_rf = 15",
+    ),
+    (
+        "hopping_repeated_beam_id",
+        _sets_only(*HOPPING, "satellite_array.hopping.pattern=[[3], [0, 0, 1]]"),
+        r"hopping\.pattern\[1\] = \[0, 0, 1\] is not allowed: give each beam id once",
+    ),
+    (
+        "filter_reference_period_1e-300",
+        _sets_only("controller.filter.reference_period_s=1e-300"),
+        r"controller\.filter\.reference_period_s = 1e-300 is not allowed: input should be "
+        r"greater than or equal to 0\.001",
+    ),
+    (
+        "rlf_t310_1e300",
+        _sets_only("controller.rlf.enabled=true", "controller.rlf.t310_s=1e300"),
+        r"controller\.rlf\.t310_s = 1e\+300 is not allowed: input should be less than or "
+        r"equal to 6 ",
+    ),
+    (
+        "reuse_colors_float",
+        _sets_only("link.reuse_colors=3.0"),
+        r"link\.reuse_colors = 3\.0 is not allowed: input should be a whole number",
+    ),
+    (
+        "start_year_0001",
+        _sets_only("run.start_utc='0001-01-01T00:00:00Z'"),
+        r"run\.start_utc = '0001-01-01T00:00:00Z' is not allowed: use a date in the years "
+        r"1900 to 2100",
+    ),
+    (
         "tle_file_5000_chars",
         _sets_only(f"constellation.tle_file='{'a' * 5000}'", config=TLE_CONFIG),
         r"constellation\.tle_file = 'a{40}'\.\.\. \(5,000 characters\) is not allowed",
@@ -109,14 +145,60 @@ BAD_INPUTS = [
 @pytest.mark.parametrize(("case", "build", "pattern"), BAD_INPUTS, ids=[b[0] for b in BAD_INPUTS])
 def test_validate_and_run_refuse_a_bad_input_alike(case, build, pattern, tmp_path, capsys):
     config, overrides = build(tmp_path)
-    sets = [a for o in [*FAST, *overrides] for a in ("--set", o)]
     out = tmp_path / "out"
+    _refused_alike(capsys, config, overrides, out, pattern)
+    assert files_in(out) == []
+
+
+def _refused_alike(capsys, config, overrides, out, pattern):
+    """``validate`` and ``run`` (into ``out``) both exit 2 with the same one line."""
+    sets = [a for o in [*FAST, *overrides] for a in ("--set", o)]
     code_v, _, err_v = cli(capsys, "validate", config, *sets)
     code_r, _, err_r = cli(capsys, "run", config, *sets, "--out", out, "--quiet")
     assert code_v == code_r == EXIT_USAGE, (err_v, err_r)
     assert err_v == err_r and err_v.count("\n") == 1 and err_v.startswith("leolink: error: ")
     assert re.search(pattern, err_v), err_v
-    assert files_in(out) == []
+
+
+# (variable, value, message regex): the environment is checked before --out is made.
+BAD_ENVIRONMENTS = [
+    ("LEOLINK_JIT", "maybe", r"LEOLINK_JIT = 'maybe' is not allowed: use 1 .* or 0"),
+    ("LEOLINK_THREADS", "0", r"LEOLINK_THREADS = '0' is not allowed: a whole number >= 1"),
+    ("LEOLINK_THREADS", "-3", r"LEOLINK_THREADS = '-3' is not allowed"),
+]
+
+
+@pytest.mark.parametrize(("name", "value", "pattern"), BAD_ENVIRONMENTS)
+def test_validate_and_run_refuse_a_bad_environment_alike(
+    name, value, pattern, tmp_path, capsys, monkeypatch
+):
+    from leolink import compiled
+
+    monkeypatch.setenv(name, value)
+    monkeypatch.setattr(compiled, "n_threads", compiled.n_threads.__wrapped__)  # no cache
+    out = tmp_path / "out"
+    _refused_alike(capsys, PAPER, [], out, pattern)
+    assert not out.exists()  # not even an empty folder
+
+
+def test_threads_are_capped_at_the_cpus(monkeypatch):
+    from leolink import compiled
+
+    cpus = len(os.sched_getaffinity(0))
+    for asked, threads in [("1", 1), ("100000", cpus), ("1" * 5000, cpus), (str(cpus), cpus)]:
+        monkeypatch.setenv("LEOLINK_THREADS", asked)
+        assert compiled.n_threads.__wrapped__() == threads, asked
+
+
+def test_jit_words(monkeypatch):
+    from leolink import compiled
+
+    for word in ["0", "off", "No", " false "]:
+        monkeypatch.setenv("LEOLINK_JIT", word)
+        assert compiled.enabled.__wrapped__() is False, word
+    for word in ["1", "ON", "yes", "true"]:
+        monkeypatch.setenv("LEOLINK_JIT", word)
+        compiled.check_environment()  # accepted (numba's presence decides the rest)
 
 
 # (id, command line after the config, message regex)

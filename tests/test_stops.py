@@ -51,3 +51,19 @@ def test_a_second_ctrl_c_does_not_interrupt_the_cleanup(tmp_path):
     assert code == 130, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert _partials(out) == [] and files_in(out) == []
+
+
+@pytest.mark.parametrize("name", STOPS)
+def test_a_stop_before_the_command_starts_is_one_line(name):
+    """Between the console script's start and the command's own handlers (imports, the
+    parser): one line and 128 + N, not a KeyboardInterrupt traceback, never lost (a run
+    stopped there went on for minutes)."""
+    import subprocess
+
+    code = (
+        "import os, signal, time; from leolink.cli import _exit_on_stop_signals; "
+        f"_exit_on_stop_signals(); os.kill(os.getpid(), signal.{name}); time.sleep(30)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 128 + getattr(signal, name), proc.stderr
+    assert proc.stderr == f"leolink: stopped by {name} before the command started\n"

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import zipfile
 from pathlib import Path
@@ -414,6 +415,7 @@ def main(argv=None) -> int:
         out_of_memory,
         quiet_warnings,
     )
+    from leolink.compiled import check_environment
     from leolink.io.run_dir import held_out_dirs
 
     parser = build_parser()
@@ -421,6 +423,7 @@ def main(argv=None) -> int:
     try:
         if getattr(args, "out", None) is not None and not args.out.strip():
             raise ConfigError("--out '' is not allowed; give a folder, e.g. --out results")
+        check_environment()  # LEOLINK_JIT, LEOLINK_THREADS: before --out is made
         with interruptible(), quiet_warnings(), held_out_dirs():
             return args.func(args)
     except LeolinkError as exc:
@@ -456,10 +459,35 @@ def main(argv=None) -> int:
 def console(argv=None):
     """The ``leolink`` command (and ``python -m leolink.cli``): :func:`main`, then the
     process's end with its code (:func:`leolink.app.process.end`)."""
+    _exit_on_stop_signals()
     from leolink.app.process import end, start
 
     start()  # (before numpy's and the models' import: main() imports what it runs)
-    end(main(argv))
+    code = main(argv)
+    _exit_on_stop_signals(after=True)
+    end(code)
+
+
+#: The signals that stop a command (leolink.app.guard handles them inside the command).
+STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP", "SIGXCPU")
+
+
+def _exit_on_stop_signals(after=False):
+    """Until :func:`main`'s ``interruptible()`` takes over, a stop signal ends the process at
+    once with one line and ``128 + N``: nothing is written yet, and an exception raised in
+    the imports (Python's KeyboardInterrupt) printed a traceback or, caught by a library,
+    was lost (a run went on for minutes). ``after``: the command is over, the signal is
+    ignored while the process flushes its output and exits."""
+    import signal
+
+    def stop(signum, frame):
+        name = signal.Signals(signum).name
+        os.write(2, f"leolink: stopped by {name} before the command started\n".encode())
+        os._exit(128 + signum)
+
+    for name in STOP_SIGNALS:
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN if after else stop)
 
 
 if __name__ == "__main__":

@@ -5,12 +5,12 @@ A physics function that a compiled loop calls is written once, in the module nam
 its physics, with arithmetic and numpy ufuncs only, so that it takes arrays (numpy
 callers) and scalars (the loops) alike; :func:`jitable` marks it. A loop is decorated with
 :func:`jit`: ``numba.njit(cache=True, nogil=True)`` (numpy's error model), compiled at its
-first call. With
-``LEOLINK_JIT=0`` in the environment (or without numba) :func:`enabled` is False: callers
-take their numpy code, which calls the same physics functions on arrays, and :func:`jit`
-gives the loop's Python function itself (the tests run both and compare them to a stated
-tolerance). ``LEOLINK_THREADS=N`` sets the threads a large call is split over
-(:func:`run_rows`). The ``leolink`` command gives BLAS one thread
+first call. With ``LEOLINK_JIT=0`` in the environment (or without numba; ``1`` or unset:
+on; any other word is refused) :func:`enabled` is False: callers take their numpy code,
+which calls the same physics functions on arrays, and :func:`jit` gives the loop's Python
+function itself (the tests run both and compare them to a stated tolerance).
+``LEOLINK_THREADS=N`` sets the threads a large call is split over (:func:`run_rows`), at
+most the CPUs this process may run on. The ``leolink`` command gives BLAS one thread
 (:func:`single_threaded_blas`).
 
 numba's cache invalidates a loop when the loop's own file changes, not when a function it
@@ -27,7 +27,15 @@ import os
 import threading
 from pathlib import Path
 
-__all__ = ["SPLIT_MIN_ROWS", "enabled", "jit", "jitable", "n_threads"]
+__all__ = [
+    "JIT_WORDS",
+    "SPLIT_MIN_ROWS",
+    "check_environment",
+    "enabled",
+    "jit",
+    "jitable",
+    "n_threads",
+]
 __all__ += ["run_rows", "single_threaded_blas", "use"]
 
 #: The variables BLAS libraries take their thread count from (OpenBLAS, numpy's own, reads
@@ -41,10 +49,29 @@ _JITABLE: list = []
 _COMPILE_LOCK = threading.Lock()
 
 
+#: The words ``LEOLINK_JIT`` may be (any case): on, then off. Anything else is refused
+#: (``maybe`` was read as on).
+JIT_WORDS = (("1", "true", "yes", "on"), ("0", "false", "no", "off"))
+
+
+def check_environment():
+    """Refuse a ``LEOLINK_JIT`` or ``LEOLINK_THREADS`` that is not allowed, in one line
+    (:class:`~leolink.errors.ConfigError`); every command calls it before it writes."""
+    jit = os.environ.get("LEOLINK_JIT", "1").strip()
+    if jit.lower() not in JIT_WORDS[0] + JIT_WORDS[1]:
+        from leolink.errors import ConfigError
+
+        raise ConfigError(
+            f"LEOLINK_JIT = {jit!r} is not allowed: use 1 (compiled loops, the default) or 0"
+        )
+    _threads_asked()
+
+
 @functools.cache
 def enabled():
     """Whether the compiled loops run: numba installed and ``LEOLINK_JIT`` not 0."""
-    if os.environ.get("LEOLINK_JIT", "1").strip() in ("0", "false", "no", "off"):
+    check_environment()
+    if os.environ.get("LEOLINK_JIT", "1").strip().lower() in JIT_WORDS[1]:
         return False
     import importlib.util
 
@@ -129,19 +156,24 @@ def _cache_dir():
 
 @functools.cache
 def n_threads():
-    """Threads a large kernel call is split over: ``LEOLINK_THREADS`` if set, else the
-    CPUs this process may run on."""
-    env = os.environ.get("LEOLINK_THREADS", "").strip()
-    if env:
-        if not env.isdigit() or int(env) < 1:
-            from leolink.errors import ConfigError
+    """Threads a large kernel call is split over: ``LEOLINK_THREADS`` if set, capped at the
+    CPUs this process may run on, else those CPUs."""
+    return _threads_asked()
 
-            raise ConfigError(f"LEOLINK_THREADS = {env!r} is not allowed: a whole number >= 1")
-        return int(env)
+
+def _threads_asked():
+    env = os.environ.get("LEOLINK_THREADS", "").strip()
     try:
-        return len(os.sched_getaffinity(0))
+        cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+        cpus = os.cpu_count() or 1
+    if not env:
+        return cpus
+    if not env.isdigit() or int(env[:19]) < 1:  # no 5,000-digit int(): its length says
+        from leolink.errors import ConfigError
+
+        raise ConfigError(f"LEOLINK_THREADS = {env!r} is not allowed: a whole number >= 1")
+    return min(int(env[:19]) if len(env) <= 19 else cpus, cpus)  # more would only queue
 
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).

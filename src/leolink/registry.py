@@ -32,7 +32,7 @@ from pydantic import BaseModel, ConfigDict
 
 from leolink.errors import ConfigError
 
-__all__ = ["REGISTRIES", "STRICT_MODEL", "Entry", "Params", "Registry", "generation"]
+__all__ = ["REGISTRIES", "STRICT_MODEL", "Entry", "Params", "Registry", "generation", "whole"]
 
 T = TypeVar("T")
 
@@ -59,6 +59,19 @@ STRICT_MODEL = ConfigDict(
     allow_inf_nan=False,
     strict=True,
 )
+
+
+def whole(value):
+    """A ``Literal`` of whole numbers compares by ``==``, so pydantic takes ``3.0`` and ``True``
+    for ``3`` and ``1`` even when strict: put this before it (``Annotated[Literal[1, 3],
+    BeforeValidator(whole)]``) to refuse anything but an ``int``."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        from pydantic_core import PydanticCustomError
+
+        raise PydanticCustomError(
+            "whole_number", "input should be a whole number (an int, not a float or a bool)"
+        )
+    return value
 
 
 class Params(BaseModel):

@@ -9,14 +9,18 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, BeforeValidator, Field, model_validator
 
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2
 from leolink.link.acm import ROLLOFFS
 from leolink.link.figures import system_noise_temp_k
-from leolink.registry import STRICT_MODEL
+from leolink.registry import STRICT_MODEL, whole
 
 _ISO_EXAMPLE = "e.g. 2019-12-09T16:37:29.363Z"
+#: Years a UTC instant may fall in: those of Vallado's Julian-date algorithm that sgp4 uses
+#: ("valid for years 1900 to 2100"; GMST-1982 is fitted to the same era). Year 0001 was
+#: accepted before, and start_s of -100 years overflowed Python's datetime.
+UTC_YEARS = (1900, 2100)
 
 
 def parse_utc(key, text):
@@ -29,7 +33,13 @@ def parse_utc(key, text):
         raise ValueError(
             f"{key} = {text!r} is not allowed: use an ISO 8601 date and time, {_ISO_EXAMPLE}"
         ) from None
-    return when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
+    when = when.astimezone(UTC) if when.tzinfo else when.replace(tzinfo=UTC)
+    if not UTC_YEARS[0] <= when.year <= UTC_YEARS[1]:
+        raise ValueError(
+            f"{key} = {text!r} is not allowed: use a date in the years {UTC_YEARS[0]} to "
+            f"{UTC_YEARS[1]}, where the sidereal time and sgp4's dates hold"
+        )
+    return when
 
 
 __all__ = [
@@ -83,8 +93,8 @@ class RunSection(Section):
     warmup_s: float = _f(0.0, ge=0, le=MAX_TIME_S, doc="simulated time before recording starts [s]")
     start_utc: str = _f(
         "",
-        doc="UTC instant of the first epoch, ISO 8601 (none: TLE runs start at the first "
-        "TLE's epoch; needed by tracks with UTC timestamps)",
+        doc="UTC instant of the first epoch, ISO 8601, years 1900-2100 (none: TLE runs start "
+        "at the first TLE's epoch; needed by tracks with UTC timestamps)",
     )
 
     def utc_of_time_zero(self):
@@ -225,7 +235,9 @@ class LinkSection(Section):
     )
     rician_k: float = _f(10.0, gt=0, le=1e6, doc="Rician factor K_r (linear)")
     fading: Literal["mean", "rician"] = _f("mean", doc="paper's mean receive gain or random draws")
-    reuse_colors: Literal[1, 3, 4] = _f(1, doc="frequency-reuse colours (1 = full reuse)")
+    reuse_colors: Annotated[Literal[1, 3, 4], BeforeValidator(whole)] = _f(
+        1, doc="frequency-reuse colours (1 = full reuse)"
+    )
     interference: Literal["serving_satellite", "all_satellites"] = _f(
         "serving_satellite", doc="whose other beams interfere (the paper: the serving satellite's)"
     )

@@ -116,6 +116,20 @@ class HoppingConfig(Params):
     dark_fallback: Literal["neighbour", "wait"] = Field("wait", description=_FALLBACK_DOC)
 
 
+def _check_dwell(g, row, n_beam, n_rf):
+    """Refuse dwell ``g`` of a hopping pattern unless it names at most ``n_rf`` distinct beam
+    ids of the codebook (a repeated id would hide a row longer than the RF chains)."""
+    said = f"satellite_array.hopping.pattern[{g}] = {row!r} is not allowed: "
+    if any(not 0 <= b < n_beam for b in row):
+        raise ConfigError(said + f"beam ids are 0 .. {n_beam - 1} ({n_beam} beams)")
+    if len(set(row)) != len(row):
+        raise ConfigError(said + "give each beam id once per dwell")
+    if len(row) > n_rf:
+        raise ConfigError(
+            said + f"{len(row)} beams for n_rf = {n_rf} RF chains (one beam per chain)"
+        )
+
+
 class HoppingBeams:
     """A beam-hopping illumination pattern cycled over the codebook (DVB-S2X Annex E)."""
 
@@ -128,12 +142,7 @@ class HoppingBeams:
         else:
             table = np.zeros((len(pattern), n_beam), bool)
             for g, row in enumerate(pattern):
-                bad = [b for b in row if not 0 <= b < n_beam]
-                if bad:
-                    raise ConfigError(
-                        f"satellite_array.hopping.pattern[{g}] = {row!r} is not allowed: "
-                        f"beam ids are 0 .. {n_beam - 1} ({n_beam} beams)"
-                    )
+                _check_dwell(g, row, n_beam, n_rf)
                 table[g, row] = True
         try:
             self.pattern = beams.validate_pattern(table, n_rf)

@@ -220,8 +220,12 @@ class FilterConfig(Params):
     """``[controller.filter]``: layer-3 filtering (TS 38.331 5.5.3.2)."""
 
     k: FilterCoefficient = Field(4, description="filterCoefficient (fc0..fc19; 0: off)")
+    # 1 ms (below any L1 measurement period of TS 38.133) to 60 s: 1e-300 was taken.
     reference_period_s: float = Field(
-        0.2, gt=0, description="sample period the coefficient assumes [s] (L1 period of TS 38.133)"
+        0.2,
+        ge=1e-3,
+        le=60.0,
+        description="sample period the coefficient assumes [s] (L1 period of TS 38.133)",
     )
 
 
@@ -232,7 +236,7 @@ class RlfConfig(Params):
 
     q_out_db: float = Field(-8.0, description="out-of-sync below this SINR [dB] (study value)")
     q_in_db: float = Field(-6.0, description="in-sync above this SINR [dB] (study value)")
-    t310_s: float = Field(1.0, ge=0, description="T310 [s] (ms0..ms6000)")
+    t310_s: float = Field(1.0, ge=0, le=6.0, description="T310 [s] (ms0..ms6000)")
     n310: int = Field(1, ge=1, le=20, description="out-of-sync indications to start T310")
     n311: int = Field(1, ge=1, le=10, description="in-sync indications to stop T310")
     reestablishment_s: float = Field(0.2, ge=0, description="RLF to service [s] (placeholder)")
