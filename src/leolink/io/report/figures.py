@@ -23,10 +23,22 @@ __all__ = [
     "fig_outage_reasons",
     "fig_snr_time",
     "new_figure",
+    "ut_line",
 ]
 
 MAX_PANELS = 6
 _KIND_STYLE = {"beam_handover": ("tab:purple", ":"), "sat_handover": ("tab:red", "--")}
+
+
+_UT_DASHES = ("-", "--", ":", "-.")
+
+
+def ut_line(i):
+    """Line style of the ``i``-th chosen UT of a time plot: each later UT is drawn on top,
+    thinner and dashed, so that a UT whose curve coincides with an earlier one's (UTs a
+    few km apart see the same Doppler) leaves that one visible beneath it."""
+    return {"linestyle": _UT_DASHES[i % len(_UT_DASHES)], "linewidth": max(2.8 - 0.6 * i, 1.0),
+            "zorder": 2.0 + 0.01 * i}  # fmt: skip
 
 
 def new_figure(n_rows=1, n_cols=1, *, figsize=(9.0, 4.0), dpi=100, **subplot_kw):
@@ -116,9 +128,9 @@ def fig_snr_time(series, events, ut_ids=None):
 
 
 def _lines(ax, series, uts, column, scale, ylabel):
-    for ut in uts:  # one line per chosen UT
+    for i, ut in enumerate(uts):  # one line per chosen UT
         r = _rows(series, ut)
-        ax.plot(r["time_s"], r[column].to_numpy(float) * scale, label=f"UT {ut}", linewidth=1.2)
+        ax.plot(r["time_s"], r[column].to_numpy(float) * scale, label=f"UT {ut}", **ut_line(i))
     ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
     if uts:
