@@ -25,6 +25,16 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT
 EXIT_TERMINATED = 143  # 128 + SIGTERM
 MAX_GRID = 5001  # coverage grid points per axis (25 million points)
 OVERWRITE_HELP = "replace an earlier run's files in --out (other files are kept)"
+#: ``leolink --help``: plain text (argparse prints it as is, no reStructuredText).
+DESCRIPTION = (
+    "Simulate the downlink from LEO satellites with large phased arrays to moving user "
+    "terminals, and the beam and satellite handovers their motion forces. "
+    "'leolink COMMAND --help' gives a command's options."
+)
+EPILOG = (
+    "Exit codes: 0 done; 1 some sweep points failed; 2 a mistake in the input or the "
+    "environment, said in one line; 3 a bug; 130/143 stopped by SIGINT/SIGTERM."
+)
 
 
 def _config(args):
@@ -75,11 +85,14 @@ def cmd_budget(args) -> int:
     budget = link_budget_at_elevation(cfg, args.elevation_deg)
     if args.json:
         print(json.dumps(budget, indent=2))
-    else:
-        width = max(len(k) for k in budget)
-        for key, value in budget.items():
-            text = f"{value:.3f}" if isinstance(value, float) else str(value)
-            print(f"{key:<{width}}  {text}")
+        return 0
+    note = budget.pop("note", None)
+    width = max(len(k) for k in budget)
+    for key, value in budget.items():
+        text = f"{value:.3f}" if isinstance(value, float) else str(value)
+        print(f"{key:<{width}}  {text}")
+    if note:
+        print(f"note: {note}", file=sys.stderr)
     return 0
 
 
@@ -266,13 +279,13 @@ def _compare_parser(p):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="leolink", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="leolink", description=DESCRIPTION, epilog=EPILOG)
     parser.add_argument("--version", action="version", version=_version())
     parser.add_argument("--debug", action="store_true", help="show tracebacks of bugs")
     sub = parser.add_subparsers(dest="command", required=True)
 
     def add(name, func, help_):
-        p = sub.add_parser(name, help=help_)
+        p = sub.add_parser(name, help=help_, description=help_[:1].upper() + help_[1:] + ".")
         p.add_argument("config", help="TOML config file (e.g. configs/paper.toml)")
         p.add_argument(
             "--set",
@@ -305,7 +318,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
     _add_sweep(add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries"))
     _compare_parser(add("compare", cmd_compare, "run policies on the same seeds, compare KPIs"))
-    _add_report(sub.add_parser("report", help="rebuild report.html of a run folder, no rerun"))
+    what = "rebuild report.html of a run folder, no rerun"
+    _add_report(sub.add_parser("report", help=what, description=what[0].upper() + what[1:] + "."))
     return parser
 
 
