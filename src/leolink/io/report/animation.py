@@ -320,14 +320,20 @@ class _Painter:
         from PIL import ImageDraw
 
         image = background.copy()
-        for paint in (lambda d: self._cells(d, frame.footprints),
-                      lambda d: self._dots(d, frame),
-                      lambda d: frame.ut_labels is not None and self._labels(d, frame.ut_labels)):
-            layer = self._layer()  # one layer per kind: each blends over the one below
-            paint(ImageDraw.Draw(layer))
+        layers = [(self._cells, frame.footprints), (self._dots, frame)]
+        if frame.ut_labels is not None:
+            layers.append((self._labels, frame.ut_labels))
+        for paint, what in layers:  # one layer per kind: each blends over the one below
+            layer = self._layer()
+            paint(ImageDraw.Draw(layer), what)
             image.alpha_composite(layer, dest=self.clip[:2])
-        ImageDraw.Draw(image).text(self.title_xy, f"{TITLE}t = {frame.time_s:.1f} s",
-                                   font=self.title_font, fill=(0, 0, 0, 255), anchor="mm")
+        ImageDraw.Draw(image).text(
+            self.title_xy,
+            f"{TITLE}t = {frame.time_s:.1f} s",
+            font=self.title_font,
+            fill=(0, 0, 0, 255),
+            anchor="mm",
+        )
         return image.convert("RGB")
 
 

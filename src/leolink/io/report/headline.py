@@ -164,7 +164,7 @@ def _service(o):
     elif no_modcod:
         sentence += (
             f"; {_pct(no_modcod)} of the served UT-time ({fmt_si(ut_s)} UT-s) closes no "
-            'DVB-S2X MODCOD (negative margin): served on paper only (controller.service_metric '
+            "DVB-S2X MODCOD (negative margin): served on paper only (controller.service_metric "
             '= "modcod" counts it as outage).'
         )
     else:
