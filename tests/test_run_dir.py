@@ -150,7 +150,7 @@ def test_leolink_report_rebuilds_the_page_and_updates_the_manifest(parquet_run, 
     assert _leolink("report", out, "--uts", "2", "--no-animation", "--exports", "--quiet") == 0
     page = (out / "report.html").read_text()
     assert page.count("<img") == 9  # the figures and the run's animation, kept
-    per_ut = page.split("<h2>Per UT</h2>", 1)[1]
+    per_ut = page.split("<summary>Per UT</summary>", 1)[1]
     assert per_ut.split("<tr><td>", 2)[1].startswith("2</td>")  # the chosen UT first
     manifest = {f["path"]: f for f in json.loads((out / "run.json").read_text())["files"]}
     assert {"report.html", "run.geojson", "run.czml"} <= set(manifest)
