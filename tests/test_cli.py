@@ -38,6 +38,33 @@ def test_budget_json_has_every_term_and_adds_up(capsys):
     assert b["snr_db"] == pytest.approx(rss - noise, abs=1e-9)
 
 
+def test_budget_below_the_mask_says_in_one_line_why_its_figures_are_nan(capsys):
+    # paper.toml: constellation.min_elevation_deg = 10; a 5 deg mask serves the same UT
+    assert main(["budget", PAPER, "--elevation-deg", "5", "--json"]) == 0
+    b = json.loads(capsys.readouterr().out)
+    nan = sorted(k for k, v in b.items() if isinstance(v, float) and math.isnan(v))
+    assert nan and all(k in b["note"] for k in nan if k != "throughput_shannon_bps")
+    assert "min_elevation_deg = 10 deg" in b["note"]
+    assert main(["budget", PAPER, "--elevation-deg", "5"]) == 0
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and err.startswith("note: 5 deg is below") and "note" not in out
+    sets = ["--set", "constellation.min_elevation_deg=5"]
+    assert main(["budget", PAPER, "--elevation-deg", "5", "--json", *sets]) == 0
+    b = json.loads(capsys.readouterr().out)
+    assert "note" not in b and math.isfinite(b["sinr_db"]) and math.isfinite(b["margin_db"])
+
+
+def test_help_is_plain_text_with_whole_sentences(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = capsys.readouterr().out
+    assert "``" not in text and ":func:" not in text
+    assert "handovers their motion forces." in text and "Exit codes:" in text
+    with pytest.raises(SystemExit):
+        main(["budget", "--help"])
+    assert "Link budget term by term at one elevation." in capsys.readouterr().out
+
+
 def test_budget_rejects_elevation_outside_range(capsys):
     assert main(["budget", PAPER, "--elevation-deg", "95"]) == 2
     err = capsys.readouterr().err

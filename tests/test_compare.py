@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from leolink.app.compare import parse_policy, run_compare
+from leolink.app.compare import parse_policy, policy_twins, run_compare
 from leolink.app.sweep import Execution
 from leolink.cli import main
 from leolink.errors import ConfigError
@@ -111,3 +111,33 @@ def test_cli_compare(tmp_path, capsys):
     assert code == 0
     assert "| a3 |" in capsys.readouterr().out
     assert len(pd.read_csv(tmp_path / "compare.csv")) == 2
+
+
+def test_policies_that_parameters_make_identical_are_named():
+    twins = policy_twins(PAPER, ["max_snr", "hysteresis", "a3", "a3,hysteresis_db=0", "a4"])
+    assert twins == [
+        "policy hysteresis is identical to max_snr (the same parameters in effect): its rows "
+        "will repeat max_snr's",
+        "policy a3,hysteresis_db=0 is identical to a3 (the same parameters in effect): its "
+        "rows will repeat a3's",
+    ]
+    assert policy_twins(PAPER, ["hysteresis"]) == [
+        "policy hysteresis with these parameters is max_snr: its rows will be max_snr's"
+    ]
+    # a margin, a time-to-trigger or another base config: no twin
+    assert policy_twins(PAPER, ["max_snr", "hysteresis,margin_db=1", "a3,hysteresis_db=1"]) == []
+    assert policy_twins(PAPER, ["max_snr", "hysteresis,time_to_trigger_s=0.5"]) == []
+    assert policy_twins(PAPER, ["a3", "a3,kpi.ping_pong_s=3"]) == []
+
+
+def test_cli_compare_warns_of_twins_and_its_progress_is_compare(tmp_path, capsys):
+    code = main(["compare", PAPER, "--policies", "max_snr,hysteresis", "--out", str(tmp_path),
+                 "--set", "run.duration_s=20", "--set", "output.trace.enabled=false"])  # fmt: skip
+    assert code == 0
+    err = capsys.readouterr().err
+    warned = [line for line in err.splitlines() if "warning" in line]
+    assert len(warned) == 1 and "hysteresis is identical to max_snr" in warned[0]
+    assert "leolink compare" in err and "leolink sweep" not in err
+    # the warning is true: the two rows agree on every KPI
+    table = pd.read_csv(tmp_path / "compare.csv").drop(columns="policy")
+    pd.testing.assert_series_equal(table.iloc[0], table.iloc[1], check_names=False)

@@ -226,3 +226,44 @@ def test_budget_command_equals_a_hand_budget_at_45_deg():
     names, eta = _brute_force_modcod(np.array([b["esn0_db"]]), 0.0)
     assert b["modcod"] == names[0]
     assert b["throughput_dvbs2x_bps"] == pytest.approx(eta[0] * B_HZ / 1.2, rel=1e-12)
+
+
+CAR = ROOT / "configs" / "examples" / "car.toml"
+# car.toml: a pass with links that close no MODCOD at its ends; a 1 dB implementation
+# margin and 0.3 s handover execution exercise the margin and the served part of an epoch.
+MODCOD_RUN = [
+    "output.plots.enabled=false",
+    "output.report.enabled=false",
+    'modcod.metric="sinr"',
+    "modcod.implementation_margin_db=1.0",
+    "controller.handover_time_s=0.3",
+]
+
+
+def test_modcod_service_metric_serves_only_where_a_modcod_closes():
+    by_snr = run(load_config(CAR, MODCOD_RUN))
+    by_modcod = run(load_config(CAR, [*MODCOD_RUN, 'controller.service_metric="modcod"']))
+    tr, tm = by_snr.trace, by_modcod.trace
+    names, _ = _brute_force_modcod(tr.esn0_db.to_numpy(), 1.0)
+    served = tr.service != "outage"
+    none = served & (names == "none")
+    assert 10 < none.sum() < served.sum()
+    assert (tm.service[none] == "outage").all()
+    assert (tm.outage_reason[none] == "below_threshold").all()
+    assert tm.sinr_db[none].isna().all()
+    same = ~none
+    assert (tm.service[same] == tr.service[same]).all()
+    assert (tm.beam_id == tr.beam_id).all()  # beams stay the controller's (SNR)
+    # summary.json: the served time without a MODCOD, in UT-seconds and as a fraction
+    served_s = (1.0 - tr.interruption_s)[served]  # epoch_s = 1 s
+    want_s = float((1.0 - tr.interruption_s)[none].sum())
+    got = by_snr.summary["overall"]["link"]["served_without_modcod"]
+    assert got["ut_s"] == pytest.approx(want_s, rel=1e-12)
+    assert got["fraction"] == pytest.approx(want_s / served_s.sum(), rel=1e-12)
+    assert by_modcod.summary["overall"]["link"]["served_without_modcod"]["ut_s"] == 0.0
+    # the report's Outage figure says it, in per cent and UT-seconds
+    from leolink.io.report.headline import fmt_si, headline_figures
+
+    outage = {h.label: h for h in headline_figures(by_snr.summary)}["Outage"]
+    assert f"{fmt_si(100 * got['fraction'], 2)} % of the served UT-time" in outage.sentence
+    assert f"({fmt_si(want_s)} UT-s)" in outage.sentence and outage.warn

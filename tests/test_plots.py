@@ -262,3 +262,55 @@ def test_dwell_histogram_of_a_real_run_shows_its_dwells(tmp_path):
     assert sum(p.get_height() for p in filled) == n_complete
     assert any(f"censored ({n_censored}" in t.get_text() for t in ax.get_legend().get_texts())
     assert (tmp_path / "dwell_hist.png").stat().st_size > 0
+
+
+def _rgb_present(fig, rgb, tol=8):
+    """Whether any pixel of the drawn figure, legends left out, is within ``tol`` of colour
+    ``rgb`` (0-255)."""
+    for legend in filter(None, (ax.get_legend() for ax in fig.axes)):
+        legend.remove()
+    fig.canvas.draw()
+    px = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int)
+    return bool((np.abs(px - np.array(rgb)).max(axis=-1) <= tol).any())
+
+
+def _twin_uts(trace):
+    """UT 1 follows UT 0's Doppler and angular speed exactly (UTs a few km apart)."""
+    u0 = trace[trace.ut_id == 0]
+    twin = u0.assign(ut_id=1)
+    return pd.concat([u0, twin], ignore_index=True).assign(
+        angular_speed_deg_s=lambda d: 0.5 + 0.01 * d.time_s,
+        doppler_rate_hz_s=-7e3,
+    )
+
+
+TAB_BLUE, TAB_ORANGE = (31, 119, 180), (255, 127, 14)  # the lines of the first two UTs
+
+
+def test_a_ut_whose_curve_coincides_with_an_earlier_ones_leaves_it_visible():
+    from leolink.io.report.figures import fig_angular_speed, fig_doppler
+
+    trace = _twin_uts(run_data()[0])
+    for fig in (plots._doppler_time(trace, [0, 1]), fig_doppler(trace), fig_angular_speed(trace)):
+        assert _rgb_present(fig, TAB_BLUE) and _rgb_present(fig, TAB_ORANGE)
+
+
+def test_outage_is_in_the_legend_only_of_a_panel_with_outage():
+    trace, events, _ = run_data()
+    fig = plots._snr_time(trace, events, [0, 1])
+    served, never = ([t.get_text() for t in ax.get_legend().get_texts()] for ax in fig.axes[:2])
+    assert "outage" not in served and "outage" in never
+
+
+def test_handover_bars_stay_clear_of_the_top_and_of_the_legend():
+    _, _, summary = run_data()
+    summary["per_ut"] += [
+        {"ut_id": u, "handovers": {"beam_handover": 4, "sat_handover": 0}} for u in (2, 3)
+    ]
+    fig = plots._handovers(60.0, summary)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    legend = ax.get_legend().get_window_extent()
+    bars = [p.get_window_extent() for p in ax.patches if p.get_height() > 0]
+    assert max(p.get_y() + p.get_height() for p in ax.patches) < ax.get_ylim()[1]
+    assert not any(legend.overlaps(b) for b in bars)

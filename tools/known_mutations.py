@@ -247,8 +247,8 @@ MUTATIONS += (
     Mutation(
         "modcod_ignores_margin",
         "src/leolink/link/acm.py",
-        "modcod = select_modcod(esn0, p.implementation_margin_db)",
-        "modcod = select_modcod(esn0, 0.0)",
+        "return ratio_db, esn0, select_modcod(esn0, p.implementation_margin_db)",
+        "return ratio_db, esn0, select_modcod(esn0, 0.0)",
         ("tests/test_link_figures_in_run.py",),
     ),
     Mutation(
@@ -268,8 +268,8 @@ MUTATIONS += (
     Mutation(
         "sinr_service_ignored",
         "src/leolink/sim/service_link.py",
-        "        if self.sinr_threshold_db is None:\n            return codes",
-        "        if True:\n            return codes",
+        '        elif self.metric == "sinr":',
+        '        elif self.metric == "never":',
         ("tests/test_link_figures_in_run.py",),
     ),
     Mutation(

@@ -29,6 +29,17 @@ MAX_GRID = 5001  # coverage grid points per axis (25 million points)
 #: What ``leolink report`` writes anew (the rest of the folder it reads, checked first).
 REPORT_WRITES = ("report.html", "footprint.gif", "run.geojson", "run.czml")
 OVERWRITE_HELP = "replace an earlier run's files in --out (other files are kept)"
+#: ``leolink --help``: plain text (argparse prints it as is, no reStructuredText).
+DESCRIPTION = (
+    "Simulate the downlink from LEO satellites with large phased arrays to moving user "
+    "terminals, and the beam and satellite handovers their motion forces. "
+    "'leolink COMMAND --help' gives a command's options."
+)
+EPILOG = (
+    "Exit codes: 0 done; 1 some sweep points failed; 2 a mistake in the input or the "
+    "environment, said in one line; 3 a bug; 130/143/129/152 stopped by "
+    "SIGINT/SIGTERM/SIGHUP/SIGXCPU."
+)
 
 
 def _config(args):
@@ -79,11 +90,14 @@ def cmd_budget(args) -> int:
     budget = link_budget_at_elevation(cfg, args.elevation_deg)
     if args.json:
         print(json.dumps(budget, indent=2))
-    else:
-        width = max(len(k) for k in budget)
-        for key, value in budget.items():
-            text = f"{value:.3f}" if isinstance(value, float) else str(value)
-            print(f"{key:<{width}}  {text}")
+        return 0
+    note = budget.pop("note", None)
+    width = max(len(k) for k in budget)
+    for key, value in budget.items():
+        text = f"{value:.3f}" if isinstance(value, float) else str(value)
+        print(f"{key:<{width}}  {text}")
+    if note:
+        print(f"note: {note}", file=sys.stderr)
     return 0
 
 
@@ -301,13 +315,13 @@ def _compare_parser(p):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="leolink", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="leolink", description=DESCRIPTION, epilog=EPILOG)
     parser.add_argument("--version", action="version", version=_version())
     parser.add_argument("--debug", action="store_true", help="show tracebacks of bugs")
     sub = parser.add_subparsers(dest="command", required=True)
 
     def add(name, func, help_):
-        p = sub.add_parser(name, help=help_)
+        p = sub.add_parser(name, help=help_, description=help_[:1].upper() + help_[1:] + ".")
         p.add_argument("config", help="TOML config file, or an example's name (leolink examples)")
         p.add_argument(
             "--set",
@@ -344,7 +358,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON list of passes")
     _add_sweep(add("sweep", cmd_sweep, "run a grid of parameter values and tabulate the summaries"))
     _compare_parser(add("compare", cmd_compare, "run policies on the same seeds, compare KPIs"))
-    _add_report(sub.add_parser("report", help="rebuild report.html of a run folder, no rerun"))
+    what = "rebuild report.html of a run folder, no rerun"
+    _add_report(sub.add_parser("report", help=what, description=what[0].upper() + what[1:] + "."))
     _add_examples(sub)
     return parser
 

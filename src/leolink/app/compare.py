@@ -24,7 +24,9 @@ Outputs (written at the end, the manifest ``run.json`` last, as for a run):
 
 from __future__ import annotations
 
+import json
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +37,7 @@ from leolink.app.guard import raise_pending
 from leolink.app.sweep import Execution, _base_overrides, _progress_bar, _run_point
 from leolink.errors import ConfigError
 
-__all__ = ["MAIN_KPIS", "parse_policy", "run_compare"]
+__all__ = ["MAIN_KPIS", "parse_policy", "policy_twins", "run_compare"]
 
 #: (column of compare.csv, heading, scale, format) of the report table.
 MAIN_KPIS = (
@@ -76,6 +78,39 @@ def _sections():
     from leolink.config import config_model
 
     return set(config_model().model_fields)
+
+
+def _behaviour(cfg):
+    """What decides a run's rows: the policy a config's parameters make (a policy's
+    ``same_as()``, else itself with its parameters) and every other key of the config."""
+    ctl = cfg.controller
+    name, params = ctl.chosen, ctl.params.model_dump(mode="json")
+    simpler = getattr(ctl.build(), "same_as", lambda: None)()
+    if simpler is not None:
+        name, params = simpler, getattr(ctl, simpler).model_dump(mode="json")
+    rest = cfg.model_dump(mode="json")
+    for key in ("policy", *ctl.registry.names()):  # every policy's own table
+        rest["controller"].pop(key, None)
+    return json.dumps([name, params, rest], sort_keys=True), name
+
+
+def policy_twins(cfg_path, specs, base=()):
+    """One line for each policy of ``specs`` whose parameters make it the same policy as
+    an earlier one in the list, or as a simpler one (``hysteresis`` with 0 dB and 0 s is
+    ``max_snr``): its rows would repeat that policy's."""
+    from leolink.config import load_config
+
+    seen, lines = {}, []
+    for label, overrides in map(parse_policy, specs):
+        key, name = _behaviour(load_config(cfg_path, [*base, *overrides]))
+        if key in seen:
+            lines.append(f"policy {label} is identical to {seen[key]} (the same parameters "
+                         f"in effect): its rows will repeat {seen[key]}'s")  # fmt: skip
+        elif name != label.split(",")[0]:
+            lines.append(f"policy {label} with these parameters is {name}: its rows will be "
+                         f"{name}'s")  # fmt: skip
+        seen.setdefault(key, label)
+    return lines
 
 
 def _jobs(cfg_path, specs, seeds, base, out_dir, resume):
@@ -179,6 +214,8 @@ def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, ho
     cfg_path, out_dir = examples.resolve(cfg_path).resolve(), Path(out_dir).absolute()
     base = _base_overrides(base_overrides, [], False)
     triples = _jobs(cfg_path, list(policies), seeds, base, out_dir, how.resume)
+    for line in policy_twins(cfg_path, list(policies), base):
+        warnings.warn(line, UserWarning, stacklevel=2)
     out_dir = claim_out_dir(
         out_dir,
         how.overwrite or how.resume,
@@ -186,7 +223,7 @@ def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, ho
         keep=("runs",) if how.resume else (),
     )
     jobs = [(i, job) for i, (_, _, job) in enumerate(triples)]
-    with _progress_bar(len(jobs), how.progress) as bar:
+    with _progress_bar(len(jobs), how.progress, "leolink compare", "run") as bar:
         rows = run_jobs(_run_point, jobs, lambda i: bar.update(1), how.workers)
     failed = [(triples[i][0], row["error"]) for i, row in sorted(rows.items()) if "error" in row]
     if failed:

@@ -141,6 +141,8 @@ def link_budget_at_elevation(cfg, elevation_deg):
     With the hybrid UPA the engine gives the geometry, the gains and the SINR; with the
     circular aperture (``satellite_array.antenna``) the aperture's beam is centred on the UT.
     The CNR is TR 38.821 Sec. 6.1.3.1's: ``C/N0 - 10 log10(B)``, the SNR of the budget.
+    Below ``constellation.min_elevation_deg`` the engine serves no link (its figures are
+    NaN) and ``note`` says so in one line.
     """
     if not 0.0 < elevation_deg <= 90.0:
         raise ConfigError(f"--elevation-deg = {elevation_deg!r} is not allowed; use (0, 90] deg")
@@ -163,7 +165,7 @@ def link_budget_at_elevation(cfg, elevation_deg):
         other_loss_db=cfg.link.other_loss_db,
     ).as_dict()
     budget.update(freq_hz=cfg.link.freq_hz, bandwidth_hz=t["bandwidth_hz"])
-    return {
+    out = {
         **budget,
         "sinr_db": t["sinr_db"],
         "engine_snr_db": t["engine_snr_db"],
@@ -173,6 +175,14 @@ def link_budget_at_elevation(cfg, elevation_deg):
         "satellite_antenna": cfg.satellite_array.antenna,
         "terminal": cfg.terminal.kind,
     }
+    mask_deg = cfg.constellation.min_elevation_deg
+    if not aperture and elevation_deg < mask_deg:  # the engine serves no link below it
+        out["note"] = (
+            f"{elevation_deg:g} deg is below constellation.min_elevation_deg = {mask_deg:g} deg: "
+            "no link is served there, so sinr_db, engine_snr_db, esn0_db, margin_db and the "
+            "Shannon throughput are NaN (the budget terms above them are the geometry's)"
+        )
+    return out
 
 
 def codebook_table(cfg):

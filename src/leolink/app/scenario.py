@@ -127,8 +127,9 @@ def service_link(cfg, engine):
         metric=m.metric,
         throughput_model=m.throughput_model,
     )
-    sinr = cfg.controller.service_metric == "sinr"
-    return ServiceLink(figures, cfg.controller.min_snr_db if sinr else None)
+    metric = cfg.controller.service_metric
+    threshold = cfg.controller.min_snr_db if metric == "sinr" else None
+    return ServiceLink(figures, threshold, metric)
 
 
 def build_engine(cfg, codebook=None, terminal=None, ephemeris=None):

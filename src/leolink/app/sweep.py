@@ -197,10 +197,10 @@ def _run_point(cfg_path, overrides, run_dir, resume):
 
 
 # --------------------------------------------------------------------------- executors
-def _progress_bar(n, enabled):
+def _progress_bar(n, enabled, desc="leolink sweep", unit="point"):
     from tqdm.auto import tqdm
 
-    return tqdm(total=n, unit="point", desc="leolink sweep", disable=not enabled, leave=False)
+    return tqdm(total=n, unit=unit, desc=desc, disable=not enabled, leave=False)
 
 
 # --------------------------------------------------------------------------- the sweep

@@ -82,11 +82,12 @@ class ControllerBase(kinds.SelectorSection):
         default_factory=SignallingConfig,  # type: ignore[arg-type]
         description="the handover procedure in simulated time: report, command, T304, access",
     )
-    service_metric: Literal["snr", "sinr"] = Field(
+    service_metric: Literal["snr", "sinr", "modcod"] = Field(
         "snr",
-        description="what min_snr_db is compared with: the SNR (the paper; beams and events) "
-        "or also the serving link's SINR (a served epoch below it counts as outage, "
-        "below_threshold; beams and events stay on SNR)",
+        description="what decides service: the SNR against min_snr_db (the paper; beams and "
+        "events), also the serving link's SINR against min_snr_db ('sinr'), or also a MODCOD "
+        "of [modcod] closing the link with its implementation margin ('modcod'); a served "
+        "epoch that fails counts as outage, below_threshold; beams and events stay on SNR",
     )
 
     @model_validator(mode="after")

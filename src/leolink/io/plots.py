@@ -19,6 +19,7 @@ import numpy as np
 
 from leolink.errors import LeolinkError
 from leolink.io.atomic import PendingFiles
+from leolink.io.report.figures import ut_line
 from leolink.io.report.headline import fmt_si
 
 DPI = 150
@@ -107,8 +108,9 @@ def _snr_panel(ax, rows, events, ut_id):
     outage = (beam < 0) | ~np.isfinite(rows["snr_db"].to_numpy(float))
     ax.plot(t_s, rows["snr_db"], color="tab:blue", label="SNR")
     ax.plot(t_s, rows["sinr_db"], color="tab:orange", label="SINR")
-    ax.fill_between(t_s, 0, 1, where=outage, step="mid", color="grey", alpha=0.3,
-                    transform=ax.get_xaxis_transform(), label="outage")  # fmt: skip
+    if outage.any():  # no "outage" in the legend of a panel without one
+        ax.fill_between(t_s, 0, 1, where=outage, step="mid", color="grey", alpha=0.3,
+                        transform=ax.get_xaxis_transform(), label="outage")  # fmt: skip
     for kind, style in (("beam_handover", ":"), ("sat_handover", "--")):
         for i, t in enumerate(_events_of(events, ut_id, kind)):
             ax.axvline(t, color=_KIND_COLOURS[kind], linestyle=style, linewidth=1,
@@ -146,9 +148,9 @@ def _snr_time(trace, events, uts):
 def _doppler_time(trace, uts):
     fig, axes = _figure(figsize=(10.0, 4.5))
     ax = axes[0, 0]
-    for ut_id in uts:  # one line per UT
+    for i, ut_id in enumerate(uts):  # one line per UT
         rows = trace[trace["ut_id"] == ut_id].sort_values("time_s")
-        ax.plot(rows["time_s"], rows["doppler_hz"] * 1e-3, label=f"UT {ut_id}")
+        ax.plot(rows["time_s"], rows["doppler_hz"] * 1e-3, label=f"UT {ut_id}", **ut_line(i))
     if uts:
         ax.legend(fontsize=8)
     else:
@@ -224,6 +226,20 @@ def _handover_counts(summary, per_ut_table=None):
     return ut_ids, counts
 
 
+#: Room above the highest bar of handovers.png for its one-row legend (part of the bar).
+BAR_HEADROOM = 0.25
+
+
+def _legend_above_bars(ax, top):
+    """Integer counts up to ``top`` plus :data:`BAR_HEADROOM`, the legend in one row in the
+    room above the bars (never over one)."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_ylim(0.0, max(top, 1.0) * (1.0 + BAR_HEADROOM))
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.legend(loc="upper center", ncols=len(HANDOVER_KINDS), fontsize=9)
+
+
 def _handovers(duration_s, summary, per_ut_table=None):
     ut_ids, counts = _handover_counts(summary, per_ut_table)
     fig, axes = _figure(figsize=(8.0, 4.5))
@@ -245,7 +261,7 @@ def _handovers(duration_s, summary, per_ut_table=None):
         ax.set_xlabel("UT id")
         ax.set_ylabel("number of handovers")
         ax.set_title("Handovers per UT by kind")
-        ax.legend()
+        _legend_above_bars(ax, bottom.max(initial=0.0))
         if ut_ids.size == 0:
             ax.text(0.5, 0.5, "no UT in the summary", transform=ax.transAxes, ha="center")
     ax.grid(True, axis="y", alpha=0.3)

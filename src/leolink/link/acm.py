@@ -40,6 +40,7 @@ __all__ = [
     "THROUGHPUT_COLUMNS",
     "LinkFigureParams",
     "link_figure_columns",
+    "link_modcod",
 ]
 
 #: Trace columns that :func:`link_figure_columns` adds (``modcod`` as row codes, -1 none).
@@ -90,6 +91,21 @@ class LinkFigureParams:
         return float(modcod_table().esn0_ideal_db.min()) + self.implementation_margin_db
 
 
+def _esn0_and_modcod(snr_db, sinr_db, p):
+    """``(ratio_db, esn0_db, modcod)`` of the metric ``p.metric``: Es/N0 = ratio + 10 log10(1 +
+    alpha) (the symbol rate B / (1 + alpha) in the noise bandwidth B), the most efficient
+    MODCOD whose threshold plus the implementation margin it meets (-1: none)."""
+    ratio_db = np.asarray(sinr_db if p.metric == "sinr" else snr_db, float)
+    esn0 = ratio_db + 10.0 * np.log10(1.0 + p.rolloff)
+    return ratio_db, esn0, select_modcod(esn0, p.implementation_margin_db)
+
+
+def link_modcod(snr_db, sinr_db, params):
+    """The MODCOD row of each serving link (int, -1 where none closes it or no link), as
+    the ``modcod`` column of :func:`link_figure_columns`; shapes (n_ut,)."""
+    return _esn0_and_modcod(snr_db, sinr_db, params)[2]
+
+
 def link_figure_columns(snr_db, sinr_db, gain_tx_db, params, served_fraction=1.0):
     """The link-figure columns of the serving links, vectorized over UTs.
 
@@ -110,10 +126,8 @@ def link_figure_columns(snr_db, sinr_db, gain_tx_db, params, served_fraction=1.0
         ``throughput_dvbs2x_bps`` (NaN where there is no link, as the Shannon figure).
     """
     p = params
-    snr_db, sinr_db = np.asarray(snr_db, float), np.asarray(sinr_db, float)
-    ratio_db = sinr_db if p.metric == "sinr" else snr_db
-    esn0 = ratio_db + 10.0 * np.log10(1.0 + p.rolloff)
-    modcod = select_modcod(esn0, p.implementation_margin_db)
+    snr_db = np.asarray(snr_db, float)
+    ratio_db, esn0, modcod = _esn0_and_modcod(snr_db, sinr_db, p)
     eta = modcod_spectral_efficiency(modcod)
     no_link = np.isnan(ratio_db)
     acm = np.where(no_link, np.nan, eta * p.symbol_rate_baud * served_fraction)

@@ -332,7 +332,7 @@ class Monitor:
         n_ut, dec = len(recs[0].geo_sat), self.decider
         res = _Joined([r.decision for r in recs], ("service", "sat_id", "beam_id"))
         rec = _Joined(recs, ("gap_s", "n_visible", "best_snr_db", "open_snr_db", "share"))
-        service = self.link.service(res.service, cols["sinr_db"])
+        service = self.link.service(res.service, cols)
         gap_s = rec.gap_s
         if service is not res.service:  # rows turned to outage (low SINR) lose no time
             gap_s = np.where(service != res.service, 0.0, gap_s)

@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from leolink.link.acm import LinkFigureParams, link_figure_columns
+from leolink.link.acm import LinkFigureParams, link_figure_columns, link_modcod
 from leolink.sim.handover.controller import SERVICE_OUTAGE
 
 __all__ = ["ServiceLink"]
@@ -23,20 +23,29 @@ class ServiceLink:
 
     ``figures``: the parameters of the link figures added to every row
     (:func:`~leolink.link.acm.link_figure_columns`).
-    ``sinr_threshold_db``: None judges service as the controller does (on SNR, the paper);
-    a number also counts a served row whose SINR is below it as an outage
-    (``below_threshold``). The beams and the events stay the controller's (on SNR).
+    ``metric`` (``controller.service_metric``): ``"snr"`` judges service as the controller
+    does (on SNR, the paper); ``"sinr"`` also counts a served row whose SINR is below
+    ``sinr_threshold_db`` as an outage; ``"modcod"`` a served row on which no MODCOD of the
+    table closes (:func:`~leolink.link.acm.link_modcod`: Es/N0 of ``[modcod] metric``
+    against each threshold plus ``implementation_margin_db``). Such rows are outages for
+    ``below_threshold``; the beams and the events stay the controller's (on SNR).
     """
 
     figures: LinkFigureParams
     sinr_threshold_db: float | None = None
+    metric: str = "snr"
 
-    def service(self, codes, sinr_db):
-        """Trace service codes: the controller's, with low-SINR rows turned to outage."""
-        if self.sinr_threshold_db is None:
+    def service(self, codes, cols):
+        """Trace service codes: the controller's, with the rows that fail the service
+        metric turned to outage (``cols``: the serving-link columns, ``snr_db``, ``sinr_db``)."""
+        served = codes != SERVICE_OUTAGE
+        if self.metric == "modcod":
+            low = served & (link_modcod(cols["snr_db"], cols["sinr_db"], self.figures) < 0)
+        elif self.metric == "sinr":
+            with np.errstate(invalid="ignore"):
+                low = served & ~(cols["sinr_db"] >= self.sinr_threshold_db)
+        else:
             return codes
-        with np.errstate(invalid="ignore"):
-            low = (codes != SERVICE_OUTAGE) & ~(sinr_db >= self.sinr_threshold_db)
         return np.where(low, SERVICE_OUTAGE, codes).astype(codes.dtype)
 
     def add_figures(self, cols, served):

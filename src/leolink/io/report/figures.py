@@ -23,20 +23,49 @@ __all__ = [
     "fig_outage_reasons",
     "fig_snr_time",
     "new_figure",
+    "ut_line",
 ]
 
 MAX_PANELS = 6
 _KIND_STYLE = {"beam_handover": ("tab:purple", ":"), "sat_handover": ("tab:red", "--")}
 
 
-def new_figure(n_rows=1, n_cols=1, *, figsize=(9.0, 4.0), dpi=100, **subplot_kw):
-    """A constrained-layout Agg figure and a 2-D array of axes."""
+_UT_DASHES = ("-", "--", ":", "-.")
+
+
+def ut_line(i):
+    """Line style of the ``i``-th chosen UT of a time plot: each later UT is drawn on top,
+    thinner and dashed, so that a UT whose curve coincides with an earlier one's (UTs a
+    few km apart see the same Doppler) leaves that one visible beneath it."""
+    return {"linestyle": _UT_DASHES[i % len(_UT_DASHES)], "linewidth": max(2.2 - 0.4 * i, 1.0),
+            "zorder": 2.0 + 0.01 * i}  # fmt: skip
+
+
+#: Fixed margins of a figure [in]: room for tick labels, axis labels and titles. A layout
+#: engine ("constrained") found them per figure at about a third of its drawing time.
+MARGINS_IN = {"left": 0.85, "right": 0.25, "bottom": 0.6, "top": 0.45, "hspace": 0.45,
+              "wspace": 0.75}  # fmt: skip
+SUPTITLE_IN = 0.3  # more room at the top for a figure title above the axes' titles
+LEGEND_RIGHT_IN = 1.45  # room on the right for a legend outside the axes
+
+
+def new_figure(n_rows=1, n_cols=1, *, figsize=(9.0, 4.0), dpi=100, margins_in=None,
+               **subplot_kw):  # fmt: skip
+    """An Agg figure and a 2-D array of axes placed with fixed margins [in]
+    (:data:`MARGINS_IN`, updated by ``margins_in``)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+    m = {**MARGINS_IN, **(margins_in or {})}
+    w_in, h_in = figsize
+    fig = Figure(figsize=figsize, dpi=dpi)
     FigureCanvasAgg(fig)
-    return fig, fig.subplots(n_rows, n_cols, squeeze=False, **subplot_kw)
+    axes_w = (w_in - m["left"] - m["right"] - (n_cols - 1) * m["wspace"]) / n_cols
+    axes_h = (h_in - m["bottom"] - m["top"] - (n_rows - 1) * m["hspace"]) / n_rows
+    grid = {"left": m["left"] / w_in, "right": 1.0 - m["right"] / w_in,
+            "bottom": m["bottom"] / h_in, "top": 1.0 - m["top"] / h_in,
+            "wspace": m["wspace"] / axes_w, "hspace": m["hspace"] / axes_h}  # fmt: skip
+    return fig, fig.subplots(n_rows, n_cols, squeeze=False, gridspec_kw=grid, **subplot_kw)
 
 
 def _uts(series, ut_ids, limit=MAX_PANELS):
@@ -84,7 +113,8 @@ def fig_snr_time(series, events, ut_ids=None):
     """
     uts = _uts(series, ut_ids)
     n = max(len(uts), 1)
-    fig, axes = new_figure(n, 1, figsize=(10.0, 2.3 * n + 0.8), sharex=True)
+    margins = {"top": MARGINS_IN["top"] + SUPTITLE_IN, "right": LEGEND_RIGHT_IN}
+    fig, axes = new_figure(n, 1, figsize=(10.0, 2.3 * n + 0.8), margins_in=margins, sharex=True)
     for ax, ut in zip(axes[:, 0], uts, strict=False):
         r = _rows(series, ut)
         t = r["time_s"].to_numpy(float)
@@ -116,9 +146,9 @@ def fig_snr_time(series, events, ut_ids=None):
 
 
 def _lines(ax, series, uts, column, scale, ylabel):
-    for ut in uts:  # one line per chosen UT
+    for i, ut in enumerate(uts):  # one line per chosen UT
         r = _rows(series, ut)
-        ax.plot(r["time_s"], r[column].to_numpy(float) * scale, label=f"UT {ut}", linewidth=1.2)
+        ax.plot(r["time_s"], r[column].to_numpy(float) * scale, label=f"UT {ut}", **ut_line(i))
     ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
     if uts:
@@ -130,7 +160,8 @@ def _lines(ax, series, uts, column, scale, ylabel):
 def fig_doppler(series, ut_ids=None):
     """Doppler shift [kHz] and Doppler rate [Hz/s] of the serving link vs time."""
     uts = _uts(series, ut_ids, limit=10)
-    fig, axes = new_figure(2, 1, figsize=(10.0, 5.5), sharex=True)
+    top = {"top": MARGINS_IN["top"] + SUPTITLE_IN}
+    fig, axes = new_figure(2, 1, figsize=(10.0, 5.5), margins_in=top, sharex=True)
     _lines(axes[0, 0], series, uts, "doppler_hz", 1e-3, "Doppler [kHz]")
     _lines(axes[1, 0], series, uts, "doppler_rate_hz_s", 1.0, "Doppler rate [Hz/s]")
     axes[0, 0].axhline(0.0, color="black", linewidth=0.7)
@@ -164,7 +195,8 @@ def fig_dwell(edges_s, complete, censored, mean_s=None):
         bins, so the figure and the tables show one number.
     """
     edges, parts = np.asarray(edges_s, float), (np.asarray(complete), np.asarray(censored))
-    fig, axes = new_figure(1, 2, figsize=(10.0, 3.8))
+    top = {"top": MARGINS_IN["top"] + SUPTITLE_IN}
+    fig, axes = new_figure(1, 2, figsize=(10.0, 3.8), margins_in=top)
     titles = ("complete dwells", "censored dwells (cut by the run start or end)")
     means = (mean_s, None)  # a censored dwell is a lower bound: no mean of them
     for ax, counts, title, colour, mean in zip(
@@ -209,7 +241,8 @@ def fig_handover_timeline(series, events, ut_ids=None, max_rows=30):
     """Serving beam per UT over time (one bar per UT, coloured by beam; outage grey),
     with beam handovers (|) and satellite handovers (x) marked."""
     uts = _uts(series, ut_ids, limit=max_rows)
-    fig, axes = new_figure(figsize=(10.0, 0.45 * max(len(uts), 1) + 1.6))
+    fig, axes = new_figure(figsize=(10.0, 0.45 * max(len(uts), 1) + 1.6),
+                           margins_in={"right": LEGEND_RIGHT_IN})  # fmt: skip
     ax = axes[0, 0]
     for row, ut in enumerate(uts):  # one bar per chosen UT
         r = _rows(series, ut)
@@ -282,7 +315,7 @@ def fig_cdfs(cdfs):
 
 def fig_outage_reasons(reason_counts, n_ut_epochs):
     """Outage UT-epochs by reason, as a fraction of all UT-epochs (bar chart)."""
-    fig, axes = new_figure(figsize=(7.0, 3.2))
+    fig, axes = new_figure(figsize=(7.0, 3.2), margins_in={"left": 1.35})
     ax = axes[0, 0]
     names = sorted(reason_counts, key=lambda k: -reason_counts[k])
     if not names or not n_ut_epochs:

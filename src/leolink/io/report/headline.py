@@ -151,7 +151,8 @@ def _handovers(o, run):
 
 def _service(o):
     outage = _num(o.get("outage_fraction")) or 0.0
-    no_modcod = _num(_get(o, "link", "served_without_modcod_fraction"))
+    without = _get(o, "link", "served_without_modcod") or {}
+    no_modcod, ut_s = _num(without.get("fraction")), _num(without.get("ut_s"))
     by_reason = {k: v for k, v in (o.get("outage_fraction_by_reason") or {}).items() if v}
     if outage:
         worst = max(by_reason, key=by_reason.get) if by_reason else "unspecified"
@@ -162,8 +163,9 @@ def _service(o):
         sentence += "."
     elif no_modcod:
         sentence += (
-            f"; {_pct(no_modcod)} of the served UT-time closes no DVB-S2X MODCOD "
-            "(negative margin): served on paper only."
+            f"; {_pct(no_modcod)} of the served UT-time ({fmt_si(ut_s)} UT-s) closes no "
+            "DVB-S2X MODCOD (negative margin): served on paper only (controller.service_metric "
+            '= "modcod" counts it as outage).'
         )
     else:
         sentence += "; every served UT-epoch closes a DVB-S2X MODCOD."

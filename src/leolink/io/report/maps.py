@@ -34,6 +34,7 @@ __all__ = [
     "map_extent",
     "new_figure",
     "plot_map",
+    "rings_deg",
     "subsatellite_points",
 ]
 
@@ -178,7 +179,7 @@ def draw_footprints(ax, footprints, *, fill_alpha=0.18, label_beams=True):
     lat, lon = np.asarray(footprints["lat_deg"], float), np.asarray(footprints["lon_deg"], float)
     if beam.size == 0:
         return None
-    rows, rings = _rings(lon.reshape(beam.size, -1), lat.reshape(beam.size, -1))
+    rows, rings = rings_deg(lon.reshape(beam.size, -1), lat.reshape(beam.size, -1))
     if not rings:
         return None
     colours = beam_colour(beam[rows])
@@ -194,7 +195,7 @@ def draw_footprints(ax, footprints, *, fill_alpha=0.18, label_beams=True):
     return coll
 
 
-def _rings(lon, lat):
+def rings_deg(lon, lat):
     """The rows with at least 3 finite points and their rings ``(n_i, 2)`` (lon, lat) of
     the finite points, longitudes unwrapped; whole rings in one vectorized pass (a
     constellation's animation draws ~250 cells a frame)."""

@@ -171,7 +171,7 @@ class SummaryAccumulator:
         self._db = {k: DbStats(self.n_ut) for k in _DB_COLUMNS}
         self._dwells = []
         self._rows, self._n_rows = [], 0
-        self._link = LinkStats(self.n_ut, DbStats)  # margins in histograms too
+        self._link = LinkStats(self.n_ut, DbStats, self.epoch_s)  # margins in histograms too
 
     def add_trace(self, columns):
         """Add trace rows (dict of 1-D arrays; needs ``ut_id``, ``service``, ``snr_db``,
@@ -193,7 +193,7 @@ class SummaryAccumulator:
         reason = np.full(ut.shape, -1) if reason is None else _codes(reason, OUTAGE_REASONS)
         los = columns.get("los")  # a run with environments only: NaN counts nowhere
         los = np.full(ut.shape, np.nan) if los is None else los
-        self._link.add(columns, ut, codes)  # per call: it needs the frame-only columns
+        self._link.add(columns, ut, codes, gap)  # per call: it needs the frame-only columns
         piece = {"ut": ut, "service": codes, "gap": gap, "reason": reason, "los": los}
         for key in _BUFFERED:
             piece[key] = columns[key]

@@ -9,6 +9,10 @@
   whose Es/N0 is below the required one;
 - ``modcod_usage``: fraction of the served UT-epochs (``service`` not ``outage``) per
   MODCOD name, ``none`` where no MODCOD closes the link; names in the table's order;
+- ``served_without_modcod``: the served time on which no MODCOD closes the link,
+  ``ut_s`` [UT-s] (each served row counts ``epoch_s - interruption_s``) and ``fraction`` of
+  all served time (None without served time); 0 with ``controller.service_metric =
+  "modcod"``, which turns such rows into outage;
 - ``mean_throughput_bps``: ``shannon`` and ``dvbs2x`` (ACM), over all UT-epochs (NaN
   counts as 0, as the overall ``mean_throughput_bps``), when the columns
   ``throughput_shannon_bps`` and ``throughput_dvbs2x_bps`` of the run's frames are given
@@ -47,8 +51,10 @@ class LinkStats:
     percentiles have the SNR percentiles' resolution, 0.01 dB pooled, 0.1 dB per UT).
     """
 
-    def __init__(self, n_ut, db_stats):
-        self.n_ut = int(n_ut)
+    def __init__(self, n_ut, db_stats, epoch_s=1.0):
+        self.n_ut, self.epoch_s = int(n_ut), float(epoch_s)
+        self.served_s = np.zeros(self.n_ut)  # served time, and that of it without a MODCOD
+        self.no_modcod_s = np.zeros(self.n_ut)
         self.names = (*modcod_table().names, NO_MODCOD_NAME)
         self.modcod_counts = np.zeros((self.n_ut, len(self.names)), np.int64)
         self.margin = db_stats(self.n_ut)
@@ -56,8 +62,9 @@ class LinkStats:
         self.tput_sum = {k: np.zeros(self.n_ut) for k in _MODELS}
         self.tput_seen = dict.fromkeys(_MODELS, False)
 
-    def add(self, columns, ut, service_codes):
-        """Add trace rows (``ut``: their UT ids, ``service_codes``: their service codes)."""
+    def add(self, columns, ut, service_codes, gap_s=0.0):
+        """Add trace rows (``ut``: their UT ids, ``service_codes``: their service codes,
+        ``gap_s``: the unserved part of each row's epoch [s])."""
         n = self.n_ut
         if "margin_db" in columns:
             m = np.asarray(columns["margin_db"], float)
@@ -71,12 +78,22 @@ class LinkStats:
             self.modcod_counts += np.bincount(flat, minlength=self.modcod_counts.size).reshape(
                 self.modcod_counts.shape
             )
+            self._add_served_time(ut, served, code == len(self.names) - 1, gap_s)
         for model, key in _MODELS.items():
             if key in columns:
                 tput = np.nan_to_num(np.asarray(columns[key], float), nan=0.0)
                 # row by row: the same sum whether the rows come an epoch or a block at a time
                 self.tput_sum[model][:] = running_sum(self.tput_sum[model], ut, tput)
                 self.tput_seen[model] = True
+
+    def _add_served_time(self, ut, served, no_modcod, gap_s):
+        served_s = np.where(served, self.epoch_s - np.nan_to_num(np.asarray(gap_s, float)), 0.0)
+        self.served_s[:] = running_sum(self.served_s, ut, served_s)
+        self.no_modcod_s[:] = running_sum(self.no_modcod_s, ut, np.where(no_modcod, served_s, 0.0))
+
+    @staticmethod
+    def _without_modcod(no_modcod_s, served_s):
+        return {"fraction": no_modcod_s / served_s if served_s > 0 else None, "ut_s": no_modcod_s}
 
     def _usage(self, counts):
         total = counts.sum()
@@ -95,10 +112,11 @@ class LinkStats:
             }
         n_all = int(n_epochs.sum())
 
-        def block(margin, f, usage, t):
+        def block(margin, f, usage, t, without):
             return {
                 "margin_db": {**margin, "fraction_negative": f},
                 "modcod_usage": usage,
+                "served_without_modcod": without,
                 "mean_throughput_bps": t,
             }
 
@@ -110,6 +128,7 @@ class LinkStats:
                 k: (v.sum() / n_all if n_all else None) if self.tput_seen[k] else None
                 for k, v in self.tput_sum.items()
             },
+            self._without_modcod(float(self.no_modcod_s.sum()), float(self.served_s.sum())),
         )
         if not per_ut:
             return overall, None
@@ -121,6 +140,7 @@ class LinkStats:
                 neg[i],
                 self._usage(self.modcod_counts[i]),
                 {k: (None if v is None else v[i]) for k, v in tput.items()},
+                self._without_modcod(float(self.no_modcod_s[i]), float(self.served_s[i])),
             )
             for i in range(self.n_ut)  # output formatting only
         ]

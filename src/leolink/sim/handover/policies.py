@@ -27,6 +27,9 @@ Policy protocol (:class:`Policy`)
 - ``usable_cells_only`` (bool), optional (default False): the decision does not depend on
   cells below the service threshold (``controller.min_snr_db``) other than the serving
   cell; the simulator then leaves them out of the table too.
+- ``same_as()``, optional: the name of a simpler registered policy that these parameters
+  make this one (``hysteresis`` with 0 dB and 0 s is ``max_snr``), else None; ``leolink
+  compare`` warns when a policy of its list is another one in disguise.
 
 A new policy is one small class following this protocol, registered in :data:`POLICIES`
 with its parameter model (``[controller.<name>]`` in the config); see docs/extending.md.
@@ -181,6 +184,12 @@ class Hysteresis:
 
     def choose(self, t_s, snr_db, state, future_snr_db=None):
         return _switch_or_stay(state.serving, _table(snr_db), self.margin_db)
+
+    def same_as(self):
+        """The simpler policy these parameters make this one (None: none): with no margin
+        and no time-to-trigger it switches whenever a cell beats the serving one, which is
+        :class:`MaxSnr` (but for exact ties, which keep the serving cell)."""
+        return "max_snr" if self.margin_db == 0.0 and self.time_to_trigger_s == 0.0 else None
 
     def __repr__(self):
         return f"Hysteresis(margin_db={self.margin_db}, time_to_trigger_s={self.time_to_trigger_s})"
