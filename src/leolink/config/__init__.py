@@ -27,6 +27,7 @@ from leolink.config.schema import (
     EarthSection,
     LinkSection,
     ModcodSection,
+    MultibeamSection,
     RoiSection,
     RunSection,
     SatelliteArraySection,
@@ -212,6 +213,7 @@ def _model(gen):
                           "max_snr", base=ControllerBase, doc="beam selection policy"),
         "output": kinds.output_section(REGISTRIES["output"]),
         "kpi": KpiConfig,
+        "multibeam": MultibeamSection,
     }  # fmt: skip
     fields: dict[str, Any] = {k: (m, Field(default_factory=m)) for k, m in sections.items()}
     fields["population"] = (
