@@ -39,8 +39,11 @@ _PERCENTILES = {"p5": 5.0, "p50": 50.0, "p95": 95.0}
 
 
 def is_multibeam(cfg):
-    """Whether ``leolink run`` of ``cfg`` is the multibeam snapshot (circular aperture)."""
-    return cfg.satellite_array.antenna == "circular_aperture"
+    """Whether ``leolink run`` of ``cfg`` is the multibeam snapshot: a circular aperture
+    with a ``[multibeam]`` table (without one, the aperture is for ``leolink budget``)."""
+    return (
+        cfg.satellite_array.antenna == "circular_aperture" and "multibeam" in cfg.model_fields_set
+    )
 
 
 def multibeam_satellite(cfg):
