@@ -79,7 +79,7 @@ __all__ = [
 
 
 @runtime_checkable
-class Precoder(Protocol):
+class Precoder(Protocol):  # pragma: no mutate block (a contract, no code)
     """A digital precoder ``F_BB`` (``link.precoder``), :func:`precoder_matrix` of a kind."""
 
     #: ``"none"``: the engine's path is kept (no baseband precoding: today's leolink).
