@@ -254,8 +254,14 @@ def test_a_ut_at_nadir_has_the_boresight_coupling_loss():
     cfg = load_config(CONFIGS["ka_reuse1"])
     sat = multibeam_satellite(cfg)
     ut = np.array([[0.0, 0.0, cfg.earth.radius_m]])
-    snap = snapshot(sat, ut, 19, cfg.link.system_noise_temp_dbk,
-                    lambda el: np.full_like(el, 39.7), lambda el: np.full_like(el, 0.244))  # fmt: skip
+
+    def vsat(el):
+        return np.full_like(el, 39.7)
+
+    def atm(el):
+        return np.full_like(el, 0.244)
+
+    snap = snapshot(sat, ut, 19, cfg.link.system_noise_temp_dbk, vsat, atm)
     fspl = 32.45 + 20 * math.log10(20.0) + 20 * math.log10(600e3)
     assert snap.serving.tolist() == [0]
     assert snap.cl_db[0] == pytest.approx(fspl + 0.244 - 38.5 - 39.7, abs=0.005)
