@@ -155,7 +155,11 @@ MODULES = {
     # Issue 45: the physics modules added or changed in the round before it.
     "geodesy": ["tests/test_geodesy.py", "tests/test_visibility.py"],
     "ephemeris_error": ["tests/test_ephemeris_error.py"],
-    "link/precoder": ["tests/test_precoder.py", "tests/test_active_beams.py"],
+    "link/precoder": [
+        "tests/test_precoder.py",
+        "tests/test_precoder_params.py",
+        "tests/test_active_beams.py",
+    ],
     "link/figures": ["tests/test_figures.py", "tests/test_link_figures.py"],
     "antenna/steering": ["tests/test_steering.py", "tests/test_engine_contracts.py"],
 }

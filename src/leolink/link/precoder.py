@@ -254,8 +254,9 @@ def precoder_matrix(
             raise ConfigError("precoder 'none' needs serving_beam (the beam of each UT)")
         f0 = _selection(serving_beam, ut, h.shape[-1])
     elif kind in ("zf", "zf_normalized"):
-        # pinv = H^H (H H^H)^-1 for full row rank; zero rows (padding) give zero columns.
-        f0 = np.linalg.pinv(h)
+        # pinv = H^H (H H^H)^-1 for full row rank; zero rows (padding) give columns of
+        # rounding noise (~1e-17), zeroed here: normalized, they would radiate full power.
+        f0 = np.where(ut[..., None, :], np.linalg.pinv(h), 0.0)
         if kind == "zf_normalized":
             norm = np.linalg.norm(f0, axis=-2, keepdims=True)
             f0 = f0 / np.where(norm > 0.0, norm, 1.0)
