@@ -154,7 +154,7 @@ MODULES = {
     "io/summary": ["tests/test_recorder.py", "tests/test_summary_of_a_run.py"],
     # Issue 45: the physics modules added or changed in the round before it.
     "geodesy": ["tests/test_geodesy.py", "tests/test_visibility.py"],
-    "ephemeris_error": ["tests/test_ephemeris_error.py"],
+    "ephemeris_error": ["tests/test_ephemeris_error.py", "tests/test_ephemeris_error_params.py"],
     "link/precoder": [
         "tests/test_precoder.py",
         "tests/test_precoder_params.py",
