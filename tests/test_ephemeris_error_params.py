@@ -70,3 +70,36 @@ def test_no_error_is_zero_in_the_models_shape(n_sat):
     dpos, dvel = NoError().offsets(np.arange(4.0), n_sat)
     assert dpos.shape == dvel.shape == (4, n_sat, 3)
     assert not dpos.any() and not dvel.any() and dpos is not dvel
+
+
+class _Circular:
+    """Satellites on one circular equatorial orbit (7,000 km, 1.07e-3 rad/s), spread in phase."""
+
+    n_sat = 50
+    radius_m, rate_rad_s = 7.0e6, 1.07e-3
+
+    def __call__(self, t_s):
+        phase = np.asarray(t_s)[:, None] * self.rate_rad_s + np.linspace(0, 6, self.n_sat)
+        c, s, z = np.cos(phase), np.sin(phase), np.zeros_like(phase)
+        pos = self.radius_m * np.stack([c, s, z], -1)
+        vel = self.radius_m * self.rate_rad_s * np.stack([-s, c, z], -1)
+        return pos, vel, -(self.rate_rad_s**2) * pos
+
+
+def test_the_believed_velocity_follows_the_believed_position():
+    """d/dt (believed - true position) = believed - true velocity, up to the turn of the
+    along/cross/radial frame (rate x |dpos|): a growing along-track error, 60 s after an
+    update."""
+    from leolink.ephemeris_error import EstimatedEphemeris
+
+    true = _Circular()
+    est = EstimatedEphemeris(true, RtnError((0, 0, 0), (0, 0, 0), 0.0, 3600.0, 1000.0, seed=1))
+    h, t = 1e-2, 60.0
+    (p_up, _, _), (p_dn, _, _) = est(np.array([t + h])), est(np.array([t - h]))
+    (t_up, _, _), (t_dn, _, _) = true(np.array([t + h])), true(np.array([t - h]))
+    fd = ((p_up - t_up) - (p_dn - t_dn))[0] / (2 * h)
+    pos_b, vel_b, _ = est(np.array([t]))
+    pos_t, vel_t, _ = true(np.array([t]))
+    turn = true.rate_rad_s * np.linalg.norm(pos_b - pos_t, axis=-1)[0]  # frame rotation
+    assert np.all(np.linalg.norm(fd - (vel_b - vel_t)[0], axis=-1) <= turn + 1e-6)
+    assert np.linalg.norm((vel_b - vel_t)[0], axis=-1).max() > 10 * turn.max()
