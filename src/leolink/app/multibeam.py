@@ -16,21 +16,16 @@ import math
 import numpy as np
 
 import leolink
-from leolink.antenna.aperture import half_power_beamwidth_rad
-from leolink.antenna.beam_layout import hex_beam_layout
 from leolink.app.scenario import atmosphere_from, terminal_from
 from leolink.config import dump_toml
 from leolink.errors import ConfigError
 from leolink.io.atomic import write_json_atomic, write_text_atomic
 from leolink.io.run_dir import claim_out_dir, write_manifest
 from leolink.link.budget import spectral_efficiency_bps_hz, throughput_bps
-from leolink.multibeam import (
-    CAP_UV_RADIUS_SPACINGS,
-    MultibeamSatellite,
-    drop_uts,
-    inner_beam_count,
-    snapshot,
-)
+
+# leolink.multibeam and the aperture (scipy's Bessel function) are imported by the
+# functions that need them: leolink.app.run imports this module, and a run of the hybrid
+# UPA loads no scipy (tests/test_startup_and_memory.py).
 
 __all__ = ["is_multibeam", "multibeam_satellite", "run_multibeam", "snapshot_of_config"]
 
@@ -54,6 +49,10 @@ def multibeam_satellite(cfg):
     ConfigError
         Without ``link.eirp_density_dbw_mhz`` (TR 38.821 gives every beam's EIRP density).
     """
+    from leolink.antenna.aperture import half_power_beamwidth_rad
+    from leolink.antenna.beam_layout import hex_beam_layout
+    from leolink.multibeam import MultibeamSatellite
+
     link, a, m = cfg.link, cfg.satellite_array, cfg.multibeam
     if link.eirp_density_dbw_mhz is None:
         raise ConfigError(
@@ -80,6 +79,8 @@ def multibeam_satellite(cfg):
 def snapshot_of_config(cfg):
     """The satellite and the :class:`~leolink.multibeam.Snapshot` of ``cfg`` (seed
     ``run.seed``)."""
+    from leolink.multibeam import CAP_UV_RADIUS_SPACINGS, drop_uts, inner_beam_count, snapshot
+
     sat, m = multibeam_satellite(cfg), cfg.multibeam
     cap = (m.inner_tiers + CAP_UV_RADIUS_SPACINGS) * sat.layout.spacing_uv
     cell_uv_area = math.sqrt(3.0) / 2.0 * sat.layout.spacing_uv**2  # a hexagon of inradius ABS/2
@@ -98,6 +99,8 @@ def _stats(values):
 
 
 def _summary(cfg, sat, snap):
+    from leolink.multibeam import inner_beam_count
+
     bw = sat.beam_bandwidth_hz
     rate = throughput_bps(spectral_efficiency_bps_hz(10.0 ** (snap.sinr_db / 10.0)), bw)
     n_ut, n_inner = int(snap.serving.size), inner_beam_count(cfg.multibeam.inner_tiers)
