@@ -147,11 +147,13 @@ def test_proportional_fair_shares_add_to_one_beam(sharing_runs):
     np.testing.assert_allclose(share * 10, np.round(share * 10), atol=1e-9)
 
 
-def _explicit_se(ut_pos, sat_pos, sat_vel, path, beam, kind, colors, u_beams, lit):
+def _explicit_se(ut_pos, sat_pos, sat_vel, path, beam, kind, colors, u_beams, lit,
+                 idle="silent"):  # fmt: skip
     """Mean log2(1 + SINR) per UT: round robin by hand, explicit a(u)^H F_RF, linalg.
 
     The lit beams, by ascending id, sit on chains 0, 1, ... (the remaining chains get
-    a dummy beam and serve nobody)."""
+    a dummy beam and serve nobody). ``idle = "transmit"``: each lit beam without a UT sends
+    a stream to a receiver on its boresight whose path is the slot's mean."""
     array = HybridArray(60, 72, 5, 3)
     on = np.flatnonzero(lit)
     chain_beams = np.zeros((array.n_rf, 2))
@@ -162,12 +164,15 @@ def _explicit_se(ut_pos, sat_pos, sat_vel, path, beam, kind, colors, u_beams, li
     members = {g: sorted(int(k) for k in np.flatnonzero(beam == g)) for g in set(beam)}
     n_slots = max(len(m) for m in members.values())
     total, count = np.zeros(len(beam)), np.zeros(len(beam))
+    empty = [int(g) for g in on if g not in members] if idle == "transmit" else []
     for s in range(n_slots):
         ks = [m[s % len(m)] for m in members.values()]
-        u = direction_cosines(sat_pos, sat_vel, ut_pos[ks])
+        rows_beam = [beam[k] for k in ks] + empty
+        u = np.vstack([direction_cosines(sat_pos, sat_vel, ut_pos[ks]), u_beams[empty]])
         a = steering_vector(u, 60, 72)
-        h = np.sqrt(path[ks])[:, None] * (a.conj() @ f_rf[:, [chain_of[beam[k]] for k in ks]])
-        same = colors[beam[ks]][:, None] == colors[beam[ks]][None, :]
+        amp_path = np.sqrt(np.r_[path[ks], np.full(len(empty), np.mean(path[ks]))])
+        h = amp_path[:, None] * (a.conj() @ f_rf[:, [chain_of[g] for g in rows_beam]])
+        same = colors[rows_beam][:, None] == colors[rows_beam][None, :]
         h = np.where(same, h, 0.0)
         hh = h.conj().T
         if kind == "zf":
@@ -176,7 +181,7 @@ def _explicit_se(ut_pos, sat_pos, sat_vel, path, beam, kind, colors, u_beams, li
             f = hh @ np.linalg.inv(h @ hh)
             f = f / np.sqrt(np.sum(np.abs(f) ** 2, axis=0))
         else:  # Peel et al.: alpha = n_ut noise / (n_beam P_RF) = 1 (square problem)
-            f = hh @ np.linalg.inv(h @ hh + np.eye(len(ks)))
+            f = hh @ np.linalg.inv(h @ hh + np.eye(len(rows_beam)))
         f = f * np.sqrt(1.0 / max(np.sum(np.abs(f) ** 2, axis=1)))
         amp = np.abs(h @ f) ** 2
         for i, k in enumerate(ks):
@@ -186,17 +191,26 @@ def _explicit_se(ut_pos, sat_pos, sat_vel, path, beam, kind, colors, u_beams, li
     return total / count
 
 
+O2_DEMAND = ["satellite_array.oversampling=2.0", "satellite_array.active_beams=demand"]
+
+
 @pytest.mark.parametrize(
-    "kind, sets",
+    "kind, sets, idle",
     [
-        ("zf", []),
-        ("mmse", []),
-        ("zf", ["link.reuse_colors=3"]),
-        ("zf_normalized", []),
-        ("mmse", ["satellite_array.oversampling=2.0", "satellite_array.active_beams=demand"]),
+        ("zf", [], "silent"),
+        ("mmse", [], "silent"),
+        ("zf", ["link.reuse_colors=3"], "silent"),
+        ("zf_normalized", [], "silent"),
+        ("mmse", O2_DEMAND, "silent"),
+        # idle lit beams transmitting: 25 UTs leave some of the 15 beams empty, and the 15
+        # random lit beams of 47 (O = 2) more
+        ("zf", [], "transmit"),
+        ("mmse", O2_DEMAND, "transmit"),
+        ("zf", ["link.reuse_colors=3"], "transmit"),
+        ("zf_normalized", O2_DEMAND, "transmit"),
     ],
 )
-def test_precoded_se_matches_explicit_steering_vectors(tmp_path, kind, sets):
+def test_precoded_se_matches_explicit_steering_vectors(tmp_path, kind, sets, idle):
     """The wired precoder (closed-form responses, padded batches, chains of the lit
     beams) = explicit steering vectors of the 60 x 72 array with numpy.linalg, to 1e-9."""
     scen = build_scenario(_cfg(tmp_path, 25, sets))
@@ -214,8 +228,8 @@ def test_precoded_se_matches_explicit_steering_vectors(tmp_path, kind, sets):
     sat_vel = np.repeat(vel[0], len(ut), 0)
     cols = eng.serve_pairs(snap.links, np.arange(len(ut)), beam, zeros, zeros, sat_vel, zeros,
                            ut_pos_m=ut, lit=lit_rows)  # fmt: skip
-    svc = BeamService(eng, SCHEDULERS.build("round_robin"), PRECODERS.build(kind),
-                      HybridArray(60, 72, 5, 3))  # fmt: skip
+    precoder = PRECODERS.build(kind, PRECODERS[kind].config(idle_beams=idle))
+    svc = BeamService(eng, SCHEDULERS.build("round_robin"), precoder, HybridArray(60, 72, 5, 3))
     path = snap.path_snr_lin[:, 0]
     inputs = dict(
         ut_pos_m=ut,
@@ -229,8 +243,13 @@ def test_precoded_se_matches_explicit_steering_vectors(tmp_path, kind, sets):
               lambda: inputs)  # fmt: skip
     se = cols["se_bps_hz"] * cols["n_sharing"]  # undo the round-robin share 1/n
     want = _explicit_se(ut, pos[0, 0], vel[0, 0], path, beam, kind, eng.colors,
-                        eng.codebook.u_xy, lit)  # fmt: skip
+                        eng.codebook.u_xy, lit, idle)  # fmt: skip
     np.testing.assert_allclose(se, want, rtol=1e-9)
+    if idle == "transmit":  # the case has idle lit beams, and they change the SE
+        assert set(np.flatnonzero(lit)) - set(beam.tolist())
+        silent = _explicit_se(ut, pos[0, 0], vel[0, 0], path, beam, kind, eng.colors,
+                              eng.codebook.u_xy, lit)  # fmt: skip
+        assert np.max(np.abs(se - silent)) > 1e-3
 
 
 def test_precoder_needs_a_scheduler(tmp_path):

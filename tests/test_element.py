@@ -105,9 +105,14 @@ def test_default_exponent_and_values():
 
 
 def test_flat_panel_matches_the_papers_metasurface_rolloff():
-    # Paper Sec. 2.1: 33 - 1.2 * 10 log10(sin el) with the sign corrected (gain falls at low el).
+    """Paper Sec. 2.1 (sign corrected, docs/errata.md): a flat panel loses cos^1.2 of the
+    scan angle; the scan angle here from the law of cosines in the triangle
+    panel-normal tip / panel / satellite direction (unit sides), not from 90 deg - el."""
     el = np.radians([10.0, 30.0, 60.0, 90.0])
-    expected = -1.2 * 10 * np.log10(np.sin(el))
+    # chord between the unit normal (0, 0, 1) and the unit direction (cos el, 0, sin el)
+    chord2 = np.cos(el) ** 2 + (1.0 - np.sin(el)) ** 2
+    cos_scan = 1.0 - chord2 / 2.0  # law of cosines with two unit sides
+    expected = -10 * np.log10(cos_scan**1.2)
     np.testing.assert_allclose(flat_panel_scan_loss_db(el), expected, atol=1e-12)
     assert flat_panel_scan_loss_db(np.radians(-5.0)) == np.inf
 

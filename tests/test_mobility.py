@@ -478,7 +478,12 @@ def test_motion_blocks_are_longer_for_fewer_uts_within_the_state_budget():
     def n_block(n_sat, n_ut, n_epoch=5000):
         return motion.MotionBlocks(None, [], np.arange(n_epoch) * 1.0, n_sat, n_ut).n_block
 
-    assert motion.BLOCK_UT_EPOCHS == 64_000 and motion.MAX_BLOCK_EPOCHS == 1024
+    # The behaviour the constants are for: a block's states (9 floats a satellite, 12 a
+    # UT, per epoch) never exceed 32 MiB.
+    for n_sat in (1, 66, 4399, 30_000):
+        for n_ut in (1, 257, 10_000, 100_000):
+            k = n_block(n_sat, n_ut)
+            assert k >= 1 and (k == 1 or (9 * n_sat + 12 * n_ut) * k * 8 <= 32 << 20)
     assert [n_block(1, n) for n in (1, 10, 62, 100, 999, 1000, 5000)] == [
         1024, 1024, 1024, 640, 64, 64, 64]  # fmt: skip
     assert n_block(4399, 10) == (1 << 22) // (9 * 4399 + 12 * 10) == 105

@@ -74,13 +74,19 @@ def test_leaky_wave_limits():
 
 
 def test_metasurface_roll_off_sign_and_values():
+    """A second derivation: the panel lies flat (normal up); the satellite's direction is
+    built as a vector from its azimuth and elevation; the element factor is the power
+    pattern cos^q of the angle between the two, found by arccos of their dot product and
+    raised to q = 1.2 in linear power (the Kymeta roll-off the paper quotes, Sec. 2.1),
+    not the sin(el) form of the code."""
     ms = Metasurface(33.0, 1.2)
-    el = np.radians([90.0, 30.0, 10.0])
-    # cos^1.2 of the scan angle 90 deg - el: 33 + 12 log10(sin el)
-    expected = 33 + 1.2 * 10 * np.log10(np.cos(np.radians(90.0) - el))
-    np.testing.assert_allclose(ms.gain_db(el), expected, atol=1e-12)
-    assert ms.gain_db(np.radians(30.0)) == pytest.approx(29.39, abs=0.005)  # 33 - 3.61
-    assert ms.gain_db(np.radians(90.0)) == pytest.approx(33.0)
+    rng = np.random.default_rng(2)
+    el, az = rng.uniform(0.01, np.pi / 2, 50), rng.uniform(0.0, 2 * np.pi, 50)
+    los = np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], axis=1)
+    scan = np.arccos(los @ np.array([0.0, 0.0, 1.0]))
+    expected = 33.0 + 10 * np.log10(np.cos(scan) ** 1.2)
+    np.testing.assert_allclose(ms.gain_db(el), expected, atol=1e-9)
+    assert np.all(np.diff(ms.gain_db(np.sort(el))) > 0)  # falls towards the horizon
     assert np.isnan(ms.gain_db(-0.1))  # below the horizon: callers mask
 
 

@@ -40,7 +40,7 @@ _STREAM = 0x45504845  # "EPHE"
 
 
 @runtime_checkable
-class EphemerisErrorModel(Protocol):
+class EphemerisErrorModel(Protocol):  # pragma: no mutate block (a contract, no code)
     """``offsets(t_s (n_t,), n_sat) -> (dpos (n_t, n_sat, 3), dvel (n_t, n_sat, 3))`` in the
     along-track / cross-track / radial frame [m, m/s]; ``is_zero``: no error at all."""
 

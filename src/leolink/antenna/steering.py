@@ -50,7 +50,7 @@ _AF_CHUNK = 256
 
 
 @runtime_checkable
-class SteeringMode(Protocol):
+class SteeringMode(Protocol):  # pragma: no mutate block (a contract, no code)
     """How the beams point, as seen by the engine.
 
     ``moves_beams``: whether the beam directions change with the satellite's state (else

@@ -132,7 +132,8 @@ def codebook_design_from_config(cfg):
     if cfg.satellite_array.antenna != "hybrid_upa":
         raise ConfigError(
             f"satellite_array.antenna = {cfg.satellite_array.antenna!r} is for leolink budget "
-            "only: runs, coverage maps and codebooks drive the hybrid UPA ('hybrid_upa')"
+            "only: runs, coverage maps and codebooks drive the hybrid UPA ('hybrid_upa'); "
+            "a [multibeam] table makes leolink run TR 38.821's one-satellite snapshot"
         )
     sub, geometry = _geometry(cfg)
     o = cfg.satellite_array.oversampling

@@ -24,6 +24,7 @@ import leolink
 from leolink.app.codebook import codebook_design_from_config
 from leolink.app.guard import raise_pending
 from leolink.app.heap import fix_heap_thresholds
+from leolink.app.multibeam import is_multibeam, run_multibeam
 from leolink.app.notes import track_coverage, track_notes
 from leolink.app.orbits import earth_orientation, roi_frame, tle_time_zero_utc
 from leolink.app.validate import checked_scenario, ephemeris_health
@@ -238,6 +239,8 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     malloc's tunables: the peak memory stays flat in run length, and the temporaries of
     a few MiB reuse the heap's pages instead of faulting new ones in.
     """
+    if is_multibeam(cfg):  # the circular aperture: TR 38.821's one-satellite snapshot
+        return run_multibeam(cfg, out_dir, overwrite)
     scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
     fix_heap_thresholds()  # memory flat in run length, few page faults (leolink.app.heap)
     with held_out_dirs():  # one command per folder (leolink.io.run_dir)

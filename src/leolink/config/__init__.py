@@ -27,6 +27,7 @@ from leolink.config.schema import (
     EarthSection,
     LinkSection,
     ModcodSection,
+    MultibeamSection,
     RoiSection,
     RunSection,
     SatelliteArraySection,
@@ -252,6 +253,7 @@ def _model(gen):
         "output": kinds.output_section(REGISTRIES["output"]),
         "cells": CellsConfig,
         "kpi": KpiConfig,
+        "multibeam": MultibeamSection,
     }  # fmt: skip
     fields: dict[str, Any] = {k: (m, Field(default_factory=m)) for k, m in sections.items()}
     fields["population"] = (

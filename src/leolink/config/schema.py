@@ -48,6 +48,7 @@ __all__ = [
     "EarthSection",
     "LinkSection",
     "ModcodSection",
+    "MultibeamSection",
     "RoiSection",
     "RunSection",
     "SatelliteArraySection",
@@ -349,7 +350,7 @@ class SatelliteArraySection(Section):
     antenna: Literal["hybrid_upa", "circular_aperture"] = _f(
         "hybrid_upa",
         doc="the paper's hybrid UPA and DFT codebook, or the TR 38.811 Sec. 6.4.1 circular "
-        "aperture (one beam on the UT; leolink budget only)",
+        "aperture (leolink budget: one beam on the UT; leolink run: the [multibeam] snapshot)",
     )
     aperture_diameter_m: float = _f(
         0.5, gt=0.0, le=100.0, doc="antenna = 'circular_aperture': diameter D = 2a [m]"
@@ -376,4 +377,43 @@ class SatelliteArraySection(Section):
                     f"satellite_array.n_{axis} = {n} is not allowed: it must be a multiple of "
                     f"n_rf_{axis} = {n_rf} (equal subarrays, one per RF chain)"
                 )
+        return self
+
+
+class MultibeamSection(Section):
+    """``[multibeam]``: the single-satellite snapshot that ``leolink run`` makes of a
+    circular-aperture config (TR 38.821 clause 6.1.1, :mod:`leolink.multibeam`)."""
+
+    tiers: int = _f(
+        4,
+        ge=0,
+        le=30,
+        doc="satellite_array.antenna = 'circular_aperture': hexagonal tiers of beams around "
+        "the central (nadir) beam; TR 38.821 Table 6.1.1.1-5: 4 (61 beams) at reuse 1, 6 "
+        "(127 beams) at reuse > 1",
+    )
+    inner_tiers: int = _f(
+        2, ge=0, le=30, doc="tiers whose cells hold the statistics' UTs (TR 38.821: 2, 19 beams)"
+    )
+    hpbw_deg: float | None = _f(
+        None,
+        gt=0.0,
+        le=90.0,
+        doc="3 dB beamwidth the beam spacing sqrt(3) sin(HPBW / 2) comes from [deg] (TR "
+        "38.821 Table 6.1.1.1-1: 1.7647 Ka, 4.4127 S); none: the aperture's own",
+    )
+    uts_per_beam: int = _f(
+        500,
+        ge=1,
+        le=100_000,
+        doc="static UTs dropped uniformly per inner cell, on average (TR 38.821: at least 10)",
+    )
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.inner_tiers > self.tiers:
+            raise ValueError(
+                f"multibeam.inner_tiers = {self.inner_tiers!r} is not allowed: at most "
+                f"multibeam.tiers = {self.tiers!r}"
+            )
         return self

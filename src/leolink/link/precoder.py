@@ -59,7 +59,7 @@ References
    using zero-forcing beamforming," IEEE J. Sel. Areas Commun., 24(3), pp. 528-541, 2006.
 """
 
-from typing import Protocol, runtime_checkable
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 from pydantic import Field
@@ -69,6 +69,7 @@ from leolink.link.budget import sinr_lin
 from leolink.registry import Params, Registry
 
 __all__ = [
+    "IDLE_BEAMS",
     "PRECODERS",
     "Precoder",
     "chain_power",
@@ -80,11 +81,13 @@ __all__ = [
 
 
 @runtime_checkable
-class Precoder(Protocol):
+class Precoder(Protocol):  # pragma: no mutate block (a contract, no code)
     """A digital precoder ``F_BB`` (``link.precoder``), :func:`precoder_matrix` of a kind."""
 
     #: ``"none"``: the engine's path is kept (no baseband precoding: today's leolink).
     kind: str
+    #: What a lit beam without a scheduled UT in a slot does (:data:`IDLE_BEAMS`).
+    idle_beams: str
 
     def __call__(self, h_est, p_rf=1.0, serving_beam=None, ut_mask=None, beam_mask=None):
         """``F_BB (..., n_beam, n_ut)`` of :func:`precoder_matrix`."""
@@ -95,11 +98,17 @@ class Precoder(Protocol):
 #: :func:`precoder_matrix`.
 PRECODERS: Registry[Precoder] = Registry("link.precoder", Precoder)
 _KINDS = ("none", "zf", "zf_normalized", "mmse")  # the closed forms of precoder_matrix
+#: What a lit beam does in a slot where no UT of its cell is scheduled (``idle_beams``):
+#: ``"silent"``: its chain radiates nothing, the precoder spans the scheduled UTs' chains
+#: only; ``"transmit"``: full buffer, it carries a stream to its cell centre (the beam's
+#: boresight, a UT with the mean path of the slot's scheduled UTs), precoded with the others
+#: over all lit chains, as every lit beam radiates under ``precoder = "none"``.
+IDLE_BEAMS = ("silent", "transmit")
 
 
 class _Fixed:
-    def __init__(self, kind, alpha_scale=1.0):
-        self.kind, self.alpha_scale = kind, float(alpha_scale)
+    def __init__(self, kind, alpha_scale=1.0, idle_beams="silent"):
+        self.kind, self.alpha_scale, self.idle_beams = kind, float(alpha_scale), idle_beams
 
     def __call__(self, h_est, p_rf=1.0, serving_beam=None, ut_mask=None, beam_mask=None):
         alpha = None
@@ -112,7 +121,16 @@ class _Fixed:
                                alpha=alpha)  # fmt: skip
 
 
-class MmseConfig(Params):
+class PrecoderConfig(Params):
+    idle_beams: Literal["silent", "transmit"] = Field(
+        "silent",
+        description="a lit beam with no UT scheduled in a slot: 'silent' (its chain radiates "
+        "nothing) or 'transmit' (full buffer: a stream to its cell centre, precoded with the "
+        "others over all lit chains, like every lit beam under precoder = 'none')",
+    )
+
+
+class MmseConfig(PrecoderConfig):
     alpha_scale: float = Field(
         1.0,
         gt=0.0,
@@ -121,16 +139,27 @@ class MmseConfig(Params):
     )
 
 
-PRECODERS.add("none", lambda p, c: _Fixed("none"), doc="no digital precoder (F_BB = selection)")
-PRECODERS.add("zf", lambda p, c: _Fixed("zf"), doc="zero forcing, F = H^H (H H^H)^-1")
+# "none": every lit beam radiates its cell's stream in every slot (the engine's path).
+PRECODERS.add(
+    "none",
+    lambda p, c: _Fixed("none", idle_beams="transmit"),
+    doc="no digital precoder (F_BB = selection)",
+)
+PRECODERS.add(
+    "zf",
+    lambda p, c: _Fixed("zf", idle_beams=p.idle_beams),
+    config=PrecoderConfig,
+    doc="zero forcing, F = H^H (H H^H)^-1",
+)
 PRECODERS.add(
     "zf_normalized",
-    lambda p, c: _Fixed("zf_normalized"),
+    lambda p, c: _Fixed("zf_normalized", idle_beams=p.idle_beams),
+    config=PrecoderConfig,
     doc="zero forcing with unit-norm columns (equal power per UT)",
 )
 PRECODERS.add(
     "mmse",
-    lambda p, c: _Fixed("mmse", p.alpha_scale),
+    lambda p, c: _Fixed("mmse", p.alpha_scale, p.idle_beams),
     config=MmseConfig,
     doc="regularized ZF, F = H^H (H H^H + alpha I)^-1",
 )
@@ -226,8 +255,9 @@ def precoder_matrix(
             raise ConfigError("precoder 'none' needs serving_beam (the beam of each UT)")
         f0 = _selection(serving_beam, ut, h.shape[-1])
     elif kind in ("zf", "zf_normalized"):
-        # pinv = H^H (H H^H)^-1 for full row rank; zero rows (padding) give zero columns.
-        f0 = np.linalg.pinv(h)
+        # pinv = H^H (H H^H)^-1 for full row rank; zero rows (padding) give columns of
+        # rounding noise (~1e-17), zeroed here: normalized, they would radiate full power.
+        f0 = np.where(ut[..., None, :], np.linalg.pinv(h), 0.0)
         if kind == "zf_normalized":
             norm = np.linalg.norm(f0, axis=-2, keepdims=True)
             f0 = f0 / np.where(norm > 0.0, norm, 1.0)

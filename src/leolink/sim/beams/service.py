@@ -10,15 +10,21 @@ interference), :class:`BeamService` applies what issue 14 adds on top:
 - the precoder (:mod:`leolink.engine.precoded`): per slot of the schedule, the scheduled
   UTs of each satellite (one per beam) get ``F_BB``; a UT's spectral efficiency is the
   mean ``log2(1 + SINR)`` over the slots it is scheduled in, its ``sinr_db`` the SINR of
-  that mean (``2^SE - 1``). Lit beams without a scheduled UT in a slot are idle (no data
-  to precode), whereas without precoder every lit beam interferes all the time (the
-  paper's full-buffer model). A UT the scheduler leaves out of every slot of an epoch
-  (proportional fair, more UTs than slots) keeps the analog SINR and gets throughput 0.
+  that mean (``2^SE - 1``). A lit beam without a scheduled UT in a slot is silent by
+  default (``[link.<precoder>] idle_beams = "silent"``: no data to precode, its chain off),
+  whereas without precoder every lit beam interferes all the time (the paper's full-buffer
+  model); ``idle_beams = "transmit"`` gives the precoder that full buffer too: each idle lit
+  beam carries a stream to its cell centre, precoded with the scheduled UTs' over all lit
+  chains (:data:`leolink.link.precoder.IDLE_BEAMS`). A UT the scheduler leaves out of
+  every slot of an epoch (proportional fair, more UTs than slots) keeps the analog SINR and
+  gets throughput 0.
 
 ``snr_db`` and ``gain_tx_db`` stay the analog beam's (the controller's quantities).
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -110,22 +116,20 @@ class BeamService:
         ok = member >= 0
         m = np.where(ok, member, 0)
         s, b = sat_id[m], beam_id[m]
-        chain = self._chains(s, b, lit)
         u = direction_cosines(inp["sat_pos_m"][m], inp["sat_vel_m_s"][m], inp["ut_pos_m"][m])
         path = np.where(ok, np.nan_to_num(inp["path_snr_lin"][m]), 0.0)
-        beam_u = np.asarray(eng.codebook.u_xy, float)[b]
-        h = precoded.channel(u, path, beam_u, np.where(ok, chain, -1), eng.colors[b], ok,
-                             self.array)  # fmt: skip
-        i_other = 0.0 if inp["i_other"] is None else inp["i_other"][m]
-        h_est = None
+        u_est = None
         if inp.get("sat_pos_est_m") is not None:  # seam of the ephemeris-error model
             vel_est = inp.get("sat_vel_est_m")
             vel_est = inp["sat_vel_m_s"] if vel_est is None else vel_est
             u_est = direction_cosines(inp["sat_pos_est_m"][m], vel_est[m],
                                       inp["ut_pos_m"][m])  # fmt: skip
-            h_est = precoded.channel(u_est, path, beam_u, np.where(ok, chain, -1),
-                                     eng.colors[b], ok, self.array)  # fmt: skip
-        sinr = precoded.precoded_sinr(self.precoder, h, ok, i_other, h_est)
+        i_other = np.zeros(ok.shape) if inp["i_other"] is None else inp["i_other"][m]
+        rows = _Rows(ok, b, u, u_est, path, i_other)
+        if self.precoder.idle_beams == "transmit":
+            rows = rows.with_idle_beams(s[:, 0], lit, eng.codebook.u_xy)
+        width = ok.shape[1]  # the scheduled UTs' columns; the idle beams' follow
+        sinr = self._precoded_sinr(rows, s[:, :1], lit)[:, :width]
         rate = spectral_efficiency_bps_hz(np.where(ok, sinr, 0.0))
         n_ut = sat_id.size
         total = np.bincount(member[ok], weights=rate[ok], minlength=n_ut)
@@ -136,8 +140,64 @@ class BeamService:
                                        cols["sinr_db"])  # fmt: skip
         return se
 
+    def _precoded_sinr(self, rows, sat, lit):
+        """SINR of every row of the padded problems after the precoder (NaN on padding)."""
+        eng, ok, b = self.engine, rows.ok, rows.beam
+        chain = np.where(ok, self._chains(np.broadcast_to(sat, b.shape), b, lit), -1)
+        beam_u = np.asarray(eng.codebook.u_xy, float)[b]
+        h = precoded.channel(rows.u, rows.path, beam_u, chain, eng.colors[b], ok, self.array)
+        h_est = None
+        if rows.u_est is not None:
+            h_est = precoded.channel(rows.u_est, rows.path, beam_u, chain, eng.colors[b], ok,
+                                     self.array)  # fmt: skip
+        return precoded.precoded_sinr(self.precoder, h, ok, rows.i_other, h_est)
+
     def _chains(self, sat, beam, lit):
         """RF chain of each (satellite, beam): lit beams by ascending id take 0, 1, ..."""
         if lit is None:  # every beam lit (beams <= chains): beam m on chain m
             return beam
         return assign_chains(lit, self.array.n_rf)[sat, beam]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Rows:
+    """The rows of the padded precoding problems (P, W): who receives a stream.
+
+    ``ok`` (False on padding), ``beam`` (the row's beam), ``u`` and ``u_est`` (true and
+    believed direction cosines, (P, W, 2); ``u_est`` None without an ephemeris error),
+    ``path`` (SNR per unit TX gain), ``i_other`` (other satellites' interference / noise).
+    """
+
+    ok: np.ndarray
+    beam: np.ndarray
+    u: np.ndarray
+    u_est: np.ndarray | None
+    path: np.ndarray
+    i_other: np.ndarray
+
+    def with_idle_beams(self, sat, lit, beam_u_xy):
+        """These rows and one per idle lit beam of the problem's satellite ``sat (P,)``:
+        a stream to its cell centre (its boresight, true and believed alike), with the mean
+        path of the problem's scheduled UTs and no other interference
+        (:data:`leolink.link.precoder.IDLE_BEAMS`)."""
+        n_beam = beam_u_xy.shape[0]
+        lit_p = np.ones((sat.size, n_beam), bool) if lit is None else lit[sat]
+        busy = np.zeros_like(lit_p)
+        prob = np.broadcast_to(np.arange(sat.size)[:, None], self.ok.shape)
+        busy[prob[self.ok], self.beam[self.ok]] = True
+        idle = lit_p & ~busy
+        width = int(idle.sum(axis=1).max(initial=0))
+        order = np.argsort(~idle, axis=1, kind="stable")[:, :width]
+        ok = np.take_along_axis(idle, order, axis=1)
+        beam = np.where(ok, order, 0)
+        u = np.where(ok[..., None], np.asarray(beam_u_xy, float)[beam], 0.0)
+        mean_path = np.sum(self.path, axis=1) / np.maximum(self.ok.sum(axis=1), 1)
+        path = np.where(ok, mean_path[:, None], 0.0)
+
+        def cat(a, extra):
+            return np.concatenate([a, extra], axis=1)
+
+        u_est = None if self.u_est is None else cat(self.u_est, u)
+        zeros = np.zeros(ok.shape)
+        return _Rows(cat(self.ok, ok), cat(self.beam, beam), cat(self.u, u), u_est,
+                     cat(self.path, path), cat(self.i_other, zeros))  # fmt: skip
