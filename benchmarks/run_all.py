@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 MODULES = ("bench_engine", "bench_sim", "bench_constellation", "bench_small",
            "bench_memory", "bench_visibility", "bench_peer")  # fmt: skip
 #: Benchmarks run on their own, not by this command (minutes each, or a part's floor).
-RUN_ALONE = ("bench_report", "bench_writer")
+RUN_ALONE = ("bench_report", "bench_split", "bench_writer")
 #: Aims of the issue (speed at constellation scale): name -> (unit, "<=" or ">=", aim).
 AIMS = {
     "engine.ut_epochs_per_s": ("UT-ep/s", ">=", 3e6),

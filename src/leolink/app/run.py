@@ -25,6 +25,7 @@ from leolink.app.guard import raise_pending
 from leolink.app.heap import fix_heap_thresholds
 from leolink.app.notes import track_coverage, track_notes
 from leolink.app.orbits import earth_orientation, roi_frame, tle_time_zero_utc
+from leolink.app.split import run_split, split_workers
 from leolink.app.validate import checked_scenario, ephemeris_health
 from leolink.config import dump_toml
 from leolink.errors import LeolinkError
@@ -188,10 +189,11 @@ def _run_section(cfg, scen, stats):
         "track_coverage": coverage,
         "notes": notes,
         "wall_time_s": stats.wall_time_s,
+        **({"split": stats.split} if stats.split is not None else {}),
     }
 
 
-def run(cfg, out_dir=None, progress=None, overwrite=False):
+def run(cfg, out_dir=None, progress=None, overwrite=False, workers=1, parts=None):
     """Run the simulation of ``cfg``.
 
     Parameters
@@ -207,6 +209,14 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     overwrite : bool
         Replace the files of an earlier run in ``out_dir`` (only leolink's files); without
         it such a folder raises :class:`~leolink.io.run_dir.OutputFolderError`.
+    workers : int or str
+        Split the run into parts of its UTs on this many local processes, or on the dask
+        cluster of ``"dask://ADDRESS"`` (:mod:`leolink.app.split`: the same outputs); 1
+        runs in this process.
+    parts : int or None
+        Parts of the split (None: :data:`~leolink.app.split.PARTS_PER_WORKER` per local
+        worker, :data:`~leolink.app.split.SCHEDULER_PARTS` on a cluster); with one
+        worker, the parts run one after the other in this process.
 
     Returns
     -------
@@ -219,21 +229,30 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     malloc's tunables: the peak memory stays flat in run length, and the temporaries of
     a few MiB reuse the heap's pages instead of faulting new ones in.
     """
-    scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
+    split = split_workers(workers, parts)
+    scen = checked_scenario(cfg, split)  # the checks of ``leolink validate``, before any file
     fix_heap_thresholds()  # memory flat in run length, few page faults (leolink.app.heap)
     if out_dir is not None:  # after the scenario built: a bad config removes nothing
         out_dir = claim_out_dir(out_dir, overwrite)
     summary, position = SummaryAccumulator(ping_pong_s=cfg.kpi.ping_pong_s), _Position()
     sinks = _sinks(cfg, out_dir, summary, scen)
     try:
-        return _run_and_write(cfg, scen, out_dir, summary, [*sinks, position], progress)
+        simulate = _simulation(cfg, scen, out_dir, split)
+        return _run_and_write(cfg, scen, out_dir, summary, [*sinks, position], simulate, progress)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the sinks have aborted
         exc.add_note(position.where(out_dir))
         raise
 
 
-def _run_and_write(cfg, scen, out_dir, summary, sinks, progress):
-    stats = run_simulation(scen, sinks, progress=progress)
+def _simulation(cfg, scen, out_dir, split):
+    """``simulate(sinks, progress) -> RunStats``: in this process, or split in parts."""
+    if split is None:
+        return lambda sinks, progress: run_simulation(scen, sinks, progress=progress)
+    return lambda sinks, progress: run_split(cfg, scen, sinks, out_dir, split, progress)
+
+
+def _run_and_write(cfg, scen, out_dir, summary, sinks, simulate, progress):
+    stats = simulate(sinks, progress)
     sinks = sinks[:-1]  # without the position
     try:  # the pictures may still be drawn (leolink.io.render): stopped on any error
         return _write(cfg, scen, out_dir, summary, sinks, stats)

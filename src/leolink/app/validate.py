@@ -138,8 +138,10 @@ def ephemeris_health(cfg, ephemeris, times_s):
     return notes
 
 
-def checked_scenario(cfg):
-    """The :class:`~leolink.sim.runner.Scenario` of ``cfg``, after every check a run needs.
+def checked_scenario(cfg, split=None):
+    """The :class:`~leolink.sim.runner.Scenario` of ``cfg``, after every check a run needs
+    (``split``: ``(workers, parts)`` of a split run, :func:`leolink.app.split.split_workers`:
+    its UTs must not be coupled, :func:`leolink.app.split.check_split`).
 
     Raises
     ------
@@ -152,4 +154,8 @@ def checked_scenario(cfg):
     check_files(cfg)
     scen = build_scenario(cfg)
     ephemeris_health(cfg, scen.ephemeris, scen.times_s)
+    if split is not None:
+        from leolink.app.split import check_split, split_flag
+
+        check_split(cfg, scen, split_flag(*split))
     return scen
