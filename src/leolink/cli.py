@@ -60,6 +60,7 @@ def cmd_validate(args) -> int:
 
     from leolink.app.multibeam import is_multibeam, snapshot_of_config
     from leolink.app.run import run_notes
+    from leolink.app.split import split_workers
     from leolink.app.validate import checked_scenario
     from leolink.roi import check_coverage
 
@@ -75,7 +76,7 @@ def cmd_validate(args) -> int:
     )
     # What a run checks and builds (files, codebook, ephemeris over the run, populations,
     # tracks): a config that validates also runs (leolink.app.validate).
-    notes, _, _ = run_notes(cfg, checked_scenario(cfg))
+    notes, _, _ = run_notes(cfg, checked_scenario(cfg, split_workers(*_split(args))))
     n_ut = sum(max(p.n_ut, 0) for p in cfg.population)
     n_pop = len(cfg.population)
     print(
@@ -86,6 +87,31 @@ def cmd_validate(args) -> int:
     for note in notes:
         print(note)
     return 0
+
+
+def _split(args):
+    """``(workers, parts)`` of ``--workers``, ``--scheduler`` and ``--parts``."""
+    if args.scheduler is not None:
+        if args.workers != 1:
+            raise ConfigError("give --workers N (local processes) or --scheduler ADDRESS, not both")
+        return f"dask://{args.scheduler}", args.parts
+    return args.workers, args.parts
+
+
+def _add_split(p):
+    """The options of a run split over parts of its UTs (leolink.app.split)."""
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="split the UTs into parts run on N local processes (same outputs)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="split the UTs into parts run on the dask cluster of this scheduler",
+    )
+    p.add_argument("--parts", type=int, help="parts of the split (default: 4 per worker)")
 
 
 def cmd_budget(args) -> int:
@@ -160,8 +186,10 @@ def cmd_run(args) -> int:
     from leolink.app.run import run
 
     cfg = _config(args)
+    workers, parts = _split(args)
     with progress_bar("leolink run", enabled=not args.quiet) as progress:
-        result = run(cfg, out_dir=Path(args.out), progress=progress, overwrite=args.overwrite)
+        result = run(cfg, out_dir=Path(args.out), progress=progress, overwrite=args.overwrite,
+                     workers=workers, parts=parts)  # fmt: skip
     for note in result.summary["run"]["notes"]:
         if not args.quiet or note.startswith(("UT ", "satellite ")):  # shown even if quiet
             print(f"note: {note}", file=sys.stderr)
@@ -337,7 +365,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=func)
         return p
 
-    add("validate", cmd_validate, "check a config and the ROI coverage condition")
+    _add_split(add("validate", cmd_validate, "check a config and the ROI coverage condition"))
     p = add("budget", cmd_budget, "link budget term by term at one elevation")
     p.add_argument("--elevation-deg", type=float, required=True, help="elevation [deg]")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -357,6 +385,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--parquet", action="store_true", help="also write trace.parquet")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
+    _add_split(p)
     p = add("passes", cmd_passes, "rise, culmination and set of every satellite over a site")
     p.add_argument("--site", required=True, metavar="LAT,LON[,ALT]", help="deg, deg, m")
     p.add_argument("--min-elevation-deg", type=float, help="mask (default: the config's)")

@@ -13,14 +13,32 @@ _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
 
 
-def ut_keys(seed, n_ut):
+def ut_keys(seed, n_ut, ut_ids=None):
     """One 64-bit key per UT, from ``SeedSequence(seed).spawn(n_ut)``.
+
+    Parameters
+    ----------
+    seed : int
+    n_ut : int, UTs of the run.
+    ut_ids : array_like of int or None
+        Only these UTs' keys (a part of a split run): ``ut_keys(seed, n_ut)[ut_ids]``,
+        built from each UT's own child ``SeedSequence(seed, spawn_key=(id,))``, as
+        ``spawn`` builds them, without the others.
 
     Returns
     -------
-    ndarray of uint64, shape (n_ut,)
+    ndarray of uint64, shape (n_ut,) or (len(ut_ids),)
     """
-    children = np.random.SeedSequence(seed).spawn(n_ut)
+    root = np.random.SeedSequence(seed)
+    if ut_ids is None:
+        children = root.spawn(n_ut)
+    else:
+        children = [
+            np.random.SeedSequence(
+                root.entropy, spawn_key=(*root.spawn_key, int(i)), pool_size=root.pool_size
+            )  # fmt: skip
+            for i in ut_ids
+        ]
     return np.array([c.generate_state(1, dtype=np.uint64)[0] for c in children], dtype=np.uint64)
 
 

@@ -27,6 +27,7 @@ from leolink.app.heap import fix_heap_thresholds
 from leolink.app.multibeam import is_multibeam, run_multibeam
 from leolink.app.notes import track_coverage, track_notes
 from leolink.app.orbits import earth_orientation, roi_frame, tle_time_zero_utc
+from leolink.app.split import run_split, split_workers
 from leolink.app.validate import checked_scenario, ephemeris_health
 from leolink.config import dump_toml
 from leolink.errors import LeolinkError
@@ -197,6 +198,7 @@ def _run_section(cfg, scen, stats):
         "track_coverage": coverage,
         "notes": notes,
         "wall_time_s": stats.wall_time_s,
+        **({"split": stats.split} if stats.split is not None else {}),
     }
 
 
@@ -211,7 +213,7 @@ def _summary(cfg):
     )
 
 
-def run(cfg, out_dir=None, progress=None, overwrite=False):
+def run(cfg, out_dir=None, progress=None, overwrite=False, workers=1, parts=None):
     """Run the simulation of ``cfg``.
 
     Parameters
@@ -227,6 +229,14 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     overwrite : bool
         Replace the files of an earlier run in ``out_dir`` (only leolink's files); without
         it such a folder raises :class:`~leolink.io.run_dir.OutputFolderError`.
+    workers : int or str
+        Split the run into parts of its UTs on this many local processes, or on the dask
+        cluster of ``"dask://ADDRESS"`` (:mod:`leolink.app.split`: the same outputs); 1
+        runs in this process.
+    parts : int or None
+        Parts of the split (None: :data:`~leolink.app.split.PARTS_PER_WORKER` per local
+        worker, :data:`~leolink.app.split.SCHEDULER_PARTS` on a cluster); with one
+        worker, the parts run one after the other in this process.
 
     Returns
     -------
@@ -241,19 +251,22 @@ def run(cfg, out_dir=None, progress=None, overwrite=False):
     """
     if is_multibeam(cfg):  # the circular aperture: TR 38.821's one-satellite snapshot
         return run_multibeam(cfg, out_dir, overwrite)
-    scen = checked_scenario(cfg)  # the checks of ``leolink validate``, before any file
+    split = split_workers(workers, parts)
+    scen = checked_scenario(cfg, split)  # the checks of ``leolink validate``, before any file
     fix_heap_thresholds()  # memory flat in run length, few page faults (leolink.app.heap)
     with held_out_dirs():  # one command per folder (leolink.io.run_dir)
         if out_dir is not None:  # after the scenario built: a bad config removes nothing
             out_dir = claim_out_dir(out_dir, overwrite)
-        return _run(cfg, scen, out_dir, progress)
+        return _run(cfg, scen, out_dir, progress, split)
 
 
-def _run(cfg, scen, out_dir, progress):
+def _run(cfg, scen, out_dir, progress, split=None):
     summary, position = _summary(cfg), _Position()
     sinks, files = _sinks(cfg, out_dir, summary, scen), []
     try:
-        return _run_and_write(cfg, scen, (out_dir, files), summary, [*sinks, position], progress)
+        simulate = _simulation(cfg, scen, out_dir, split)
+        where = (out_dir, files)
+        return _run_and_write(cfg, scen, where, summary, [*sinks, position], simulate, progress)
     except BaseException as exc:  # Ctrl-C, a signal (leolink.app.guard), an error
         if out_dir is not None:
             _list_unfinished(out_dir, files, sinks)
@@ -273,8 +286,15 @@ def _list_unfinished(out_dir, files, sinks):
                            digests=digests, name=UNFINISHED)  # fmt: skip
 
 
-def _run_and_write(cfg, scen, where, summary, sinks, progress):
-    stats = run_simulation(scen, sinks, progress=progress)
+def _simulation(cfg, scen, out_dir, split):
+    """``simulate(sinks, progress) -> RunStats``: in this process, or split in parts."""
+    if split is None:
+        return lambda sinks, progress: run_simulation(scen, sinks, progress=progress)
+    return lambda sinks, progress: run_split(cfg, scen, sinks, out_dir, split, progress)
+
+
+def _run_and_write(cfg, scen, where, summary, sinks, simulate, progress):
+    stats = simulate(sinks, progress)
     sinks = sinks[:-1]  # without the position
     try:  # the pictures may still be drawn (leolink.io.render): stopped on any error
         return _write(cfg, scen, where, summary, sinks, stats)

@@ -27,10 +27,11 @@ from leolink.io.sites import with_sites
 from leolink.link.acm import LinkFigureParams
 from leolink.link.figures import eirp_from_density_dbw
 from leolink.registry import REGISTRIES
+from leolink.rng import ut_keys
 from leolink.sim.beams.service import BeamService
 from leolink.sim.environment import environment_models
 from leolink.sim.handover.config import build_rlf, build_signalling
-from leolink.sim.mobility.models import OnWgs84
+from leolink.sim.mobility.models import OnWgs84, take_uts
 from leolink.sim.mobility.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
 from leolink.sim.service_link import ServiceLink
@@ -224,8 +225,21 @@ def panel_orientation(cfg, populations):
     )
 
 
-def build_scenario(cfg):
-    """The :class:`~leolink.sim.runner.Scenario` of a validated config."""
+def part_populations(populations, ut_ids):
+    """The UTs ``ut_ids`` (run-wide ids, increasing) of ``[(name, model), ...]``: every
+    population kept (some with no UT), each with its UTs among ``ut_ids``."""
+    out, lo = [], 0
+    for name, model in populations:
+        mine = ut_ids[(ut_ids >= lo) & (ut_ids < lo + model.n_ut)] - lo
+        out.append((name, take_uts(model, mine)))
+        lo += model.n_ut
+    return out
+
+
+def build_scenario(cfg, ut_ids=None):
+    """The :class:`~leolink.sim.runner.Scenario` of a validated config; with ``ut_ids``
+    (increasing run-wide UT ids), of those UTs only, with their keys of the whole run: a
+    part of a split run (:mod:`leolink.app.split`)."""
     codebook = codebook_from_config(cfg)
     ephemeris = ephemeris_from_config(cfg)
     frame = roi_frame(cfg, ephemeris)
@@ -233,7 +247,10 @@ def build_scenario(cfg):
     rng = np.random.default_rng(np.random.SeedSequence(cfg.run.seed))
     r = cfg.run
     times, n_warm = epoch_times(r.start_s, r.epoch_s, r.warmup_s, r.duration_s)
-    populations = build_populations(cfg, heading, rng)
+    populations, keys = build_populations(cfg, heading, rng), None
+    if ut_ids is not None:
+        populations = part_populations(populations, ut_ids)
+        keys = ut_keys(r.seed, None, ut_ids)
     engine = build_engine(cfg, codebook, ut_terminals(cfg, populations), ephemeris)
     selector, service = beams_from(cfg, engine)
     return Scenario(
@@ -261,6 +278,7 @@ def build_scenario(cfg):
         panels=panel_orientation(cfg, populations),
         estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
         roi_frame=frame,
+        ut_keys=keys,
     )
 
 

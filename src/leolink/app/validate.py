@@ -139,8 +139,10 @@ def ephemeris_health(cfg, ephemeris, times_s):
     return notes
 
 
-def checked_scenario(cfg):
-    """The :class:`~leolink.sim.runner.Scenario` of ``cfg``, after every check a run needs.
+def checked_scenario(cfg, split=None):
+    """The :class:`~leolink.sim.runner.Scenario` of ``cfg``, after every check a run needs
+    (``split``: ``(workers, parts)`` of a split run, :func:`leolink.app.split.split_workers`:
+    its UTs must not be coupled, :func:`leolink.app.split.check_split`).
 
     Raises
     ------
@@ -154,6 +156,10 @@ def checked_scenario(cfg):
     scen = build_scenario(cfg)
     ephemeris_health(cfg, scen.ephemeris, scen.times_s)
     check_report_uts(cfg, sum(pop.n_ut for _, pop in scen.populations))
+    if split is not None:
+        from leolink.app.split import check_split, split_flag
+
+        check_split(cfg, scen, split_flag(*split))
     return scen
 
 

@@ -97,6 +97,9 @@ class Scenario:
         (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
     roi_frame : leolink.app.orbits.RoiFrame or None, the ROI frame the populations were
         placed in (the run's notes say it); None: not known (a scenario built by hand).
+    ut_keys : ndarray of uint64 (n_ut,) or None, the UTs' random keys; None:
+        ``leolink.rng.ut_keys(seed, n_ut)``. A part of a split run carries its UTs' keys of
+        the whole run (:mod:`leolink.app.split`), so its draws are the whole run's.
     """
 
     engine: LinkEngine
@@ -124,6 +127,7 @@ class Scenario:
     service: BeamService | None = None
     estimated_ephemeris: Callable | None = None
     roi_frame: object | None = None
+    ut_keys: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,6 +137,7 @@ class RunStats:
     info: RunInfo
     end_s: float
     wall_time_s: float
+    split: dict | None = None  # a split run's parts and workers (leolink.app.split)
 
 
 def epoch_times(start_s, epoch_s, warmup_s, duration_s):
@@ -246,7 +251,9 @@ def run_simulation(
         decide.procedure = rlf.procedure = Procedure(
             scen.signalling, n_ut, scen.engine.n_beam, scen.epoch_s, conditional
         )
-    keys = ut_keys(scen.seed, n_ut) if scen.fading_k is not None or scen.environments else None
+    keys = None
+    if scen.fading_k is not None or scen.environments:
+        keys = ut_keys(scen.seed, n_ut) if scen.ut_keys is None else scen.ut_keys
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
     environment = ()
     if scen.environments:

@@ -23,10 +23,12 @@ __all__ = [
     "OnWgs84",
     "Static",
     "Track",
+    "SelectedUTs",
     "UTState",
     "Waypoints",
     "concat_states",
     "resolve_speed_m_s",
+    "take_uts",
 ]
 
 #: Typical ground speeds [m/s], usable by name in configs.
@@ -130,6 +132,10 @@ class Static:
         lat, lon, alt = (np.broadcast_to(a, v) for a in (self.lat_rad, self.lon_rad, self.alt_m))
         return UTState(np.broadcast_to(self._pos_m, zero.shape), zero, zero, lat, lon, alt)
 
+    def take(self, index):
+        """The UTs ``index`` (:func:`take_uts`)."""
+        return Static(self.lat_rad[index], self.lon_rad[index], self.alt_m[index])
+
 
 class ConstantVelocity:
     """Terminals moving along great circles at constant speed and constant height.
@@ -205,6 +211,11 @@ class ConstantVelocity:
         vel = self.speed_m_s[:, None] * tangent
         acc = -(self.speed_m_s**2 / r_m)[:, None] * up
         return UTState(pos, vel, acc, lat, lon, np.broadcast_to(self.alt_m, phi.shape))
+
+    def take(self, index):
+        """The UTs ``index`` (:func:`take_uts`)."""
+        rows = (self.lat0_rad, self.lon0_rad, self.alt_m, self.heading_rad, self.speed_m_s)
+        return ConstantVelocity(*(a[index] for a in rows), self.t0_s, self.radius_m)
 
 
 @dataclass(frozen=True)
@@ -380,6 +391,10 @@ class OnWgs84:
             raise AttributeError(name)
         return getattr(self.model, name)
 
+    def take(self, index):
+        """The UTs ``index`` (:func:`take_uts`), still on the ellipsoid."""
+        return OnWgs84(take_uts(self.model, index), self.radius_m)
+
     def state(self, t_s):
         """State at ``t_s`` [s]: geodetic positions on WGS 84, all UTs at once."""
         from leolink.geodesy import wgs84_to_ecef, wgs84_velocity
@@ -397,3 +412,47 @@ class OnWgs84:
         pos = wgs84_to_ecef(s.lat_rad, s.lon_rad, s.alt_m)
         vel = wgs84_velocity(s.lat_rad, s.lon_rad, s.alt_m, lat_rate, lon_rate, alt_rate)
         return UTState(pos, vel, s.acc_m_s2, s.lat_rad, s.lon_rad, s.alt_m)
+
+
+def _rows(state, index, axis):
+    """The UTs ``index`` of a :class:`UTState` (UT axis ``axis``: 1 with a time axis)."""
+    fields = ("pos_m", "vel_m_s", "acc_m_s2", "lat_rad", "lon_rad", "alt_m")
+    return UTState(*(np.take(getattr(state, f), index, axis=axis) for f in fields))
+
+
+class SelectedUTs:
+    """Some UTs of another motion model: its states, their rows ``index``.
+
+    The fallback of :func:`take_uts` for a model without ``take`` (tracks): it computes
+    every UT of ``model``, so it suits small populations.
+    """
+
+    def __init__(self, model, index):
+        self.model, self.index = model, np.asarray(index, np.int64)
+        self.n_ut = int(self.index.size)
+        self.moves = getattr(model, "moves", True)
+
+    def state(self, t_s):
+        """The selected rows of ``model.state(t_s)``."""
+        return _rows(self.model.state(t_s), self.index, 0)
+
+
+def take_uts(model, index):
+    """The UTs ``index`` of a motion model, as a model of ``len(index)`` UTs.
+
+    Parameters
+    ----------
+    model : motion model (:class:`~leolink.sim.mobility.populations.MotionModel`)
+    index : array_like of int, shape (n,)
+        Increasing UT indices of ``model`` (may be empty).
+
+    Returns
+    -------
+    A motion model whose states are the rows ``index`` of ``model``'s: the model's own
+    ``take`` where its class has one (static, great circles, WGS 84), computed from the
+    selected UTs' parameters only, else :class:`SelectedUTs`. A split run's parts
+    (:mod:`leolink.app.split`) hold their UTs this way.
+    """
+    index = np.asarray(index, np.int64)
+    take = getattr(type(model), "take", None)
+    return take(model, index) if take is not None else SelectedUTs(model, index)
