@@ -64,7 +64,8 @@ class LocalAxis:
         keep = sat >= 0
         ut, sat = ut[keep], sat[keep]
         span = int(sat.max(initial=0)) + 1
-        key = np.unique(ut * span + sat)  # sorted: by UT, then satellite
+        key = np.sort(ut * span + sat)  # by UT, then satellite (a sort: np.unique's hash
+        key = key[np.r_[True, key[1:] != key[:-1]]]  # is slow on these wide keys)
         row, s = np.divmod(key, span)
         counts = np.bincount(row, minlength=n_ut)
         start = np.cumsum(counts) - counts
