@@ -138,6 +138,20 @@ class LocalAxis:
         mask = (self.sats < 0).reshape(self.sats.shape + (1,) * (got.ndim - 2))
         return np.where(mask, fill, got)
 
+    def _sources(self, new):
+        """``(rows, slots, src)``: slot ``src[k]`` of this axis holds the satellite of slot
+        ``slots[k]`` of row ``rows[k]`` of ``new`` (those on both axes); kept for the last
+        ``new`` (every array of an epoch is carried by the same map)."""
+        last = self.__dict__.get("_last_sources")
+        if last is not None and last[0] is new:
+            return last[1]
+        rows, slots = nonzero_2d(new.sats >= 0)
+        src = self._slot(rows, new.sats[rows, slots])
+        ok = src >= 0
+        got = rows[ok], slots[ok], src[ok]
+        self.__dict__["_last_sources"] = (new, got)  # (frozen: as cached_property does)
+        return got
+
     def remap(self, new, values, fill):
         """Carry ``values`` from this axis to axis ``new`` by global satellite id.
 
@@ -152,9 +166,7 @@ class LocalAxis:
         inner = (self.n_beam,) if per_cell else ()
         old = values.reshape((self.n_ut, self.n_local) + inner + values.shape[2:])
         out = np.full((new.n_ut, new.n_local) + inner + values.shape[2:], fill, values.dtype)
-        rows, slots = nonzero_2d(new.sats >= 0)
-        src = self._slot(rows, new.sats[rows, slots])
-        ok = src >= 0
-        out[rows[ok], slots[ok]] = old[rows[ok], src[ok]]
+        rows, slots, src = self._sources(new)
+        out[rows, slots] = old[rows, src]
         width = new.n_cand if per_cell else new.n_local
         return out.reshape((new.n_ut, width) + values.shape[2:])
