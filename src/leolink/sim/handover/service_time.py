@@ -36,6 +36,8 @@ __all__ = ["ServiceTimes"]
 
 #: Look-ahead steps of the first chunk (:meth:`ServiceTimes._scan`); each next one doubles.
 FIRST_CHUNK = 8
+#: (Pair, step) evaluations of one look-ahead engine call, at most (but one step a chunk).
+SCAN_PAIRS = 1 << 16
 
 
 class ServiceTimes:
@@ -132,11 +134,14 @@ class ServiceTimes:
 
         The steps go in chunks of doubling length (:data:`FIRST_CHUNK` steps first), every
         open pair's steps of a chunk in one engine call: a pass is looked ahead in a few
-        calls, whatever its length, and a pair costs at most twice the steps it needs."""
+        calls, whatever its length, and a pair costs at most twice the steps it needs; a
+        chunk holds at most :data:`SCAN_PAIRS` evaluations (or one step)."""
         end_cell, end_sat = end_cell.copy(), end_sat.copy()
         j0, size = 1, FIRST_CHUNK
         while j0 <= self.n_step and np.isposinf(end_sat).any():
-            steps = np.arange(j0, min(j0 + size, self.n_step + 1))
+            # (at most SCAN_PAIRS evaluations a call: bounded temporaries at a run's start)
+            n = min(size, max(1, SCAN_PAIRS // int(np.isposinf(end_sat).sum())))
+            steps = np.arange(j0, min(j0 + n, self.n_step + 1))
             self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up)
             j0, size = steps[-1] + 1, 2 * size
         return end_cell, end_sat
