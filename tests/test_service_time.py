@@ -27,10 +27,11 @@ class _Engine:
     def __init__(self, snr):
         self.snr = snr
 
-    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None):
-        k = int(round(ut_pos_m[0, 0]))
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
+                       sat_id=None):  # fmt: skip
+        k = np.round(ut_pos_m[ut, 0]).astype(int)  # each pair's UT row: one step's time
         sats = sat_pos_m[sat, 0].astype(int)
-        values = self.snr[k, ut, sats]  # (m, n_beam)
+        values = self.snr[k, ut if ut_id is None else ut_id[ut], sats]  # (m, n_beam)
         return SimpleNamespace(visible=np.ones(len(ut), bool), snr_db_bm=lambda ix, iy: values.T)
 
 

@@ -41,3 +41,16 @@ def test_trigger_policies_on_the_thresholded_tables_choose_as_on_every_cell(sets
     assert events.kind.isin(["beam_handover", "sat_handover"]).sum() > 10
     pd.testing.assert_frame_equal(trace, trace_ref)
     pd.testing.assert_frame_equal(events, events_ref)
+
+
+def test_predictive_on_the_thresholded_tables_chooses_as_on_every_cell():
+    # Predictive declares usable_cells_only too: a cell below the threshold now scores NaN
+    # (the controller masks it), whatever its SNR at t + lookahead. A -3 dB threshold lies
+    # among the cells a UT of this run sees (a floor 3 dB higher changes its trace).
+    sets = ["controller.policy=predictive", "controller.predictive.lookahead_s=30",
+            "controller.min_snr_db=-3"]  # fmt: skip
+    trace, events = _run(sets, exhaustive=False)
+    trace_ref, events_ref = _run(sets, exhaustive=True)
+    assert events.kind.isin(["beam_handover", "sat_handover"]).sum() > 10
+    pd.testing.assert_frame_equal(trace, trace_ref)
+    pd.testing.assert_frame_equal(events, events_ref)

@@ -16,6 +16,8 @@ masked (NaN) so that the controller leaves them unserved.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from leolink.geometry import enu_basis
@@ -100,9 +102,10 @@ class Decider:
         """The candidates of the motion block of epoch ``k`` (computed once per block)."""
         from leolink.sim.processes import candidate_satellites
 
-        mb = self.motion.block_of(k)
+        mb = _epochs_of(self.motion.block_of(k), k, self.search.block_ut_epochs)
         if self.block is not None and self.block.k0 == mb.k0:
             return self.block
+        self.block = None  # (its tables and links go before the next block's are built)
         none = np.zeros(0, np.int64)
         self.cones = [
             candidate_satellites(mb.sat_pos_m[i], mb.ut_pos_m[i], self.min_el, none, self.radius_m)
@@ -267,3 +270,18 @@ class Decider:
         out = np.full(table.shape, np.nan)
         out[valid] = snr[table.cell[valid] % nb, inverse.reshape(-1)]
         return table.like(out)
+
+
+def _epochs_of(mb, k, ut_epochs):
+    """The part of motion block ``mb`` whose candidates are found together with epoch
+    ``k``'s: the whole block, or ``mb``'s epochs in runs of ``ut_epochs // n_ut`` (at
+    least one) where the search bounds its block (a wide table); a view, no copy."""
+    n_ut = mb.ut_pos_m.shape[1]
+    span = max(1, ut_epochs // max(n_ut, 1)) if ut_epochs else mb.n_k
+    if span >= mb.n_k:
+        return mb
+    lo = (k - mb.k0) // span * span
+    hi = min(lo + span, mb.n_k)
+    arrays = {f.name: getattr(mb, f.name)[lo:hi] for f in dataclasses.fields(mb)
+              if f.name not in ("k0", "k1")}  # fmt: skip
+    return dataclasses.replace(mb, k0=mb.k0 + lo, k1=mb.k0 + hi, **arrays)

@@ -57,6 +57,11 @@ SCREEN_PAIRS = 1 << 18
 TABLE_PAIRS = 1 << 15
 #: Cones of at most this many satellites are evaluated whole (screening would not pay).
 DENSE_CONE = 2
+#: UT-epochs of one block's tables when the window is infinite (every cell above the mask
+#: or the floor: ~50 cells per UT-epoch on configs/constellation.toml, ~5 KiB with their
+#: pairs' links): the block's epochs are searched in runs this long (at least one epoch),
+#: so a run's memory does not grow with the motion block.
+WIDE_UT_EPOCHS = 8192
 
 
 @dataclasses.dataclass
@@ -134,6 +139,8 @@ class CandidateSearch:
     def __init__(self, engine, window_db, prune=True, floor_db=-np.inf):
         self.engine, self.window_db, self.prune = engine, float(window_db), bool(prune)
         self.floor_db = float(floor_db)
+        #: UT-epochs a block may hold (None: the caller's motion block, whole).
+        self.block_ut_epochs = WIDE_UT_EPOCHS if self.window_db == np.inf else None
 
     def block(self, k0, ut_pos_m, ut_up, sat_pos_m, sat_vel_m_s, cones, normal=None, loss=None):
         """The candidates of the epochs ``k0 .. k0 + n_k - 1``.
@@ -175,6 +182,7 @@ class CandidateSearch:
         links = Links.concat([p[0] for p in parts])
         sure = np.concatenate([p[1] for p in parts])
         pair_loss = None if loss is None else np.concatenate([p[2] for p in parts])
+        del parts  # (the parts' links are copied: not kept with the sorted ones)
         order = np.lexsort((links.sat, links.ut))
         if (order != np.arange(order.size)).any():  # (often sorted already: no copy)
             links = links.take(order)

@@ -20,6 +20,11 @@ measurements, until its state has run out, exactly as a dense axis over all sate
 would behave (a NaN measurement resets the filter and lets a triggered cell leave after
 its time-to-trigger; :mod:`leolink.sim.handover.triggers`). A satellite without live state is
 dropped: on a dense axis it would hold nothing either.
+
+With ``n_beam = 1`` and global *cell* ids in place of satellite ids, the same class is a
+per-UT axis of cells: what a cell-level policy that reads only the measurements uses
+(:mod:`leolink.sim.handover.trigger_run`), its state then held for the detected cells alone
+(~51 per UT on configs/constellation.toml, against 15 beams of each of ~30 satellites).
 """
 
 from __future__ import annotations
@@ -59,7 +64,8 @@ class LocalAxis:
         keep = sat >= 0
         ut, sat = ut[keep], sat[keep]
         span = int(sat.max(initial=0)) + 1
-        key = np.unique(ut * span + sat)  # sorted: by UT, then satellite
+        key = np.sort(ut * span + sat)  # by UT, then satellite (a sort: np.unique's hash
+        key = key[np.r_[True, key[1:] != key[:-1]]]  # is slow on these wide keys)
         row, s = np.divmod(key, span)
         counts = np.bincount(row, minlength=n_ut)
         start = np.cumsum(counts) - counts
@@ -125,6 +131,20 @@ class LocalAxis:
         out[rows[ok], local[ok] * self.n_beam + beam[ok]] = table.snr_db[rows[ok], slots[ok]]
         return out
 
+    def _sources(self, new):
+        """``(rows, slots, src)``: slot ``src[k]`` of this axis holds the satellite of slot
+        ``slots[k]`` of row ``rows[k]`` of ``new`` (those on both axes); kept for the last
+        ``new`` (every array of an epoch is carried by the same map)."""
+        last = self.__dict__.get("_last_sources")
+        if last is not None and last[0] is new:
+            return last[1]
+        rows, slots = nonzero_2d(new.sats >= 0)
+        src = self._slot(rows, new.sats[rows, slots])
+        ok = src >= 0
+        got = rows[ok], slots[ok], src[ok]
+        self.__dict__["_last_sources"] = (new, got)  # (frozen: as cached_property does)
+        return got
+
     def remap(self, new, values, fill):
         """Carry ``values`` from this axis to axis ``new`` by global satellite id.
 
@@ -139,9 +159,7 @@ class LocalAxis:
         inner = (self.n_beam,) if per_cell else ()
         old = values.reshape((self.n_ut, self.n_local) + inner + values.shape[2:])
         out = np.full((new.n_ut, new.n_local) + inner + values.shape[2:], fill, values.dtype)
-        rows, slots = nonzero_2d(new.sats >= 0)
-        src = self._slot(rows, new.sats[rows, slots])
-        ok = src >= 0
-        out[rows[ok], slots[ok]] = old[rows[ok], src[ok]]
+        rows, slots, src = self._sources(new)
+        out[rows, slots] = old[rows, src]
         width = new.n_cand if per_cell else new.n_local
         return out.reshape((new.n_ut, width) + values.shape[2:])

@@ -219,6 +219,9 @@ class Predictive:
     time_to_trigger_s = 0.0
     #: The best score, min(now, future), may belong to a cell far below the best now.
     neighbour_window_db = np.inf
+    #: ... but never to one below the service threshold now: the controller masks it (NaN
+    #: now scores NaN, :func:`predictive_score_db`), so the search may leave it out.
+    usable_cells_only = True
 
     def __init__(self, lookahead_s=10.0, margin_db=0.0):
         self.lookahead_s = float(lookahead_s)

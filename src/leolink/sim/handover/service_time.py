@@ -15,6 +15,10 @@ lie in the future: positions are deterministic, so the answer does not change. A
 not found within the horizon (``inf``) is looked ahead further every epoch, one epoch at
 a time, so ``inf`` always means "beyond ``t_s + horizon_s``". A cell that starts serving
 later (the UT moved into another beam) or again (a second pass) is looked ahead afresh.
+
+Cost: a pair's pass is looked ahead in chunks of steps (8, 16, 32, ...), every open
+pair's steps of a chunk in one engine call, and the future states are evaluated once per
+time and kept in a ring of one horizon: a few calls per epoch, not one per step.
 """
 
 from __future__ import annotations
@@ -29,6 +33,11 @@ from leolink.arrays import nonzero_2d
 TIME_TOL_S = 1e-9
 
 __all__ = ["ServiceTimes"]
+
+#: Look-ahead steps of the first chunk (:meth:`ServiceTimes._scan`); each next one doubles.
+FIRST_CHUNK = 8
+#: (Pair, step) evaluations of one look-ahead engine call, at most (but one step a chunk).
+SCAN_PAIRS = 1 << 16
 
 
 class ServiceTimes:
@@ -48,18 +57,24 @@ class ServiceTimes:
         self.min_snr_db, self.epoch_s = float(min_snr_db), float(epoch_s)
         self.n_step = max(1, math.ceil(horizon_s / epoch_s - 1e-9))
         self.axis, self.end_cell, self.end_sat, self.until = None, None, None, None
-        self._future = {}  # step time index -> future state, a sliding window
+        self._ring = None  # (keys, ut_pos, sat_pos, sat_vel): future states by time index
 
-    def _at(self, t_s):
-        key = round(t_s / self.epoch_s)
-        if key not in self._future:
-            self._future[key] = self.future_state(t_s)
-        return self._future[key]
-
-    def _forget_before(self, t_s):
-        first = round(t_s / self.epoch_s)
-        for key in [k for k in self._future if k <= first]:
-            del self._future[key]
+    def _slots(self, t_j):
+        """Ring slots of the future states at the times ``t_j`` [s] (evaluated when first
+        asked for; the ring holds every step of one look-ahead)."""
+        keys = np.round(np.asarray(t_j) / self.epoch_s).astype(np.int64)
+        if self._ring is None:
+            ut, pos, vel = self.future_state(float(t_j[0]))
+            n = self.n_step + 2
+            self._ring = (np.full(n, -1, np.int64), np.empty((n,) + ut.shape),
+                          np.empty((n,) + pos.shape), np.empty((n,) + vel.shape))  # fmt: skip
+        ring_keys, ut_ring, pos_ring, vel_ring = self._ring
+        slots = keys % ring_keys.size
+        for t, key, slot in zip(t_j, keys, slots, strict=True):
+            if ring_keys[slot] != key:
+                ut_ring[slot], pos_ring[slot], vel_ring[slot] = self.future_state(float(t))
+                ring_keys[slot] = key
+        return slots
 
     def update(self, t_s, axis, serving_now, ut_up=None, per_cell=True):
         """End of service on ``axis`` at epoch ``t_s``.
@@ -108,7 +123,6 @@ class ServiceTimes:
             )  # fmt: skip
             cells[rows, slots], end_sat[rows, slots] = got_cells, got_sat
             until[rows, slots] = t_s + self.n_step * self.epoch_s
-        self._forget_before(t_s)
         end_cell = cells.reshape(end_cell.shape)
         self.axis, self.end_cell, self.end_sat, self.until = axis, end_cell, end_sat, until
         cell_out = np.where(now, cells, np.nan).reshape(end_cell.shape)
@@ -116,23 +130,58 @@ class ServiceTimes:
 
     def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up):
         """Look ahead the pairs ``(rows[k], sats[k])`` over ``(start_s[k], t_s + horizon]``;
-        ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open)."""
-        eng = self.engine
+        ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open).
+
+        The steps go in chunks of doubling length (:data:`FIRST_CHUNK` steps first), every
+        open pair's steps of a chunk in one engine call: a pass is looked ahead in a few
+        calls, whatever its length, and a pair costs at most twice the steps it needs; a
+        chunk holds at most :data:`SCAN_PAIRS` evaluations (or one step)."""
         end_cell, end_sat = end_cell.copy(), end_sat.copy()
-        for j in range(1, self.n_step + 1):  # a loop over look-ahead steps, not over UTs
-            t_j = t_s + j * self.epoch_s
-            idx = np.flatnonzero(np.isposinf(end_sat) & (t_j > start_s + TIME_TOL_S))
-            if idx.size == 0:
-                continue
-            ut_pos, sat_pos, sat_vel = self._at(t_j)
-            uniq, local = np.unique(sats[idx], return_inverse=True)
-            links = eng.evaluate_pairs(
-                ut_pos, sat_pos[uniq], sat_vel[uniq], rows[idx], local.reshape(-1), ut_up=ut_up
-            )
-            snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (k, n_beam)
-            serves = links.visible[:, None] & (snr >= self.min_snr_db)
-            sub = end_cell[idx]
-            sub[np.isposinf(sub) & ~serves] = t_j
-            end_cell[idx] = sub
-            end_sat[idx[~serves.any(axis=1)]] = t_j
+        j0, size = 1, FIRST_CHUNK
+        while j0 <= self.n_step and np.isposinf(end_sat).any():
+            # (at most SCAN_PAIRS evaluations a call: bounded temporaries at a run's start)
+            n = min(size, max(1, SCAN_PAIRS // int(np.isposinf(end_sat).sum())))
+            steps = np.arange(j0, min(j0 + n, self.n_step + 1))
+            self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up)
+            j0, size = steps[-1] + 1, 2 * size
         return end_cell, end_sat
+
+    def _chunk(self, t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up):
+        """The look-ahead steps ``steps`` of the open pairs, in place: each pair's first
+        step at which a beam (all its beams) no longer serves is that beam's (its) end."""
+        eng = self.engine
+        t_j = t_s + steps * self.epoch_s
+        open_ = np.flatnonzero(np.isposinf(end_sat))
+        # (pair, step) combinations, pair-major: each pair's steps ascending
+        todo = t_j[None, :] > start_s[open_, None] + TIME_TOL_S
+        pair, step = np.nonzero(todo)
+        if pair.size == 0:
+            return
+        used, which = np.unique(step, return_inverse=True)
+        slot = self._slots(t_j[used])[which.reshape(-1)]
+        _, ut_ring, pos_ring, vel_ring = self._ring
+        ut, sat = rows[open_[pair]], sats[open_[pair]]
+        m = np.arange(pair.size)  # every combination its own UT and satellite row
+        links = eng.evaluate_pairs(
+            ut_ring[slot, ut], pos_ring[slot, sat], vel_ring[slot, sat], m, m,
+            ut_up=None if ut_up is None else ut_up[ut], ut_id=ut, sat_id=sat,
+        )  # fmt: skip
+        snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (combinations, n_beam)
+        serves = links.visible[:, None] & (snr >= self.min_snr_db)
+        # combinations are pair-major, steps ascending: a pair's first failing combination
+        # is its end, and a beam's first failing one up to it the beam's
+        nb = serves.shape[1]
+        first_sat = np.full(open_.size, steps.size)
+        fail = np.flatnonzero(~serves.any(axis=1))
+        got, at = np.unique(pair[fail], return_index=True)
+        first_sat[got] = step[fail[at]]
+        combo, beam = np.divmod(np.flatnonzero(~serves), nb)
+        keep = step[combo] <= first_sat[pair[combo]]
+        got, at = np.unique(pair[combo[keep]] * nb + beam[keep], return_index=True)
+        p_cell, b_cell = np.divmod(got, nb)
+        cells = end_cell[open_]
+        hit = np.isposinf(cells[p_cell, b_cell])
+        cells[p_cell[hit], b_cell[hit]] = t_j[step[combo[keep][at[hit]]]]
+        end_cell[open_] = cells
+        ended = first_sat < steps.size
+        end_sat[open_[ended]] = t_j[first_sat[ended]]

@@ -7,7 +7,9 @@ one of them through a run whose candidates come as sparse per-UT tables
 
 1. the UT's :class:`~leolink.sim.handover.local_axis.LocalAxis` (the satellites of this table and
    those of the last axis that still have live state) and the policy and filter state
-   carried onto it by global satellite id;
+   carried onto it by global satellite id; for a cell-level policy that reads only the
+   measurements (A3, A4, A5, a2a4, CHO of those) the axis holds cells instead: the
+   table's and those with live state;
 2. the measurements: the table's SNR [dB] of the cells the UT detects, those at or above
    the service threshold (``controller.min_snr_db``), NaN elsewhere, layer-3 filtered
    (:func:`~leolink.sim.handover.measurements.l3_update`, ``[controller.filter]``). A cell below
@@ -72,6 +74,10 @@ class TriggerRun:
             if "service_end_s" in needs
             else None
         )
+        # The units of the local axis: cells for a cell-level policy that reads only the
+        # measurements (and the UT positions), so its state is kept for the detected cells
+        # alone; satellites (each with all its beams) for the others.
+        self.axis_beams = 1 if _on_cells(policy) else self.n_beam
         self.axis, self.pstate, self.filt = None, None, None
         self.cell_offsets = ()  # (sat_id, beam_id or None, Ocn [dB]): the entry sets them
         self._ocn = None  # (global cells, Ocn) sorted, built at the first epoch
@@ -95,7 +101,7 @@ class TriggerRun:
         return rows, axis.sats[rows, slots]
 
     def _axis(self, table, serving):
-        nb = self.n_beam
+        nb = self.axis_beams
         rows, slots = nonzero_2d(table.cell >= 0)
         ut = [rows, np.arange(table.n_ut)]
         sat = [table.cell[rows, slots] // nb, np.where(serving >= 0, serving // nb, -1)]
@@ -109,7 +115,7 @@ class TriggerRun:
         """Policy state and filter on ``axis`` (initial at the first epoch)."""
         n_ut = axis.n_ut
         if self.axis is None:
-            return self.policy.initial_state(n_ut, axis.n_cand, self.n_beam), L3State.initial(
+            return self.policy.initial_state(n_ut, axis.n_cand, axis.n_beam), L3State.initial(
                 n_ut, axis.n_cand
             )
         old, ps = self.axis, self.pstate
@@ -140,21 +146,23 @@ class TriggerRun:
             last = len(cells) - 1 - np.unique(cells[::-1], return_index=True)[1]
             self._ocn = (cells[last], values[last])
         keys, values = self._ocn
-        local = (axis.sats[:, :, None] * nb + np.arange(nb)).reshape(axis.n_ut, -1)
+        ab = axis.n_beam  # the local units' beams: 1 on a cell axis
+        local = (axis.sats[:, :, None] * ab + np.arange(ab)).reshape(axis.n_ut, -1)
         at = np.minimum(np.searchsorted(keys, local), len(keys) - 1)
-        hit = (keys[at] == local) & (np.repeat(axis.sats, nb, axis=1) >= 0)
+        hit = (keys[at] == local) & (np.repeat(axis.sats, ab, axis=1) >= 0)
         return np.where(hit, values[at], 0.0)
 
     def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up):
         """The Epoch fields of ``policy.needs`` besides ``meas``, NaN where not usable."""
         needs, nb = self.policy.needs, self.n_beam
-        n_ut, n_loc = axis.n_ut, axis.n_local
-        cell_ok = usable.reshape(n_ut, n_loc, nb)
-        sat_ok = cell_ok.any(axis=2)
-        satellite = self.policy.level == "satellite"
         fields = {}
         if "ut_pos_m" in needs:
             fields["ut_pos_m"] = ut_pos_m
+        if set(needs) <= CELL_AXIS_NEEDS:  # (no satellite geometry: any axis)
+            return fields
+        n_ut, n_loc = axis.n_ut, axis.n_local
+        sat_ok = usable.reshape(n_ut, n_loc, nb).any(axis=2)
+        satellite = self.policy.level == "satellite"
         uniq = np.unique(axis.sats[axis.sats >= 0])
         if "ref_pos_m" in needs or "moving_ref_pos_m" in needs:
             nadir = sat_pos_m[uniq] * (
@@ -236,10 +244,23 @@ class TriggerRun:
         if self.cell_offsets:
             extra["offset_db"] = self._offsets(axis)
         epoch = Epoch(t_s=float(t_s), serving=local_serving, meas=meas, **extra)
-        decision, pstate = self.policy.decide(epoch, pstate, self.n_beam)
+        decision, pstate = self.policy.decide(epoch, pstate, axis.n_beam)
         self.axis, self.pstate, self.filt = axis, pstate, filt
         chosen = np.where(decision.target >= 0, axis.global_cell(decision.target), serving)
         masked = table.masked(self.min_snr_db)
         best, _ = masked.best()
         serving_ok = np.isfinite(masked.value_at(serving))
         return np.where(serving_ok, chosen, best)
+
+
+#: The Epoch fields a policy on a cell axis may read (none needs a satellite's geometry).
+CELL_AXIS_NEEDS = frozenset({"meas", "ut_pos_m"})
+
+
+def _on_cells(policy):
+    """A cell-level policy reading only :data:`CELL_AXIS_NEEDS`: its local units are cells.
+
+    Exact: a cell off the axis has no measurement and no state, as it would have on the
+    satellite axis (a NaN measurement never enters; a cell without state leaves nothing),
+    and the local cells keep ascending global order, so ties resolve alike."""
+    return policy.level == "cell" and set(policy.needs) <= CELL_AXIS_NEEDS
