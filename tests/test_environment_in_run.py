@@ -247,7 +247,7 @@ def test_candidate_search_widens_by_what_the_environment_can_reorder():
     by the largest clutter loss plus 6 shadowing deviations each way (Table 6.6.2-2, Ka:
     CL 44.3 dB at 10 deg, sigma_SF NLoS 6 dB), and the decider searches with it."""
     from leolink.app.scenario import build_scenario
-    from leolink.sim.decide import Decider
+    from leolink.sim.decide import Decider, Rules, Sky
     from leolink.sim.environment import ChannelTracker, candidate_margin_db
 
     models = build_scenario(load_config(TOWN)).environments
@@ -256,7 +256,7 @@ def test_candidate_search_widens_by_what_the_environment_can_reorder():
     # Rural, Table 6.6.2-3 Ka: CL 29.5 dB at 10 deg, sigma_SF NLoS 11.8 dB at 50 deg.
     assert candidate_margin_db(models) == pytest.approx(29.5 + 2 * 6 * 11.8)
     sc = build_scenario(load_config(TOWN))
-    dec = Decider(sc.engine, sc.policy, -10.0, 0.0, 0.17, 6.371e6, None, None)
+    dec = Decider(sc.engine, Rules(sc.policy, -10.0, 0.0), Sky(0.17, 6.371e6), None, None)
     window = dec.search.window_db
     dec.with_channel(ChannelTracker(models, [1, 1, 1], np.zeros(3, np.uint64), 0.17))
     assert dec.search.window_db == pytest.approx(window + 29.5 + 12 * 11.8)
