@@ -135,10 +135,10 @@ MUTATIONS = (
         ("tests/test_links_contracts.py",),
     ),
     Mutation(
-        "dirichlet_loop_off_by_one_beam",  # the compiled loop of dirichlet_kernels
+        "dirichlet_loop_off_by_one_beam",  # the compiled loops' kernels of a direction
         "src/leolink/antenna/array.py",
-        "out[j, p] = ula_gain(u[p] - beam_u[j], n)",
-        "out[j, p] = ula_gain(u[p] - beam_u[j - 1], n)",
+        "g, near = subtracted_gain(trig, coef[:, j], n)",
+        "g, near = subtracted_gain(trig, coef[:, j - 1], n)",
         ("tests/test_array_kernels.py",),
     ),
     Mutation(

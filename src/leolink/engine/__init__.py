@@ -124,7 +124,8 @@ class LinkEngine:
 
     @functools.cached_property
     def kernel_coefficients(self):
-        """:func:`~leolink.antenna.array.dirichlet_coefficients` of the x and y beam cosines."""
+        """:func:`~leolink.antenna.array.dirichlet_coefficients` of the x and y beam cosines
+        (the compiled pair loop's, :func:`leolink.engine.links._pair_rows`)."""
         cb = self.codebook
         cx = dirichlet_coefficients(self.beam_ux, cb.n_sub_x)
         return cx, dirichlet_coefficients(self.beam_uy, cb.n_sub_y)

@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from leolink import compiled
-from leolink.antenna.array import dirichlet_kernels, ula_gain
+from leolink.antenna.array import dirichlet_kernels, kernels_of_direction
 from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame
 
@@ -363,11 +363,10 @@ def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
         np.ascontiguousarray(sat_pos_m, float),
         body_frame(sat_pos_m, sat_vel_m_s),
     )
+    cx, cy = engine.kernel_coefficients
     lattice = (
-        engine.beam_ux,
-        engine.beam_uy,
-        float(cb.n_sub_x),
-        float(cb.n_sub_y),
+        (engine.beam_ux, cx, float(cb.n_sub_x)),
+        (engine.beam_uy, cy, float(cb.n_sub_y)),
         float(engine.params.min_elevation_rad),
         ut_up is None,
     )
@@ -389,11 +388,12 @@ def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
 def _pair_rows(frames, pairs, lattice, out, lo, hi):
     """:func:`pair_geometry` of the pairs ``lo .. hi - 1``, each in one pass: the vector
     satellite -> UT, its length, the elevation over the UT's up, the direction cosines in
-    the satellite body frame and their Dirichlet kernels (:func:`ula_gain`). ``sphere``:
+    the satellite body frame and their Dirichlet kernels (:func:`kernels_of_direction`,
+    ``beams_x``, ``beams_y``: the lattice's cosines, coefficients and elements). ``sphere``:
     ``up`` holds the UTs' positions, the sphere's radial up once divided by their norm."""
     ut_pos, up, sat_pos, axes = frames
     ut, sat = pairs
-    beam_ux, beam_uy, n_x, n_y, min_el, sphere = lattice
+    beams_x, beams_y, min_el, sphere = lattice
     rel, rho2, rho, elevation, visible, kx, ky = out
     for p in range(lo, hi):
         u, s = ut[p], sat[p]
@@ -409,10 +409,8 @@ def _pair_rows(frames, pairs, lattice, out, lo, hi):
         visible[p] = elevation[p] >= min_el
         ux = (d[0] * axes[s, 0, 0] + d[1] * axes[s, 0, 1] + d[2] * axes[s, 0, 2]) / rho[p]
         uy = (d[0] * axes[s, 1, 0] + d[1] * axes[s, 1, 1] + d[2] * axes[s, 1, 2]) / rho[p]
-        for j in range(beam_ux.size):
-            kx[j, p] = ula_gain(ux - beam_ux[j], n_x)
-        for j in range(beam_uy.size):
-            ky[j, p] = ula_gain(uy - beam_uy[j], n_y)
+        kernels_of_direction(ux, beams_x, kx, p)
+        kernels_of_direction(uy, beams_y, ky, p)
 
 
 def panel_elevation_of_pairs(rel_m, slant_range_m, ut_normal, ut):
