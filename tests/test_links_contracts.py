@@ -22,11 +22,11 @@ from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.engine.links import (
     _PAIR_FIELDS,
     Links,
-    azimuth_deg,
     group_constants_db,
     panel_elevation_of_pairs,
     rows_gain_db,
 )
+from leolink.geometry import azimuth_deg
 from leolink.link.atmosphere import FixedLoss
 
 PAPER = "configs/paper.toml"

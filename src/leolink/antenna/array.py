@@ -294,11 +294,6 @@ class HybridArray:
         """Number of RF chains (= subarrays = simultaneous beams)."""
         return self.n_rf_x * self.n_rf_y
 
-    @property
-    def n_elements(self):
-        """Number of elements of the whole array."""
-        return self.n_x * self.n_y
-
     def rf_index(self):
         """The paper's index function ``I_RF(n)``: RF chain of each element (0-based).
 

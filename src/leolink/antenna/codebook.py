@@ -51,11 +51,6 @@ def dft_lattice(n_sub, oversampling):
     return u[np.abs(u) < 1.0]
 
 
-def _lattice_k(n_sub, oversampling):
-    """Integer indices k of :func:`dft_lattice`."""
-    return np.rint(dft_lattice(n_sub, oversampling) * oversampling * n_sub / 2.0).astype(int)
-
-
 #: Direction of the canonical satellite's velocity (its body x axis).
 CANONICAL_ALONG_TRACK = np.array([1.0, 0.0, 0.0])
 

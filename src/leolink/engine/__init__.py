@@ -30,7 +30,6 @@ from leolink.engine.links import (
     LinkParams,
     Links,
     Snapshot,
-    azimuth_deg,
     group_constants_db,
     pair_geometry,
     panel_elevation_of_pairs,
@@ -38,6 +37,7 @@ from leolink.engine.links import (
     rows_gain_db,
 )
 from leolink.engine.steered import kernel_rows, per_beam_steering
+from leolink.geometry import azimuth_deg
 from leolink.kinematics import link_kinematics
 from leolink.link.budget import fspl_db, noise_power_dbw, sinr_lin, spectral_efficiency_bps_hz
 

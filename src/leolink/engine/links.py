@@ -20,7 +20,7 @@ from leolink.antenna.array import dirichlet_kernels, kernels_of_direction
 from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame
 
-__all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
+__all__ = ["Links", "Snapshot", "group_constants_db", "pair_geometry"]
 __all__ += ["panel_elevation_of_pairs", "reuse_colors", "rows_gain_db"]
 
 
@@ -267,11 +267,6 @@ class Snapshot:
         return self.kx[e.beam_ix] * self.ky[e.beam_iy]
 
     @property
-    def snr_lin_bm(self):
-        """Beam-major linear SNR, shape (n_beam, n_sat, n_ut); NaN where not visible."""
-        return self.gain_tx_bm * self.links.path_snr_lin.reshape(self.n_sat, self.n_ut)
-
-    @property
     def gain_tx_lin(self):
         """Linear TX gain of every beam, shape (n_ut, n_sat, n_beam)."""
         return self.gain_tx_bm.transpose(2, 1, 0)
@@ -442,25 +437,3 @@ def reuse_colors(lattice_ij, n_colors):
     if n_colors == 3:
         return (i + 2 * j) % 3
     raise ValueError(f"reuse_colors = {n_colors!r} is not allowed; use 1, 3 or 4")
-
-
-def azimuth_deg(los, ut_pos_m, ut_enu):
-    """Azimuth of each row's link ``los (n, 3)`` (UT -> satellite) [deg], [0, 360).
-
-    With ``ut_enu`` (rows east, north, up): ``atan2(los . east, los . north)``. Without,
-    the sphere's local frame at ``p = (x, y, z)``, ``h^2 = x^2 + y^2``, ``r = |p|``:
-    east ``(-y, x, 0) / h`` and north ``(-z x, -z y, h^2) / (h r)``; both components
-    times ``h r > 0`` leave the angle unchanged, so
-    ``atan2(r (x l_y - y l_x), h^2 l_z - z (x l_x + y l_y))``: no trigonometry but the
-    last arctangent (the same angle as through latitude and longitude, to ~1e-13 deg).
-    """
-    if ut_enu is not None:
-        east = np.einsum("uk,uk->u", los, ut_enu[:, 0, :])
-        north = np.einsum("uk,uk->u", los, ut_enu[:, 1, :])
-    else:
-        x, y, z = ut_pos_m[:, 0], ut_pos_m[:, 1], ut_pos_m[:, 2]
-        lx, ly, lz = los[:, 0], los[:, 1], los[:, 2]
-        h2 = x * x + y * y
-        east = np.sqrt(h2 + z * z) * (x * ly - y * lx)
-        north = h2 * lz - z * (x * lx + y * ly)
-    return np.mod(np.degrees(np.arctan2(east, north)), 360.0)

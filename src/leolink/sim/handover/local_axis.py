@@ -125,13 +125,6 @@ class LocalAxis:
         out[rows[ok], local[ok] * self.n_beam + beam[ok]] = table.snr_db[rows[ok], slots[ok]]
         return out
 
-    def per_satellite(self, sat_values, fill=np.nan):
-        """``sat_values[g]`` of every local satellite ``g``, ``(n_ut, n_local, ...)``."""
-        sat_values = np.asarray(sat_values)
-        got = sat_values[np.maximum(self.sats, 0)]
-        mask = (self.sats < 0).reshape(self.sats.shape + (1,) * (got.ndim - 2))
-        return np.where(mask, fill, got)
-
     def remap(self, new, values, fill):
         """Carry ``values`` from this axis to axis ``new`` by global satellite id.
 
