@@ -11,8 +11,7 @@ take their numpy code, which calls the same physics functions on arrays, and :fu
 gives the loop's Python function itself (the tests run both and compare them to a stated
 tolerance). ``LEOLINK_THREADS=N`` sets the threads a large call is split over
 (:func:`run_rows`). The ``leolink`` command gives BLAS one thread
-(:func:`single_threaded_blas`) and builds its pydantic models at their first use
-(:func:`models_on_first_use`).
+(:func:`single_threaded_blas`).
 
 numba's cache invalidates a loop when the loop's own file changes, not when a function it
 calls changes in another file: the cache folder is therefore keyed by the sizes and times
@@ -28,16 +27,13 @@ import os
 import threading
 from pathlib import Path
 
-__all__ = ["SPLIT_MIN_ROWS", "enabled", "jit", "jitable", "models_on_first_use", "n_threads"]
+__all__ = ["SPLIT_MIN_ROWS", "enabled", "jit", "jitable", "n_threads"]
 __all__ += ["run_rows", "single_threaded_blas", "use"]
 
 #: The variables BLAS libraries take their thread count from (OpenBLAS, numpy's own, reads
 #: the first three in this order; MKL its own).
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS",
                          "MKL_NUM_THREADS")  # fmt: skip
-#: "1": the config's and the registries' pydantic models build their validators at their
-#: first use (set by the ``leolink`` command, read when :mod:`leolink.registry` loads).
-MODELS_ON_FIRST_USE = "LEOLINK_MODELS_ON_FIRST_USE"
 #: The physics functions the compiled loops call (:func:`jitable`), registered with numba
 #: when a loop is first compiled.
 _JITABLE: list = []
@@ -196,21 +192,3 @@ def single_threaded_blas(environ=os.environ):
     """
     if not any(environ.get(name) for name in BLAS_THREAD_VARIABLES):
         environ["OPENBLAS_NUM_THREADS"] = "1"
-
-
-def models_on_first_use(environ=os.environ):
-    """Whether the pydantic models of the config and the registries (``Section``,
-    ``Params``) build their validators at their first use (pydantic's ``defer_build``)
-    rather than when their class is made: ``LEOLINK_MODELS_ON_FIRST_USE=1``, which the
-    ``leolink`` command sets before it loads them.
-
-    A run uses a few of the ~70 models, and the config model validates its sections as part
-    of its own: a 10-UT run's imports 250 -> 215 ms, its config 24 -> 32 ms. pydantic (2.13
-    at least) builds a deferred model without a lock, so threads that use a new model at
-    once may see it half built (a missing ``__pydantic_core_schema__``, or its base's
-    validator): 5 of 20 processes whose 8 threads loaded a config at once (a 1 us switch
-    interval) failed so, 0 of 20 with the models built when made. The command uses its
-    models on its main thread only (checked on the example runs); a library import, which
-    may have threads (a dask worker's), builds each model when it is made.
-    """
-    return environ.get(MODELS_ON_FIRST_USE) == "1"

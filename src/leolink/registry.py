@@ -30,7 +30,6 @@ from typing import Any, Generic, TypeVar
 
 from pydantic import BaseModel, ConfigDict
 
-from leolink.compiled import models_on_first_use
 from leolink.errors import ConfigError
 
 __all__ = ["REGISTRIES", "STRICT_MODEL", "Entry", "Params", "Registry", "generation"]
@@ -49,14 +48,16 @@ def generation() -> int:
 
 
 #: The pydantic settings of every config table and parameter model: unknown keys, NaN/inf
-#: and type coercions refused; validators built at first use in the ``leolink`` command.
+#: and type coercions refused; validators built when the class is made (pydantic's default).
+#: The deferred build (``defer_build``, behind an environment variable) is not thread-safe
+#: and earned nothing measurable: a 10-epoch paper run 2.55 s deferred, 3.02 s not (medians
+#: of 3, spread 1.0-3.4 s on a loaded machine; see also leolink.app.process).
 STRICT_MODEL = ConfigDict(
     extra="forbid",
     frozen=True,
     validate_default=True,
     allow_inf_nan=False,
     strict=True,
-    defer_build=models_on_first_use(),
 )
 
 
