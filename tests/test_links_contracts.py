@@ -240,7 +240,7 @@ def test_snr_of_some_pairs_is_that_of_the_pairs_taken(n_ut, jit_on, monkeypatch)
 
 
 #: The compiled pair loop and the numpy geometry round differently (a division for a product
-#: by 1 / rho, the kernels by ula_gain vs angle subtraction): angles, distances and kernels.
+#: by 1 / rho, the kernels near a peak): angles, distances and kernels.
 PATHS_REL = 1e-10
 PATHS_ANGLE_RAD = 1e-12
 

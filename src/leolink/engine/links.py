@@ -120,9 +120,20 @@ class Links:
         ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
         ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products. ``pairs``
         (indices): those pairs only, shape (n_beam, len(pairs)), the values of
-        ``take(pairs).snr_db_bm`` without copying the pairs' geometry.
+        ``take(pairs).snr_db_bm`` without copying the pairs' geometry. Where the compiled
+        loops run, :func:`_snr_rows` forms the same sums pair by pair.
         """
         kx, ky, path_snr_lin = self.kx, self.ky, self.path_snr_lin
+        if compiled.use(self.n_pair):  # the same sums pair by pair, no (n_beam, m) temporaries
+            if pairs is None or isinstance(pairs, slice):
+                idx = np.arange(self.n_pair)[pairs if pairs is not None else slice(None)]
+            else:
+                idx = np.asarray(pairs)
+                idx = np.flatnonzero(idx) if idx.dtype == bool else idx.astype(np.int64)
+            out = np.empty((len(beam_ix), idx.size))
+            beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
+            compiled.run_rows(_snr_rows, idx.size, kx, ky, path_snr_lin, beams, idx, out)
+            return out
         if pairs is not None:
             kx, ky, path_snr_lin = kx[:, pairs], ky[:, pairs], path_snr_lin[pairs]
         with np.errstate(divide="ignore"):
@@ -156,6 +167,29 @@ class Links:
         return beam, (snr[beam, np.arange(self.n_pair)] if with_snr_db else None)
 
 
+@compiled.jitable
+def _pair_db(kx, ky, path_snr_lin, p, lx, ly):
+    """``10 log10`` of pair ``p``'s kernels into ``lx``, ``ly``, and of its path SNR
+    (returned): the terms :meth:`Links.snr_db_bm` sums."""
+    for i in range(lx.size):
+        lx[i] = 10.0 * np.log10(kx[i, p])
+    for i in range(ly.size):
+        ly[i] = 10.0 * np.log10(ky[i, p])
+    return 10.0 * np.log10(path_snr_lin[p])
+
+
+@compiled.jit
+def _snr_rows(kx, ky, path_snr_lin, beams, idx, out, lo, hi):
+    """:meth:`Links.snr_db_bm` of the pairs ``idx[lo:hi]`` into the columns ``lo .. hi - 1``
+    of ``out`` (``beams``: the rows of ``kx`` and ``ky`` of each beam, (2, n_beam))."""
+    beam_ix, beam_iy = beams[0], beams[1]
+    lx, ly = np.empty(kx.shape[0]), np.empty(ky.shape[0])
+    for q in range(lo, hi):
+        path_db = _pair_db(kx, ky, path_snr_lin, idx[q], lx, ly)
+        for b in range(beam_ix.size):
+            out[b, q] = lx[beam_ix[b]] + ly[beam_iy[b]] + path_db
+
+
 @compiled.jit
 def _best_beam_rows(kx, ky, path_snr_lin, beams, best, best_db, lo, hi):
     """:meth:`Links.best_beam` of the pairs ``lo .. hi - 1`` (``beams``: the rows of
@@ -165,11 +199,7 @@ def _best_beam_rows(kx, ky, path_snr_lin, beams, best, best_db, lo, hi):
     beam_ix, beam_iy = beams[0], beams[1]
     lx, ly = np.empty(kx.shape[0]), np.empty(ky.shape[0])
     for p in range(lo, hi):
-        for i in range(lx.size):
-            lx[i] = 10.0 * np.log10(kx[i, p])
-        for i in range(ly.size):
-            ly[i] = 10.0 * np.log10(ky[i, p])
-        path_db = 10.0 * np.log10(path_snr_lin[p])
+        path_db = _pair_db(kx, ky, path_snr_lin, p, lx, ly)
         best[p], best_db[p] = 0, lx[beam_ix[0]] + ly[beam_iy[0]] + path_db
         for b in range(1, beam_ix.size):
             if np.isnan(best_db[p]):

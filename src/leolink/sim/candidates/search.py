@@ -32,6 +32,7 @@ import dataclasses
 
 import numpy as np
 
+from leolink import compiled
 from leolink.arrays import nonzero_2d, take_rows
 from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
@@ -258,12 +259,11 @@ class CandidateSearch:
             pairs = slice(lo, hi) if every else vis[lo:hi]
             rows, sat = rows_vis[lo:hi], links.sat[pairs]
             snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
+            if self.floor_db == -np.inf and compiled.use(rows.size):  # no (m, nb) temporaries
+                entries.append(window_entries(snr_bm, rows, sat, self.window_db, best_db))
+                continue
             snr = snr_bm.T  # (m, nb)
-            if rows.size:
-                start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-                with np.errstate(invalid="ignore"):
-                    pair_best = np.fmax.reduce(snr, axis=1)
-                    best_db[rows[start]] = np.fmax.reduceat(pair_best, start)
+            _row_best(rows, snr, best_db)
             with np.errstate(invalid="ignore"):
                 keep = snr >= (best_db[rows] - self.window_db)[:, None]
             if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
@@ -281,6 +281,61 @@ class CandidateSearch:
         return BlockCandidates(
             k0, n_ut, nb, table, n_visible, best_cell, best_db, links, eng.beam_ix, eng.beam_iy
         )
+
+
+def _row_best(rows, snr, out):
+    """Write into ``out`` each of the sorted ``rows``' largest SNR of ``snr (m, nb)``
+    (NaN ignored; NaN where all are)."""
+    if rows.size:
+        start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+        with np.errstate(invalid="ignore"):
+            pair_best = np.fmax.reduce(snr, axis=1)
+            out[rows[start]] = np.fmax.reduceat(pair_best, start)
+
+
+def window_entries(snr_bm, rows, sat, window_db, best_db):
+    """The window's entries of pairs of the sorted ``rows`` (each row's pairs together):
+    every cell whose SNR is at least the row's best minus ``window_db``, in (pair, beam)
+    order, ``(ut, cell, snr)``; each row's best (NaN ignored; NaN where all are) written
+    into ``best_db``. ``snr_bm``: (n_beam, m) [dB]; ``sat``: each pair's satellite.
+    By the compiled :func:`_window_rows` where it runs, else numpy (the same entries)."""
+    nb, m = snr_bm.shape
+    if compiled.use(m):
+        ut, cell, snr = np.empty(m * nb, np.int64), np.empty(m * nb, np.int64), np.empty(m * nb)
+        out = (ut, cell, snr)
+        n = _window_rows(snr_bm, rows, np.asarray(sat, np.int64), float(window_db), best_db, out)
+        return ut[:n].copy(), cell[:n].copy(), snr[:n].copy()
+    snr = snr_bm.T  # (m, nb)
+    _row_best(rows, snr, best_db)
+    with np.errstate(invalid="ignore"):
+        keep = snr >= (best_db[rows] - window_db)[:, None]
+    pair, beam = np.divmod(np.flatnonzero(keep), nb)
+    return rows[pair], sat[pair] * nb + beam, snr[pair, beam]
+
+
+@compiled.jit
+def _window_rows(snr_bm, rows, sat, window_db, best_db, out):
+    """:func:`window_entries` row by row: the row's best (``numpy.fmax``'s rule), then its
+    entries at or above best - window (a NaN best keeps none); returns their count."""
+    ut, cell, snr = out
+    nb, m = snr_bm.shape
+    n, lo = 0, 0
+    while lo < m:
+        hi, best = lo, np.nan
+        while hi < m and rows[hi] == rows[lo]:
+            for b in range(nb):
+                v = snr_bm[b, hi]
+                if v > best or (np.isnan(best) and not np.isnan(v)):
+                    best = v
+            hi += 1
+        best_db[rows[lo]] = best
+        for p in range(lo, hi):
+            for b in range(nb):
+                if snr_bm[b, p] >= best - window_db:
+                    ut[n], cell[n], snr[n] = rows[p], sat[p] * nb + b, snr_bm[b, p]
+                    n += 1
+        lo = hi
+    return n
 
 
 def _dense_pairs(ks, n_ut, cones):
