@@ -17,6 +17,7 @@ References
 
 import numpy as np
 
+import leolink.compiled
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2, SPEED_OF_LIGHT_M_S
 from leolink.orbit import orbital_speed_m_s
 
@@ -26,6 +27,8 @@ __all__ = [
     "doppler_rate_hz_s",
     "doppler_sat_hz",
     "doppler_ut_hz",
+    "KINEMATICS_TERMS",
+    "kinematics_terms",
     "link_kinematics",
     "max_angular_speed_rad_s",
     "max_doppler_sat_hz",
@@ -146,13 +149,7 @@ def angular_speed_rad_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
 def link_kinematics(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz):
     """Doppler (both parts), its rate, the range rate and the angular speed of many links.
 
-    The one place of these formulas (the functions above call it): the range ``rho``,
-    the projections ``<v_sat, l>`` and ``<v_u, l>`` of the unit vector ``l`` UT ->
-    satellite are shared. ``rho' = <v_sat, l> - <v_u, l>``; Doppler Eq. (7) of [1] and
-    the UT's, ``-(f/c) <v_sat, l>`` and ``(f/c) <v_u, l>``, their sum ``-(f/c) rho'``;
-    its rate ``-(f/c) rho''`` with ``rho'' = (|v|^2 + <r, a> - rho'^2) / rho``
-    (``v = v_sat - v_u``, ``a`` the relative acceleration); the angular speed
-    ``|v_perp| / rho`` with ``|v_perp|^2 = |v|^2 - rho'^2``.
+    :func:`kinematics_terms` by name (the functions above call it).
 
     Parameters
     ----------
@@ -171,22 +168,48 @@ def link_kinematics(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz):
         ``doppler_sat_hz, doppler_ut_hz, doppler_hz, doppler_rate_hz_s, range_rate_m_s,
         angular_speed_rad_s``.
     """
-    rho = np.sqrt(np.einsum("...k,...k->...", los_m, los_m))
+    terms = kinematics_terms(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz)
+    return dict(zip(KINEMATICS_TERMS, terms, strict=True))
+
+
+#: The names of :func:`kinematics_terms`' values, in order.
+KINEMATICS_TERMS = ("doppler_sat_hz", "doppler_ut_hz", "doppler_hz", "doppler_rate_hz_s",
+                    "range_rate_m_s", "angular_speed_rad_s")  # fmt: skip
+
+
+@leolink.compiled.jitable
+def _dot(a, b):
+    """``a . b`` over the last axis (3): arrays, or a compiled loop's rows."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+@leolink.compiled.jitable
+def _norm2_of_difference(a, b):
+    """``|a - b|^2`` over the last axis (3), without a temporary ``a - b``."""
+    d0, d1, d2 = a[..., 0] - b[..., 0], a[..., 1] - b[..., 1], a[..., 2] - b[..., 2]
+    return d0 * d0 + d1 * d1 + d2 * d2
+
+
+@leolink.compiled.jitable
+def kinematics_terms(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz):
+    """The one place of the line of sight's kinematics (:data:`KINEMATICS_TERMS`, in order).
+
+    With the unit vector ``l = los / rho`` UT -> satellite: ``rho' = <v_sat, l> - <v_u,
+    l>``; Doppler Eq. (7) of [1] and the UT's, ``-(f/c) <v_sat, l>`` and ``(f/c) <v_u,
+    l>``, their sum ``-(f/c) rho'``; its rate ``-(f/c) rho''`` with ``rho'' = (|v|^2 +
+    <r, a> - rho'^2) / rho`` (``v = v_sat - v_u``, ``a`` the relative acceleration); the
+    angular speed ``|v_perp| / rho`` with ``|v_perp|^2 = |v|^2 - rho'^2``. Arrays
+    ``(..., 3)`` (values of shape (...)), or one link's rows in a compiled loop.
+    """
+    rho = np.sqrt(_dot(los_m, los_m))
     k = freq_hz / SPEED_OF_LIGHT_M_S
-    v_sat = np.einsum("...k,...k->...", sat_vel_m_s, los_m) / rho
-    v_ut = np.einsum("...k,...k->...", ut_vel_m_s, los_m) / rho
-    v = sat_vel_m_s - ut_vel_m_s
-    v2 = np.einsum("...k,...k->...", v, v)
+    v_sat = _dot(sat_vel_m_s, los_m) / rho
+    v_ut = _dot(ut_vel_m_s, los_m) / rho
+    v2 = _norm2_of_difference(sat_vel_m_s, ut_vel_m_s)
     rho_dot = v_sat - v_ut
-    rho_ddot = (v2 + np.einsum("...k,...k->...", los_m, rel_acc_m_s2) - rho_dot**2) / rho
-    return {
-        "doppler_sat_hz": -k * v_sat,
-        "doppler_ut_hz": k * v_ut,
-        "doppler_hz": -k * rho_dot,
-        "doppler_rate_hz_s": -k * rho_ddot,
-        "range_rate_m_s": rho_dot,
-        "angular_speed_rad_s": np.sqrt(np.maximum(v2 - rho_dot**2, 0.0)) / rho,
-    }
+    rho_ddot = (v2 + _dot(los_m, rel_acc_m_s2) - rho_dot**2) / rho
+    angular = np.sqrt(np.maximum(v2 - rho_dot**2, 0.0)) / rho
+    return -k * v_sat, k * v_ut, -k * rho_dot, -k * rho_ddot, rho_dot, angular
 
 
 def max_doppler_sat_hz(rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):
