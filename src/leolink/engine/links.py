@@ -159,8 +159,8 @@ class Links:
         if compiled.use(self.n_pair):
             best, best_db = np.empty(self.n_pair, np.int64), np.empty(self.n_pair)
             beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
-            compiled.run_rows(_best_beam_rows, self.n_pair, self.kx, self.ky,
-                              self.path_snr_lin, beams, best, best_db)  # fmt: skip
+            compiled.run_rows(_best_beam_rows, self.n_pair, self.kx, self.ky, self.path_snr_lin,
+                              beams, bool(with_snr_db), best, best_db)  # fmt: skip
             return best, (best_db if with_snr_db else None)
         snr = self.snr_db_bm(beam_ix, beam_iy)
         beam = np.argmax(snr, axis=0)
@@ -190,15 +190,44 @@ def _snr_rows(kx, ky, path_snr_lin, beams, idx, out, lo, hi):
             out[b, q] = lx[beam_ix[b]] + ly[beam_iy[b]] + path_db
 
 
+#: Relative gap between the two largest linear SNRs of a pair above which the largest is
+#: also the largest in dB as :meth:`Links.snr_db_bm` sums it: a gap of 1e-9 is 4.3e-9 dB,
+#: the dB sums err by < 1e-12 dB (three logarithms of ~1 ulp each, terms < 1e3 dB).
+CLEAR_GAP = 1e-9
+
+
 @compiled.jit
-def _best_beam_rows(kx, ky, path_snr_lin, beams, best, best_db, lo, hi):
+def _best_beam_rows(kx, ky, path_snr_lin, beams, with_db, best, best_db, lo, hi):
     """:meth:`Links.best_beam` of the pairs ``lo .. hi - 1`` (``beams``: the rows of
-    ``kx`` and ``ky`` of each beam, (2, n_beam)): each beam's
-    ``10 log10 k_x + 10 log10 k_y + 10 log10 p`` as :meth:`Links.snr_db_bm` sums it, the
-    first maximum, or the first NaN (``numpy.argmax``'s rule)."""
+    ``kx`` and ``ky`` of each beam, (2, n_beam)). Each beam's linear gain ``k_x k_y``; where
+    the largest exceeds the second by :data:`CLEAR_GAP` it is the dB argmax, and only its dB
+    value is formed (``10 log10 k_x + 10 log10 k_y + 10 log10 p``, as :meth:`Links.
+    snr_db_bm` sums it; none without ``with_db``, ``best_db`` then left unset); otherwise
+    every beam's dB value and the first maximum, or the first NaN (``numpy.argmax``'s
+    rule)."""
     beam_ix, beam_iy = beams[0], beams[1]
     lx, ly = np.empty(kx.shape[0]), np.empty(ky.shape[0])
+    gx, gy = np.empty(kx.shape[0]), np.empty(ky.shape[0])
     for p in range(lo, hi):
+        for i in range(gx.size):
+            gx[i] = kx[i, p]
+        for i in range(gy.size):
+            gy[i] = ky[i, p]
+        top, second, arg = -1.0, -1.0, 0
+        for b in range(beam_ix.size):
+            g = gx[beam_ix[b]] * gy[beam_iy[b]]
+            if g > top:
+                top, second, arg = g, top, b
+            elif g > second:
+                second = g
+        path = path_snr_lin[p]
+        if second < top * (1.0 - CLEAR_GAP) and not np.isnan(path):
+            best[p] = arg
+            if not with_db:
+                continue
+            lx_arg = 10.0 * np.log10(kx[beam_ix[arg], p])
+            best_db[p] = lx_arg + 10.0 * np.log10(ky[beam_iy[arg], p]) + 10.0 * np.log10(path)
+            continue
         path_db = _pair_db(kx, ky, path_snr_lin, p, lx, ly)
         best[p], best_db[p] = 0, lx[beam_ix[0]] + ly[beam_iy[0]] + path_db
         for b in range(1, beam_ix.size):
