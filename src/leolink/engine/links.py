@@ -160,7 +160,7 @@ class Links:
             best, best_db = np.empty(self.n_pair, np.int64), np.empty(self.n_pair)
             beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
             compiled.run_rows(_best_beam_rows, self.n_pair, self.kx, self.ky, self.path_snr_lin,
-                              beams, bool(with_snr_db), best, best_db)  # fmt: skip
+                              beams, bool(with_snr_db), (best, best_db))  # fmt: skip
             return best, (best_db if with_snr_db else None)
         snr = self.snr_db_bm(beam_ix, beam_iy)
         beam = np.argmax(snr, axis=0)
@@ -197,15 +197,16 @@ CLEAR_GAP = 1e-9
 
 
 @compiled.jit
-def _best_beam_rows(kx, ky, path_snr_lin, beams, with_db, best, best_db, lo, hi):
+def _best_beam_rows(kx, ky, path_snr_lin, beams, with_db, out, lo, hi):
     """:meth:`Links.best_beam` of the pairs ``lo .. hi - 1`` (``beams``: the rows of
     ``kx`` and ``ky`` of each beam, (2, n_beam)). Each beam's linear gain ``k_x k_y``; where
     the largest exceeds the second by :data:`CLEAR_GAP` it is the dB argmax, and only its dB
     value is formed (``10 log10 k_x + 10 log10 k_y + 10 log10 p``, as :meth:`Links.
     snr_db_bm` sums it; none without ``with_db``, ``best_db`` then left unset); otherwise
     every beam's dB value and the first maximum, or the first NaN (``numpy.argmax``'s
-    rule)."""
+    rule). ``out``: ``(best, best_db)``."""
     beam_ix, beam_iy = beams[0], beams[1]
+    best, best_db = out
     lx, ly = np.empty(kx.shape[0]), np.empty(ky.shape[0])
     gx, gy = np.empty(kx.shape[0]), np.empty(ky.shape[0])
     for p in range(lo, hi):
