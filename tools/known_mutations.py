@@ -100,8 +100,8 @@ MUTATIONS = (
     Mutation(
         "doppler_rate_sign",
         "src/leolink/kinematics.py",
-        '"doppler_rate_hz_s": -k * rho_ddot,',
-        '"doppler_rate_hz_s": k * rho_ddot,',
+        "return -k * v_sat, k * v_ut, -k * rho_dot, -k * rho_ddot, rho_dot, angular",
+        "return -k * v_sat, k * v_ut, -k * rho_dot, k * rho_ddot, rho_dot, angular",
         ("tests/test_trace_independent.py", "tests/test_kinematics.py"),
     ),
     Mutation(
