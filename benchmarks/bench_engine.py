@@ -84,7 +84,7 @@ def _snapshot_work(engine, ut, pos, vel, acc):
     n_ut, zero, sat0 = len(ut), np.zeros_like(ut), np.zeros(len(ut), dtype=int)
     for k in range(len(pos)):
         snap = engine.evaluate(ut, pos[k : k + 1], vel[k : k + 1])
-        beam = np.argmax(snap.snr_lin_bm[:, 0, :], axis=0)  # SNR of all 15 beams
+        beam = np.argmax(snap.snr_db[:, 0, :], axis=1)  # SNR of all 15 beams
         engine.serve(snap, sat0, beam, zero, zero, vel[k : k + 1], acc[k : k + 1])
     return n_ut
 

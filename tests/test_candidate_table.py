@@ -9,13 +9,21 @@ from hypothesis import strategies as st
 
 from leolink.sim.candidates.table import Candidates
 
-PATHS = ["numpy"]  # (the one path: the compiled lookups were removed, issue 43)
+PATHS = ["compiled", "numpy"]
 
 
 @contextlib.contextmanager
 def _path(name, table):
-    """Within: ``table``'s lookups take the path ``name``."""
-    yield
+    """Within: ``table``'s lookups take the path ``name`` (the compiled loops or numpy, as
+    ``LEOLINK_JIT=0``)."""
+    import leolink.compiled
+
+    saved = leolink.compiled.use
+    leolink.compiled.use = (lambda n: False) if name == "numpy" else saved
+    try:
+        yield
+    finally:
+        leolink.compiled.use = saved
 
 
 def _table(rng, n_ut, n_slot, n_cell):

@@ -6,7 +6,7 @@ import pytest
 
 from leolink.app.scenario import build_scenario
 from leolink.config import load_config
-from leolink.sim.decide import Decider
+from leolink.sim.decide import Decider, Rules, Sky
 from leolink.sim.handover.policies import MaxSnr
 from leolink.sim.motion import MotionBlocks
 
@@ -36,8 +36,8 @@ def decider(request):
     n_ut = sum(p.n_ut for _, p in scen.populations)
     motion = MotionBlocks(scen.ephemeris, scen.populations, scen.times_s, scen.ephemeris.n_sat,
                           n_ut)  # fmt: skip
-    dec = Decider(scen.engine, MaxSnr(), scen.min_snr_db, scen.handover_time_s,
-                  scen.min_elevation_rad, scen.radius_m, None, motion)  # fmt: skip
+    rules = Rules(MaxSnr(), scen.min_snr_db, scen.handover_time_s)
+    dec = Decider(scen.engine, rules, Sky(scen.min_elevation_rad, scen.radius_m), motion, None)
     dec._open(0)
     return dec
 

@@ -247,11 +247,11 @@ def test_the_environment_leaves_the_search_window_and_floor_as_the_policy_declar
     margin widens the window or lowers the floor (116-250 dB did once, which evaluated
     every visible pair; ``tests/test_environment_floor.py`` checks the tables exact)."""
     from leolink.app.scenario import build_scenario
-    from leolink.sim.decide import Decider
+    from leolink.sim.decide import Decider, Rules, Sky
     from leolink.sim.environment import ChannelTracker
 
     sc = build_scenario(load_config(TOWN))
-    dec = Decider(sc.engine, sc.policy, -10.0, 0.0, 0.17, 6.371e6, None, None)
+    dec = Decider(sc.engine, Rules(sc.policy, -10.0, 0.0), Sky(0.17, 6.371e6), None, None)
     window, floor = dec.search.window_db, dec.search.floor_db
     dec.with_channel(ChannelTracker(sc.environments, [1, 1, 1], np.zeros(3, np.uint64), 0.17))
     assert (dec.search.window_db, dec.search.floor_db) == (window, floor)

@@ -229,37 +229,6 @@ def test_mean_abs_ut_doppler_is_half_not_sixth():
     assert abs(samples.mean() - paper) > 1000 * se
 
 
-def test_link_kinematics_equals_the_separate_functions():
-    from leolink.kinematics import (
-        angular_speed_rad_s,
-        doppler_rate_hz_s,
-        doppler_sat_hz,
-        doppler_ut_hz,
-        link_kinematics,
-    )
-
-    rng = np.random.default_rng(42)
-    n = 500
-    ut = rng.normal(size=(n, 3))
-    ut *= 6.371e6 / np.linalg.norm(ut, axis=1, keepdims=True)
-    sat = ut + rng.normal(size=(n, 3)) * 1e6
-    v_sat, v_ut = rng.normal(size=(n, 3)) * 7e3, rng.normal(size=(n, 3)) * 30
-    a_sat, a_ut = rng.normal(size=(n, 3)) * 8, rng.normal(size=(n, 3)) * 0.1
-    f = 11.45e9
-    got = link_kinematics(sat - ut, v_sat, v_ut, a_sat - a_ut, f)
-    np.testing.assert_allclose(got["doppler_sat_hz"], doppler_sat_hz(sat, v_sat, ut, f), atol=1e-6)
-    np.testing.assert_allclose(got["doppler_ut_hz"], doppler_ut_hz(ut, v_ut, sat, f), atol=1e-6)
-    np.testing.assert_allclose(
-        got["doppler_rate_hz_s"],
-        doppler_rate_hz_s(sat, v_sat, a_sat, ut, v_ut, a_ut, freq_hz=f),
-        atol=1e-6,
-    )
-    # |v|^2 - rho'^2 loses ~1e-16 |v|^2 by cancellation: far below 1e-9 rad/s here.
-    np.testing.assert_allclose(
-        got["angular_speed_rad_s"], angular_speed_rad_s(sat, v_sat, ut, v_ut), atol=1e-9
-    )
-
-
 def test_defaults_are_a_static_unaccelerated_ut():
     """``ut_vel_m_s`` and ``ut_acc_m_s2`` default to zero (a static UT, uniform motion)."""
     rng = np.random.default_rng(8)

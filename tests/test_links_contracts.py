@@ -22,11 +22,11 @@ from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.engine.links import (
     _PAIR_FIELDS,
     Links,
-    azimuth_deg,
     group_constants_db,
     panel_elevation_of_pairs,
     rows_gain_db,
 )
+from leolink.geometry import azimuth_deg
 from leolink.link.atmosphere import FixedLoss
 
 PAPER = "configs/paper.toml"
@@ -240,7 +240,7 @@ def test_snr_of_some_pairs_is_that_of_the_pairs_taken(n_ut, jit_on, monkeypatch)
 
 
 #: The compiled pair loop and the numpy geometry round differently (a division for a product
-#: by 1 / rho, the kernels by ula_gain vs angle subtraction): angles, distances and kernels.
+#: by 1 / rho, the kernels near a peak): angles, distances and kernels.
 PATHS_REL = 1e-10
 PATHS_ANGLE_RAD = 1e-12
 
@@ -300,3 +300,39 @@ def test_compiled_screening_agrees_with_numpy(wgs84_up, monkeypatch):
     np.testing.assert_array_equal(got[0], want[0])
     assert 50 < (want[0] > 0).sum() < want[0].size  # above and below the mask
     np.testing.assert_allclose(got[1], want[1], rtol=SCREEN_REL, atol=0)
+
+
+#: The compiled serving loop and the numpy columns round differently (sums of three
+#: products in another order, a logarithm of a product for a sum of logarithms).
+SERVE_REL = 1e-12
+
+
+@pytest.mark.parametrize("enu", [False, True])
+def test_compiled_serving_columns_agree_with_numpy(enu, monkeypatch):
+    """``LinkEngine.serve_pairs`` by the compiled loop (engine._serve_rows) and by numpy (as
+    ``LEOLINK_JIT=0``): every column, moving and accelerating UTs, fading and other
+    satellites' interference, unserved rows (NaN), the sphere's frame and given ENU rows."""
+    import leolink.compiled
+    from leolink.geometry import ecef_to_geodetic, enu_basis
+
+    eng = _engine()
+    ut = R * _unit([0.0, 0.0, 1.0] + 0.03 * RNG.normal(size=(200, 3)))  # under 4 satellites
+    sat = 1.1 * R * _unit([0.0, 0.0, 1.0] + 0.03 * RNG.normal(size=(4, 3)))
+    iu, js = np.meshgrid(np.arange(200), np.arange(4), indexing="ij")
+    links = eng.evaluate_pairs(ut, sat, np.cross(sat, [0, 0, 1.0]), iu.ravel(), js.ravel())
+    n = 300
+    pair = np.where(RNG.random(n) < 0.1, -1, RNG.integers(0, links.n_pair, n))
+    beam = RNG.integers(0, eng.n_beam, n)
+    ut_pos = ut[links.ut[np.maximum(pair, 0)]]
+    lat, lon, _ = ecef_to_geodetic(ut_pos)
+    kw = dict(rx_fading_lin=RNG.uniform(0.5, 2.0, n), i_other=RNG.uniform(0.0, 0.1, n),
+              ut_pos_m=ut_pos, ut_enu=enu_basis(lat, lon) if enu else None)  # fmt: skip
+    args = (links, pair, beam, RNG.normal(size=(n, 3)) * 30.0, RNG.normal(size=(n, 3)),
+            RNG.normal(size=(n, 3)) * 7e3, RNG.normal(size=(n, 3)) * 8.0)  # fmt: skip
+    got = eng.serve_pairs(*args, **kw)
+    monkeypatch.setattr(leolink.compiled, "use", lambda size: False)
+    want = eng.serve_pairs(*args, **kw)
+    assert list(got) == list(want)
+    assert (pair < 0).sum() > 3 and np.isfinite(want["snr_db"]).sum() > 100
+    for name in want:
+        np.testing.assert_allclose(got[name], want[name], SERVE_REL, 1e-9, err_msg=name)

@@ -506,3 +506,30 @@ def test_a_stepped_terminal_without_its_maximum_is_refused_at_config_time(steppe
     sets = ["terminal.kind=stepped", "terminal.stepped.give_max=false"]
     with pytest.raises(ConfigError, match=r"terminal.kind = 'stepped' is not allowed: its gain"):
         build_scenario(load_config("configs/paper.toml", sets))
+
+
+@pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
+def test_compiled_window_gives_the_numpy_windows_entries(window_db, monkeypatch):
+    """``search.window_entries`` by the compiled loop and by numpy (as ``LEOLINK_JIT=0``):
+    the same entries in the same order and the same row bests, bit for bit (the same
+    comparisons of the same values), with rows of one pair and of many, rows whose every
+    SNR is NaN, -inf SNRs (a null) and exact ties at the best."""
+    import leolink.compiled
+
+    rng = np.random.default_rng(43)
+    nb, m = 15, 3000
+    rows = np.sort(rng.integers(0, 900, m))
+    sat = rng.integers(0, 4000, m)
+    snr = np.round(rng.normal(0.0, 4.0, (nb, m)), 1)  # rounded: many exact ties
+    snr[:, rng.random(m) < 0.1] = np.nan  # pairs below the mask
+    snr[rng.random((nb, m)) < 0.01] = -np.inf
+    snr[:, rows == rows[0]] = np.nan  # a row with no finite SNR
+    got_best, want_best = np.full(900, 7.0), np.full(900, 7.0)
+    got = search.window_entries(snr, rows, sat, window_db, got_best)
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
+    want = search.window_entries(snr, rows, sat, window_db, want_best)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g, w)
+    np.testing.assert_array_equal(got_best, want_best)
+    assert np.isnan(want_best[rows[0]]) and (want_best == 7.0).any()  # untouched rows kept
+    assert want[0].size > (m if window_db > 0 else 900 // 2)

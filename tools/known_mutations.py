@@ -100,8 +100,8 @@ MUTATIONS = (
     Mutation(
         "doppler_rate_sign",
         "src/leolink/kinematics.py",
-        '"doppler_rate_hz_s": -k * rho_ddot,',
-        '"doppler_rate_hz_s": k * rho_ddot,',
+        "return -k * v_sat, k * v_ut, -k * rho_dot, -k * rho_ddot, rho_dot, angular",
+        "return -k * v_sat, k * v_ut, -k * rho_dot, k * rho_ddot, rho_dot, angular",
         ("tests/test_trace_independent.py", "tests/test_kinematics.py"),
     ),
     Mutation(
@@ -135,10 +135,10 @@ MUTATIONS = (
         ("tests/test_links_contracts.py",),
     ),
     Mutation(
-        "dirichlet_loop_off_by_one_beam",  # the compiled loop of dirichlet_kernels
+        "dirichlet_loop_off_by_one_beam",  # the compiled loops' kernels of a direction
         "src/leolink/antenna/array.py",
-        "out[j, p] = ula_gain(u[p] - beam_u[j], n)",
-        "out[j, p] = ula_gain(u[p] - beam_u[j - 1], n)",
+        "g, near = subtracted_gain(trig, coef[:, j], n)",
+        "g, near = subtracted_gain(trig, coef[:, j - 1], n)",
         ("tests/test_array_kernels.py",),
     ),
     Mutation(

@@ -11,9 +11,13 @@ References
 
 import numpy as np
 
+import leolink.compiled
 from leolink.constants import EARTH_RADIUS_M
 
 __all__ = [
+    "azimuth_deg",
+    "azimuth_in_frame_deg",
+    "azimuth_on_sphere_deg",
     "body_frame",
     "direction_cosines",
     "ecef_to_geodetic",
@@ -173,6 +177,40 @@ def look_angles(ut_pos_m, sat_pos_m):
     elevation_rad = np.arcsin(np.clip(_dot(d, up) / slant_range_m, -1.0, 1.0))
     azimuth_rad = np.mod(np.arctan2(_dot(d, east), _dot(d, north)), 2.0 * np.pi)
     return elevation_rad, azimuth_rad, slant_range_m
+
+
+def azimuth_deg(los, ut_pos_m, ut_enu):
+    """Azimuth of each row's link ``los (n, 3)`` (UT -> satellite) [deg], [0, 360), in the
+    local frame ``ut_enu (n, 3, 3)`` (rows east, north, up: :func:`azimuth_in_frame_deg`)
+    or, without it, the sphere's at ``ut_pos_m (n, 3)`` (:func:`azimuth_on_sphere_deg`)."""
+    if ut_enu is not None:
+        return azimuth_in_frame_deg(los, ut_enu)
+    return azimuth_on_sphere_deg(los, ut_pos_m)
+
+
+@leolink.compiled.jitable
+def azimuth_in_frame_deg(los, enu):
+    """``atan2(los . east, los . north)`` [deg], [0, 360), ``enu`` (..., 3, 3) rows east,
+    north, up (arrays, or one link's rows in a compiled loop)."""
+    e, n = enu[..., 0, :], enu[..., 1, :]
+    east = los[..., 0] * e[..., 0] + los[..., 1] * e[..., 1] + los[..., 2] * e[..., 2]
+    north = los[..., 0] * n[..., 0] + los[..., 1] * n[..., 1] + los[..., 2] * n[..., 2]
+    return np.mod(np.degrees(np.arctan2(east, north)), 360.0)
+
+
+@leolink.compiled.jitable
+def azimuth_on_sphere_deg(los, pos_m):
+    """Azimuth [deg], [0, 360), in the sphere's local frame at ``p = (x, y, z)``:
+    ``h^2 = x^2 + y^2``, ``r = |p|``, east ``(-y, x, 0) / h`` and north ``(-z x, -z y,
+    h^2) / (h r)``; both components times ``h r > 0`` leave the angle unchanged, so
+    ``atan2(r (x l_y - y l_x), h^2 l_z - z (x l_x + y l_y))``: no trigonometry but the
+    last arctangent (the same angle as through latitude and longitude, to ~1e-13 deg)."""
+    x, y, z = pos_m[..., 0], pos_m[..., 1], pos_m[..., 2]
+    lx, ly, lz = los[..., 0], los[..., 1], los[..., 2]
+    h2 = x * x + y * y
+    east = np.sqrt(h2 + z * z) * (x * ly - y * lx)
+    north = h2 * lz - z * (x * lx + y * ly)
+    return np.mod(np.degrees(np.arctan2(east, north)), 360.0)
 
 
 def slant_range_from_elevation_m(elevation_rad, altitude_m, radius_m=EARTH_RADIUS_M):

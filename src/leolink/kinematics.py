@@ -17,6 +17,7 @@ References
 
 import numpy as np
 
+import leolink.compiled
 from leolink.constants import EARTH_RADIUS_M, GM_EARTH_M3_S2, SPEED_OF_LIGHT_M_S
 from leolink.orbit import orbital_speed_m_s
 
@@ -26,6 +27,8 @@ __all__ = [
     "doppler_rate_hz_s",
     "doppler_sat_hz",
     "doppler_ut_hz",
+    "KINEMATICS_TERMS",
+    "kinematics_terms",
     "link_kinematics",
     "max_angular_speed_rad_s",
     "max_doppler_sat_hz",
@@ -37,15 +40,15 @@ __all__ = [
 ]
 
 
-def _dot(a, b):
-    return np.sum(a * b, axis=-1)
-
-
-def _los(from_pos_m, to_pos_m):
-    """Vector, distance and unit vector from ``from`` to ``to`` (distance shape ``(...)``)."""
-    d = np.asarray(to_pos_m, dtype=float) - np.asarray(from_pos_m, dtype=float)
-    rho = np.linalg.norm(d, axis=-1)
-    return d, rho, d / rho[..., None]
+def _kinematics(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0, rel_acc_m_s2=0.0, freq_hz=1.0):
+    """:func:`link_kinematics` of positions and states that broadcast, ``(..., 3)``."""
+    los, v_sat, v_ut, acc = np.broadcast_arrays(
+        np.asarray(sat_pos_m, dtype=float) - np.asarray(ut_pos_m, dtype=float),
+        np.asarray(sat_vel_m_s, dtype=float),
+        np.asarray(ut_vel_m_s, dtype=float),
+        np.asarray(rel_acc_m_s2, dtype=float),
+    )
+    return link_kinematics(los, v_sat, v_ut, acc, freq_hz)
 
 
 def doppler_sat_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, freq_hz):
@@ -68,8 +71,7 @@ def doppler_sat_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, freq_hz):
     ndarray, shape (...)
         Doppler shift [Hz].
     """
-    _, _, l_su = _los(sat_pos_m, ut_pos_m)
-    return _dot(np.asarray(sat_vel_m_s, dtype=float), l_su) * freq_hz / SPEED_OF_LIGHT_M_S
+    return _kinematics(sat_pos_m, sat_vel_m_s, ut_pos_m, freq_hz=freq_hz)["doppler_sat_hz"]
 
 
 def doppler_ut_hz(ut_pos_m, ut_vel_m_s, sat_pos_m, freq_hz):
@@ -78,8 +80,7 @@ def doppler_ut_hz(ut_pos_m, ut_vel_m_s, sat_pos_m, freq_hz):
     ``Delta f_u = <v_u, (x_sat - x_u) / ||x_sat - x_u||> f / c`` (positive when the UT
     moves towards the satellite). Shapes as in :func:`doppler_sat_hz`.
     """
-    _, _, l_us = _los(ut_pos_m, sat_pos_m)
-    return _dot(np.asarray(ut_vel_m_s, dtype=float), l_us) * freq_hz / SPEED_OF_LIGHT_M_S
+    return _kinematics(sat_pos_m, 0.0, ut_pos_m, ut_vel_m_s, freq_hz=freq_hz)["doppler_ut_hz"]
 
 
 def range_rate_m_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
@@ -87,9 +88,7 @@ def range_rate_m_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
 
     ``l`` is the unit vector UT -> satellite; positive when the range grows.
     """
-    _, _, l_us = _los(ut_pos_m, sat_pos_m)
-    v_rel = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
-    return _dot(v_rel, l_us)
+    return _kinematics(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s)["range_rate_m_s"]
 
 
 def propagation_delay_s(slant_range_m):
@@ -123,9 +122,7 @@ def doppler_hz(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s, freq_hz):
 
     Shapes as in :func:`doppler_sat_hz`; ``ut_vel_m_s`` (..., 3) [m/s] (0 for a static UT).
     """
-    return -range_rate_m_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s) * (
-        freq_hz / SPEED_OF_LIGHT_M_S
-    )
+    return _kinematics(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s, freq_hz=freq_hz)["doppler_hz"]
 
 
 def doppler_rate_hz_s(
@@ -152,12 +149,9 @@ def doppler_rate_hz_s(
     ndarray, shape (...)
         Doppler rate [Hz/s].
     """
-    r, rho, l_us = _los(ut_pos_m, sat_pos_m)
-    v = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
-    a = np.asarray(sat_acc_m_s2, dtype=float) - np.asarray(ut_acc_m_s2, dtype=float)
-    rho_dot = _dot(v, l_us)
-    rho_ddot = (_dot(v, v) + _dot(r, a) - rho_dot**2) / rho
-    return -rho_ddot * freq_hz / SPEED_OF_LIGHT_M_S
+    acc = np.asarray(sat_acc_m_s2, dtype=float) - np.asarray(ut_acc_m_s2, dtype=float)
+    kin = _kinematics(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s, acc, freq_hz)
+    return kin["doppler_rate_hz_s"]
 
 
 def angular_speed_rad_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
@@ -177,51 +171,73 @@ def angular_speed_rad_s(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s=0.0):
     ndarray, shape (...)
         Angular speed [rad/s], >= 0.
     """
-    _, rho, l_us = _los(ut_pos_m, sat_pos_m)
-    v = np.asarray(sat_vel_m_s, dtype=float) - np.asarray(ut_vel_m_s, dtype=float)
-    v_perp = v - _dot(v, l_us)[..., None] * l_us
-    return np.linalg.norm(v_perp, axis=-1) / rho
+    return _kinematics(sat_pos_m, sat_vel_m_s, ut_pos_m, ut_vel_m_s)["angular_speed_rad_s"]
 
 
 def link_kinematics(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz):
-    """Doppler (both parts), Doppler rate and angular speed of many links in one pass.
+    """Doppler (both parts), its rate, the range rate and the angular speed of many links.
 
-    The same quantities as :func:`doppler_sat_hz`, :func:`doppler_ut_hz`,
-    :func:`doppler_rate_hz_s` and :func:`angular_speed_rad_s`, sharing the range, the
-    unit vector and the range rate (the engine calls this once per epoch).
-    The angular speed uses ``|v_perp|^2 = |v|^2 - rho'^2``.
+    :func:`kinematics_terms` by name (the functions above call it).
 
     Parameters
     ----------
-    los_m : ndarray, shape (n, 3)
+    los_m : ndarray, shape (..., 3)
         UT -> satellite vector [m].
-    sat_vel_m_s, ut_vel_m_s : ndarray, shape (n, 3)
+    sat_vel_m_s, ut_vel_m_s : ndarray, shape (..., 3)
         Velocities [m/s].
-    rel_acc_m_s2 : ndarray, shape (n, 3)
+    rel_acc_m_s2 : ndarray, shape (..., 3)
         Satellite minus UT acceleration [m/s^2].
     freq_hz : float
         Carrier frequency [Hz].
 
     Returns
     -------
-    dict of ndarray, shape (n,)
-        ``doppler_sat_hz, doppler_ut_hz, doppler_hz, doppler_rate_hz_s, angular_speed_rad_s``.
+    dict of ndarray, shape (...)
+        ``doppler_sat_hz, doppler_ut_hz, doppler_hz, doppler_rate_hz_s, range_rate_m_s,
+        angular_speed_rad_s``.
     """
-    rho = np.sqrt(np.einsum("ij,ij->i", los_m, los_m))
+    terms = kinematics_terms(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz)
+    return dict(zip(KINEMATICS_TERMS, terms, strict=True))
+
+
+#: The names of :func:`kinematics_terms`' values, in order.
+KINEMATICS_TERMS = ("doppler_sat_hz", "doppler_ut_hz", "doppler_hz", "doppler_rate_hz_s",
+                    "range_rate_m_s", "angular_speed_rad_s")  # fmt: skip
+
+
+@leolink.compiled.jitable
+def _dot(a, b):
+    """``a . b`` over the last axis (3): arrays, or a compiled loop's rows."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+@leolink.compiled.jitable
+def _norm2_of_difference(a, b):
+    """``|a - b|^2`` over the last axis (3), without a temporary ``a - b``."""
+    d0, d1, d2 = a[..., 0] - b[..., 0], a[..., 1] - b[..., 1], a[..., 2] - b[..., 2]
+    return d0 * d0 + d1 * d1 + d2 * d2
+
+
+@leolink.compiled.jitable
+def kinematics_terms(los_m, sat_vel_m_s, ut_vel_m_s, rel_acc_m_s2, freq_hz):
+    """The one place of the line of sight's kinematics (:data:`KINEMATICS_TERMS`, in order).
+
+    With the unit vector ``l = los / rho`` UT -> satellite: ``rho' = <v_sat, l> - <v_u,
+    l>``; Doppler Eq. (7) of [1] and the UT's, ``-(f/c) <v_sat, l>`` and ``(f/c) <v_u,
+    l>``, their sum ``-(f/c) rho'``; its rate ``-(f/c) rho''`` with ``rho'' = (|v|^2 +
+    <r, a> - rho'^2) / rho`` (``v = v_sat - v_u``, ``a`` the relative acceleration); the
+    angular speed ``|v_perp| / rho`` with ``|v_perp|^2 = |v|^2 - rho'^2``. Arrays
+    ``(..., 3)`` (values of shape (...)), or one link's rows in a compiled loop.
+    """
+    rho = np.sqrt(_dot(los_m, los_m))
     k = freq_hz / SPEED_OF_LIGHT_M_S
-    v_sat = np.einsum("ij,ij->i", sat_vel_m_s, los_m) / rho
-    v_ut = np.einsum("ij,ij->i", ut_vel_m_s, los_m) / rho
-    v = sat_vel_m_s - ut_vel_m_s
-    v2 = np.einsum("ij,ij->i", v, v)
+    v_sat = _dot(sat_vel_m_s, los_m) / rho
+    v_ut = _dot(ut_vel_m_s, los_m) / rho
+    v2 = _norm2_of_difference(sat_vel_m_s, ut_vel_m_s)
     rho_dot = v_sat - v_ut
-    rho_ddot = (v2 + np.einsum("ij,ij->i", los_m, rel_acc_m_s2) - rho_dot**2) / rho
-    return {
-        "doppler_sat_hz": -k * v_sat,
-        "doppler_ut_hz": k * v_ut,
-        "doppler_hz": -k * rho_dot,
-        "doppler_rate_hz_s": -k * rho_ddot,
-        "angular_speed_rad_s": np.sqrt(np.maximum(v2 - rho_dot**2, 0.0)) / rho,
-    }
+    rho_ddot = (v2 + _dot(los_m, rel_acc_m_s2) - rho_dot**2) / rho
+    angular = np.sqrt(np.maximum(v2 - rho_dot**2, 0.0)) / rho
+    return -k * v_sat, k * v_ut, -k * rho_dot, -k * rho_ddot, rho_dot, angular
 
 
 def max_doppler_sat_hz(rx_m, altitude_m, freq_hz, radius_m=EARTH_RADIUS_M, gm_m3_s2=GM_EARTH_M3_S2):

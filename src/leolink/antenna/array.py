@@ -131,78 +131,89 @@ def explicit_gain(u_xy, weights, nx, ny):
     return np.abs(a.conj() @ f) ** 2 / np.sum(np.abs(f) ** 2, axis=0)
 
 
+@leolink.compiled.jitable
 def dirichlet_trig(u, n):
-    """``(sin x, cos x, sin n x, cos n x)`` of ``x = pi u / 2``, shape (4, m): all that
-    :func:`dirichlet_kernels` needs of the directions ``u (m,)`` (given to it again, it
-    spares the sines of directions met before, e.g. the ROI samples of a codebook search)."""
-    x = (0.5 * np.pi) * np.asarray(u, dtype=float)
-    trig = np.empty((4, x.size))
-    np.sin(x, out=trig[0])
-    np.cos(x, out=trig[1])
-    x *= n
-    np.sin(x, out=trig[2])
-    np.cos(x, out=trig[3])
-    return trig
+    """``(sin x, cos x, sin n x, cos n x)`` of ``x = pi u / 2``: all that
+    :func:`subtracted_gain` needs of a direction ``u`` (an array: four arrays of its shape;
+    a compiled loop's scalar: four scalars). Given to :func:`dirichlet_kernels` again, it
+    spares the sines of directions met before (e.g. the ROI samples of a codebook search).
+    """
+    x = (0.5 * np.pi) * np.float64(u)
+    xn = x * n
+    return np.sin(x), np.cos(x), np.sin(xn), np.cos(xn)
+
+
+@leolink.compiled.jitable
+def subtracted_gain(trig, coef, n):
+    """:func:`ula_gain` ``(u - b, n)`` by angle subtraction: ``sin(n (x - b))^2 / (n
+    sin(x - b)^2)`` with ``sin(x - b) = cos b sin x - sin b cos x`` (and the same of
+    ``n x``, ``n b``), from ``trig = dirichlet_trig(u, n)`` and ``coef =
+    (cos b, -sin b, cos n b, -sin n b)`` (:func:`dirichlet_coefficients`): four sines per
+    direction whatever the number of beams.
+
+    Returns ``(g, near)``: ``near`` where ``|sin(x - b)| < 5e-6``, where the subtraction
+    cancels (~1e-16 / |sin| relative) and the caller takes :func:`ula_gain` instead; ``g``
+    is finite there (no 0 / 0). Arrays broadcast (``coef[i]`` (k, 1) against ``trig[i]``
+    (m,) gives (k, m)); scalars in the compiled loops.
+    """
+    den = coef[0] * trig[0] + coef[1] * trig[1]
+    num = coef[2] * trig[2] + coef[3] * trig[3]
+    near = np.abs(den) < _SIN_RECOMPUTE
+    g = num / (den + near)
+    return np.minimum(g * g * (1.0 / n), n), near  # rounding may overshoot n by ~1 ulp
 
 
 def dirichlet_kernels(u, beam_u, n, trig=None):
     """Dirichlet kernels of ``u (m,)`` against each ``beam_u (k,)`` -> (k, m).
 
-    ``sin(n (x - b)) / sin(x - b)`` by angle subtraction, with ``x = pi u / 2``: four
-    sines/cosines per direction whatever the number of beams (:func:`dirichlet_trig`, or
-    ``trig`` if given: those of ``u`` and ``n``), and one small matrix product for all
-    ``k`` beams. Where ``|sin(x - b)|`` is tiny (at a beam peak or a grating lobe)
-    cancellation would cost accuracy, so those few entries are recomputed directly with
-    :func:`ula_gain`. Where the compiled loops run (:mod:`leolink.compiled`) a 1-D ``u``
-    takes :func:`_dirichlet_rows` instead: :func:`ula_gain` of every entry, two sines
-    each, faster than this product and its temporaries; the two agree to ~1e-13 of the
-    peak (``tests/test_array_kernels.py``).
+    :func:`subtracted_gain` of every (beam, direction), the four sines of each direction
+    once (:func:`dirichlet_trig`, or ``trig`` if given: those of ``u`` and ``n``); where
+    it cancels (at a beam peak or a grating lobe) :func:`ula_gain` of those few entries.
+    Where the compiled loops run (:mod:`leolink.compiled`) a 1-D ``u`` takes
+    :func:`_dirichlet_rows`, the same functions per entry without the (k, m) temporaries;
+    the two agree to ~1e-13 of the peak (``tests/test_array_kernels.py``).
     """
     u = np.asarray(u, dtype=float)
     beam_u = np.asarray(beam_u, dtype=float)
     k = beam_u.size
+    coef = dirichlet_coefficients(beam_u, n)
     if u.ndim == 1 and k and leolink.compiled.use(u.size):
         g = np.empty((k, u.size))
-        _dirichlet_rows(u, beam_u, float(n), g, 0, u.size)  # (one thread: no pool to start)
+        _dirichlet_rows(u, (beam_u, coef, float(n)), g, 0, u.size)  # (one thread: no pool)
         return g
     trig = dirichlet_trig(u, n) if trig is None else trig
-    coef = dirichlet_coefficients(beam_u, n)
-    # BLAS computes a 1-column product on another path (matrix-vector), which rounds
-    # differently: a second column keeps every direction's kernel the same bit for bit
-    # whatever the number of directions in the call.
-    rows = (coef @ np.repeat(trig, 2, axis=1))[:, :1] if u.size == 1 else coef @ trig
-    den, g = rows[:k], rows[k:]
-    near = np.abs(den) < _SIN_RECOMPUTE
     with np.errstate(divide="ignore", invalid="ignore"):  # the near entries are redone below
-        g /= den
-    g *= g
-    g *= 1.0 / n
-    np.minimum(g, n, out=g)  # rounding may overshoot the bound n by ~1 ulp
+        g, near = subtracted_gain(trig, coef[:, :, None], n)
     if near.any():
         kk, mm = nonzero_2d(near)
         g[kk, mm] = ula_gain(u[mm] - beam_u[kk], n)
     return g
 
 
+@leolink.compiled.jitable
+def kernels_of_direction(u, beams, out, p):
+    """``out[:, p]``: the kernels of the direction ``u`` (a scalar) against the beams
+    ``(beam_u (k,), coef (4, k), n)`` as :func:`dirichlet_kernels` computes them (the
+    compiled loops' per-direction step)."""
+    beam_u, coef, n = beams
+    trig = dirichlet_trig(u, n)
+    for j in range(beam_u.size):
+        g, near = subtracted_gain(trig, coef[:, j], n)
+        out[j, p] = ula_gain(u - beam_u[j], n) if near else g
+
+
 @leolink.compiled.jit
-def _dirichlet_rows(u, beam_u, n, out, lo, hi):
-    """:func:`ula_gain` of each direction ``lo .. hi - 1`` against each beam, into ``out``."""
+def _dirichlet_rows(u, beams, out, lo, hi):
+    """:func:`kernels_of_direction` of each direction ``lo .. hi - 1``, into ``out``."""
     for p in range(lo, hi):
-        for j in range(beam_u.size):
-            out[j, p] = ula_gain(u[p] - beam_u[j], n)
+        kernels_of_direction(u[p], beams, out, p)
 
 
 def dirichlet_coefficients(beam_u, n):
-    """The angle-subtraction coefficients of :func:`dirichlet_kernels`, shape (2k, 4):
-    row ``j < k`` gives ``sin(x - b_j)``, row ``k + j`` gives ``sin(n x - n b_j)`` from
-    ``(sin x, cos x, sin n x, cos n x)``, ``b = pi beam_u / 2``."""
-    beam_u = np.asarray(beam_u, dtype=float)
-    k = beam_u.size
-    b = (0.5 * np.pi) * beam_u
-    coef = np.zeros((2 * k, 4))
-    coef[:k, 0], coef[:k, 1] = np.cos(b), -np.sin(b)  # sin(x - b)
-    coef[k:, 2], coef[k:, 3] = np.cos(n * b), -np.sin(n * b)  # sin(n x - n b)
-    return coef
+    """The angle-subtraction coefficients of :func:`subtracted_gain`, shape (4, k):
+    ``(cos b, -sin b, cos n b, -sin n b)`` of ``b = pi beam_u / 2``."""
+    b = (0.5 * np.pi) * np.asarray(beam_u, dtype=float)
+    return np.stack([np.cos(b), -np.sin(b), np.cos(n * b), -np.sin(n * b)])
 
 
 def beam_gain_lin(u_xy, beam_u_xy, n_sub_x, n_sub_y):

@@ -164,8 +164,9 @@ def _roi_trig(directions_key, n_sub_x, n_sub_y):
     the same for every O that ``auto`` tries (a third of a design's time)."""
     u = _roi_directions(*directions_key)[2]
     trig = dirichlet_trig(u[:, 0], n_sub_x), dirichlet_trig(u[:, 1], n_sub_y)
-    for a in trig:
-        a.setflags(write=False)
+    for axis in trig:
+        for a in axis:
+            a.setflags(write=False)
     return trig
 
 

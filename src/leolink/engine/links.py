@@ -16,11 +16,11 @@ from functools import cached_property
 import numpy as np
 
 from leolink import compiled
-from leolink.antenna.array import dirichlet_kernels, ula_gain
+from leolink.antenna.array import dirichlet_kernels, kernels_of_direction
 from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame
 
-__all__ = ["Links", "Snapshot", "azimuth_deg", "group_constants_db", "pair_geometry"]
+__all__ = ["Links", "Snapshot", "group_constants_db", "pair_geometry"]
 __all__ += ["panel_elevation_of_pairs", "reuse_colors", "rows_gain_db"]
 
 
@@ -120,9 +120,20 @@ class Links:
         ``10 log10(k_x k_y p) = 10 log10 k_x + 10 log10 k_y + 10 log10 p``: only the
         ``n_x + n_y`` kernels take a logarithm, not the ``n_beam`` products. ``pairs``
         (indices): those pairs only, shape (n_beam, len(pairs)), the values of
-        ``take(pairs).snr_db_bm`` without copying the pairs' geometry.
+        ``take(pairs).snr_db_bm`` without copying the pairs' geometry. Where the compiled
+        loops run, :func:`_snr_rows` forms the same sums pair by pair.
         """
         kx, ky, path_snr_lin = self.kx, self.ky, self.path_snr_lin
+        if compiled.use(self.n_pair):  # the same sums pair by pair, no (n_beam, m) temporaries
+            if pairs is None or isinstance(pairs, slice):
+                idx = np.arange(self.n_pair)[pairs if pairs is not None else slice(None)]
+            else:
+                idx = np.asarray(pairs)
+                idx = np.flatnonzero(idx) if idx.dtype == bool else idx.astype(np.int64)
+            out = np.empty((len(beam_ix), idx.size))
+            beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
+            compiled.run_rows(_snr_rows, idx.size, kx, ky, path_snr_lin, beams, idx, out)
+            return out
         if pairs is not None:
             kx, ky, path_snr_lin = kx[:, pairs], ky[:, pairs], path_snr_lin[pairs]
         with np.errstate(divide="ignore"):
@@ -148,28 +159,77 @@ class Links:
         if compiled.use(self.n_pair):
             best, best_db = np.empty(self.n_pair, np.int64), np.empty(self.n_pair)
             beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
-            compiled.run_rows(_best_beam_rows, self.n_pair, self.kx, self.ky,
-                              self.path_snr_lin, beams, best, best_db)  # fmt: skip
+            compiled.run_rows(_best_beam_rows, self.n_pair, self.kx, self.ky, self.path_snr_lin,
+                              beams, bool(with_snr_db), (best, best_db))  # fmt: skip
             return best, (best_db if with_snr_db else None)
         snr = self.snr_db_bm(beam_ix, beam_iy)
         beam = np.argmax(snr, axis=0)
         return beam, (snr[beam, np.arange(self.n_pair)] if with_snr_db else None)
 
 
+@compiled.jitable
+def _pair_db(kx, ky, path_snr_lin, p, lx, ly):
+    """``10 log10`` of pair ``p``'s kernels into ``lx``, ``ly``, and of its path SNR
+    (returned): the terms :meth:`Links.snr_db_bm` sums."""
+    for i in range(lx.size):
+        lx[i] = 10.0 * np.log10(kx[i, p])
+    for i in range(ly.size):
+        ly[i] = 10.0 * np.log10(ky[i, p])
+    return 10.0 * np.log10(path_snr_lin[p])
+
+
 @compiled.jit
-def _best_beam_rows(kx, ky, path_snr_lin, beams, best, best_db, lo, hi):
-    """:meth:`Links.best_beam` of the pairs ``lo .. hi - 1`` (``beams``: the rows of
-    ``kx`` and ``ky`` of each beam, (2, n_beam)): each beam's
-    ``10 log10 k_x + 10 log10 k_y + 10 log10 p`` as :meth:`Links.snr_db_bm` sums it, the
-    first maximum, or the first NaN (``numpy.argmax``'s rule)."""
+def _snr_rows(kx, ky, path_snr_lin, beams, idx, out, lo, hi):
+    """:meth:`Links.snr_db_bm` of the pairs ``idx[lo:hi]`` into the columns ``lo .. hi - 1``
+    of ``out`` (``beams``: the rows of ``kx`` and ``ky`` of each beam, (2, n_beam))."""
     beam_ix, beam_iy = beams[0], beams[1]
     lx, ly = np.empty(kx.shape[0]), np.empty(ky.shape[0])
+    for q in range(lo, hi):
+        path_db = _pair_db(kx, ky, path_snr_lin, idx[q], lx, ly)
+        for b in range(beam_ix.size):
+            out[b, q] = lx[beam_ix[b]] + ly[beam_iy[b]] + path_db
+
+
+#: Relative gap between the two largest linear SNRs of a pair above which the largest is
+#: also the largest in dB as :meth:`Links.snr_db_bm` sums it: a gap of 1e-9 is 4.3e-9 dB,
+#: the dB sums err by < 1e-12 dB (three logarithms of ~1 ulp each, terms < 1e3 dB).
+CLEAR_GAP = 1e-9
+
+
+@compiled.jit
+def _best_beam_rows(kx, ky, path_snr_lin, beams, with_db, out, lo, hi):
+    """:meth:`Links.best_beam` of the pairs ``lo .. hi - 1`` (``beams``: the rows of
+    ``kx`` and ``ky`` of each beam, (2, n_beam)). Each beam's linear gain ``k_x k_y``; where
+    the largest exceeds the second by :data:`CLEAR_GAP` it is the dB argmax, and only its dB
+    value is formed (``10 log10 k_x + 10 log10 k_y + 10 log10 p``, as :meth:`Links.
+    snr_db_bm` sums it; none without ``with_db``, ``best_db`` then left unset); otherwise
+    every beam's dB value and the first maximum, or the first NaN (``numpy.argmax``'s
+    rule). ``out``: ``(best, best_db)``."""
+    beam_ix, beam_iy = beams[0], beams[1]
+    best, best_db = out
+    lx, ly = np.empty(kx.shape[0]), np.empty(ky.shape[0])
+    gx, gy = np.empty(kx.shape[0]), np.empty(ky.shape[0])
     for p in range(lo, hi):
-        for i in range(lx.size):
-            lx[i] = 10.0 * np.log10(kx[i, p])
-        for i in range(ly.size):
-            ly[i] = 10.0 * np.log10(ky[i, p])
-        path_db = 10.0 * np.log10(path_snr_lin[p])
+        for i in range(gx.size):
+            gx[i] = kx[i, p]
+        for i in range(gy.size):
+            gy[i] = ky[i, p]
+        top, second, arg = -1.0, -1.0, 0
+        for b in range(beam_ix.size):
+            g = gx[beam_ix[b]] * gy[beam_iy[b]]
+            if g > top:
+                top, second, arg = g, top, b
+            elif g > second:
+                second = g
+        path = path_snr_lin[p]
+        if second < top * (1.0 - CLEAR_GAP) and not np.isnan(path):
+            best[p] = arg
+            if not with_db:
+                continue
+            lx_arg = 10.0 * np.log10(kx[beam_ix[arg], p])
+            best_db[p] = lx_arg + 10.0 * np.log10(ky[beam_iy[arg], p]) + 10.0 * np.log10(path)
+            continue
+        path_db = _pair_db(kx, ky, path_snr_lin, p, lx, ly)
         best[p], best_db[p] = 0, lx[beam_ix[0]] + ly[beam_iy[0]] + path_db
         for b in range(1, beam_ix.size):
             if np.isnan(best_db[p]):
@@ -267,11 +327,6 @@ class Snapshot:
         return self.kx[e.beam_ix] * self.ky[e.beam_iy]
 
     @property
-    def snr_lin_bm(self):
-        """Beam-major linear SNR, shape (n_beam, n_sat, n_ut); NaN where not visible."""
-        return self.gain_tx_bm * self.links.path_snr_lin.reshape(self.n_sat, self.n_ut)
-
-    @property
     def gain_tx_lin(self):
         """Linear TX gain of every beam, shape (n_ut, n_sat, n_beam)."""
         return self.gain_tx_bm.transpose(2, 1, 0)
@@ -363,11 +418,10 @@ def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
         np.ascontiguousarray(sat_pos_m, float),
         body_frame(sat_pos_m, sat_vel_m_s),
     )
+    cx, cy = engine.kernel_coefficients
     lattice = (
-        engine.beam_ux,
-        engine.beam_uy,
-        float(cb.n_sub_x),
-        float(cb.n_sub_y),
+        (engine.beam_ux, cx, float(cb.n_sub_x)),
+        (engine.beam_uy, cy, float(cb.n_sub_y)),
         float(engine.params.min_elevation_rad),
         ut_up is None,
     )
@@ -389,11 +443,12 @@ def _fused_geometry(engine, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up):
 def _pair_rows(frames, pairs, lattice, out, lo, hi):
     """:func:`pair_geometry` of the pairs ``lo .. hi - 1``, each in one pass: the vector
     satellite -> UT, its length, the elevation over the UT's up, the direction cosines in
-    the satellite body frame and their Dirichlet kernels (:func:`ula_gain`). ``sphere``:
+    the satellite body frame and their Dirichlet kernels (:func:`kernels_of_direction`,
+    ``beams_x``, ``beams_y``: the lattice's cosines, coefficients and elements). ``sphere``:
     ``up`` holds the UTs' positions, the sphere's radial up once divided by their norm."""
     ut_pos, up, sat_pos, axes = frames
     ut, sat = pairs
-    beam_ux, beam_uy, n_x, n_y, min_el, sphere = lattice
+    beams_x, beams_y, min_el, sphere = lattice
     rel, rho2, rho, elevation, visible, kx, ky = out
     for p in range(lo, hi):
         u, s = ut[p], sat[p]
@@ -409,10 +464,8 @@ def _pair_rows(frames, pairs, lattice, out, lo, hi):
         visible[p] = elevation[p] >= min_el
         ux = (d[0] * axes[s, 0, 0] + d[1] * axes[s, 0, 1] + d[2] * axes[s, 0, 2]) / rho[p]
         uy = (d[0] * axes[s, 1, 0] + d[1] * axes[s, 1, 1] + d[2] * axes[s, 1, 2]) / rho[p]
-        for j in range(beam_ux.size):
-            kx[j, p] = ula_gain(ux - beam_ux[j], n_x)
-        for j in range(beam_uy.size):
-            ky[j, p] = ula_gain(uy - beam_uy[j], n_y)
+        kernels_of_direction(ux, beams_x, kx, p)
+        kernels_of_direction(uy, beams_y, ky, p)
 
 
 def panel_elevation_of_pairs(rel_m, slant_range_m, ut_normal, ut):
@@ -444,25 +497,3 @@ def reuse_colors(lattice_ij, n_colors):
     if n_colors == 3:
         return (i + 2 * j) % 3
     raise ValueError(f"reuse_colors = {n_colors!r} is not allowed; use 1, 3 or 4")
-
-
-def azimuth_deg(los, ut_pos_m, ut_enu):
-    """Azimuth of each row's link ``los (n, 3)`` (UT -> satellite) [deg], [0, 360).
-
-    With ``ut_enu`` (rows east, north, up): ``atan2(los . east, los . north)``. Without,
-    the sphere's local frame at ``p = (x, y, z)``, ``h^2 = x^2 + y^2``, ``r = |p|``:
-    east ``(-y, x, 0) / h`` and north ``(-z x, -z y, h^2) / (h r)``; both components
-    times ``h r > 0`` leave the angle unchanged, so
-    ``atan2(r (x l_y - y l_x), h^2 l_z - z (x l_x + y l_y))``: no trigonometry but the
-    last arctangent (the same angle as through latitude and longitude, to ~1e-13 deg).
-    """
-    if ut_enu is not None:
-        east = np.einsum("uk,uk->u", los, ut_enu[:, 0, :])
-        north = np.einsum("uk,uk->u", los, ut_enu[:, 1, :])
-    else:
-        x, y, z = ut_pos_m[:, 0], ut_pos_m[:, 1], ut_pos_m[:, 2]
-        lx, ly, lz = los[:, 0], los[:, 1], los[:, 2]
-        h2 = x * x + y * y
-        east = np.sqrt(h2 + z * z) * (x * ly - y * lx)
-        north = h2 * lz - z * (x * lx + y * ly)
-    return np.mod(np.degrees(np.arctan2(east, north)), 360.0)

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+import leolink.compiled
 from leolink.constants import BOLTZMANN_DBW_K_HZ, SPEED_OF_LIGHT_M_S
 
 __all__ = [
@@ -143,6 +144,7 @@ def snr_db(rss_dbw, noise_dbw):
     return np.asarray(rss_dbw, dtype=float) - noise_dbw
 
 
+@leolink.compiled.jitable
 def sinr_lin(signal_lin, interference_lin, noise_lin):
     """SINR ``S / (I + sigma^2)``, linear, Eq. (19) of [1].
 
@@ -166,6 +168,7 @@ def sinr_lin(signal_lin, interference_lin, noise_lin):
     return np.float64(signal_lin) / (interference_lin + noise_lin)
 
 
+@leolink.compiled.jitable
 def spectral_efficiency_bps_hz(sinr_lin):
     """Shannon spectral efficiency ``log2(1 + SINR)`` [bit/s/Hz], Sec. 4.2 of [1] (unnumbered).
 

@@ -17,6 +17,7 @@ masked (NaN) so that the controller leaves them unserved.
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,7 +30,54 @@ from leolink.sim.handover.controller import concat_events, resumed_events, step
 from leolink.sim.handover.events import sorted_events
 from leolink.sim.handover.policies import neighbour_window_db
 
-__all__ = ["Decider"]
+__all__ = ["Decider", "Rules", "Sky"]
+
+
+@dataclass(frozen=True)
+class Rules:
+    """What the controller decides by.
+
+    Parameters
+    ----------
+    policy : Policy
+    min_snr_db, handover_time_s : float
+        The controller's service threshold [dB] and handover execution time [s].
+    selector : leolink.sim.beams.selectors.BeamSelector, optional
+        Active beams: the controller chooses among the lit beams of each epoch, and every
+        visible cell is a candidate (a lit neighbour may be further down than the
+        policy's window). None: every beam lit (today's run, untouched).
+    prune : bool
+        Screen the (UT, satellite) pairs before evaluating them (the same tables,
+        :mod:`leolink.sim.candidates.search`); False evaluates every pair (the reference).
+    """
+
+    policy: object
+    min_snr_db: float
+    handover_time_s: float
+    selector: object = None
+    prune: bool = True
+
+
+@dataclass(frozen=True)
+class Sky:
+    """How the UTs see the satellites.
+
+    Parameters
+    ----------
+    min_elevation_rad, radius_m : float
+        The mask [rad] and the Earth radius [m] (the satellite cone).
+    ellipsoidal : bool
+        The UTs' latitudes are geodetic (WGS 84) and their local frame is the ellipsoid's,
+        handed to the engine; otherwise the engine takes the sphere's radial up.
+    panels : leolink.antenna.panel.PanelOrientation or None
+        The UTs' turned or tilted panels (None: lying flat, x east): their rows per epoch
+        of the block are ``Decider.panel`` (n_k, n_ut, 3, 3), handed to the engine.
+    """
+
+    min_elevation_rad: float
+    radius_m: float
+    ellipsoidal: bool = False
+    panels: object = None
 
 
 class Decider:
@@ -38,52 +86,36 @@ class Decider:
     Parameters
     ----------
     engine : leolink.engine.LinkEngine
-    policy : Policy
-    min_snr_db, handover_time_s : float
-        The controller's service threshold [dB] and handover execution time [s].
-    min_elevation_rad, radius_m : float
-        The mask [rad] and the Earth radius [m] (the satellite cone).
+    rules : Rules
+    sky : Sky
+    motion : leolink.sim.motion.MotionBlocks
     future_state : callable
         ``t -> (ut_pos, sat_pos, sat_vel)`` of every UT and satellite (prediction).
-    motion : leolink.sim.motion.MotionBlocks
     epoch_s : float
-    ellipsoidal : bool
-        The UTs' latitudes are geodetic (WGS 84) and their local frame is the ellipsoid's,
-        handed to the engine; otherwise the engine takes the sphere's radial up.
-    prune : bool
-        Screen the (UT, satellite) pairs before evaluating them (the same tables,
-        :mod:`leolink.sim.candidates.search`); False evaluates every pair (the reference).
     rlf : leolink.sim.handover.rlf_run.RlfRun or None
         Radio link failure bookkeeping (None: off).
-    panels : leolink.antenna.panel.PanelOrientation or None
-        The UTs' turned or tilted panels (None: lying flat, x east): their rows per epoch
-        of the block are ``panel`` (n_k, n_ut, 3, 3), handed to the engine.
-    selector : leolink.sim.beams.selectors.BeamSelector, optional
-        Active beams: the controller chooses among the lit beams of each epoch, and every
-        visible cell is a candidate (a lit neighbour may be further down than the
-        policy's window). None: every beam lit (today's run, untouched).
     """
 
-    def __init__(self, engine, policy, min_snr_db, handover_time_s, min_elevation_rad,
-                 radius_m, future_state, motion, epoch_s=1.0, ellipsoidal=False,
-                 prune=True, panels=None, rlf=None, selector=None):  # fmt: skip
+    def __init__(self, engine, rules, sky, motion, future_state, epoch_s=1.0, rlf=None):
+        policy, min_snr_db, selector = rules.policy, rules.min_snr_db, rules.selector
         self.engine, self.policy, self.rlf = engine, policy, rlf
         run = getattr(policy, "run", None)  # per-cell state: the policy's own run
+        radius_m = sky.radius_m
         self.trigger = run(engine, min_snr_db, radius_m, future_state, epoch_s) if run else None
-        self.min_snr_db, self.handover_time_s = min_snr_db, handover_time_s
+        self.min_snr_db, self.handover_time_s = min_snr_db, rules.handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
-        self.min_el = 0.0 if engine.other_satellites else min_elevation_rad
+        self.min_el = 0.0 if engine.other_satellites else sky.min_elevation_rad
         self.radius_m = radius_m
         self.future_state, self.motion = future_state, motion
-        self.epoch_s, self.ellipsoidal = float(epoch_s), bool(ellipsoidal)
+        self.epoch_s, self.ellipsoidal = float(epoch_s), bool(sky.ellipsoidal)
         self.selector = selector
         # Active beams: the best lit cell may be far below the best cell, so no window.
         self.window_db = neighbour_window_db(policy) if selector is None else np.inf
-        self.prune = prune
+        self.prune = rules.prune
         # A policy blind to cells below the service threshold needs none of them.
         self.floor_db = min_snr_db if getattr(policy, "usable_cells_only", False) else -np.inf
-        self.search = CandidateSearch(engine, self.window_db, prune, self.floor_db)
-        self.panels = panels
+        self.search = CandidateSearch(engine, self.window_db, self.prune, self.floor_db)
+        self.panels = sky.panels
         self.block = self.mb = self.cones = self.enu = self.panel = None
         self.channel = None  # ChannelTracker of the UTs' environments (None: open country)
         self.channels = []  # its EpochChannel of each epoch of the current block

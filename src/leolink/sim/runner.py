@@ -20,7 +20,7 @@ from leolink.orbit import Ephemeris
 from leolink.rng import ut_keys
 from leolink.sim.beams.selectors import BeamSelector
 from leolink.sim.beams.service import BeamService
-from leolink.sim.decide import Decider
+from leolink.sim.decide import Decider, Rules, Sky
 from leolink.sim.environment import ChannelTracker
 from leolink.sim.ephemeris_monitor import TrueLinkMonitor
 from leolink.sim.handover.controller import ControllerState
@@ -237,12 +237,9 @@ def run_simulation(
     if scen.rlf is not None:
         rlf = RlfRun(scen.rlf, n_ut, scen.engine.n_beam, OUTAGE_REASONS.index(RLF_REASON))
     motion = MotionBlocks(believed, scen.populations, times, scen.ephemeris.n_sat, n_ut)
-    decide = Decider(
-        scen.engine, scen.policy, scen.min_snr_db, scen.handover_time_s,
-        scen.min_elevation_rad, scen.radius_m, future_state, motion, epoch_s=scen.epoch_s,
-        ellipsoidal=scen.ellipsoidal, prune=scen.prune, panels=scen.panels, rlf=rlf,
-        selector=scen.selector,
-    )  # fmt: skip
+    rules = Rules(scen.policy, scen.min_snr_db, scen.handover_time_s, scen.selector, scen.prune)
+    sky = Sky(scen.min_elevation_rad, scen.radius_m, scen.ellipsoidal, scen.panels)
+    decide = Decider(scen.engine, rules, sky, motion, future_state, scen.epoch_s, rlf)
     decide.beam_switch_s = scen.beam_switch_s
     if scen.signalling is not None:
         if rlf is None:

@@ -42,6 +42,7 @@ import dataclasses
 
 import numpy as np
 
+from leolink import compiled
 from leolink.arrays import nonzero_2d, take_rows
 from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
@@ -314,6 +315,9 @@ class CandidateSearch:
             if pair_loss is not None:  # the open best, then every SNR after the environment
                 _row_best(rows, snr_bm.T, open_db)
                 snr_bm = snr_bm - pair_loss[pairs][None, :]
+            if self.floor_db == -np.inf and compiled.use(rows.size):  # no (m, nb) temporaries
+                entries.append(window_entries(snr_bm, rows, sat, self.window_db, best_db))
+                continue
             snr = snr_bm.T  # (m, nb)
             _row_best(rows, snr, best_db)
             with np.errstate(invalid="ignore"):
@@ -357,6 +361,51 @@ def _pair_loss(grids, n_ut, cones, links):
             slot = np.searchsorted(cones[k], links.sat[at])  # every pair's satellite is in it
             out[at] = grid[links.ut[at] - k * n_ut, slot]
     return out
+
+
+def window_entries(snr_bm, rows, sat, window_db, best_db):
+    """The window's entries of pairs of the sorted ``rows`` (each row's pairs together):
+    every cell whose SNR is at least the row's best minus ``window_db``, in (pair, beam)
+    order, ``(ut, cell, snr)``; each row's best (NaN ignored; NaN where all are) written
+    into ``best_db``. ``snr_bm``: (n_beam, m) [dB]; ``sat``: each pair's satellite.
+    By the compiled :func:`_window_rows` where it runs, else numpy (the same entries)."""
+    nb, m = snr_bm.shape
+    if compiled.use(m):
+        ut, cell, snr = np.empty(m * nb, np.int64), np.empty(m * nb, np.int64), np.empty(m * nb)
+        out = (ut, cell, snr)
+        n = _window_rows(snr_bm, rows, np.asarray(sat, np.int64), float(window_db), best_db, out)
+        return ut[:n].copy(), cell[:n].copy(), snr[:n].copy()
+    snr = snr_bm.T  # (m, nb)
+    _row_best(rows, snr, best_db)
+    with np.errstate(invalid="ignore"):
+        keep = snr >= (best_db[rows] - window_db)[:, None]
+    pair, beam = np.divmod(np.flatnonzero(keep), nb)
+    return rows[pair], sat[pair] * nb + beam, snr[pair, beam]
+
+
+@compiled.jit
+def _window_rows(snr_bm, rows, sat, window_db, best_db, out):
+    """:func:`window_entries` row by row: the row's best (``numpy.fmax``'s rule), then its
+    entries at or above best - window (a NaN best keeps none); returns their count."""
+    ut, cell, snr = out
+    nb, m = snr_bm.shape
+    n, lo = 0, 0
+    while lo < m:
+        hi, best = lo, np.nan
+        while hi < m and rows[hi] == rows[lo]:
+            for b in range(nb):
+                v = snr_bm[b, hi]
+                if v > best or (np.isnan(best) and not np.isnan(v)):
+                    best = v
+            hi += 1
+        best_db[rows[lo]] = best
+        for p in range(lo, hi):
+            for b in range(nb):
+                if snr_bm[b, p] >= best - window_db:
+                    ut[n], cell[n], snr[n] = rows[p], sat[p] * nb + b, snr_bm[b, p]
+                    n += 1
+        lo = hi
+    return n
 
 
 def _dense_pairs(ks, n_ut, cones):

@@ -19,6 +19,8 @@ import dataclasses
 
 import numpy as np
 
+from leolink import compiled
+
 __all__ = ["Candidates"]
 
 _NO_CELL = np.iinfo(np.int64).max
@@ -96,7 +98,11 @@ class Candidates:
             found = [np.where((column == c) & (c >= 0), 0, -1) for c in (cells, *more)]
             return tuple(found) if more else found[0]
         arrays = np.array((cells, *more), np.int64) if more else np.asarray(cells, np.int64)[None]
-        if self.n_slot == 0:
+        if self.n_slot and compiled.use(self.n_ut):  # the same first hits, row by row
+            arrays = np.broadcast_to(arrays, (arrays.shape[0], self.n_ut))  # (a 1-cell query)
+            slots = np.empty(arrays.shape, np.int64)
+            _slot_rows(self.cell, arrays, slots)
+        elif self.n_slot == 0:
             slots = np.full(arrays.shape, -1, np.int64)
         else:
             hit = self.cell == arrays[..., None]  # (n_arrays, n_ut, n_slot)
@@ -130,9 +136,41 @@ class Candidates:
             val = self.snr_db[:, 0]
             ok = val > -np.inf
             return np.where(ok, self.cell[:, 0], -1).astype(np.int64), np.where(ok, val, np.nan)
+        if compiled.use(self.n_ut):  # the same rule, row by row
+            cell, val = np.empty(self.n_ut, np.int64), np.empty(self.n_ut)
+            _best_rows(self.cell, self.snr_db, cell, val)
+            return cell, val
         filled = np.where(np.isnan(self.snr_db), -np.inf, self.snr_db)
         val = filled.max(axis=1, initial=-np.inf)
         ok = val > -np.inf
         tied = (filled == val[:, None]) & ok[:, None]
         cell = np.where(tied, self.cell, _NO_CELL).min(axis=1, initial=_NO_CELL)
         return np.where(ok, cell, -1).astype(np.int64), np.where(ok, val, np.nan)
+
+
+@compiled.jit
+def _slot_rows(cell, arrays, slots):
+    """:meth:`Candidates.slot_of` of each row of ``arrays`` (n_arrays, n_ut) into ``slots``:
+    the first slot holding the cell, -1 where none does or the cell is < 0."""
+    for a in range(arrays.shape[0]):
+        for i in range(arrays.shape[1]):
+            c, slots[a, i] = arrays[a, i], -1
+            if c >= 0:
+                for s in range(cell.shape[1]):
+                    if cell[i, s] == c:
+                        slots[a, i] = s
+                        break
+
+
+@compiled.jit
+def _best_rows(cell, snr_db, best_cell, best_db):
+    """:meth:`Candidates.best` row by row: the largest value (NaN skipped), ties to the
+    lowest cell id; -1 and NaN where no value is above -inf."""
+    for i in range(cell.shape[0]):
+        val, c = -np.inf, _NO_CELL
+        for s in range(cell.shape[1]):
+            v = snr_db[i, s]
+            if v > val or (v == val and cell[i, s] < c):
+                val, c = v, cell[i, s]
+        ok = val > -np.inf
+        best_cell[i], best_db[i] = (c, val) if ok else (-1, np.nan)
