@@ -64,10 +64,17 @@ MUTATIONS = (
     ),
     Mutation(
         "visibility_cone_halved",
-        "src/leolink/sim/processes.py",
-        "near = angle <= spread + reach + 1e-3",
-        "near = angle <= spread + reach / 2 + 1e-3",
-        ("tests/test_candidates.py", "tests/test_trace_independent.py"),
+        "src/leolink/sim/candidates/tiles.py",
+        "cos_cap = np.cos(np.minimum(spread + reach + CAP_MARGIN_RAD, np.pi))",
+        "cos_cap = np.cos(np.minimum(spread + reach / 2 + CAP_MARGIN_RAD, np.pi))",
+        ("tests/test_candidates.py", "tests/test_tiles.py", "tests/test_trace_independent.py"),
+    ),
+    Mutation(
+        "cap_without_the_ellipsoids_tilt",
+        "src/leolink/sim/candidates/tiles.py",
+        "reach = earth_central_angle_rad(min_elevation_rad - tilt, ",
+        "reach = earth_central_angle_rad(min_elevation_rad, ",
+        ("tests/test_tiles.py",),
     ),
     Mutation(
         "along_against_swapped",

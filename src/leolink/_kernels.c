@@ -681,6 +681,53 @@ static inline double screen_envelope(double u, const Arr *beams, double n)
     return n < v ? n : v;
 }
 
+/* One pair of screening.screen: UT at p with up e (unit), satellite j; k = K (1 + slack)
+ * times the UT's factor. */
+static inline void screen_pair(double px, double py, double pz, double ex, double ey, double ez,
+                               double k, const Arr *sat_pos, const Arr *ax_x, const Arr *ax_y,
+                               Py_ssize_t j, const Arr *bx, const Arr *by, double nx, double ny,
+                               double s_lo, double s_hi, int8_t *code, double *bound,
+                               double *sin_out)
+{
+    double dx = px - E2(*sat_pos, double, j, 0), dy = py - E2(*sat_pos, double, j, 1);
+    double dz = pz - E2(*sat_pos, double, j, 2);
+    double rho2 = dx * dx + dy * dy + dz * dz;
+    double inv = 1.0 / sqrt(rho2);
+    double s_el = -(dx * ex + dy * ey + dz * ez) * inv;
+    *sin_out = s_el;
+    if (s_el < s_lo) {
+        *code = 0;
+        *bound = -1.0;
+        return;
+    }
+    *code = s_el >= s_hi ? 2 : 1;
+    double ux = (dx * E2(*ax_x, double, j, 0) + dy * E2(*ax_x, double, j, 1) +
+                 dz * E2(*ax_x, double, j, 2)) *
+                inv;
+    double uy = (dx * E2(*ax_y, double, j, 0) + dy * E2(*ax_y, double, j, 1) +
+                 dz * E2(*ax_y, double, j, 2)) *
+                inv;
+    *bound = k / rho2 * screen_envelope(ux, bx, nx) * screen_envelope(uy, by, ny);
+}
+
+/* The unit up of UT i: its radius's direction on the sphere, else ut_up's row. */
+static inline void screen_up(const Arr *ut_pos, const Arr *ut_up, int sphere, Py_ssize_t i,
+                             double *ex, double *ey, double *ez)
+{
+    if (sphere) {
+        double px = E2(*ut_pos, double, i, 0), py = E2(*ut_pos, double, i, 1);
+        double pz = E2(*ut_pos, double, i, 2);
+        double r = sqrt(px * px + py * py + pz * pz);
+        *ex = px / r;
+        *ey = py / r;
+        *ez = pz / r;
+    } else {
+        *ex = E2(*ut_up, double, i, 0);
+        *ey = E2(*ut_up, double, i, 1);
+        *ez = E2(*ut_up, double, i, 2);
+    }
+}
+
 /* screen_kernel(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_lin, s_min,
  *               band, slack, ut_factor, code, bound, sin_out, lo, hi): code, bound and
  * sin(elevation) (n_u, n_s) as screening.screen gives them, rows lo .. hi - 1. It rounds
@@ -719,42 +766,80 @@ static PyObject *screen_kernel(PyObject *self, PyObject *args)
         double px = E2(ut_pos, double, i, 0), py = E2(ut_pos, double, i, 1);
         double pz = E2(ut_pos, double, i, 2);
         double ex, ey, ez;
-        if (sphere) {
-            double r = sqrt(px * px + py * py + pz * pz);
-            ex = px / r;
-            ey = py / r;
-            ez = pz / r;
-        } else {
-            ex = E2(ut_up, double, i, 0);
-            ey = E2(ut_up, double, i, 1);
-            ez = E2(ut_up, double, i, 2);
-        }
+        screen_up(&ut_pos, &ut_up, sphere, i, &ex, &ey, &ez);
         double k = k_lin * (1.0 + slack) * E1(ut_factor, double, i);
-        for (Py_ssize_t j = 0; j < n_s; j++) {
-            double dx = px - E2(sat_pos, double, j, 0), dy = py - E2(sat_pos, double, j, 1);
-            double dz = pz - E2(sat_pos, double, j, 2);
-            double rho2 = dx * dx + dy * dy + dz * dz;
-            double inv = 1.0 / sqrt(rho2);
-            double s_el = -(dx * ex + dy * ey + dz * ez) * inv;
-            E2(sin_out, double, i, j) = s_el;
-            if (s_el < s_lo) {
-                E2(code, int8_t, i, j) = 0;
-                E2(bound, double, i, j) = -1.0;
-                continue;
-            }
-            E2(code, int8_t, i, j) = s_el >= s_hi ? 2 : 1;
-            double ux = (dx * E2(ax_x, double, j, 0) + dy * E2(ax_x, double, j, 1) +
-                         dz * E2(ax_x, double, j, 2)) *
-                        inv;
-            double uy = (dx * E2(ax_y, double, j, 0) + dy * E2(ax_y, double, j, 1) +
-                         dz * E2(ax_y, double, j, 2)) *
-                        inv;
-            E2(bound, double, i, j) =
-                k / rho2 * screen_envelope(ux, &bx, nx) * screen_envelope(uy, &by, ny);
-        }
+        for (Py_ssize_t j = 0; j < n_s; j++)
+            screen_pair(px, py, pz, ex, ey, ez, k, &sat_pos, &ax_x, &ax_y, j, &bx, &by, nx, ny, s_lo,
+                        s_hi, &E2(code, int8_t, i, j), &E2(bound, double, i, j),
+                        &E2(sin_out, double, i, j));
     }
     Py_END_ALLOW_THREADS;
     release(a, 11);
+    Py_RETURN_NONE;
+}
+
+/* screen_ragged(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_lin, s_min, band,
+ *               slack, ut_factor, sat, cap_start, group, start, code, bound, sin_out, lo, hi):
+ * screen_kernel's pairs of UT i with the satellites of its group g = group[i],
+ * sat[cap_start[g] .. cap_start[g + 1] - 1] (rows of sat_pos, ax_x, ax_y), written in that
+ * order at start[i] .. start[i + 1] - 1 of the flat code, bound and sin_out, for the UTs
+ * lo .. hi - 1 (screening.screen_ragged). */
+static PyObject *screen_ragged(PyObject *self, PyObject *args)
+{
+    PyObject *o[15];
+    int sphere;
+    double nx, ny, k_lin, s_min, band, slack;
+    Py_ssize_t lo, hi;
+    if (!PyArg_ParseTuple(args, "OOpOOOOOddddddOOOOOOOOnn", &o[0], &o[1], &sphere, &o[2], &o[3],
+                          &o[4], &o[5], &o[6], &nx, &ny, &k_lin, &s_min, &band, &slack, &o[7],
+                          &o[8], &o[9], &o[10], &o[11], &o[12], &o[13], &o[14], &lo, &hi))
+        return NULL;
+    static const Spec spec[15] = {
+        {"ut_pos", 'd', 2, 0},    {"ut_up", 'd', 2, 0},     {"sat_pos", 'd', 2, 0},
+        {"ax_x", 'd', 2, 0},      {"ax_y", 'd', 2, 0},      {"bx", 'd', 1, 0},
+        {"by", 'd', 1, 0},        {"ut_factor", 'd', 1, 0}, {"sat", 'q', 1, 0},
+        {"cap_start", 'q', 1, 0}, {"group", 'q', 1, 0},     {"start", 'q', 1, 0},
+        {"code", 'b', 1, 1},      {"bound", 'd', 1, 1},     {"sin_out", 'd', 1, 1}};
+    Arr a[15];
+    if (take_all(o, a, spec, 15) < 0)
+        return NULL;
+    Arr ut_pos = a[0], ut_up = a[1], sat_pos = a[2], ax_x = a[3], ax_y = a[4], bx = a[5];
+    Arr by = a[6], ut_factor = a[7], sat = a[8], cap_start = a[9], group = a[10], start = a[11];
+    Arr code = a[12], bound = a[13], sin_out = a[14];
+    Py_ssize_t n_s = sat_pos.n[0], m = code.n[0], n_g = cap_start.n[0] - 1;
+    ROWS(lo, hi, start.n[0] - 1);
+    REQUIRE(n_g >= 0 && group.n[0] >= hi);
+    REQUIRE(ut_pos.n[0] >= hi && ut_pos.n[1] >= 3 && ut_factor.n[0] >= hi);
+    REQUIRE(sphere || (ut_up.n[0] >= hi && ut_up.n[1] >= 3));
+    REQUIRE(bound.n[0] >= m && sin_out.n[0] >= m);
+    REQUIRE(ax_x.n[0] >= n_s && ax_y.n[0] >= n_s);
+    REQUIRE(sat_pos.n[1] >= 3 && ax_x.n[1] >= 3 && ax_y.n[1] >= 3);
+    REQUIRE(bx.n[0] >= 1 && by.n[0] >= 1);
+    INDICES(cap_start, 0, n_g + 1, sat.n[0] + 1);
+    INDICES(sat, 0, sat.n[0], n_s);
+    INDICES(group, lo, hi, n_g);
+    INDICES(start, lo, hi + 1, m + 1);
+    for (Py_ssize_t i = lo; i < hi; i++) {
+        int64_t g = E1(group, int64_t, i);
+        int64_t n_cap = E1(cap_start, int64_t, g + 1) - E1(cap_start, int64_t, g);
+        REQUIRE(n_cap >= 0 && E1(start, int64_t, i + 1) - E1(start, int64_t, i) == n_cap);
+    }
+    Py_BEGIN_ALLOW_THREADS;
+    double s_lo = s_min - band, s_hi = s_min + band;
+    for (Py_ssize_t i = lo; i < hi; i++) {
+        double px = E2(ut_pos, double, i, 0), py = E2(ut_pos, double, i, 1);
+        double pz = E2(ut_pos, double, i, 2);
+        double ex, ey, ez;
+        screen_up(&ut_pos, &ut_up, sphere, i, &ex, &ey, &ez);
+        double k = k_lin * (1.0 + slack) * E1(ut_factor, double, i);
+        int64_t c0 = E1(cap_start, int64_t, E1(group, int64_t, i)), q0 = E1(start, int64_t, i);
+        for (int64_t q = q0; q < E1(start, int64_t, i + 1); q++)
+            screen_pair(px, py, pz, ex, ey, ez, k, &sat_pos, &ax_x, &ax_y,
+                        E1(sat, int64_t, c0 + q - q0), &bx, &by, nx, ny, s_lo, s_hi,
+                        &E1(code, int8_t, q), &E1(bound, double, q), &E1(sin_out, double, q));
+    }
+    Py_END_ALLOW_THREADS;
+    release(a, 15);
     Py_RETURN_NONE;
 }
 
@@ -1471,6 +1556,7 @@ static PyMethodDef methods[] = {
     {"best_beam_kernel", best_beam_kernel, METH_VARARGS, "Links.best_beam of the pairs."},
     {"serve_kernel", serve_kernel, METH_VARARGS, "LinkEngine.serve_pairs, per row."},
     {"screen_kernel", screen_kernel, METH_VARARGS, "screening.screen, per UT row."},
+    {"screen_ragged", screen_ragged, METH_VARARGS, "screening.screen_ragged, per UT row."},
     {"table_best", table_best, METH_VARARGS, "Candidates.best."},
     {"table_slots", table_slots, METH_VARARGS, "Candidates.slot_of."},
     {"table_values_at", table_values_at, METH_VARARGS, "Candidates.at."},

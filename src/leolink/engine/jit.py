@@ -23,7 +23,7 @@ import numpy as np
 from leolink.compiled import SPLIT_MIN_ROWS, enabled, n_threads, run_rows
 
 __all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
-__all__ += ["serve_columns", "serve_pairs", "serving_column"]
+__all__ += ["screen_ragged_kernel", "serve_columns", "serve_pairs", "serving_column"]
 __all__ += ["SPLIT_MIN_ROWS", "find_pairs"]
 
 
@@ -115,6 +115,13 @@ def serve_pairs(engine, links, pr, served, b, rows):
     from leolink.engine import SERVE_COLUMNS, SERVE_GEOMETRY_COLUMNS
 
     return dict(zip(SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS, out, strict=True))
+
+
+@functools.cache
+def screen_ragged_kernel():
+    """The compiled screening loop of UTs with their own satellites
+    (:func:`leolink.engine.kernels.screen_ragged`)."""
+    return kernels().screen_ragged
 
 
 @functools.cache

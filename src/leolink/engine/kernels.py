@@ -34,7 +34,8 @@ Every kernel fills the rows ``lo .. hi - 1`` of its outputs without the GIL
   per row, ``out`` (16, n) in the order of ``SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS``;
 - ``screen_kernel``: ``screening.screen``'s codes, bounds and sin(elevation), per UT row.
   It rounds differently from the numpy code: both bounds are rigorous, and it decides which
-  pairs are evaluated, never a value that reaches an output.
+  pairs are evaluated, never a value that reaches an output;
+- ``screen_ragged``: the same pairs, each UT with its own satellites (a flat output).
 """
 
 from __future__ import annotations
@@ -43,11 +44,13 @@ from leolink import _kernels
 from leolink.antenna.array import _SIN_RECOMPUTE, _SIN_TINY
 
 __all__ = ["best_beam_kernel", "links_kernel", "screen_kernel", "serve_kernel", "snr_kernel"]
+__all__ += ["screen_ragged"]
 
 snr_kernel = _kernels.snr_kernel
 best_beam_kernel = _kernels.best_beam_kernel
 serve_kernel = _kernels.serve_kernel
 screen_kernel = _kernels.screen_kernel
+screen_ragged = _kernels.screen_ragged
 
 
 def links_kernel(ut_pos, ut_up, sphere, r_ut, sat_pos, ax_x, ax_y, ut, sat, min_el, bx, cx, nx,

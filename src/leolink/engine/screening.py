@@ -37,6 +37,7 @@ from leolink.engine.links import rows_gain_db
 from leolink.engine.steered import steered_bound_lin
 
 __all__ = ["BOUND_SLACK", "SIN_EL_BAND", "UNCERTAIN", "VISIBLE", "envelope", "screen"]
+__all__ += ["screen_ragged"]
 
 #: Relative margin of the SNR upper bound over rounding (and the gain models' smoothness).
 BOUND_SLACK = 1e-6
@@ -122,12 +123,78 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     rows = np.flatnonzero(np.isnan(factor))
     if rows.size:  # UTs whose gain or loss depends on the elevation: per pair
         r, s = nonzero_2d(code[rows] > 0)
-        sin_rx = None
-        if ut_normal is not None:  # the gain sees the angle above the panel plane
-            d = sat_pos_m[s] - ut_pos_m[rows[r]]
-            sin_rx = np.einsum("pk,pk->p", d, ut_normal[rows[r]]) / np.linalg.norm(d, axis=1)
-        bound[rows[r], s] *= _pair_factor(engine, sin_el[rows[r], s], ut_id[rows[r]], sin_rx)
+        pairs = (rows[r], s)
+        bound[pairs] *= _elevation_factor(engine, ut_pos_m, sat_pos_m, sin_el[pairs], pairs,
+                                          ut_id, ut_normal)  # fmt: skip
     return code, bound
+
+
+def screen_ragged(engine, ut_pos_m, sat_pos_m, sat_axes, caps, ut_up=None, ut_id=None,
+                  ut_normal=None):  # fmt: skip
+    """:func:`screen` of groups of UTs, each against its own satellites, flat, in one call
+    of the compiled loop.
+
+    UT ``i`` of group ``g = caps.group[i]`` is screened against the satellites
+    ``caps.sat[caps.start[g] : caps.start[g + 1]]`` (rows of ``sat_pos_m`` and
+    ``sat_axes``), in that order, at ``start[i] : start[i + 1]`` of the flat outputs. The
+    caller runs it where :func:`leolink.compiled.use` and the beams are not re-steered
+    (else :func:`screen` per group).
+
+    Parameters
+    ----------
+    engine : leolink.engine.LinkEngine
+    ut_pos_m : ndarray, shape (n_u, 3)
+    sat_pos_m : ndarray, shape (n_s, 3)
+    sat_axes : ndarray, shape (n_s, 3, 3)
+    caps : leolink.sim.candidates.tiles.Caps
+        The groups' satellites: ``sat`` (flat), ``start`` (n_group + 1,), ``group`` (n_u,).
+    ut_up, ut_id, ut_normal : as for :func:`screen`
+
+    Returns
+    -------
+    code : ndarray of int8, shape (m,)
+    bound : ndarray, shape (m,)
+    start : ndarray of int, shape (n_u + 1,)
+        Each UT's first pair.
+    """
+    from leolink.engine import jit
+
+    n_u = len(ut_pos_m)
+    ut_id = np.arange(n_u) if ut_id is None else ut_id
+    factor = _ut_factor(engine, ut_id)
+    size = np.diff(caps.start)[caps.group]
+    start = np.zeros(n_u + 1, np.int64)
+    np.cumsum(size, out=start[1:])
+    m = int(start[-1])
+    code, bound, sin_el = np.empty(m, np.int8), np.empty(m), np.empty(m)
+    up = np.zeros((0, 3)) if ut_up is None else np.ascontiguousarray(ut_up, float)
+    jit.run_rows(
+        jit.screen_ragged_kernel(), n_u, np.ascontiguousarray(ut_pos_m, float), up,
+        ut_up is None, np.ascontiguousarray(sat_pos_m, float),
+        np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
+        engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
+        engine._k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
+        np.where(np.isnan(factor), 1.0, factor), caps.sat, caps.start, caps.group, start, code,
+        bound, sin_el, row_size=max(1, m // max(n_u, 1)),
+    )  # fmt: skip
+    rows = np.isnan(factor)
+    if rows.any():  # UTs whose gain or loss depends on the elevation: per pair
+        p = np.flatnonzero(np.repeat(rows, size) & (code > 0))
+        pairs = caps.pairs(start, p)
+        bound[p] *= _elevation_factor(engine, ut_pos_m, sat_pos_m, sin_el[p], pairs, ut_id,
+                                      ut_normal)  # fmt: skip
+    return code, bound, start
+
+
+def _elevation_factor(engine, ut_pos_m, sat_pos_m, sin_el, pairs, ut_id, ut_normal):
+    """:func:`_pair_factor` of the pairs ``(ut row, satellite row)`` whose screening
+    elevations are ``sin_el``, with the panel's angle where the UTs have normals."""
+    r, s = pairs
+    sin_rx = None
+    if ut_normal is not None:  # the gain sees the angle above the panel plane
+        d = sat_pos_m[s] - ut_pos_m[r]
+        sin_rx = np.einsum("pk,pk->p", d, ut_normal[r]) / np.linalg.norm(d, axis=1)
+    return _pair_factor(engine, sin_el, ut_id[r], sin_rx)
 
 
 def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_id=None):

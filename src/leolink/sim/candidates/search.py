@@ -33,12 +33,13 @@ import dataclasses
 import numpy as np
 
 from leolink import compiled
-from leolink.arrays import nonzero_2d, take_rows
+from leolink.arrays import take_rows
 from leolink.engine import jit
 from leolink.engine.links import Links
-from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
-from leolink.geometry import body_frame
+from leolink.engine.screening import UNCERTAIN, VISIBLE, screen, screen_ragged
+from leolink.geometry import body_frame, earth_central_angle_rad
 from leolink.sim.candidates.table import Candidates
+from leolink.sim.candidates.tiles import Caps, choose_groups, group_cones
 
 __all__ = ["DENSE_CONE", "BlockCandidates", "CandidateSearch"]
 
@@ -154,10 +155,12 @@ class CandidateSearch:
         nrm = None if normal is None else normal.reshape(-1, 3)
         widest = max((len(c) for c in cones), default=0)
         step = int(np.clip(SCREEN_PAIRS // max(n_ut * widest, 1), 1, n_k))
+        groups = self._groups(ut_pos_m[0], sat_pos_m[0]) if self.prune else None
+        geo = (pos, up, sat_pos_m, sat_vel_m_s)
         parts = []
         for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
             ks = range(lo, min(lo + step, n_k))
-            parts.append(self._chunk(ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm))
+            parts.append(self._chunk(ks, n_ut, geo, cones, nrm, groups))
         links = Links.concat([p[0] for p in parts])
         sure = np.concatenate([p[1] for p in parts])
         order = np.lexsort((links.sat, links.ut))
@@ -165,65 +168,124 @@ class CandidateSearch:
             links = links.take(order)
         return self._tables(k0, n_ut, n_k, links, sure)
 
-    def _chunk(self, ks, n_ut, pos, up, sat_pos_m, sat_vel_m_s, cones, nrm=None):
+    def _groups(self, ut_pos_m, sat_pos_m):
+        """The UTs' screening groups of a block, from its first epoch (the caps are each
+        epoch's own: the groups only decide how UTs share a cap)."""
+        r_ut = float(np.mean(np.linalg.norm(ut_pos_m, axis=1)))
+        r_sat = float(np.mean(np.linalg.norm(sat_pos_m, axis=1)))
+        el = self.engine.params.min_elevation_rad
+        return choose_groups(
+            ut_pos_m, len(sat_pos_m), earth_central_angle_rad(el, r_sat - r_ut, r_ut)
+        )
+
+    def _chunk(self, ks, n_ut, geo, cones, nrm=None, groups=None):
         """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
-        global id) and the rows' visible satellites that were not evaluated."""
-        sure = np.zeros(len(ks) * n_ut, np.int64)
+        global id) and the rows' visible satellites that were not evaluated (``geo``: the
+        block's UT rows, their up, the satellites' positions and velocities; ``groups``:
+        the UTs' screening groups, :func:`~leolink.sim.candidates.tiles.choose_groups`)."""
+        n_rows = len(ks) * n_ut
         if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
             rows, sats = _dense_pairs(ks, n_ut, cones)
-            return self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm), sure
-        rows1, sats1, rows2, sats2, screened = [], [], [], [], []
-        for i, k in enumerate(ks):
-            rows = k * n_ut + np.arange(n_ut)
-            cone = cones[k]
-            code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone, nrm)
-            first = np.argmax(bound, axis=1)
-            chosen = code == UNCERTAIN
-            has = np.flatnonzero(bound[np.arange(n_ut), first] >= 0.0)
-            chosen[has, first[has]] = True
-            r, s = nonzero_2d(chosen)
-            rows1.append(rows[r])
-            sats1.append(cone[s])
-            screened.append((i, rows, cone, code, bound, chosen))
-        links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1, nrm)
+            return self.evaluate(*geo, n_ut, rows, sats, nrm), np.zeros(n_rows, np.int64)
+        pos = geo[0]
+        row, sat, code, bound, top = self._screened(ks, n_ut, geo, nrm, groups)
+        chosen = (code == UNCERTAIN) | (bound == top)  # (bound >= 0 where code > 0)
+        links1 = self.evaluate(*geo, n_ut, row[chosen], sat[chosen], nrm)
         reach = np.zeros(pos.shape[0])
         gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
         lin = np.where(links1.visible, gain, 0.0)
         np.maximum.at(reach, links1.ut, lin * links1.path_lin)
         factor = 10.0 ** (-self.window_db / 10.0)
         floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
-        for i, rows, cone, code, bound, chosen in screened:
-            low = np.maximum(reach[rows] * factor, floor_lin)
-            with np.errstate(invalid="ignore"):
-                more = (code > 0) & (bound >= low[:, None]) & ~chosen
-            r, s = nonzero_2d(more)
-            rows2.append(rows[r])
-            sats2.append(cone[s])
-            sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
-        links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2, nrm)
+        low = np.maximum(reach[row] * factor, floor_lin)
+        with np.errstate(invalid="ignore"):
+            more = (bound >= low) & ~chosen
+        links2 = self.evaluate(*geo, n_ut, row[more], sat[more], nrm)
+        unseen = row[(code == VISIBLE) & ~chosen & ~more] - ks.start * n_ut
+        sure = np.bincount(unseen, minlength=n_rows)
         return Links.concat([links1, links2]), sure
 
-    def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone, nrm=None):
-        """:func:`screen` of the UT rows ``rows`` against the cone, in blocks of UTs."""
-        eng = self.engine
-        axes = body_frame(sat_pos_m[cone], sat_vel_m_s[cone])
+    def _screened(self, ks, n_ut, geo, nrm, groups):
+        """The pairs of the epochs ``ks`` above the mask or near it, each group of UTs
+        screened against its cap (:func:`~leolink.sim.candidates.tiles.group_cones`):
+        their rows, satellites (global ids), codes, bounds and their UT's largest bound
+        (NaN if any is), flat."""
+        pos, up, sat_pos_m, sat_vel_m_s = geo
+        label = np.empty(n_ut, np.int64)
+        for g, members in enumerate(groups):
+            label[members] = g
+        min_el = self.engine.params.min_elevation_rad
+        parts = []
+        for k in ks:
+            rows = k * n_ut + np.arange(n_ut)
+            ut_up = None if up is None else up[rows]
+            caps = group_cones(sat_pos_m[k], pos[rows], ut_up, min_el, label, len(groups))
+            union = np.unique(caps.sat)
+            axes = body_frame(sat_pos_m[k][union], sat_vel_m_s[k][union])
+            local = Caps(np.searchsorted(union, caps.sat), caps.start, caps.group)
+            sats = (sat_pos_m[k][union], axes, union)
+            u, s, code, bound, top = self._screen_caps(pos, up, rows, sats, local, groups, nrm)
+            parts.append((rows[u], union[s], code, bound, top))
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+
+    def _screen_caps(self, pos, up, rows, sats, caps, groups, nrm):
+        """One epoch's UT rows ``rows`` screened against their caps (``sats``: positions,
+        body frames and global ids of the satellites ``caps`` index): the pairs above the
+        mask or near it, flat (UT, satellite, code, bound, the UT's largest bound), by the
+        compiled loop in one call where it runs, else by :func:`screen` per group."""
+        sat_pos_m, axes, sat_id = sats
         n_ut = len(rows)
         ut_id = np.arange(n_ut)
-        n_part = -(-n_ut * len(cone) // SCREEN_PAIRS)
+        if compiled.use(caps.sat.size) and self.engine.steering is None:
+            code, bound, start = screen_ragged(
+                self.engine, pos[rows], sat_pos_m, axes, caps,
+                None if up is None else up[rows], ut_id, None if nrm is None else nrm[rows],
+            )  # fmt: skip
+            flat = np.flatnonzero(code > 0)
+            u, s = caps.pairs(start, flat)
+            top = np.full(n_ut, -1.0)
+            has = np.flatnonzero(start[1:] > start[:-1])
+            if has.size:
+                top[has] = np.maximum.reduceat(bound, start[has])
+            return u, s, code[flat], bound[flat], top[u]
+        parts = []
+        for g, members in enumerate(groups):
+            cap = caps.of(g)
+            if cap.size == 0:
+                continue
+            code, bound = self._screen(pos, up, rows[members], sat_pos_m[cap], axes[cap],
+                                       members, nrm, sat_id[cap])  # fmt: skip
+            flat = np.flatnonzero(code > 0)
+            i, j = np.divmod(flat, cap.size)
+            top = bound.max(axis=1)
+            parts.append((members[i], cap[j], code.reshape(-1)[flat], bound.reshape(-1)[flat],
+                          top[i]))  # fmt: skip
+        if not parts:
+            empty = np.zeros(0, np.int64)
+            return empty, empty, np.zeros(0, np.int8), np.zeros(0), np.zeros(0)
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+
+    def _screen(self, pos, up, rows, sat_pos_m, axes, ut_id, nrm, sat_id):
+        """:func:`screen` of the UT rows ``rows`` (UTs ``ut_id``) against the satellites at
+        ``sat_pos_m`` (body frames ``axes``, global ids ``sat_id``), in blocks of UTs."""
+        n_ut = len(rows)
+        n_part = -(-n_ut * len(sat_id) // SCREEN_PAIRS)
         step = -(-n_ut // max(n_part, 1))
         parts = [
             screen(
-                eng,
+                self.engine,
                 pos[rows[lo : lo + step]],
-                sat_pos_m[cone],
+                sat_pos_m,
                 axes,
                 None if up is None else up[rows[lo : lo + step]],
                 ut_id[lo : lo + step],
                 None if nrm is None else nrm[rows[lo : lo + step]],
-                cone,
+                sat_id,
             )  # fmt: skip
             for lo in range(0, n_ut, step)
         ]
+        if len(parts) == 1:
+            return parts[0]
         return (np.concatenate([p[j] for p in parts]) for j in (0, 1))
 
     def evaluate(self, pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm=None):
