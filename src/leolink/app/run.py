@@ -246,7 +246,7 @@ def _run_and_write(cfg, scen, out_dir, summary, sinks, progress):
 def _write(cfg, scen, out_dir, summary, sinks, stats):
     """The run's own files, then the sinks' (``after_run``), then ``run.json``."""
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
-    report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
+    report = next((s.stats for s in sinks if hasattr(s, "stats")), None)  # the report's
     per_ut = summary.per_ut_table()
     if out_dir is None:
         return Result(result_summary, None, [], sinks[1], report, per_ut)
