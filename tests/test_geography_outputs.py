@@ -56,7 +56,7 @@ def test_bands_are_the_trace_binned_by_latitude(done):
     res, trace, events, _ = done
     band = np.floor((trace["lat_deg"] + 90.0) / BAND_DEG).astype(int)
     crossers = trace[trace["population"] == "crossers"].groupby("ut_id")["lat_deg"]
-    crossed = (np.floor((crossers.max() + 90) / 10) != np.floor((crossers.min() + 90) / 10))
+    crossed = np.floor((crossers.max() + 90) / 10) != np.floor((crossers.min() + 90) / 10)
     assert crossed.sum() >= 4  # most movers change band during the run
     at = trace.set_index(["ut_id", "time_s"])["lat_deg"]
     ho = events[events["kind"].isin(["beam_handover", "sat_handover"])]
