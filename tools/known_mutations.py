@@ -176,8 +176,8 @@ MUTATIONS = (
     Mutation(
         "search_floor_3_db_high",
         "src/leolink/sim/candidates/search.py",
-        "low = np.maximum(reach[rows] * factor, floor_lin)",
-        "low = np.maximum(reach[rows] * factor, floor_lin * 2.0)",
+        "low = np.maximum(reach[row] * factor, floor_lin)",
+        "low = np.maximum(reach[row] * factor, floor_lin * 2.0)",
         ("tests/test_search.py",),
     ),
     Mutation(
@@ -326,8 +326,8 @@ MUTATIONS += (
     Mutation(
         "screening_ignores_panel_normal",
         "src/leolink/engine/screening.py",
-        "        if ut_normal is not None:  # the gain sees",
-        "        if ut_normal is None:  # the gain sees",
+        "    if ut_normal is not None:  # the gain sees",
+        "    if ut_normal is None:  # the gain sees",
         ("tests/test_search.py",),
     ),
 )
