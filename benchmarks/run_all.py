@@ -24,10 +24,12 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 #: The benchmark modules, in the order they run (each ``main(quick, argv) -> dict``).
-MODULES = ("bench_engine", "bench_sim", "bench_constellation", "bench_small",
-           "bench_memory", "bench_visibility", "bench_peer")  # fmt: skip
+MODULES = ("bench_engine", "bench_sim", "bench_constellation", "bench_features",
+           "bench_small", "bench_memory", "bench_visibility", "bench_peer")  # fmt: skip
 #: Benchmarks run on their own, not by this command (minutes each, or a part's floor).
 RUN_ALONE = ("bench_report", "bench_writer")
+#: The variants of bench_features (its VARIANTS).
+FEATURES = ("a3", "cho", "t1", "time_to_exit", "predictive", "urban", "report", "global")
 #: Aims of the issue (speed at constellation scale): name -> (unit, "<=" or ">=", aim).
 AIMS = {
     "engine.ut_epochs_per_s": ("UT-ep/s", ">=", 3e6),
@@ -36,6 +38,12 @@ AIMS = {
     "constellation.peak_rss_mib": ("MiB", "<=", 1024.0),
     "constellation.noplots_wall_s": ("s", "<=", 20.0),
     "constellation.noplots_peak_rss_mib": ("MiB", "<=", 1024.0),
+    # Every feature at the speed of the core (issue 44): each variant over its baseline.
+    **{
+        f"features.{v}_cpu_ratio": ("x", "<=", {"predictive": 3.0, "global": 1.5}.get(v, 2.0))
+        for v in FEATURES
+    },
+    **{f"features.{v}_rss_ratio": ("x", "<=", 1.5) for v in FEATURES},
     "small.fixed_ms_per_epoch": ("ms", "<=", 0.2),
     "small.ut_epochs_per_s": ("UT-ep/s", ">=", 15e3),
     "visibility.speedup_vs_skyfield": ("x", ">=", 100.0),
