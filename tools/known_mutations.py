@@ -151,6 +151,13 @@ MUTATIONS = (
         ("tests/test_jit.py",),
     ),
     Mutation(
+        "kernel_screens_every_ut_against_its_caps_first_satellite",
+        "src/leolink/_kernels.c",
+        "E1(sat, int64_t, c0 + q - q0), &bx, &by,",
+        "E1(sat, int64_t, c0), &bx, &by,",
+        ("tests/test_tiles.py",),
+    ),
+    Mutation(
         "screening_bound_without_grating_lobes",
         "src/leolink/engine/screening.py",
         "np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u), out=d)",

@@ -728,62 +728,14 @@ static inline void screen_up(const Arr *ut_pos, const Arr *ut_up, int sphere, Py
     }
 }
 
-/* screen_kernel(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_lin, s_min,
- *               band, slack, ut_factor, code, bound, sin_out, lo, hi): code, bound and
- * sin(elevation) (n_u, n_s) as screening.screen gives them, rows lo .. hi - 1. It rounds
- * differently from the numpy code; both bounds hold (it decides what is evaluated, never
- * a value that reaches an output). */
-static PyObject *screen_kernel(PyObject *self, PyObject *args)
-{
-    PyObject *o[11];
-    int sphere;
-    double nx, ny, k_lin, s_min, band, slack;
-    Py_ssize_t lo, hi;
-    if (!PyArg_ParseTuple(args, "OOpOOOOOddddddOOOOnn", &o[0], &o[1], &sphere, &o[2], &o[3], &o[4],
-                          &o[5], &o[6], &nx, &ny, &k_lin, &s_min, &band, &slack, &o[7], &o[8],
-                          &o[9], &o[10], &lo, &hi))
-        return NULL;
-    static const Spec spec[11] = {
-        {"ut_pos", 'd', 2, 0}, {"ut_up", 'd', 2, 0}, {"sat_pos", 'd', 2, 0}, {"ax_x", 'd', 2, 0},
-        {"ax_y", 'd', 2, 0},   {"bx", 'd', 1, 0},    {"by", 'd', 1, 0},      {"ut_factor", 'd', 1, 0},
-        {"code", 'b', 2, 1},   {"bound", 'd', 2, 1}, {"sin_out", 'd', 2, 1}};
-    Arr a[11];
-    if (take_all(o, a, spec, 11) < 0)
-        return NULL;
-    Arr ut_pos = a[0], ut_up = a[1], sat_pos = a[2], ax_x = a[3], ax_y = a[4], bx = a[5];
-    Arr by = a[6], ut_factor = a[7], code = a[8], bound = a[9], sin_out = a[10];
-    Py_ssize_t n_s = code.n[1];
-    ROWS(lo, hi, code.n[0]);
-    REQUIRE(ut_pos.n[0] >= hi && ut_pos.n[1] >= 3 && ut_factor.n[0] >= hi);
-    REQUIRE(sphere || (ut_up.n[0] >= hi && ut_up.n[1] >= 3));
-    REQUIRE(bound.n[0] >= hi && bound.n[1] >= n_s && sin_out.n[0] >= hi && sin_out.n[1] >= n_s);
-    REQUIRE(sat_pos.n[0] >= n_s && ax_x.n[0] >= n_s && ax_y.n[0] >= n_s);
-    REQUIRE(sat_pos.n[1] >= 3 && ax_x.n[1] >= 3 && ax_y.n[1] >= 3);
-    REQUIRE(bx.n[0] >= 1 && by.n[0] >= 1);
-    Py_BEGIN_ALLOW_THREADS;
-    double s_lo = s_min - band, s_hi = s_min + band;
-    for (Py_ssize_t i = lo; i < hi; i++) {
-        double px = E2(ut_pos, double, i, 0), py = E2(ut_pos, double, i, 1);
-        double pz = E2(ut_pos, double, i, 2);
-        double ex, ey, ez;
-        screen_up(&ut_pos, &ut_up, sphere, i, &ex, &ey, &ez);
-        double k = k_lin * (1.0 + slack) * E1(ut_factor, double, i);
-        for (Py_ssize_t j = 0; j < n_s; j++)
-            screen_pair(px, py, pz, ex, ey, ez, k, &sat_pos, &ax_x, &ax_y, j, &bx, &by, nx, ny, s_lo,
-                        s_hi, &E2(code, int8_t, i, j), &E2(bound, double, i, j),
-                        &E2(sin_out, double, i, j));
-    }
-    Py_END_ALLOW_THREADS;
-    release(a, 11);
-    Py_RETURN_NONE;
-}
-
 /* screen_ragged(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_lin, s_min, band,
  *               slack, ut_factor, sat, cap_start, group, start, code, bound, sin_out, lo, hi):
- * screen_kernel's pairs of UT i with the satellites of its group g = group[i],
+ * screening.screen's codes, bounds and sin(elevation) of UT i with the satellites of its group g = group[i],
  * sat[cap_start[g] .. cap_start[g + 1] - 1] (rows of sat_pos, ax_x, ax_y), written in that
  * order at start[i] .. start[i + 1] - 1 of the flat code, bound and sin_out, for the UTs
- * lo .. hi - 1 (screening.screen_ragged). */
+ * lo .. hi - 1 (screening.screen_ragged; screening.screen: one group of every satellite). It
+ * rounds differently from the numpy code; both bounds hold (it decides what is evaluated,
+ * never a value that reaches an output). */
 static PyObject *screen_ragged(PyObject *self, PyObject *args)
 {
     PyObject *o[15];
@@ -1555,7 +1507,6 @@ static PyMethodDef methods[] = {
     {"snr_kernel", snr_kernel, METH_VARARGS, "Links.snr_db_bm of the pairs lo .. hi - 1."},
     {"best_beam_kernel", best_beam_kernel, METH_VARARGS, "Links.best_beam of the pairs."},
     {"serve_kernel", serve_kernel, METH_VARARGS, "LinkEngine.serve_pairs, per row."},
-    {"screen_kernel", screen_kernel, METH_VARARGS, "screening.screen, per UT row."},
     {"screen_ragged", screen_ragged, METH_VARARGS, "screening.screen_ragged, per UT row."},
     {"table_best", table_best, METH_VARARGS, "Candidates.best."},
     {"table_slots", table_slots, METH_VARARGS, "Candidates.slot_of."},

@@ -22,7 +22,7 @@ import numpy as np
 
 from leolink.compiled import SPLIT_MIN_ROWS, enabled, n_threads, run_rows
 
-__all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows", "screen_kernel"]
+__all__ = ["best_beam", "enabled", "links_arrays", "n_threads", "run_rows"]
 __all__ += ["screen_ragged_kernel", "serve_columns", "serve_pairs", "serving_column"]
 __all__ += ["SPLIT_MIN_ROWS", "find_pairs"]
 
@@ -122,12 +122,6 @@ def screen_ragged_kernel():
     """The compiled screening loop of UTs with their own satellites
     (:func:`leolink.engine.kernels.screen_ragged`)."""
     return kernels().screen_ragged
-
-
-@functools.cache
-def screen_kernel():
-    """The compiled screening loop (:func:`leolink.engine.kernels.screen_kernel`)."""
-    return kernels().screen_kernel
 
 
 def serving_column(table, serving, row0, block):

@@ -32,10 +32,11 @@ Every kernel fills the rows ``lo .. hi - 1`` of its outputs without the GIL
   the first maximum); a pair not visible (NaN path) gets beam 0 and NaN;
 - ``serve_kernel``: ``LinkEngine.serve_pairs`` for a full beam lattice with one colour,
   per row, ``out`` (16, n) in the order of ``SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS``;
-- ``screen_kernel``: ``screening.screen``'s codes, bounds and sin(elevation), per UT row.
+- ``screen_ragged``: ``screening.screen``'s codes, bounds and sin(elevation), per UT row,
+  each UT with its group's satellites (:func:`screening.screen_ragged`; ``screen``: one
+  group of every satellite).
   It rounds differently from the numpy code: both bounds are rigorous, and it decides which
-  pairs are evaluated, never a value that reaches an output;
-- ``screen_ragged``: the same pairs, each UT with its own satellites (a flat output).
+  pairs are evaluated, never a value that reaches an output.
 """
 
 from __future__ import annotations
@@ -43,13 +44,11 @@ from __future__ import annotations
 from leolink import _kernels
 from leolink.antenna.array import _SIN_RECOMPUTE, _SIN_TINY
 
-__all__ = ["best_beam_kernel", "links_kernel", "screen_kernel", "serve_kernel", "snr_kernel"]
-__all__ += ["screen_ragged"]
+__all__ = ["best_beam_kernel", "links_kernel", "screen_ragged", "serve_kernel", "snr_kernel"]
 
 snr_kernel = _kernels.snr_kernel
 best_beam_kernel = _kernels.best_beam_kernel
 serve_kernel = _kernels.serve_kernel
-screen_kernel = _kernels.screen_kernel
 screen_ragged = _kernels.screen_ragged
 
 

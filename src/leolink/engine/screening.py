@@ -157,26 +157,15 @@ def screen_ragged(engine, ut_pos_m, sat_pos_m, sat_axes, caps, ut_up=None, ut_id
     start : ndarray of int, shape (n_u + 1,)
         Each UT's first pair.
     """
-    from leolink.engine import jit
-
     n_u = len(ut_pos_m)
     ut_id = np.arange(n_u) if ut_id is None else ut_id
     factor = _ut_factor(engine, ut_id)
     size = np.diff(caps.start)[caps.group]
     start = np.zeros(n_u + 1, np.int64)
     np.cumsum(size, out=start[1:])
-    m = int(start[-1])
-    code, bound, sin_el = np.empty(m, np.int8), np.empty(m), np.empty(m)
-    up = np.zeros((0, 3)) if ut_up is None else np.ascontiguousarray(ut_up, float)
-    jit.run_rows(
-        jit.screen_ragged_kernel(), n_u, np.ascontiguousarray(ut_pos_m, float), up,
-        ut_up is None, np.ascontiguousarray(sat_pos_m, float),
-        np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
-        engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
-        engine._k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
-        np.where(np.isnan(factor), 1.0, factor), caps.sat, caps.start, caps.group, start, code,
-        bound, sin_el, row_size=max(1, m // max(n_u, 1)),
-    )  # fmt: skip
+    known = np.where(np.isnan(factor), 1.0, factor)
+    code, bound, sin_el = _ragged_loop(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known,
+                                       (caps.sat, caps.start, caps.group), start)  # fmt: skip
     rows = np.isnan(factor)
     if rows.any():  # UTs whose gain or loss depends on the elevation: per pair
         p = np.flatnonzero(np.repeat(rows, size) & (code > 0))
@@ -226,19 +215,31 @@ def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_i
 
 
 def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
-    """:func:`screen` by the compiled kernel (:func:`leolink.engine.jit.screen_kernel`)."""
+    """:func:`screen` by the compiled loop: every UT with every satellite, one group."""
+    n_u, n_s = ut_pos_m.shape[0], sat_pos_m.shape[0]
+    every = (np.arange(n_s), np.array([0, n_s]), np.zeros(n_u, np.int64))
+    start = np.arange(n_u + 1, dtype=np.int64) * n_s
+    flat = _ragged_loop(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, every, start)
+    return tuple(x.reshape(n_u, n_s) for x in flat)
+
+
+def _ragged_loop(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, caps, start):
+    """Code, bound and sin(elevation), flat, of the compiled loop
+    (:func:`leolink.engine.kernels.screen_ragged`); ``caps``: (satellites, group starts,
+    each UT's group); ``start``: each UT's first pair."""
     from leolink.engine import jit
 
-    shape = (ut_pos_m.shape[0], sat_pos_m.shape[0])
-    code, bound, sin_el = np.empty(shape, np.int8), np.empty(shape), np.empty(shape)
+    m = int(start[-1])
+    code, bound, sin_el = np.empty(m, np.int8), np.empty(m), np.empty(m)
     up = np.zeros((0, 3)) if ut_up is None else np.ascontiguousarray(ut_up, float)
     jit.run_rows(
-        jit.screen_kernel(), shape[0], np.ascontiguousarray(ut_pos_m, float), up, ut_up is None,
-        np.ascontiguousarray(sat_pos_m, float),
+        jit.screen_ragged_kernel(), len(ut_pos_m), np.ascontiguousarray(ut_pos_m, float), up,
+        ut_up is None, np.ascontiguousarray(sat_pos_m, float),
         np.ascontiguousarray(sat_axes[:, 0, :]), np.ascontiguousarray(sat_axes[:, 1, :]),
         engine.beam_ux, engine.beam_uy, engine.codebook.n_sub_x, engine.codebook.n_sub_y,
         engine._k_lin, np.sin(engine.params.min_elevation_rad), SIN_EL_BAND, BOUND_SLACK,
-        np.ascontiguousarray(ut_factor, float), code, bound, sin_el, row_size=shape[1],
+        np.ascontiguousarray(ut_factor, float), *caps, start, code, bound, sin_el,
+        row_size=max(1, m // max(len(ut_pos_m), 1)),
     )  # fmt: skip
     return code, bound, sin_el
 
