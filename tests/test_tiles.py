@@ -160,3 +160,20 @@ def test_a_cap_too_narrow_is_seen(monkeypatch):
     blk = CandidateSearch(eng, 3.0, True).block(0, n_ut, mb.ut_pos_m, up, mb.sat_pos_m,
                                                 mb.sat_vel_m_s, every)  # fmt: skip
     assert (blk.n_visible < ref.n_visible).any()
+
+
+def test_tables_do_not_depend_on_how_many_pairs_are_screened_at_once(monkeypatch):
+    """The compiled screening takes a group's UTs a few hundred pairs at a time
+    (bounded temporaries): the same tables and diagnostics as in one call."""
+    from leolink.sim.candidates import search
+
+    eng, n_ut, mb, up = _global_block("wgs84", 300)
+    every = [np.arange(mb.sat_pos_m.shape[1])] * 2
+    args = (0, n_ut, mb.ut_pos_m, up, mb.sat_pos_m, mb.sat_vel_m_s, every)
+    ref = CandidateSearch(eng, 3.0, True).block(*args)
+    monkeypatch.setattr(search, "SCREEN_PAIRS", 500)
+    blk = CandidateSearch(eng, 3.0, True).block(*args)
+    assert np.array_equal(blk.table.cell, ref.table.cell)
+    assert np.array_equal(blk.table.snr_db, ref.table.snr_db, equal_nan=True)
+    assert np.array_equal(blk.n_visible, ref.n_visible)
+    assert np.array_equal(blk.links.sat, ref.links.sat)

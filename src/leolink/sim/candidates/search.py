@@ -43,7 +43,8 @@ from leolink.sim.candidates.tiles import Caps, choose_groups, group_cones
 
 __all__ = ["DENSE_CONE", "BlockCandidates", "CandidateSearch"]
 
-#: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each).
+#: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each; a
+#: group's UTs with their caps, one call of the compiled loop per so many pairs).
 SCREEN_PAIRS = 1 << 18
 #: Evaluated pairs turned into table entries at once (bounds the (pairs, beams)
 #: temporaries: ~4 MiB each with 16 beams).
@@ -236,19 +237,23 @@ class CandidateSearch:
         sat_pos_m, axes, sat_id = sats
         n_ut = len(rows)
         ut_id = np.arange(n_ut)
-        if compiled.use(caps.sat.size) and self.engine.steering is None:
-            code, bound, start = screen_ragged(
-                self.engine, pos[rows], sat_pos_m, axes, caps,
-                None if up is None else up[rows], ut_id, None if nrm is None else nrm[rows],
-            )  # fmt: skip
-            flat = np.flatnonzero(code > 0)
-            u, s = caps.pairs(start, flat)
-            top = np.full(n_ut, -1.0)
-            has = np.flatnonzero(start[1:] > start[:-1])
-            if has.size:
-                top[has] = np.maximum.reduceat(bound, start[has])
-            return u, s, code[flat], bound[flat], top[u]
         parts = []
+        if compiled.use(caps.sat.size) and self.engine.steering is None:
+            for lo, hi in _ut_chunks(np.diff(caps.start)[caps.group], SCREEN_PAIRS):
+                part = Caps(caps.sat, caps.start, caps.group[lo:hi])
+                r = rows[lo:hi]
+                code, bound, start = screen_ragged(
+                    self.engine, pos[r], sat_pos_m, axes, part, None if up is None else up[r],
+                    ut_id[lo:hi], None if nrm is None else nrm[r],
+                )  # fmt: skip
+                flat = np.flatnonzero(code > 0)
+                u, s = part.pairs(start, flat)
+                top = np.full(hi - lo, -1.0)
+                has = np.flatnonzero(start[1:] > start[:-1])
+                if has.size:
+                    top[has] = np.maximum.reduceat(bound, start[has])
+                parts.append((u + lo, s, code[flat], bound[flat], top[u]))
+            return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
         for g, members in enumerate(groups):
             cap = caps.of(g)
             if cap.size == 0:
@@ -364,6 +369,18 @@ def _dense_pairs(ks, n_ut, cones):
     rows = [np.repeat(k * n_ut + np.arange(n_ut), len(cones[k])) for k in ks]
     sats = [np.tile(cones[k], n_ut) for k in ks]
     return np.concatenate(rows), np.concatenate(sats)
+
+
+def _ut_chunks(size, pairs):
+    """``(lo, hi)`` ranges of UTs whose ``size`` (pairs each) add up to about ``pairs``
+    (at least one UT each; one empty range for no UT)."""
+    total = np.cumsum(size)
+    cuts = np.searchsorted(total, np.arange(pairs, total[-1] if total.size else 0, pairs))
+    edges = np.unique(np.concatenate(([0], cuts + 1, [size.size])))
+    edges = edges[edges <= size.size]
+    if edges.size == 1:
+        return [(0, 0)]
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
 
 
 def _window_kernel(n_pairs):
