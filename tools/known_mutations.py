@@ -153,8 +153,8 @@ MUTATIONS = (
     Mutation(
         "kernel_screens_every_ut_against_its_caps_first_satellite",
         "src/leolink/_kernels.c",
-        "E1(sat, int64_t, c0 + q - q0), &bx, &by,",
-        "E1(sat, int64_t, c0), &bx, &by,",
+        "&ax_y, c0 + q - q0, &bx, &by,",
+        "&ax_y, c0, &bx, &by,",
         ("tests/test_tiles.py",),
     ),
     Mutation(

@@ -729,35 +729,35 @@ static inline void screen_up(const Arr *ut_pos, const Arr *ut_up, int sphere, Py
 }
 
 /* screen_ragged(ut_pos, ut_up, sphere, sat_pos, ax_x, ax_y, bx, by, nx, ny, k_lin, s_min, band,
- *               slack, ut_factor, sat, cap_start, group, start, code, bound, sin_out, lo, hi):
- * screening.screen's codes, bounds and sin(elevation) of UT i with the satellites of its group g = group[i],
- * sat[cap_start[g] .. cap_start[g + 1] - 1] (rows of sat_pos, ax_x, ax_y), written in that
- * order at start[i] .. start[i + 1] - 1 of the flat code, bound and sin_out, for the UTs
- * lo .. hi - 1 (screening.screen_ragged; screening.screen: one group of every satellite). It
- * rounds differently from the numpy code; both bounds hold (it decides what is evaluated,
- * never a value that reaches an output). */
+ *               slack, ut_factor, cap_start, group, start, code, bound, sin_out, lo, hi):
+ * screening.screen's codes, bounds and sin(elevation) of UT i with the satellites of its
+ * group g = group[i], the rows cap_start[g] .. cap_start[g + 1] - 1 of sat_pos, ax_x and
+ * ax_y, written in that order at start[i] .. start[i + 1] - 1 of the flat code, bound and
+ * sin_out, for the UTs lo .. hi - 1 (screening.screen_ragged; screening.screen: one group
+ * of every satellite). It rounds differently from the numpy code; both bounds hold (it
+ * decides what is evaluated, never a value that reaches an output). */
 static PyObject *screen_ragged(PyObject *self, PyObject *args)
 {
-    PyObject *o[15];
+    PyObject *o[14];
     int sphere;
     double nx, ny, k_lin, s_min, band, slack;
     Py_ssize_t lo, hi;
-    if (!PyArg_ParseTuple(args, "OOpOOOOOddddddOOOOOOOOnn", &o[0], &o[1], &sphere, &o[2], &o[3],
+    if (!PyArg_ParseTuple(args, "OOpOOOOOddddddOOOOOOOnn", &o[0], &o[1], &sphere, &o[2], &o[3],
                           &o[4], &o[5], &o[6], &nx, &ny, &k_lin, &s_min, &band, &slack, &o[7],
-                          &o[8], &o[9], &o[10], &o[11], &o[12], &o[13], &o[14], &lo, &hi))
+                          &o[8], &o[9], &o[10], &o[11], &o[12], &o[13], &lo, &hi))
         return NULL;
-    static const Spec spec[15] = {
+    static const Spec spec[14] = {
         {"ut_pos", 'd', 2, 0},    {"ut_up", 'd', 2, 0},     {"sat_pos", 'd', 2, 0},
         {"ax_x", 'd', 2, 0},      {"ax_y", 'd', 2, 0},      {"bx", 'd', 1, 0},
-        {"by", 'd', 1, 0},        {"ut_factor", 'd', 1, 0}, {"sat", 'q', 1, 0},
-        {"cap_start", 'q', 1, 0}, {"group", 'q', 1, 0},     {"start", 'q', 1, 0},
-        {"code", 'b', 1, 1},      {"bound", 'd', 1, 1},     {"sin_out", 'd', 1, 1}};
-    Arr a[15];
-    if (take_all(o, a, spec, 15) < 0)
+        {"by", 'd', 1, 0},        {"ut_factor", 'd', 1, 0}, {"cap_start", 'q', 1, 0},
+        {"group", 'q', 1, 0},     {"start", 'q', 1, 0},     {"code", 'b', 1, 1},
+        {"bound", 'd', 1, 1},     {"sin_out", 'd', 1, 1}};
+    Arr a[14];
+    if (take_all(o, a, spec, 14) < 0)
         return NULL;
     Arr ut_pos = a[0], ut_up = a[1], sat_pos = a[2], ax_x = a[3], ax_y = a[4], bx = a[5];
-    Arr by = a[6], ut_factor = a[7], sat = a[8], cap_start = a[9], group = a[10], start = a[11];
-    Arr code = a[12], bound = a[13], sin_out = a[14];
+    Arr by = a[6], ut_factor = a[7], cap_start = a[8], group = a[9], start = a[10];
+    Arr code = a[11], bound = a[12], sin_out = a[13];
     Py_ssize_t n_s = sat_pos.n[0], m = code.n[0], n_g = cap_start.n[0] - 1;
     ROWS(lo, hi, start.n[0] - 1);
     REQUIRE(n_g >= 0 && group.n[0] >= hi);
@@ -767,8 +767,7 @@ static PyObject *screen_ragged(PyObject *self, PyObject *args)
     REQUIRE(ax_x.n[0] >= n_s && ax_y.n[0] >= n_s);
     REQUIRE(sat_pos.n[1] >= 3 && ax_x.n[1] >= 3 && ax_y.n[1] >= 3);
     REQUIRE(bx.n[0] >= 1 && by.n[0] >= 1);
-    INDICES(cap_start, 0, n_g + 1, sat.n[0] + 1);
-    INDICES(sat, 0, sat.n[0], n_s);
+    INDICES(cap_start, 0, n_g + 1, n_s + 1);
     INDICES(group, lo, hi, n_g);
     INDICES(start, lo, hi + 1, m + 1);
     for (Py_ssize_t i = lo; i < hi; i++) {
@@ -786,12 +785,12 @@ static PyObject *screen_ragged(PyObject *self, PyObject *args)
         double k = k_lin * (1.0 + slack) * E1(ut_factor, double, i);
         int64_t c0 = E1(cap_start, int64_t, E1(group, int64_t, i)), q0 = E1(start, int64_t, i);
         for (int64_t q = q0; q < E1(start, int64_t, i + 1); q++)
-            screen_pair(px, py, pz, ex, ey, ez, k, &sat_pos, &ax_x, &ax_y,
-                        E1(sat, int64_t, c0 + q - q0), &bx, &by, nx, ny, s_lo, s_hi,
-                        &E1(code, int8_t, q), &E1(bound, double, q), &E1(sin_out, double, q));
+            screen_pair(px, py, pz, ex, ey, ez, k, &sat_pos, &ax_x, &ax_y, c0 + q - q0, &bx, &by,
+                        nx, ny, s_lo, s_hi, &E1(code, int8_t, q), &E1(bound, double, q),
+                        &E1(sin_out, double, q));
     }
     Py_END_ALLOW_THREADS;
-    release(a, 15);
+    release(a, 14);
     Py_RETURN_NONE;
 }
 

@@ -164,8 +164,9 @@ def screen_ragged(engine, ut_pos_m, sat_pos_m, sat_axes, caps, ut_up=None, ut_id
     start = np.zeros(n_u + 1, np.int64)
     np.cumsum(size, out=start[1:])
     known = np.where(np.isnan(factor), 1.0, factor)
-    code, bound, sin_el = _ragged_loop(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, known,
-                                       (caps.sat, caps.start, caps.group), start)  # fmt: skip
+    pos, axes = sat_pos_m[caps.sat], sat_axes[caps.sat]  # each cap's satellites in a row
+    code, bound, sin_el = _ragged_loop(engine, ut_pos_m, pos, axes, ut_up, known,
+                                       (caps.start, caps.group), start)  # fmt: skip
     rows = np.isnan(factor)
     if rows.any():  # UTs whose gain or loss depends on the elevation: per pair
         p = np.flatnonzero(np.repeat(rows, size) & (code > 0))
@@ -217,7 +218,7 @@ def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_i
 def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
     """:func:`screen` by the compiled loop: every UT with every satellite, one group."""
     n_u, n_s = ut_pos_m.shape[0], sat_pos_m.shape[0]
-    every = (np.arange(n_s), np.array([0, n_s]), np.zeros(n_u, np.int64))
+    every = (np.array([0, n_s]), np.zeros(n_u, np.int64))
     start = np.arange(n_u + 1, dtype=np.int64) * n_s
     flat = _ragged_loop(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, every, start)
     return tuple(x.reshape(n_u, n_s) for x in flat)
@@ -225,8 +226,8 @@ def _screen_jit(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
 
 def _ragged_loop(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, caps, start):
     """Code, bound and sin(elevation), flat, of the compiled loop
-    (:func:`leolink.engine.kernels.screen_ragged`); ``caps``: (satellites, group starts,
-    each UT's group); ``start``: each UT's first pair."""
+    (:func:`leolink.engine.kernels.screen_ragged`); ``caps``: (group starts into the rows
+    of ``sat_pos_m`` and ``sat_axes``, each UT's group); ``start``: each UT's first pair."""
     from leolink.engine import jit
 
     m = int(start[-1])

@@ -33,7 +33,7 @@ import dataclasses
 import numpy as np
 
 from leolink import compiled
-from leolink.arrays import take_rows
+from leolink.arrays import nonzero_2d, take_rows
 from leolink.engine import jit
 from leolink.engine.links import Links
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen, screen_ragged
@@ -188,23 +188,60 @@ class CandidateSearch:
         if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
             rows, sats = _dense_pairs(ks, n_ut, cones)
             return self.evaluate(*geo, n_ut, rows, sats, nrm), np.zeros(n_rows, np.int64)
-        pos = geo[0]
+        if len(groups) == 1:  # UTs in one region: one cone, screened densely
+            return self._chunk_one_cone(ks, n_ut, geo, cones, nrm)
         row, sat, code, bound, top = self._screened(ks, n_ut, geo, nrm, groups)
         chosen = (code == UNCERTAIN) | (bound == top)  # (bound >= 0 where code > 0)
         links1 = self.evaluate(*geo, n_ut, row[chosen], sat[chosen], nrm)
-        reach = np.zeros(pos.shape[0])
-        gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
-        lin = np.where(links1.visible, gain, 0.0)
-        np.maximum.at(reach, links1.ut, lin * links1.path_lin)
-        factor = 10.0 ** (-self.window_db / 10.0)
-        floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
-        low = np.maximum(reach[row] * factor, floor_lin)
+        low = self._low(geo[0].shape[0], links1)(row)
         with np.errstate(invalid="ignore"):
             more = (bound >= low) & ~chosen
         links2 = self.evaluate(*geo, n_ut, row[more], sat[more], nrm)
         unseen = row[(code == VISIBLE) & ~chosen & ~more] - ks.start * n_ut
         sure = np.bincount(unseen, minlength=n_rows)
         return Links.concat([links1, links2]), sure
+
+    def _chunk_one_cone(self, ks, n_ut, geo, cones, nrm):
+        """:meth:`_chunk` of UTs that share one cone (every UT with every satellite of
+        its epoch's cone, screened as dense matrices): the same pairs, evaluated alike."""
+        pos, up, sat_pos_m, sat_vel_m_s = geo
+        sure = np.zeros(len(ks) * n_ut, np.int64)
+        rows1, sats1, rows2, sats2, screened = [], [], [], [], []
+        ut_id = np.arange(n_ut)
+        for i, k in enumerate(ks):
+            rows, cone = k * n_ut + ut_id, cones[k]
+            axes = body_frame(sat_pos_m[k][cone], sat_vel_m_s[k][cone])
+            code, bound = self._screen(pos, up, rows, sat_pos_m[k][cone], axes, ut_id, nrm, cone)
+            first = np.argmax(bound, axis=1)
+            chosen = code == UNCERTAIN
+            has = np.flatnonzero(bound[ut_id, first] >= 0.0)
+            chosen[has, first[has]] = True
+            r, s = nonzero_2d(chosen)
+            rows1.append(rows[r])
+            sats1.append(cone[s])
+            screened.append((i, rows, cone, code, bound, chosen))
+        links1 = self.evaluate(*geo, n_ut, rows1, sats1, nrm)
+        low_of = self._low(pos.shape[0], links1)
+        for i, rows, cone, code, bound, chosen in screened:
+            with np.errstate(invalid="ignore"):
+                more = (code > 0) & (bound >= low_of(rows)[:, None]) & ~chosen
+            r, s = nonzero_2d(more)
+            rows2.append(rows[r])
+            sats2.append(cone[s])
+            sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
+        links2 = self.evaluate(*geo, n_ut, rows2, sats2, nrm)
+        return Links.concat([links1, links2]), sure
+
+    def _low(self, n_rows, links1):
+        """``low(rows)``: the bound below which a pair of each row can be left out,
+        ``max(L - window, floor)`` with ``L`` the row's best SNR among ``links1``."""
+        reach = np.zeros(n_rows)
+        gain = links1.gain_tx_bm(self.engine.beam_ix, self.engine.beam_iy).max(axis=0)
+        lin = np.where(links1.visible, gain, 0.0)
+        np.maximum.at(reach, links1.ut, lin * links1.path_lin)
+        factor = 10.0 ** (-self.window_db / 10.0)
+        floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
+        return lambda rows: np.maximum(reach[rows] * factor, floor_lin)
 
     def _screened(self, ks, n_ut, geo, nrm, groups):
         """The pairs of the epochs ``ks`` above the mask or near it, each group of UTs
