@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leolink.io.summary.stats import running_sum
 from leolink.sim.handover.kpi import HANDOVER_KINDS, handover_rates
 
 __all__ = ["BAND_DEG", "LatitudeBands", "band_of"]
@@ -69,7 +70,8 @@ class LatitudeBands:
         self.n_epochs += np.bincount(band, minlength=_N_BAND)
         self.n_outage += np.bincount(band[service_outage], minlength=_N_BAND)
         ok = np.isfinite(sinr_db)
-        self.sinr_sum += np.bincount(band[ok], sinr_db[ok], minlength=_N_BAND)
+        # added one by one in row order: the same sum however the rows come in chunks
+        self.sinr_sum[:] = running_sum(self.sinr_sum, band[ok], sinr_db[ok])
         self.sinr_count += np.bincount(band[ok], minlength=_N_BAND)
 
     def add_events(self, time_s, ut, kind):
