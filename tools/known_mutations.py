@@ -183,8 +183,8 @@ MUTATIONS = (
     Mutation(
         "search_floor_3_db_high",
         "src/leolink/sim/candidates/search.py",
-        "low = np.maximum(reach[row] * factor, floor_lin)",
-        "low = np.maximum(reach[row] * factor, floor_lin * 2.0)",
+        "return lambda rows: np.maximum(reach[rows] * factor, floor_lin)",
+        "return lambda rows: np.maximum(reach[rows] * factor, floor_lin * 2.0)",
         ("tests/test_search.py",),
     ),
     Mutation(
