@@ -55,7 +55,7 @@ def test_every_visible_satellite_is_a_candidate(n_ut, spread, alt_m, min_el_deg,
     sat = _random_shell(rng, 4000, R_M + 400e3, R_M + 2000e3)
     ut = _uts_around(rng, n_ut, rng.standard_normal(3), spread, alt_m)
     min_el = np.radians(min_el_deg)
-    cand = candidate_satellites(sat, ut, min_el, np.array([-1]), R_M)
+    cand = candidate_satellites(sat, ut, min_el, np.array([-1]))
     visible = np.flatnonzero(_visible(sat, ut, min_el))
     assert len(visible) > 0
     missing = np.setdiff1d(visible, cand)
@@ -77,7 +77,7 @@ def test_cone_is_tight_near_its_edge():
     az = rng.uniform(0, 2 * np.pi, 100)
     sat = r_sat * np.stack([np.cos(ang), np.sin(ang) * np.cos(az), np.sin(ang) * np.sin(az)], -1)
     sat = np.concatenate([sat, _random_shell(rng, 100, r_sat, r_sat)])  # > 64: cone on
-    cand = candidate_satellites(sat, ut, min_el, np.array([-1]), R_M)
+    cand = candidate_satellites(sat, ut, min_el, np.array([-1]))
     assert np.isin(np.arange(50), cand).all()
     assert not np.isin(np.arange(50, 100), cand).any()
 
@@ -87,10 +87,10 @@ def test_serving_satellites_are_kept_and_small_sets_are_whole():
     sat = _random_shell(rng, 500, R_M + 1300e3, R_M + 1300e3)
     ut = _uts_around(rng, 5, np.array([1.0, 0.0, 0.0]), 0.01, 0.0)
     far = int(np.argmin(sat @ np.array([1.0, 0.0, 0.0])))  # on the other side of the Earth
-    cand = candidate_satellites(sat, ut, np.radians(10.0), np.array([far, -1]), R_M)
+    cand = candidate_satellites(sat, ut, np.radians(10.0), np.array([far, -1]))
     assert far in cand
     few = sat[:64]
-    assert np.array_equal(candidate_satellites(few, ut, 0.1, np.array([-1]), R_M), np.arange(64))
+    assert np.array_equal(candidate_satellites(few, ut, 0.1, np.array([-1])), np.arange(64))
     # UTs all over the globe: the mean direction means nothing, so every satellite is kept.
     ut_globe = np.array([[R_M, 0, 0], [-R_M, 0, 0]], float)
-    assert len(candidate_satellites(sat, ut_globe, 0.1, np.array([-1]), R_M)) == len(sat)
+    assert len(candidate_satellites(sat, ut_globe, 0.1, np.array([-1]))) == len(sat)

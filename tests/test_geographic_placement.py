@@ -182,6 +182,16 @@ BAD = [
                  "population.0.lon_range_deg=[-140.0, -130.0]"], "has no land"),
     ("grid too coarse", ["population.0.placement='lat_lon_grid'", "population.0.spacing_deg=5",
                          "population.0.lat_band_deg=[10.0, 11.0]"], "has no point"),
+    ("empty grid band", ["population.0.placement='lat_lon_grid'",
+                         "population.0.lat_band_deg=[10.0, 10.0]"],
+     "lat_band_deg = [10, 10] is an empty region"),
+    ("empty longitudes", ["population.0.placement='random_region'",
+                          "population.0.lon_range_deg=[170.0, -170.0]"],
+     "lon_range_deg = [170, -170] is an empty region"),
+    ("grid without land", ["population.0.placement='lat_lon_grid'", "population.0.land_only=true",
+                           "population.0.lat_band_deg=[-5.0, 0.0]",
+                           "population.0.lon_range_deg=[-140.0, -130.0]"],
+     "lat_band_deg = [-5, 0] x lon_range_deg = [-140, -130] has no land"),
 ]  # fmt: skip
 
 
@@ -196,3 +206,24 @@ def test_bad_geography_is_one_line_and_validate_agrees(sets, needle, capsys, tmp
         lines.append(err[0])
     assert lines[0] == lines[1]
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+@pytest.mark.parametrize(
+    ("row", "needle"),
+    [("B,95.0,20.0", "line 3, lat_deg = 95.0 is not allowed: use [-90, 90]"),
+     ("B,10.0,-180.5", "line 3, lon_deg = -180.5 is not allowed: use [-180, 180]"),
+     ("B,ten,20.0", "line 3, column 'lat_deg': not a number")],
+)  # fmt: skip
+def test_a_bad_site_in_a_sites_file_is_one_line_and_validate_agrees(row, needle, capsys,
+                                                                     tmp_path):  # fmt: skip
+    sites = tmp_path / "sites.csv"
+    sites.write_text(f"name,lat_deg,lon_deg\nA,10.0,20.0\n{row}\n")
+    args = [str(CITIES), "--set", f"population.0.sites_file='{sites}'"]
+    lines = []
+    for command in (["validate"], ["run", "--out", str(tmp_path / "out")]):
+        assert main([*command, *args]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"{sites}: {needle}" in err[0], err
+        lines.append(err[0])
+    assert lines[0] == lines[1]
+    assert not (tmp_path / "out").exists()

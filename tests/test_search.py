@@ -94,7 +94,7 @@ def block():
     none = np.zeros(0, np.int64)
     cones = [
         candidate_satellites(
-            mb.sat_pos_m[i], mb.ut_pos_m[i], scen.min_elevation_rad, none, scen.radius_m
+            mb.sat_pos_m[i], mb.ut_pos_m[i], scen.min_elevation_rad, none
         )  # fmt: skip
         for i in range(N_EPOCH)
     ]
@@ -233,8 +233,7 @@ def test_screening_of_elevation_dependent_gains_on_the_ellipsoid():
     eng, ut_pos = scen.engine, mb.ut_pos_m[0][every]
     up = enu_basis(mb.ut_lat_rad[0][every], mb.ut_lon_rad[0][every])[..., 2, :]
     # The satellites within ~25 deg of the horizon of the area: the mask's edge is in it.
-    cone = candidate_satellites(mb.sat_pos_m[0], ut_pos, 0.0, np.zeros(0, np.int64),
-                                scen.radius_m)  # fmt: skip
+    cone = candidate_satellites(mb.sat_pos_m[0], ut_pos, 0.0, np.zeros(0, np.int64), up)
     sat_pos, sat_vel = mb.sat_pos_m[0][cone], mb.sat_vel_m_s[0][cone]
     code, bound = screen(eng, ut_pos, sat_pos, body_frame(sat_pos, sat_vel), ut_up=up)
     ut, sat = np.nonzero(np.ones(code.shape, bool))

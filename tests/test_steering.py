@@ -215,7 +215,7 @@ def constellation_block():
     none = np.zeros(0, np.int64)
     cones = [
         candidate_satellites(
-            mb.sat_pos_m[i], mb.ut_pos_m[i], scen.min_elevation_rad, none, scen.radius_m
+            mb.sat_pos_m[i], mb.ut_pos_m[i], scen.min_elevation_rad, none
         )  # fmt: skip
         for i in range(2)
     ]

@@ -62,10 +62,17 @@ MUTATIONS = (
     ),
     Mutation(
         "visibility_cone_halved",
-        "src/leolink/sim/processes.py",
-        "near = angle <= spread + reach + 1e-3",
-        "near = angle <= spread + reach / 2 + 1e-3",
-        ("tests/test_candidates.py", "tests/test_trace_independent.py"),
+        "src/leolink/sim/candidates/tiles.py",
+        "cos_cap = np.cos(np.minimum(spread + reach + CAP_MARGIN_RAD, np.pi))",
+        "cos_cap = np.cos(np.minimum(spread + reach / 2 + CAP_MARGIN_RAD, np.pi))",
+        ("tests/test_candidates.py", "tests/test_tiles.py", "tests/test_trace_independent.py"),
+    ),
+    Mutation(
+        "cap_without_the_ellipsoids_tilt",
+        "src/leolink/sim/candidates/tiles.py",
+        "reach = earth_central_angle_rad(min_elevation_rad - tilt, ",
+        "reach = earth_central_angle_rad(min_elevation_rad, ",
+        ("tests/test_tiles.py",),
     ),
     Mutation(
         "along_against_swapped",
@@ -142,6 +149,13 @@ MUTATIONS = (
         ("tests/test_array_kernels.py",),
     ),
     Mutation(
+        "kernel_screens_every_ut_against_its_caps_first_satellite",
+        "src/leolink/engine/screening.py",
+        "sin_el[p] = _screen_pair(frames, lattice, scale[u], u, s)",
+        "sin_el[p] = _screen_pair(frames, lattice, scale[u], u, cap_start[group[u]])",
+        ("tests/test_tiles.py",),
+    ),
+    Mutation(
         "screening_bound_without_grating_lobes",
         "src/leolink/engine/screening.py",
         "d = np.minimum(d, 2.0 - np.maximum(u - beam_u[0], beam_u[-1] - u))",
@@ -167,8 +181,8 @@ MUTATIONS = (
     Mutation(
         "search_floor_3_db_high",
         "src/leolink/sim/candidates/search.py",
-        "low = np.minimum(np.maximum(reach[rows] * factor, floor_lin), reach[rows])",
-        "low = np.minimum(np.maximum(reach[rows] * factor, floor_lin * 2.0), reach[rows])",
+        "return np.minimum(np.maximum(reach * factor, floor_lin), reach)",
+        "return np.minimum(np.maximum(reach * factor, floor_lin * 2.0), reach)",
         ("tests/test_search.py",),
     ),
     Mutation(
@@ -317,8 +331,8 @@ MUTATIONS += (
     Mutation(
         "screening_ignores_panel_normal",
         "src/leolink/engine/screening.py",
-        "        if ut_normal is not None:  # the gain sees",
-        "        if ut_normal is None:  # the gain sees",
+        "    if ut_normal is not None:  # the gain sees",
+        "    if ut_normal is None:  # the gain sees",
         ("tests/test_search.py",),
     ),
 )

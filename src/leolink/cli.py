@@ -76,13 +76,11 @@ def cmd_validate(args) -> int:
     )
     # What a run checks and builds (files, codebook, ephemeris over the run, populations,
     # tracks): a config that validates also runs (leolink.app.validate).
-    notes, _, _ = run_notes(cfg, checked_scenario(cfg, split_workers(*_split(args))))
-    n_ut = sum(max(p.n_ut, 0) for p in cfg.population)
+    scen = checked_scenario(cfg, split_workers(*_split(args)))
+    notes, _, _ = run_notes(cfg, scen)
+    n_ut = sum(p.n_ut for _, p in scen.populations)  # as placed (grids, land, site files)
     n_pop = len(cfg.population)
-    print(
-        f"{args.config}: valid ({n_pop} population{'s' * (n_pop != 1)}, {n_ut} UTs "
-        "besides recorded tracks)"
-    )
+    print(f"{args.config}: valid ({n_pop} population{'s' * (n_pop != 1)}, {n_ut:,} UTs)")
     print(verdict.message)
     for note in notes:
         print(note)

@@ -20,6 +20,7 @@ __all__ = [
     "azimuth_on_sphere_deg",
     "body_frame",
     "direction_cosines",
+    "earth_central_angle_rad",
     "ecef_to_geodetic",
     "elevation_from_nadir_rad",
     "enu_basis",
@@ -255,6 +256,29 @@ def nadir_angle_rad(elevation_rad, altitude_m, radius_m=EARTH_RADIUS_M):
         Angle between the nadir and the satellite-UT direction [rad].
     """
     return np.arcsin(radius_m * np.cos(elevation_rad) / (radius_m + np.asarray(altitude_m)))
+
+
+def earth_central_angle_rad(elevation_rad, altitude_m, radius_m=EARTH_RADIUS_M):
+    """Earth-central angle between a ground point and a satellite it sees at ``elevation_rad``:
+    ``pi / 2 - el - eta``, ``eta`` the off-nadir angle (:func:`nadir_angle_rad`; the angles
+    of the triangle centre-UT-satellite, whose angle at the UT is ``pi / 2 + el``).
+
+    Parameters
+    ----------
+    elevation_rad : array_like
+        Elevation above the plane normal to the point's radius [rad].
+    altitude_m : array_like
+        Satellite height above the point's radius [m].
+    radius_m : array_like
+        Distance of the point from the Earth's centre [m].
+
+    Returns
+    -------
+    ndarray
+        The angle [rad]; it grows with the satellite's radius and shrinks as the elevation
+        or the point's radius grows.
+    """
+    return np.pi / 2 - elevation_rad - nadir_angle_rad(elevation_rad, altitude_m, radius_m)
 
 
 def elevation_from_nadir_rad(nadir_rad, altitude_m, radius_m=EARTH_RADIUS_M):

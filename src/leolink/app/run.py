@@ -309,7 +309,7 @@ def _write(cfg, scen, where, summary, sinks, stats):
     are finished), then the sinks' (``after_run``), then ``run.json``."""
     out_dir, files = where
     result_summary = {**summary.summary(), "run": _run_section(cfg, scen, stats)}
-    report = next((s.stats for s in sinks if hasattr(s, "after_run")), None)
+    report = next((s.stats for s in sinks if hasattr(s, "stats")), None)  # the report's
     per_ut = summary.per_ut_table()
     if out_dir is None:
         return Result(result_summary, None, [], sinks[1], report, per_ut, _epoch_utc(cfg))

@@ -40,6 +40,7 @@ from leolink.engine.links import group_constants_db, rows_gain_db
 from leolink.engine.steered import steered_bound_lin
 
 __all__ = ["BOUND_SLACK", "SIN_EL_BAND", "UNCERTAIN", "VISIBLE", "envelope", "screen"]
+__all__ += ["screen_ragged"]
 
 #: Relative margin of the SNR upper bound over rounding (and the gain models' smoothness).
 BOUND_SLACK = 1e-6
@@ -135,12 +136,73 @@ def screen(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up=None, ut_id=None, ut_nor
     rows = np.flatnonzero(np.isnan(factor))
     if rows.size:  # UTs whose gain or loss depends on the elevation: per pair
         r, s = nonzero_2d(code[rows] > 0)
-        sin_rx = None
-        if ut_normal is not None:  # the gain sees the angle above the panel plane
-            d = sat_pos_m[s] - ut_pos_m[rows[r]]
-            sin_rx = np.einsum("pk,pk->p", d, ut_normal[rows[r]]) / np.linalg.norm(d, axis=1)
-        bound[rows[r], s] *= _pair_factor(engine, rx, sin_el[rows[r], s], ut_id[rows[r]], sin_rx)
+        pairs = (rows[r], s)
+        bound[pairs] *= _elevation_factor(engine, rx, ut_pos_m, sat_pos_m, sin_el[pairs], pairs,
+                                          ut_id, ut_normal)  # fmt: skip
     return code, bound
+
+
+def screen_ragged(engine, ut_pos_m, sat_pos_m, sat_axes, caps, ut_up=None, ut_id=None,
+                  ut_normal=None):  # fmt: skip
+    """:func:`screen` of groups of UTs, each against its own satellites, flat, in one call
+    of the compiled loop.
+
+    UT ``i`` of group ``g = caps.group[i]`` is screened against the satellites
+    ``caps.sat[caps.start[g] : caps.start[g + 1]]`` (rows of ``sat_pos_m`` and
+    ``sat_axes``), in that order, at ``start[i] : start[i + 1]`` of the flat outputs. The
+    caller runs it where :func:`leolink.compiled.use` and the beams are not re-steered
+    (else :func:`screen` per group).
+
+    Parameters
+    ----------
+    engine : leolink.engine.LinkEngine
+    ut_pos_m : ndarray, shape (n_u, 3)
+    sat_pos_m : ndarray, shape (n_s, 3)
+    sat_axes : ndarray, shape (n_s, 3, 3)
+    caps : leolink.sim.candidates.tiles.Caps
+        The groups' satellites: ``sat`` (flat), ``start`` (n_group + 1,), ``group`` (n_u,).
+    ut_up, ut_id, ut_normal : as for :func:`screen`
+
+    Returns
+    -------
+    code : ndarray of int8, shape (m,)
+    bound : ndarray, shape (m,)
+    start : ndarray of int, shape (n_u + 1,)
+        Each UT's first pair.
+    """
+    n_u = len(ut_pos_m)
+    ut_id = np.arange(n_u) if ut_id is None else ut_id
+    rx = _rx_bound(engine.terminal)
+    factor = _ut_factor(engine, rx, ut_id)
+    size = np.diff(caps.start)[caps.group]
+    start = np.zeros(n_u + 1, np.int64)
+    np.cumsum(size, out=start[1:])
+    known = np.where(np.isnan(factor), 1.0, factor)
+    pos, axes = sat_pos_m[caps.sat], sat_axes[caps.sat]  # each cap's satellites in a row
+    layout = (caps.start, caps.group, start)
+    if engine.steering is None and compiled.use(int(start[-1])):
+        code, bound, sin_el = _ragged_compiled(engine, ut_pos_m, pos, axes, ut_up, known, layout)
+    else:
+        code, bound, sin_el = _ragged_numpy(engine, ut_pos_m, (pos, axes, caps.sat), ut_up, known,
+                                            layout)  # fmt: skip
+    rows = np.isnan(factor)
+    if rows.any():  # UTs whose gain or loss depends on the elevation: per pair
+        p = np.flatnonzero(np.repeat(rows, size) & (code > 0))
+        pairs = caps.pairs(start, p)
+        bound[p] *= _elevation_factor(engine, rx, ut_pos_m, sat_pos_m, sin_el[p], pairs, ut_id,
+                                      ut_normal)  # fmt: skip
+    return code, bound, start
+
+
+def _elevation_factor(engine, rx, ut_pos_m, sat_pos_m, sin_el, pairs, ut_id, ut_normal):
+    """:func:`_pair_factor` of the pairs ``(ut row, satellite row)`` whose screening
+    elevations are ``sin_el``, with the panel's angle where the UTs have normals."""
+    r, s = pairs
+    sin_rx = None
+    if ut_normal is not None:  # the gain sees the angle above the panel plane
+        d = sat_pos_m[s] - ut_pos_m[r]
+        sin_rx = np.einsum("pk,pk->p", d, ut_normal[r]) / np.linalg.norm(d, axis=1)
+    return _pair_factor(engine, rx, sin_el, ut_id[r], sin_rx)
 
 
 def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_id=None):
@@ -171,11 +233,29 @@ def _screen_numpy(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, sat_i
     return code, np.where(code > 0, bound, -1.0), sin_el
 
 
-def _screen_compiled(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
-    """:func:`screen`'s code, bound and sin(elevation) by the compiled :func:`_screen_rows`
-    (the same quantities as :func:`_screen_numpy`, rounded otherwise: both bounds carry
-    :data:`BOUND_SLACK`, both classes the :data:`SIN_EL_BAND`)."""
-    shape = (ut_pos_m.shape[0], sat_pos_m.shape[0])
+def _ragged_numpy(engine, ut_pos_m, sats, ut_up, ut_factor, layout):
+    """:func:`screen_ragged`'s code, bound and sin(elevation), flat, by :func:`_screen_numpy`
+    per group (``sats``: the caps' positions, axes and global ids in a row)."""
+    pos, axes, sat_id = sats
+    cap_start, group, start = layout
+    m = int(start[-1])
+    out = (np.empty(m, np.int8), np.empty(m), np.empty(m))
+    for g in range(len(cap_start) - 1):
+        rows = np.flatnonzero(group == g)
+        caps = slice(cap_start[g], cap_start[g + 1])
+        if rows.size == 0 or caps.start == caps.stop:
+            continue
+        up = None if ut_up is None else ut_up[rows]
+        block = _screen_numpy(engine, ut_pos_m[rows], pos[caps], axes[caps], up,
+                              ut_factor[rows], sat_id[caps])  # fmt: skip
+        flat = start[rows][:, None] + np.arange(caps.stop - caps.start)
+        for o, b in zip(out, block, strict=True):
+            o[flat] = b
+    return out
+
+
+def _compiled_inputs(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
+    """The frames, lattice and per-UT scale of the compiled loops (:func:`_screen_pair`)."""
     if ut_up is None:  # the sphere's radial up
         ut_up = ut_pos_m / np.sqrt(np.einsum("uk,uk->u", ut_pos_m, ut_pos_m))[:, None]
     frames = (
@@ -193,38 +273,80 @@ def _screen_compiled(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
         float(np.sin(engine.params.min_elevation_rad)),
     )
     scale = np.ascontiguousarray(ut_factor, float) * (engine.k_lin * (1.0 + BOUND_SLACK))
+    return frames, lattice, scale
+
+
+def _screen_compiled(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor):
+    """:func:`screen`'s code, bound and sin(elevation) by the compiled :func:`_screen_rows`
+    (the same quantities as :func:`_screen_numpy`, rounded otherwise: both bounds carry
+    :data:`BOUND_SLACK`, both classes the :data:`SIN_EL_BAND`)."""
+    shape = (ut_pos_m.shape[0], sat_pos_m.shape[0])
+    frames, lattice, scale = _compiled_inputs(
+        engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor
+    )
     out = (np.empty(shape, np.int8), np.empty(shape), np.empty(shape))
     compiled.run_rows(_screen_rows, shape[0], frames, lattice, scale, out, row_size=shape[1])
     return out
 
 
-@compiled.jit
-def _screen_rows(frames, lattice, scale, out, lo, hi):
-    """The code, bound (:func:`_envelope` of both axes, times ``scale[u] / rho^2``) and
-    sin(elevation) of the UT rows ``lo .. hi - 1`` against every satellite."""
+def _ragged_compiled(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, layout):
+    """:func:`screen_ragged`'s code, bound and sin(elevation), flat, by the compiled
+    :func:`_ragged_rows` (``layout``: group starts into the rows of ``sat_pos_m``, each
+    UT's group, each UT's first pair)."""
+    frames, lattice, scale = _compiled_inputs(
+        engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor
+    )
+    layout = tuple(np.ascontiguousarray(x, np.int64) for x in layout)
+    m, n_u = int(layout[2][-1]), ut_pos_m.shape[0]
+    out = (np.empty(m, np.int8), np.empty(m), np.empty(m))
+    compiled.run_rows(_ragged_rows, n_u, frames, lattice, scale, layout, out,
+                      row_size=max(1, m // max(n_u, 1)))  # fmt: skip
+    return out
+
+
+@compiled.jitable
+def _screen_pair(frames, lattice, scale_u, u, s):
+    """Code, bound (:func:`_envelope` of both axes, times ``scale_u / rho^2``) and
+    sin(elevation) of UT row ``u`` with satellite row ``s`` (scalars)."""
     ut_pos, up, sat_pos, axes = frames
     beam_ux, beam_uy, n_x, n_y, s_min = lattice
+    d0, d1, d2 = (
+        ut_pos[u, 0] - sat_pos[s, 0],
+        ut_pos[u, 1] - sat_pos[s, 1],
+        ut_pos[u, 2] - sat_pos[s, 2],
+    )
+    rho2 = d0 * d0 + d1 * d1 + d2 * d2
+    rho = np.sqrt(rho2)
+    se = -(d0 * up[u, 0] + d1 * up[u, 1] + d2 * up[u, 2]) / rho
+    c = (se >= s_min - SIN_EL_BAND) + (se >= s_min + SIN_EL_BAND)
+    if c == 0:
+        return c, -1.0, se
+    ux = (d0 * axes[s, 0, 0] + d1 * axes[s, 0, 1] + d2 * axes[s, 0, 2]) / rho
+    uy = (d0 * axes[s, 1, 0] + d1 * axes[s, 1, 1] + d2 * axes[s, 1, 2]) / rho
+    g = _envelope(ux, beam_ux, n_x) * _envelope(uy, beam_uy, n_y)
+    return c, g * scale_u / rho2, se
+
+
+@compiled.jit
+def _screen_rows(frames, lattice, scale, out, lo, hi):
+    """:func:`_screen_pair` of the UT rows ``lo .. hi - 1`` with every satellite."""
     code, bound, sin_el = out
     for u in range(lo, hi):
-        for s in range(sat_pos.shape[0]):
-            d0, d1, d2 = (
-                ut_pos[u, 0] - sat_pos[s, 0],
-                ut_pos[u, 1] - sat_pos[s, 1],
-                ut_pos[u, 2] - sat_pos[s, 2],
-            )
-            rho2 = d0 * d0 + d1 * d1 + d2 * d2
-            rho = np.sqrt(rho2)
-            se = -(d0 * up[u, 0] + d1 * up[u, 1] + d2 * up[u, 2]) / rho
-            sin_el[u, s] = se
-            c = (se >= s_min - SIN_EL_BAND) + (se >= s_min + SIN_EL_BAND)
-            code[u, s] = c
-            if c == 0:
-                bound[u, s] = -1.0
-                continue
-            ux = (d0 * axes[s, 0, 0] + d1 * axes[s, 0, 1] + d2 * axes[s, 0, 2]) / rho
-            uy = (d0 * axes[s, 1, 0] + d1 * axes[s, 1, 1] + d2 * axes[s, 1, 2]) / rho
-            g = _envelope(ux, beam_ux, n_x) * _envelope(uy, beam_uy, n_y)
-            bound[u, s] = g * scale[u] / rho2
+        for s in range(frames[2].shape[0]):
+            code[u, s], bound[u, s], sin_el[u, s] = _screen_pair(frames, lattice, scale[u], u, s)
+
+
+@compiled.jit
+def _ragged_rows(frames, lattice, scale, layout, out, lo, hi):
+    """:func:`_screen_pair` of the UT rows ``lo .. hi - 1``, each with its group's satellite
+    rows ``cap_start[g] .. cap_start[g + 1] - 1``, flat from ``start[u]``."""
+    cap_start, group, start = layout
+    code, bound, sin_el = out
+    for u in range(lo, hi):
+        p = start[u]
+        for s in range(cap_start[group[u]], cap_start[group[u] + 1]):
+            code[p], bound[p], sin_el[p] = _screen_pair(frames, lattice, scale[u], u, s)
+            p += 1
 
 
 _SLACK_DB = 10.0 * np.log10(1.0 + BOUND_SLACK)

@@ -333,6 +333,26 @@ SINKS.add(
     config=PlotsParams,
     doc="SNR/SINR and Doppler vs time, dwell and handover plots (PNG)",
 )
+
+
+class UtMapParams(SinkParams):
+    enabled: bool = Field(
+        False, description="write ut_map.csv / .geojson / .png: per-UT values on the globe"
+    )
+
+
+def _ut_map_sink(p, ctx):
+    from leolink.io.ut_map import UtMapSink
+
+    return UtMapSink(ctx.out_dir, ctx.summary)
+
+
+SINKS.add(
+    "ut_map",
+    _ut_map_sink,
+    config=UtMapParams,
+    doc="per-UT handover rate, outage and mean SINR on a world map, CSV and GeoJSON",
+)
 SINKS.add(
     "report",
     _report_sink,

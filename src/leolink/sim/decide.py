@@ -105,7 +105,6 @@ class Decider:
         self.min_snr_db, self.handover_time_s = min_snr_db, rules.handover_time_s
         # With interference from other satellites, every satellite above the horizon counts.
         self.min_el = 0.0 if engine.other_satellites else sky.min_elevation_rad
-        self.radius_m = radius_m
         self.future_state, self.motion = future_state, motion
         self.epoch_s, self.ellipsoidal = float(epoch_s), bool(sky.ellipsoidal)
         self.selector = selector
@@ -138,13 +137,15 @@ class Decider:
         if self.block is not None and self.block.k0 == mb.k0:
             return self.block
         self.block = None  # (its tables and links go before the next block's are built)
-        none = np.zeros(0, np.int64)
-        self.cones = [
-            candidate_satellites(mb.sat_pos_m[i], mb.ut_pos_m[i], self.min_el, none, self.radius_m)
-            for i in range(mb.n_k)
-        ]
         self.enu = enu_basis(mb.ut_lat_rad, mb.ut_lon_rad) if self.ellipsoidal else None
         up = None if self.enu is None else self.enu[..., 2, :]
+        none = np.zeros(0, np.int64)
+        self.cones = [
+            candidate_satellites(
+                mb.sat_pos_m[i], mb.ut_pos_m[i], self.min_el, none, None if up is None else up[i]
+            )
+            for i in range(mb.n_k)
+        ]
         self.panel = self._panels(mb)
         normal = None if self.panel is None else self.panel[..., 2, :]
         self.mb = mb

@@ -22,6 +22,7 @@ import dataclasses
 
 import numpy as np
 
+from leolink.sim.candidates.tiles import group_cones
 from leolink.sim.handover.controller import ControllerState, StepResult, close_dwells
 
 #: Trace ``outage_reason`` code -> name (index = code): served; handover execution;
@@ -104,29 +105,20 @@ def ut_motion(env, state, motion, ut_slice, epoch_s):
         yield env.timeout(epoch_s)
 
 
-def candidate_satellites(sat_pos_m, ut_pos_m, min_elevation_rad, serving_sats, radius_m):
+def candidate_satellites(sat_pos_m, ut_pos_m, min_elevation_rad, serving_sats, ut_up=None):
     """Satellites that may be above ``min_elevation_rad`` for some UT, plus the serving ones.
 
-    A cheap cone test around the UTs' mean direction (O(n_sat + n_ut)), so that the
-    engine's (UT x satellite x beam) call only sees the few satellites that matter.
+    The cap of every UT as one group (:func:`leolink.sim.candidates.tiles.group_cones`:
+    O(n_sat + n_ut)), so that the engine's (UT x satellite x beam) call only sees the few
+    satellites that matter; ``ut_up`` (n_ut, 3): each UT's local up (WGS 84), None: radial.
     """
     n_sat = len(sat_pos_m)
     if n_sat <= 64:
         return np.arange(n_sat)
-    up = ut_pos_m / np.linalg.norm(ut_pos_m, axis=1, keepdims=True)
-    centre = up.mean(axis=0)
-    norm = np.linalg.norm(centre)
-    if norm < 1e-6:  # UTs all over the globe: no useful cone
-        return np.arange(n_sat)
-    centre /= norm
-    spread = np.arccos(np.clip(up @ centre, -1.0, 1.0)).max()
-    r_sat = np.linalg.norm(sat_pos_m, axis=1)
-    # Earth-central angle of the coverage edge at the minimum elevation.
-    reach = np.pi / 2 - min_elevation_rad - np.arcsin(radius_m * np.cos(min_elevation_rad) / r_sat)
-    angle = np.arccos(np.clip(sat_pos_m @ centre / r_sat, -1.0, 1.0))
-    near = angle <= spread + reach + 1e-3
-    near[serving_sats[serving_sats >= 0]] = True
-    return np.flatnonzero(near)
+    group = np.zeros(len(ut_pos_m), np.int64)
+    cone = group_cones(sat_pos_m, ut_pos_m, ut_up, min_elevation_rad, group, 1).sat
+    serving = serving_sats[serving_sats >= 0]
+    return np.union1d(cone, serving) if serving.size else cone
 
 
 def beam_controller(env, state, decide, epoch_s):

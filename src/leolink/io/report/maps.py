@@ -85,10 +85,11 @@ def coastlines():
     Returns
     -------
     lon_deg, lat_deg : ndarray of float32, shape (n_point,)
-        Polylines separated by NaN [deg].
+        Polylines separated by NaN [deg], also where an arc crosses +-180 deg (a world
+        map draws no line across it).
     """
-    lon, lat = coastline_arcs()
-    return lon.copy(), lat.copy()
+    lon, lat = break_at_antimeridian(*coastline_arcs())
+    return lon.astype(np.float32), lat.astype(np.float32)
 
 
 def subsatellite_points(sat_pos_m):

@@ -396,12 +396,33 @@ def build_run_report(
         where += _animation_html(animation_path, path.parent, embed_max_bytes)
     sections = [
         ("Where the UTs are served", where),
+        *_geography(summary.get("overall", {}), path.parent),
         ("Over time", "".join(shown[1:N_TIME_FIGURES + 1])),
         ("Distributions, all UTs", "".join(shown[N_TIME_FIGURES + 1:])),
         ("Full tables", _tables(summary, stats, config_text, path.parent)),
     ]  # fmt: skip
     title = header_lines(summary.get("run", {}))[0]
     return write_text_atomic(path, _page(title, sections, _header(summary, run_utc)))
+
+
+#: The columns of the table of KPIs by latitude band (``overall.by_latitude``).
+_BAND_COLUMNS = ("lat_min_deg", "lat_max_deg", "n_ut_epochs", "handover_rate_per_ut_min",
+                 "outage_fraction", "sinr_mean_db")  # fmt: skip
+
+
+def _geography(overall, folder):
+    """The KPIs by latitude band, and the world map of per-UT values (``ut_map.png``,
+    :mod:`leolink.io.ut_map`) where the run wrote one."""
+    out = []
+    bands = overall.get("by_latitude") or []
+    if bands:
+        rows = [[b.get(k) for k in _BAND_COLUMNS] for b in bands]
+        out.append(("KPIs by latitude band", _table(_BAND_COLUMNS, rows)))
+    world = Path(folder) / "ut_map.png"
+    if world.exists():
+        caption = "Per-UT handover rate, outage and mean SINR (ut_map.csv, ut_map.geojson)"
+        out.append((caption, _img(_any_figure_uri(world), caption)))
+    return out
 
 
 def _any_figure_uri(fig):

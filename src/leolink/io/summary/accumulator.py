@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.io.atomic import to_jsonable
+from leolink.io.summary.bands import LatitudeBands
 from leolink.io.summary.environment import with_environment
 from leolink.io.summary.kpi import KpiAccumulator
 from leolink.io.summary.link import LinkStats
@@ -172,6 +173,8 @@ class SummaryAccumulator:
         self._dwells = []
         self._rows, self._n_rows = [], 0
         self._link = LinkStats(self.n_ut, DbStats, self.epoch_s)  # margins in histograms too
+        self.bands = LatitudeBands(self.n_ut, self.epoch_s)
+        self.lat_deg, self.lon_deg = np.full(self.n_ut, np.nan), np.full(self.n_ut, np.nan)
 
     def add_trace(self, columns):
         """Add trace rows (dict of 1-D arrays; needs ``ut_id``, ``service``, ``snr_db``,
@@ -195,12 +198,24 @@ class SummaryAccumulator:
         los = np.full(ut.shape, np.nan) if los is None else los
         self._link.add(columns, ut, codes, gap)  # per call: it needs the frame-only columns
         piece = {"ut": ut, "service": codes, "gap": gap, "reason": reason, "los": los}
+        piece["band"] = self._place(columns, ut)
         for key in _BUFFERED:
             piece[key] = columns[key]
         self._rows.append(piece)
         self._n_rows += ut.size
         if self._n_rows >= _POOL_BUFFER:
             self._fold()
+
+    def _place(self, columns, ut):
+        """Each row's latitude band (-1 without ``lat_deg``); each UT's first position."""
+        if "lat_deg" not in columns:
+            return np.full(ut.shape, -1, np.int64)
+        lat, lon = np.asarray(columns["lat_deg"], float), np.asarray(columns["lon_deg"], float)
+        new = np.flatnonzero(np.isnan(self.lat_deg[ut]))
+        if new.size:  # the first row of each UT not placed yet
+            first_ut, at = np.unique(ut[new], return_index=True)
+            self.lat_deg[first_ut], self.lon_deg[first_ut] = lat[new[at]], lon[new[at]]
+        return self.bands.note_rows(columns["time_s"], ut, lat)
 
     def _fold(self):
         """Add the buffered rows to the statistics."""
@@ -225,6 +240,9 @@ class SummaryAccumulator:
         np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(c["angular_speed_deg_s"], float))
         for key, stats in self._db.items():
             stats.add(ut, np.asarray(c[key], float))
+        placed = c["band"] >= 0
+        self.bands.fold(c["band"][placed], c["service"][placed] == SERVICE_OUTAGE,
+                        np.asarray(c["sinr_db"], float)[placed])  # fmt: skip
 
     def add_events(self, events):
         """Count events by kind and UT (dict with ``ut_id`` and ``kind``)."""
@@ -236,6 +254,7 @@ class SummaryAccumulator:
         for i, name in enumerate(EVENT_KINDS):
             self.event_counts[i] += np.bincount(ut[kind == name], minlength=self.n_ut)
         self.kpi.add_events(events)
+        self.bands.add_events(events["time_s"], ut, kind)
 
     def add_dwells(self, dwells):
         """Keep dwell records (dict of arrays, ``controller.DWELL_COLUMNS``)."""
@@ -289,7 +308,8 @@ class SummaryAccumulator:
     def per_ut_table(self, dwells=None):
         """Per-UT statistics as columns, one row per UT (``per_ut.parquet``).
 
-        Columns: ``ut_id, n_epochs``, ``n_<event kind>`` and ``n_handovers_total``,
+        Columns: ``ut_id, n_epochs``, ``lat_deg, lon_deg`` (where the UT was at its first
+        recorded epoch; NaN for rows without them), ``n_<event kind>`` and ``n_handovers_total``,
         ``n_dwell_complete, dwell_mean_s, dwell_median_s, n_dwell_censored``,
         ``outage_fraction``, ``outage_fraction_<reason>`` for ``no_satellite``,
         ``below_threshold``, ``rlf`` (and ``blocked`` in a run with UT environments),
@@ -303,6 +323,7 @@ class SummaryAccumulator:
         with np.errstate(invalid="ignore", divide="ignore"):
             epochs = self.n_epochs.astype(float)
             table = {"ut_id": np.arange(self.n_ut), "n_epochs": self.n_epochs}
+            table["lat_deg"], table["lon_deg"] = self.lat_deg, self.lon_deg
             for i, kind in enumerate(EVENT_KINDS):
                 table[f"n_{kind}"] = self.event_counts[i]
             table["n_handovers_total"] = self.event_counts[0] + self.event_counts[1]
@@ -357,6 +378,7 @@ class SummaryAccumulator:
             "max_angular_speed_deg_s": nanmax(self.max_angular_speed_deg_s),
             "link": link_all,
             "kpi": self._kpi(d)[0],
+            "by_latitude": self.bands.summary(),
         }
 
     def summary(self):

@@ -45,13 +45,15 @@ import numpy as np
 from leolink import compiled
 from leolink.arrays import nonzero_2d, take_rows
 from leolink.engine.links import Links
-from leolink.engine.screening import UNCERTAIN, VISIBLE, screen
-from leolink.geometry import body_frame
+from leolink.engine.screening import UNCERTAIN, VISIBLE, screen, screen_ragged
+from leolink.geometry import body_frame, earth_central_angle_rad
 from leolink.sim.candidates.table import Candidates
+from leolink.sim.candidates.tiles import Caps, choose_groups, group_cones
 
 __all__ = ["DENSE_CONE", "BlockCandidates", "CandidateSearch"]
 
-#: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each).
+#: UT x satellite pairs screened at once (bounds the temporaries to a few MiB each; a
+#: group's UTs with their caps, one call of the compiled loop per so many pairs).
 SCREEN_PAIRS = 1 << 18
 #: Evaluated pairs turned into table entries at once (bounds the (pairs, beams)
 #: temporaries: ~4 MiB each with 16 beams).
@@ -175,11 +177,12 @@ class CandidateSearch:
         nrm = None if normal is None else normal.reshape(-1, 3)
         widest = max((len(c) for c in cones), default=0)
         step = int(np.clip(SCREEN_PAIRS // max(n_ut * widest, 1), 1, n_k))
+        groups = self._groups(ut_pos_m[0], sat_pos_m[0]) if self.prune else None
+        geo = (pos, up, sat_pos_m, sat_vel_m_s)
         parts = []
         for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
             ks = range(lo, min(lo + step, n_k))
-            geo = (pos, up, sat_pos_m, sat_vel_m_s, nrm)
-            parts.append(self._chunk(ks, n_ut, geo, cones, loss))
+            parts.append(self._chunk(ks, n_ut, geo, cones, (nrm, groups), loss))
         links = Links.concat([p[0] for p in parts])
         sure = np.concatenate([p[1] for p in parts])
         pair_loss = None if loss is None else np.concatenate([p[2] for p in parts])
@@ -190,42 +193,72 @@ class CandidateSearch:
             pair_loss = None if loss is None else pair_loss[order]
         return self._tables(k0, n_ut, n_k, links, sure, pair_loss)
 
-    def _chunk(self, ks, n_ut, geo, cones, loss=None):
+    def _groups(self, ut_pos_m, sat_pos_m):
+        """The UTs' screening groups of a block, from its first epoch (the caps are each
+        epoch's own: the groups only decide how UTs share a cap)."""
+        r_ut = float(np.mean(np.linalg.norm(ut_pos_m, axis=1)))
+        r_sat = float(np.mean(np.linalg.norm(sat_pos_m, axis=1)))
+        el = self.engine.params.min_elevation_rad
+        return choose_groups(
+            ut_pos_m, len(sat_pos_m), earth_central_angle_rad(el, r_sat - r_ut, r_ut)
+        )
+
+    def _chunk(self, ks, n_ut, geo, cones, screening, loss=None):
         """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
         global id), the rows' visible satellites that were not evaluated, and the pairs'
-        environment loss [dB] (None without ``loss``). ``geo``: ``(pos, up, sat_pos_m,
-        sat_vel_m_s, nrm)`` of :meth:`evaluate`."""
-        pos, up, sat_pos_m, sat_vel_m_s, nrm = geo
-        sure = np.zeros(len(ks) * n_ut, np.int64)
+        environment loss [dB] (None without ``loss``). ``geo``: the block's UT rows, their
+        up, the satellites' positions and velocities; ``screening``: the rows' panel
+        normals (or None) and the UTs' screening groups
+        (:func:`~leolink.sim.candidates.tiles.choose_groups`)."""
+        nrm, groups = screening
+        n_rows = len(ks) * n_ut
         grids = {} if loss is None else {k: loss(k) for k in ks}
         if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
             rows, sats = _dense_pairs(ks, n_ut, cones)
-            links = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm)
-            return links, sure, _pair_loss(grids, n_ut, cones, links)
+            links = self.evaluate(*geo, n_ut, rows, sats, nrm)
+            return links, np.zeros(n_rows, np.int64), _pair_loss(grids, n_ut, cones, links)
+        if len(groups) == 1 or loss is not None:  # one region, or environments: by cones
+            return self._chunk_one_cone(ks, n_ut, geo, cones, nrm, grids)
+        row, sat, code, bound, top = self._screened(ks, n_ut, geo, nrm, groups)
+        chosen = (code == UNCERTAIN) | (bound == top)  # (bound >= 0 where code > 0)
+        links1 = self.evaluate(*geo, n_ut, row[chosen], sat[chosen], nrm)
+        low = self._low(geo[0].shape[0], links1)(row)
+        with np.errstate(invalid="ignore"):
+            more = (bound >= low) & ~chosen
+        links2 = self.evaluate(*geo, n_ut, row[more], sat[more], nrm)
+        unseen = row[(code == VISIBLE) & ~chosen & ~more] - ks.start * n_ut
+        sure = np.bincount(unseen, minlength=n_rows)
+        return Links.concat([links1, links2]), sure, None
+
+    def _chunk_one_cone(self, ks, n_ut, geo, cones, nrm, grids):
+        """:meth:`_chunk` by each epoch's cone (every UT with every satellite of the cone,
+        screened as dense matrices; ``grids``: each epoch's path losses [dB], empty without
+        an environment): the same pairs as by tiles, evaluated alike."""
+        pos, up, sat_pos_m, sat_vel_m_s = geo
+        sure = np.zeros(len(ks) * n_ut, np.int64)
         rows1, sats1, rows2, sats2, screened = [], [], [], [], []
+        ut_id = np.arange(n_ut)
         for i, k in enumerate(ks):
-            rows = k * n_ut + np.arange(n_ut)
-            cone = cones[k]
-            code, bound = self._screen(pos, up, rows, sat_pos_m[k], sat_vel_m_s[k], cone, nrm)
+            rows, cone = k * n_ut + ut_id, cones[k]
+            axes = body_frame(sat_pos_m[k][cone], sat_vel_m_s[k][cone])
+            code, bound = self._screen(pos, up, rows, sat_pos_m[k][cone], axes, ut_id, nrm, cone)
             # Each path's bound after its environment (the loss is known: an exact bound).
-            env = bound if loss is None else bound * 10.0 ** (-grids[k] / 10.0)
+            env = bound if not grids else bound * 10.0 ** (-grids[k] / 10.0)
             first = np.argmax(env, axis=1)
             chosen = code == UNCERTAIN
-            has = np.flatnonzero(env[np.arange(n_ut), first] >= 0.0)
+            has = np.flatnonzero(env[ut_id, first] >= 0.0)
             chosen[has, first[has]] = True
             r, s = nonzero_2d(chosen)
             rows1.append(rows[r])
             sats1.append(cone[s])
             screened.append((i, rows, cone, code, bound, env, chosen))
-        links1 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows1, sats1, nrm)
+        links1 = self.evaluate(*geo, n_ut, rows1, sats1, nrm)
         loss1 = _pair_loss(grids, n_ut, cones, links1)
         reach, reach_open = self._reach(pos.shape[0], links1, loss1)
-        factor = 10.0 ** (-self.window_db / 10.0)
-        floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
         for i, rows, cone, code, bound, env, chosen in screened:
             # the window's and the floor's cells, and every pair that may hold the best
             # cell (the diagnostics', below the floor too)
-            low = np.minimum(np.maximum(reach[rows] * factor, floor_lin), reach[rows])
+            low = self._low_of(reach[rows])
             with np.errstate(invalid="ignore"):
                 more = (code > 0) & (env >= low[:, None]) & ~chosen
                 if reach_open is not None:  # and every pair that may hold the open best
@@ -234,8 +267,8 @@ class CandidateSearch:
             rows2.append(rows[r])
             sats2.append(cone[s])
             sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
-        links2 = self.evaluate(pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows2, sats2, nrm)
-        pair_loss = None if loss is None else np.r_[loss1, _pair_loss(grids, n_ut, cones, links2)]
+        links2 = self.evaluate(*geo, n_ut, rows2, sats2, nrm)
+        pair_loss = None if not grids else np.r_[loss1, _pair_loss(grids, n_ut, cones, links2)]
         return Links.concat([links1, links2]), sure, pair_loss
 
     def _reach(self, n_rows, links, pair_loss):
@@ -252,27 +285,103 @@ class CandidateSearch:
         np.maximum.at(reach, links.ut, lin * 10.0 ** (-pair_loss / 10.0))
         return reach, reach_open
 
-    def _screen(self, pos, up, rows, sat_pos_m, sat_vel_m_s, cone, nrm=None):
-        """:func:`screen` of the UT rows ``rows`` against the cone, in blocks of UTs."""
-        eng = self.engine
-        axes = body_frame(sat_pos_m[cone], sat_vel_m_s[cone])
+    def _low_of(self, reach):
+        """The bound below which a pair of a row whose best SNR is ``reach`` can be left
+        out: ``max(reach - window, floor)``, at most ``reach`` (the best cell's pairs)."""
+        factor = 10.0 ** (-self.window_db / 10.0)
+        floor_lin = 10.0 ** (self.floor_db / 10.0)  # 0 without a floor
+        return np.minimum(np.maximum(reach * factor, floor_lin), reach)
+
+    def _low(self, n_rows, links1):
+        """``low(rows)``: :meth:`_low_of` of each row's best SNR among ``links1``."""
+        reach, _ = self._reach(n_rows, links1, None)
+        return lambda rows: self._low_of(reach[rows])
+
+    def _screened(self, ks, n_ut, geo, nrm, groups):
+        """The pairs of the epochs ``ks`` above the mask or near it, each group of UTs
+        screened against its cap (:func:`~leolink.sim.candidates.tiles.group_cones`):
+        their rows, satellites (global ids), codes, bounds and their UT's largest bound
+        (NaN if any is), flat."""
+        pos, up, sat_pos_m, sat_vel_m_s = geo
+        label = np.empty(n_ut, np.int64)
+        for g, members in enumerate(groups):
+            label[members] = g
+        min_el = self.engine.params.min_elevation_rad
+        parts = []
+        for k in ks:
+            rows = k * n_ut + np.arange(n_ut)
+            ut_up = None if up is None else up[rows]
+            caps = group_cones(sat_pos_m[k], pos[rows], ut_up, min_el, label, len(groups))
+            union = np.unique(caps.sat)
+            axes = body_frame(sat_pos_m[k][union], sat_vel_m_s[k][union])
+            local = Caps(np.searchsorted(union, caps.sat), caps.start, caps.group)
+            sats = (sat_pos_m[k][union], axes, union)
+            u, s, code, bound, top = self._screen_caps(pos, up, rows, sats, local, groups, nrm)
+            parts.append((rows[u], union[s], code, bound, top))
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+
+    def _screen_caps(self, pos, up, rows, sats, caps, groups, nrm):
+        """One epoch's UT rows ``rows`` screened against their caps (``sats``: positions,
+        body frames and global ids of the satellites ``caps`` index): the pairs above the
+        mask or near it, flat (UT, satellite, code, bound, the UT's largest bound), by the
+        compiled loop in one call where it runs, else by :func:`screen` per group."""
+        sat_pos_m, axes, sat_id = sats
         n_ut = len(rows)
         ut_id = np.arange(n_ut)
-        n_part = -(-n_ut * len(cone) // SCREEN_PAIRS)
+        parts = []
+        if compiled.use(caps.sat.size) and self.engine.steering is None:
+            for lo, hi in _ut_chunks(np.diff(caps.start)[caps.group], SCREEN_PAIRS):
+                part = Caps(caps.sat, caps.start, caps.group[lo:hi])
+                r = rows[lo:hi]
+                code, bound, start = screen_ragged(
+                    self.engine, pos[r], sat_pos_m, axes, part, None if up is None else up[r],
+                    ut_id[lo:hi], None if nrm is None else nrm[r],
+                )  # fmt: skip
+                flat = np.flatnonzero(code > 0)
+                u, s = part.pairs(start, flat)
+                top = np.full(hi - lo, -1.0)
+                has = np.flatnonzero(start[1:] > start[:-1])
+                if has.size:
+                    top[has] = np.maximum.reduceat(bound, start[has])
+                parts.append((u + lo, s, code[flat], bound[flat], top[u]))
+            return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+        for g, members in enumerate(groups):
+            cap = caps.of(g)
+            if cap.size == 0:
+                continue
+            code, bound = self._screen(pos, up, rows[members], sat_pos_m[cap], axes[cap],
+                                       members, nrm, sat_id[cap])  # fmt: skip
+            flat = np.flatnonzero(code > 0)
+            i, j = np.divmod(flat, cap.size)
+            top = bound.max(axis=1)
+            parts.append((members[i], cap[j], code.reshape(-1)[flat], bound.reshape(-1)[flat],
+                          top[i]))  # fmt: skip
+        if not parts:
+            empty = np.zeros(0, np.int64)
+            return empty, empty, np.zeros(0, np.int8), np.zeros(0), np.zeros(0)
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+
+    def _screen(self, pos, up, rows, sat_pos_m, axes, ut_id, nrm, sat_id):
+        """:func:`screen` of the UT rows ``rows`` (UTs ``ut_id``) against the satellites at
+        ``sat_pos_m`` (body frames ``axes``, global ids ``sat_id``), in blocks of UTs."""
+        n_ut = len(rows)
+        n_part = -(-n_ut * len(sat_id) // SCREEN_PAIRS)
         step = -(-n_ut // max(n_part, 1))
         parts = [
             screen(
-                eng,
+                self.engine,
                 pos[rows[lo : lo + step]],
-                sat_pos_m[cone],
+                sat_pos_m,
                 axes,
                 None if up is None else up[rows[lo : lo + step]],
                 ut_id[lo : lo + step],
                 None if nrm is None else nrm[rows[lo : lo + step]],
-                cone,
+                sat_id,
             )  # fmt: skip
             for lo in range(0, n_ut, step)
         ]
+        if len(parts) == 1:
+            return parts[0]
         return (np.concatenate([p[j] for p in parts]) for j in (0, 1))
 
     def evaluate(self, pos, up, sat_pos_m, sat_vel_m_s, n_ut, rows, sats, nrm=None):
@@ -419,6 +528,18 @@ def _dense_pairs(ks, n_ut, cones):
     rows = [np.repeat(k * n_ut + np.arange(n_ut), len(cones[k])) for k in ks]
     sats = [np.tile(cones[k], n_ut) for k in ks]
     return np.concatenate(rows), np.concatenate(sats)
+
+
+def _ut_chunks(size, pairs):
+    """``(lo, hi)`` ranges of UTs whose ``size`` (pairs each) add up to about ``pairs``
+    (at least one UT each; one empty range for no UT)."""
+    total = np.cumsum(size)
+    cuts = np.searchsorted(total, np.arange(pairs, total[-1] if total.size else 0, pairs))
+    edges = np.unique(np.concatenate(([0], cuts + 1, [size.size])))
+    edges = edges[edges <= size.size]
+    if edges.size == 1:
+        return [(0, 0)]
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
 
 
 def _row_chunks(rows, size):

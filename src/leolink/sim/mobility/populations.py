@@ -283,6 +283,11 @@ class WaypointsParams(PopulationParams):
         return 1
 
 
+def _pair(values):
+    """``[a, b]`` of two degrees, as the config's other messages write them."""
+    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
+
+
 def _geographic_points(p, ctx):
     """``(lat_rad, lon_rad, alt_m)`` of a placement by latitude and longitude."""
     if p.placement == "sites":
@@ -290,8 +295,8 @@ def _geographic_points(p, ctx):
     region = (tuple(p.lat_band_deg), tuple(p.lon_range_deg))
     if p.land_only and not has_land(*region):
         raise ConfigError(
-            f"population '{p.name}': land_only = true, but lat_band_deg = "
-            f"{list(region[0])} x lon_range_deg = {list(region[1])} has no land"
+            f"population '{p.name}': land_only = true, but lat_band_deg = {_pair(region[0])} "
+            f"x lon_range_deg = {_pair(region[1])} has no land; use a region with some land"
         )
     if p.placement == "random_region":
         lat, lon = random_region(p.count, *region, ctx.rng, land_only=p.land_only)
