@@ -110,7 +110,8 @@ def test_the_lookahead_table_carries_the_environment_loss(tmp_path, monkeypatch)
     # Cells within 11 dB of the 1 dB threshold (main lobes; in the side lobes' nulls 1 ms
     # of motion alone moves the SNR by 0.1 dB).
     both = np.isfinite(now) & np.isfinite(future) & (now > -10.0)
-    assert both.sum() > 100
+    # (predictive keeps only cells above the service threshold: ~50 such cells here)
+    assert both.sum() > 30
     np.testing.assert_allclose(future[both], now[both], atol=1e-3)
     # The environment does move the SNRs here: clutter or shadowing of several dB.
     assert (trace.clutter_db.abs() + trace.shadow_db.abs()).max() > 2.0

@@ -34,6 +34,11 @@ EXAMPLES: dict[str, str] = {
     "hysteresis": "the paper's scenario with a hysteresis controller (3 dB, 2 s, 0.1 s handover)",
     "leo600_ka_dl": "3GPP TR 38.821 Set-1 LEO-600 Ka-band downlink to a VSAT (leolink budget)",
     "leo600_s_dl": "3GPP TR 38.821 Set-1 LEO-600 S-band downlink to a handheld (leolink budget)",
+    "sls_leo600_set1_ka_reuse1": "TR 38.821 system-level calibration, LEO-600 Set-1 Ka, reuse 1",
+    "sls_leo600_set1_ka_reuse3": "TR 38.821 system-level calibration, LEO-600 Set-1 Ka, reuse 3",
+    "sls_leo600_set1_s_reuse1": "TR 38.821 system-level calibration, LEO-600 Set-1 S, reuse 1",
+    "sls_leo600_set1_s_reuse3": "TR 38.821 system-level calibration, LEO-600 Set-1 S, reuse 3",
+    "global": "the paper's 4,399 satellites over UTs on a 2 deg grid over land, 600 s",
 }
 
 

@@ -65,7 +65,8 @@ class LocalAxis:
         ut, sat = ut[keep], sat[keep]
         span = int(sat.max(initial=0)) + 1
         key = np.sort(ut * span + sat)  # by UT, then satellite (a sort: np.unique's hash
-        key = key[np.r_[True, key[1:] != key[:-1]]]  # is slow on these wide keys)
+        if key.size:  # (no satellite at all: an empty axis)
+            key = key[np.r_[True, key[1:] != key[:-1]]]  # is slow on these wide keys)
         row, s = np.divmod(key, span)
         counts = np.bincount(row, minlength=n_ut)
         start = np.cumsum(counts) - counts
