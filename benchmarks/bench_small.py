@@ -7,7 +7,7 @@ peer's loop draws none; the report's cost is ``bench_report``), each run a fresh
 ``leolink run`` process.
 The fixed cost per epoch is the slope, between a 600-epoch and a 60-epoch run, of the
 simulation loop's own wall time (``run.wall_time_s`` of ``summary.json``: the sinks, the
-epochs and their end; the pictures are drawn in child processes, leolink.io.render);
+epochs and their end; no pictures);
 start-up is the 60-epoch run's wall time minus 60 of those epochs.
 
 Run: ``python benchmarks/bench_small.py [--quick]``.
@@ -56,8 +56,8 @@ def main(quick=False, argv=None):
     ap.add_argument("--repeat", type=int, default=1 if quick else 3)
     args = ap.parse_args([] if argv is None else argv)
     (long, long_loop), (short, short_loop) = _run(600, args.repeat), _run(60, args.repeat)
-    # The loop's own time: the pictures are drawn in child processes beside the run's end
-    # (leolink.io.render), so the process's wall time no longer grows with every epoch.
+    # The loop's own time: the process's start and its writing after the loop are not
+    # per-epoch costs.
     per_epoch = (long_loop - short_loop) / 540.0
     figures = {
         "wall_s": long,

@@ -23,44 +23,10 @@ import json
 import tempfile
 from pathlib import Path
 
-from _common import row, run_cli
+from _common import ROOT, row, run_cli
 
-CONFIG = """
-[run]
-seed = 47
-epoch_s = 1.0
-duration_s = {duration_s!r}
-
-[constellation]
-kind = "walker"
-altitude_m = 1300000.0
-inclination_deg = 53.0
-n_planes = 83
-sats_per_plane = 53
-phasing = 1
-min_elevation_deg = 40.0
-
-[roi]
-semi_axis_x_m = 534100.0
-semi_axis_y_m = 170500.0
-
-[output.trace]
-formats = ["parquet"]
-
-[output.plots]
-enabled = false
-
-[output.report]
-enabled = false
-
-[[population]]
-name = "land"
-kind = "static"
-placement = "random_region"
-count = {n_ut}
-lat_band_deg = [-56.0, 56.0]
-land_only = true
-"""
+#: The split runs' config, shared with tests/test_split.py.
+CONFIG = ROOT / "tests" / "data" / "global_split.toml"
 
 
 def _run(config, out, extra):
@@ -79,11 +45,11 @@ def main(argv=None):
     print(f"split: {args.uts:,} UTs over land, 4,399 satellites, {args.duration_s:g} s, "
           f"{args.parts} parts")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
-        config = Path(tmp) / "global.toml"
-        config.write_text(CONFIG.format(duration_s=args.duration_s, n_ut=args.uts), "utf-8")
+        sets = ["--set", f"run.duration_s={args.duration_s!r}", "--set",
+                f"population.0.count={args.uts}"]  # fmt: skip
         parts = ["--parts", str(args.parts)]
         for tag, extra in (("single", []), ("serial", parts), ("two", ["--workers", "2", *parts])):
-            wall, rss, cpu, split = _run(config, Path(tmp) / tag, extra)
+            wall, rss, cpu, split = _run(CONFIG, Path(tmp) / tag, [*sets, *extra])
             figures.update({f"{tag}_wall_s": wall, f"{tag}_cpu_s": cpu, f"{tag}_peak_rss_mib": rss})
             row(f"{tag}: wall time", wall, "s")
             row(f"{tag}: CPU time (process and workers)", cpu, "s")

@@ -205,3 +205,33 @@ def test_p676_ray_trace_is_itur_exact_path(freq_hz, rho_g_m3):
     # and through the model function, any shape
     grid = itu_p676_db(np.radians(el_deg).reshape(5, 1), freq_hz, rho_g_m3=rho_g_m3)
     np.testing.assert_allclose(grid[:, 0], itur, rtol=RAY_TRACE_RTOL)
+
+
+def test_itu_p676_loads_the_site_maps_at_the_first_use_only(monkeypatch):
+    """Issue 49: ``leolink validate`` (the checks of a run, without running it) does not
+    look up the ROI centre in itur's maps (P.1511's topography alone is ~430 MiB); the
+    run's first use does, once, and gives the eager model's losses."""
+    import leolink.link.atmosphere as atmosphere
+    from leolink.app.validate import checked_scenario
+    from leolink.config import load_config
+    from reliability_helpers import PAPER
+
+    calls = []
+
+    def counted(lat_deg, lon_deg, p_percent=50.0):
+        calls.append((lat_deg, lon_deg))
+        return site_surface_conditions(lat_deg, lon_deg, p_percent)
+
+    monkeypatch.setattr(atmosphere, "site_surface_conditions", counted)
+    cfg = load_config(PAPER, overrides=["atmosphere.model='itu_p676'"])
+    scen = checked_scenario(cfg)
+    assert calls == []  # built and checked: no map read
+    el = np.radians([20.0, 45.0, 90.0])
+    got = scen.engine.atmosphere(el)
+    scen.engine.atmosphere(el)
+    assert calls == [(cfg.roi.center_lat_deg, cfg.roi.center_lon_deg)]  # once
+    eager = atmosphere_model(
+        "itu_p676", F_HZ, cfg.constellation.min_elevation_deg - 2.0, 2.0,
+        lat_deg=cfg.roi.center_lat_deg, lon_deg=cfg.roi.center_lon_deg,
+    )  # fmt: skip
+    np.testing.assert_allclose(got, eager(el), rtol=1e-12)

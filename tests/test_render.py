@@ -1,33 +1,18 @@
-"""Pictures drawn in the run's own process (:mod:`leolink.io.render`, issues 43 and 49):
+"""Pictures drawn in the run's own process (the sinks' ``finish``, issues 43 and 49):
 no fork, errors re-raised in the run, and a failed run leaves no temporary file."""
 
 from __future__ import annotations
 
 import os
 
-import numpy as np
 import pytest
 
 from leolink.config import load_config
-from leolink.io import plots, render
+from leolink.io import plots
 from reliability_helpers import PAPER, files_in
 
 #: A short pass with every picture: plots, report page and animation.
 SHORT = ["run.duration_s=40", "output.report.max_frames=8"]
-
-
-def test_a_job_gives_its_value_and_its_error():
-    job = render.start("a value", lambda n: {"pid": os.getpid(), "x": np.arange(n)}, 5)
-    value = job.result()
-    assert value["pid"] == os.getpid()  # drawn in this process
-    np.testing.assert_array_equal(value["x"], np.arange(5))
-
-    def fails():
-        raise ValueError("no such beam: 17")
-
-    job = render.start("a failure", fails)  # the error waits for result()
-    with pytest.raises(ValueError, match="no such beam: 17"):
-        job.result()
 
 
 def test_a_run_with_every_picture_never_forks(tmp_path, monkeypatch):

@@ -7,11 +7,14 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import tomli_w
 
 import leolink.app.split as split
 from leolink.app.split import regions
@@ -33,78 +36,36 @@ from leolink.sim.mobility.models import (
 RTOL = 1e-12
 DB_ATOL = 1e-9
 
-_GLOBAL = """
-[run]
-seed = 11
-epoch_s = 1.0
-duration_s = {duration}
+#: The split runs' global config, shared with benchmarks/bench_split.py; each test layers
+#: its channel, policy, outputs and two populations (fixed and moving, all over the globe).
+GLOBAL = Path(__file__).parent / "data" / "global_split.toml"
 
-[earth]
-model = "{earth}"
-
-[constellation]
-kind = "walker"
-altitude_m = 1300000.0
-inclination_deg = 53.0
-n_planes = 83
-sats_per_plane = 53
-phasing = 1
-min_elevation_deg = 40.0
-
-[roi]
-semi_axis_x_m = 534100.0
-semi_axis_y_m = 170500.0
-
-[link]
-fading = "rician"
-interference = "{interference}"
-
-[controller]
-policy = "{policy}"
-min_snr_db = -10.0
-
-[controller.rlf]
-enabled = {rlf}
-
-[output.trace]
-formats = ["csv", "parquet"]
-
-[output.events]
-formats = ["csv"]
-
-[output.plots]
-enabled = false
-
-[output.report]
-enabled = {report}
-
-[[population]]
-name = "fixed"
-kind = "static"
-placement = "random_region"
-count = 24
-lat_band_deg = [-53.0, 53.0]
-environment = "{environment}"
-
-[[population]]
-name = "car"
-kind = "constant_velocity"
-placement = "random_region"
-count = 16
-lat_band_deg = [-53.0, 53.0]
-speed = "car"
-heading_deg = "random"
-"""
-
-SPHERE = dict(earth="sphere", interference="all_satellites", policy="max_snr", rlf="false",
-              environment="open", report="true", duration=6.0)  # fmt: skip
+SPHERE = dict(earth="sphere", interference="all_satellites", policy="max_snr", rlf=False,
+              environment="open", report=True, duration=6.0)  # fmt: skip
 WGS84 = dict(earth="wgs84", interference="serving_satellite", policy="hysteresis",
-             rlf="true", environment="urban", report="false", duration=5.0)  # fmt: skip
+             rlf=True, environment="urban", report=False, duration=5.0)  # fmt: skip
 
 
 def _config(tmp_path, **values):
+    v = values
+    data = tomllib.loads(GLOBAL.read_text(encoding="utf-8"))
+    band = {"placement": "random_region", "lat_band_deg": [-53.0, 53.0]}
+    data |= {
+        "earth": {"model": v["earth"]},
+        "link": {"fading": "rician", "interference": v["interference"]},
+        "controller": {"policy": v["policy"], "min_snr_db": -10.0, "rlf": {"enabled": v["rlf"]}},
+        "population": [
+            {"name": "fixed", "kind": "static", "count": 24, "environment": v["environment"],
+             **band},
+            {"name": "car", "kind": "constant_velocity", "count": 16, "speed": "car",
+             "heading_deg": "random", **band},
+        ],
+    }  # fmt: skip
+    data["run"] |= {"seed": 11, "duration_s": v["duration"]}
+    data["output"] |= {"trace": {"formats": ["csv", "parquet"]}, "events": {"formats": ["csv"]}}
+    data["output"]["report"]["enabled"] = v["report"]
     path = tmp_path / "global.toml"
-    path.write_text(_GLOBAL.format(**values), encoding="utf-8")
+    path.write_text(tomli_w.dumps(data), encoding="utf-8")
     return path
 
 
@@ -170,7 +131,7 @@ def test_two_workers_give_the_single_process_outputs(tmp_path, values):
     assert b["run"]["split"]["parts"] == 3
     assert len(b["run"]["split"]["peak_rss_mib_by_worker"]) <= 2
     assert sorted(p.name for p in parts.iterdir()) == sorted(p.name for p in single.iterdir())
-    if values["report"] == "true":  # the report's statistics, from the same stream
+    if values["report"]:  # the report's statistics, from the same stream
         with np.load(single / "report_stats.npz") as x, np.load(parts / "report_stats.npz") as y:
             assert x.files == y.files
             for name in x.files:
@@ -182,7 +143,7 @@ def test_two_workers_give_the_single_process_outputs(tmp_path, values):
 
 def test_parts_in_one_process_do_not_depend_on_the_partition(tmp_path):
     """One worker, 1 vs 7 parts run one after the other in this process."""
-    config = _config(tmp_path, **{**SPHERE, "report": "false", "duration": 4.0})
+    config = _config(tmp_path, **{**SPHERE, "report": False, "duration": 4.0})
     one = _run(config, tmp_path / "one", "--parts", "1")
     seven = _run(config, tmp_path / "seven", "--parts", "7")
     _same_outputs(one, seven)
@@ -209,7 +170,7 @@ def test_external_dask_scheduler_gives_the_single_process_outputs(tmp_path, monk
     """``--scheduler ADDRESS`` of a cluster started here (its workers waited for); the
     worker running part 1 is lost once: dask runs the part again on another worker."""
     distributed = pytest.importorskip("dask.distributed")
-    config = _config(tmp_path, **{**SPHERE, "report": "false", "duration": 4.0})
+    config = _config(tmp_path, **{**SPHERE, "report": False, "duration": 4.0})
     single = _run(config, tmp_path / "single")
     monkeypatch.setattr(split, "run_part", _lost_once)  # the workers import this module
     with (
@@ -233,7 +194,7 @@ def test_external_dask_scheduler_gives_the_single_process_outputs(tmp_path, monk
     ],
 )
 def test_coupled_features_are_refused_by_run_and_validate(tmp_path, capsys, overrides, key):
-    config = _config(tmp_path, **{**SPHERE, "report": "false"})
+    config = _config(tmp_path, **{**SPHERE, "report": False})
     args = [str(config), *(a for o in overrides for a in ("--set", o))]
     out = tmp_path / "out"
     assert main(["run", *args, "--out", str(out), "--quiet", "--workers", "2"]) == EXIT_USAGE
@@ -246,7 +207,7 @@ def test_coupled_features_are_refused_by_run_and_validate(tmp_path, capsys, over
 
 
 def test_bad_split_options_are_one_line(tmp_path, capsys):
-    config = _config(tmp_path, **{**SPHERE, "report": "false"})
+    config = _config(tmp_path, **{**SPHERE, "report": False})
     for extra, text in (
         (["--workers", "0"], "workers = 0 is not allowed"),
         (["--parts", "0"], "--parts 0 is not allowed"),
@@ -268,7 +229,7 @@ _run_part = split.run_part
 def test_a_lost_worker_stops_the_run_and_writes_nothing(tmp_path, capsys, monkeypatch):
     """A local worker that dies: one line, exit 2, no output and no part left."""
     monkeypatch.setattr(split, "run_part", _dies_in_part_one)  # forked workers inherit it
-    config = _config(tmp_path, **{**SPHERE, "report": "false", "duration": 3.0})
+    config = _config(tmp_path, **{**SPHERE, "report": False, "duration": 3.0})
     out = tmp_path / "out"
     assert main(["run", str(config), "--out", str(out), "--quiet", "--workers", "2"]) == 2
     err = capsys.readouterr().err.strip()
@@ -336,3 +297,61 @@ def test_some_uts_of_a_model_move_as_in_the_whole_model(kind):
             np.testing.assert_allclose(getattr(mine, field), getattr(whole, field)[index],
                                        rtol=1e-15, atol=1e-9)  # fmt: skip
     assert take_uts(model, np.array([], int)).state(1.0).pos_m.shape == (0, 3)
+
+
+# ------------------------------------------------------------- stops and killed parents
+def _parts_running(tmp_path, out):
+    """A ``--workers 2`` run in a process of its own, once its parts are being written."""
+    from test_signals import _children, _start, _wait_for
+
+    config = _config(tmp_path, **{**SPHERE, "report": False, "duration": 60.0})
+    proc = _start("run", config, "--out", out, "--quiet", "--workers", "2", "--parts", "4")
+    _wait_for(lambda: list(out.glob(".parts-*.partial/part-*")), "the parts being written")
+    return proc, _children(proc.pid)
+
+
+def _gone(workers):
+    from test_signals import _alive, _kill_left, _wait_for
+
+    try:
+        _wait_for(lambda: not any(_alive(w) for w in workers), "the workers to exit")
+    finally:
+        _kill_left(workers)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="POSIX signals, /proc")
+def test_a_stopped_split_run_leaves_no_parts(tmp_path):
+    """SIGTERM to the parent while its parts run: the workers are stopped, the parts'
+    folder removed, one line and 143 (issue 47)."""
+    import signal
+
+    out = tmp_path / "out"
+    proc, workers = _parts_running(tmp_path, out)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    _gone(workers)
+    assert proc.returncode == 143, err
+    assert len(err.strip().splitlines()) == 1 and "stopped by SIGTERM" in err, err
+    assert [p.name for p in out.iterdir()] == []
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="POSIX signals, /proc")
+def test_the_parts_of_a_killed_split_run_are_removed_by_the_next_run(tmp_path):
+    """SIGKILL of the parent (nothing runs in it): its workers die with it, its parts'
+    folder stays; the next command that claims the folder removes it (and leaves a folder
+    of the user's with a like name that is not a parts folder)."""
+    out = tmp_path / "out"
+    proc, workers = _parts_running(tmp_path, out)
+    proc.kill()
+    proc.communicate(timeout=120)
+    _gone(workers)
+    left = list(out.glob(".parts-*.partial"))
+    assert left  # what the next run is to clean
+    mine = out / ".parts-mine.partial"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine", encoding="utf-8")
+    config = _config(tmp_path, **{**SPHERE, "report": False, "duration": 2.0})
+    _run(config, out)
+    assert sorted(p.name for p in out.glob(".parts-*")) == [mine.name]
+    assert (mine / "notes.txt").read_text(encoding="utf-8") == "mine"
+    assert (out / "run.json").is_file()

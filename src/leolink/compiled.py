@@ -187,7 +187,7 @@ def _pool():
     return ThreadPoolExecutor(max(1, n_threads() - 1), thread_name_prefix="leolink-kernel")
 
 
-# A forked child (leolink.io.render) has none of the pool's threads: it starts its own.
+# A forked child (a sweep's worker) has none of the pool's threads: it starts its own.
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_pool.cache_clear)
 

@@ -27,8 +27,6 @@ import sys
 import threading
 import warnings
 
-from leolink.io.render import die_with_parent
-
 __all__ = [
     "SILENCED",
     "Stopped",
@@ -46,6 +44,7 @@ _SIGNALS = {
     if hasattr(signal, name)  # (Windows has SIGINT and SIGTERM only)
 }
 _WATCHDOG_S = 0.5
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 #: (message regex, category, module regex, why it is silenced).
 SILENCED = (
@@ -163,6 +162,16 @@ def out_of_memory(exc: MemoryError) -> str:
     except (TypeError, AttributeError):
         needs = ""
     return f"out of memory ({needs}reduce UTs/epochs or use --workers)"
+
+
+def die_with_parent(sig=signal.SIGTERM):
+    """Have the kernel send ``sig`` to this process when its parent dies (Linux only;
+    a no-op elsewhere)."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, sig, 0, 0, 0)
 
 
 def _parent_gone(parent_pid):

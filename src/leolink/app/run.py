@@ -296,7 +296,7 @@ def _simulation(cfg, scen, out_dir, split):
 def _run_and_write(cfg, scen, where, summary, sinks, simulate, progress):
     stats = simulate(sinks, progress)
     sinks = sinks[:-1]  # without the position
-    try:  # the pictures may still be drawn (leolink.io.render): stopped on any error
+    try:  # an error or a stop in the writing: each sink drops what it still holds
         return _write(cfg, scen, where, summary, sinks, stats)
     except BaseException:
         for sink in sinks:  # a finished sink's abort only stops what still runs

@@ -34,9 +34,7 @@ import os
 import resource
 import shutil
 import socket
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -57,7 +55,6 @@ __all__ = [
 PARTS_PER_WORKER = 4
 #: Parts on a dask cluster by default (its size is not known before it answers).
 SCHEDULER_PARTS = 16
-PARTS_PREFIX = ".parts-"  # OUT/.parts-<random>.partial/ holds the parts while the run runs
 
 
 def split_workers(workers, parts):
@@ -286,6 +283,7 @@ def run_split(cfg, scen, sinks, out_dir, split, progress=None):
     leolink.sim.runner.RunStats
         With ``split``: the parts' wall times and each worker's peak memory.
     """
+    from leolink.io.parts import parts_folder
     from leolink.sim.runner import RunStats
 
     workers, n_parts = split
@@ -293,7 +291,7 @@ def run_split(cfg, scen, sinks, out_dir, split, progress=None):
         n_parts = SCHEDULER_PARTS if isinstance(workers, str) else PARTS_PER_WORKER * workers
     t_wall = time.perf_counter()
     ids = regions(*_start_positions(scen), n_parts)
-    root = Path(tempfile.mkdtemp(prefix=PARTS_PREFIX, suffix=".partial", dir=out_dir))
+    root = parts_folder(out_dir)
     try:
         results = _run_parts(cfg, ids, root, workers, progress)
         info, end_s = _run_info(results, ids), results[0]["end_s"]

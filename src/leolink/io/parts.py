@@ -13,11 +13,21 @@ bounded by :data:`WINDOW_ROWS`, however long the run), and rebuilds the
 :class:`~leolink.sim.streams.BlockFrame` s a single process would have streamed: every
 epoch's rows by run-wide UT id, the events and dwells of an epoch by UT (each UT's own
 order kept). The run's sinks then write the same outputs as a single-process run.
+
+The parts live in ``OUT/.parts-<random>.partial/`` (:func:`parts_folder`) while the run
+runs; the run removes it at its end, on an error and on any signal it can catch. A parent
+killed outright (SIGKILL, a lost machine) leaves it: the next command that claims ``OUT``
+removes it (:func:`remove_stale_parts`, called with the folder locked).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import re
+import shutil
+import stat
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +35,19 @@ import numpy as np
 from leolink.io.atomic import PendingFiles
 from leolink.sim.streams import BlockFrame
 
-__all__ = ["PART_FILES", "WINDOW_ROWS", "PartWriter", "merged_blocks"]
+__all__ = [
+    "PARTS_PREFIX",
+    "PART_FILES",
+    "WINDOW_ROWS",
+    "PartWriter",
+    "merged_blocks",
+    "parts_folder",
+    "remove_stale_parts",
+]
+
+#: A split run's parts folder in its output folder: ``.parts-<random>.partial``.
+PARTS_PREFIX, PARTS_SUFFIX = ".parts-", ".partial"
+_PART = re.compile(r"part-\d{5}")
 
 #: The files of one part.
 PART_FILES = ("trace.parquet", "events.parquet", "dwells.parquet")
@@ -56,6 +78,35 @@ def _epochs_of(ends, k0):
     """The recorded epoch of every row of a block's events (dwells), from their ends."""
     n = int(ends[-1]) if len(ends) else 0
     return k0 + np.searchsorted(np.asarray(ends), np.arange(n), side="right")
+
+
+def parts_folder(out_dir):
+    """A new, empty parts folder in ``out_dir`` (the system's temporary folder if None)."""
+    return Path(tempfile.mkdtemp(prefix=PARTS_PREFIX, suffix=PARTS_SUFFIX, dir=out_dir))
+
+
+def _is_parts_folder(path):
+    """A real folder (not a link) with only ``part-NNNNN`` real folders in it."""
+    try:
+        if not stat.S_ISDIR(os.lstat(path).st_mode):
+            return False
+        return all(_PART.fullmatch(p.name) and not p.is_symlink() and p.is_dir()
+                   for p in path.iterdir())  # fmt: skip
+    except OSError:
+        return False
+
+
+def remove_stale_parts(out_dir):
+    """Remove the parts folders that a killed split run left in ``out_dir``; call it with
+    ``out_dir`` locked (:func:`leolink.io.run_dir.claim_out_dir`): no live command of this
+    machine owns them then. Only what :func:`parts_folder` makes is removed (a real folder
+    ``.parts-*.partial`` holding ``part-NNNNN`` folders), without following a link
+    (``shutil.rmtree``'s own rule); returns the removed folders.
+    """
+    stale = [p for p in Path(out_dir).glob(f"{PARTS_PREFIX}*{PARTS_SUFFIX}") if _is_parts_folder(p)]
+    for path in stale:
+        shutil.rmtree(path, ignore_errors=True)
+    return stale
 
 
 class PartWriter:

@@ -410,6 +410,9 @@ def claim_out_dir(out_dir, overwrite=False, flag="--overwrite", keep=()):
         )
     out_dir.mkdir(parents=True, exist_ok=True)
     lock_out_dir(out_dir)  # before looking: no other command writes or removes here meanwhile
+    from leolink.io.parts import remove_stale_parts
+
+    remove_stale_parts(out_dir)  # a killed split run's parts: locked, no one else's
     mine, others = (
         [p for p in group if not _kept(p, out_dir, keep)] for group in owned_files(out_dir)
     )

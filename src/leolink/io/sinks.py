@@ -6,9 +6,9 @@ with the context ``out_dir`` (a folder, or None for a run kept in memory) and
 ``summary`` (the run's :class:`~leolink.io.summary.accumulator.SummaryAccumulator`, fed first),
 ``ephemeris`` and ``codebook`` (the scenario's) and ``epoch_utc`` (UTC of time 0, or None).
 A sink that writes files lists them, once finished, in its ``files`` attribute (the run's
-manifest, ``run.json``, is made of these lists; reading it may wait for pictures still
-drawn in a child process, :mod:`leolink.io.render`). ``abort`` after ``finish`` stops what
-still runs. A sink may also have
+manifest, ``run.json``, is made of these lists; pictures are drawn in the run's own
+process, at ``finish``). ``abort`` after ``finish`` drops what the sink still holds. A
+sink may also have
 ``after_run(summary, config_text) -> list of paths``, called once ``summary.json`` is
 written, for outputs drawn from the final summary (the report page).
 """
@@ -193,7 +193,7 @@ class PlotSink:
 
     def __init__(self, out_dir, summary, ut_ids=(0,)):
         self.out_dir, self.summary, self.ut_ids = Path(out_dir), summary, list(ut_ids)
-        self._rows, self._events, self._job = [], [], None
+        self._rows, self._events, self.files = [], [], []
 
     def start(self, info):
         self._rows, self._events = [], []
@@ -218,10 +218,8 @@ class PlotSink:
         self._span = [first_s if self._span[0] is None else self._span[0], last_s]
 
     def finish(self, final):
-        """Start drawing (:mod:`leolink.io.render`); :attr:`files` waits for the PNGs."""
-        from leolink.io.render import start
-
-        self._job = start("the plots", self._draw)
+        """Draw the PNGs (:attr:`files`), in this process."""
+        self.files = self._draw()
 
     def _draw(self):
         from leolink.io.plots import plot_run
@@ -235,16 +233,9 @@ class PlotSink:
             per_ut=stats.per_ut_table(), dwells=stats.dwell_table(),
         )  # fmt: skip
 
-    @property
-    def files(self):
-        """The PNGs written (after :meth:`finish`; waits for them)."""
-        return [] if self._job is None else self._job.result()
-
     def abort(self):
-        """Drop the kept rows; stop the drawing if it runs."""
+        """Drop the kept rows."""
         self._rows, self._events = [], []
-        if self._job is not None:
-            self._job.cancel()
 
 
 def _each_once(formats):

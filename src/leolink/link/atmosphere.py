@@ -11,7 +11,8 @@ Four models, built by :func:`atmosphere_model` as ``callable(elevation_rad) -> l
   the air density up to 2.3 km and zero above.
 
 ``itur`` is slow, so every model except ``fixed`` is tabulated once on an elevation
-grid by :class:`AtmosphereTable` and interpolated (vectorized) afterwards.
+grid by :class:`AtmosphereTable` at its first use (a scenario built and not run, as by
+``leolink validate``, never computes it) and interpolated (vectorized) afterwards.
 
 References
 ----------
@@ -23,6 +24,7 @@ References
 .. [4] NOAA/NASA/USAF, "U.S. Standard Atmosphere, 1976", NOAA-S/T 76-1562.
 """
 
+import functools
 import warnings
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -270,7 +272,9 @@ class AtmosphereTable:
     Parameters
     ----------
     loss_fn : callable
-        ``loss_fn(elevation_rad array) -> loss_db array`` (called once, on the grid).
+        ``loss_fn(elevation_rad array) -> loss_db array``, called once, on the grid, when
+        the table is first used (:attr:`loss_db`): a scenario built and not run (``leolink
+        validate``, the parent of a split run) never loads ``itur``'s maps.
     min_elevation_rad : float
         First grid point [rad].
     step_rad : float
@@ -283,8 +287,16 @@ class AtmosphereTable:
     def __init__(self, loss_fn, min_elevation_rad=0.0, step_rad=_HALF_DEGREE_RAD):
         n = int(np.ceil((np.pi / 2 - min_elevation_rad) / step_rad)) + 1
         self.elevation_rad = np.linspace(min_elevation_rad, np.pi / 2, max(n, 2))
-        self.loss_db = np.asarray(loss_fn(self.elevation_rad), dtype=float)
-        self._ratio = self.loss_db / self._airmass(self.elevation_rad)
+        self._loss_fn = loss_fn
+
+    @functools.cached_property
+    def loss_db(self):
+        """The loss on the grid [dB], shape of :attr:`elevation_rad` (computed once)."""
+        return np.asarray(self._loss_fn(self.elevation_rad), dtype=float)
+
+    @functools.cached_property
+    def _ratio(self):
+        return self.loss_db / self._airmass(self.elevation_rad)
 
     @classmethod
     def _airmass(cls, elevation_rad):
@@ -335,9 +347,12 @@ ATMOSPHERES.add(
 
 
 def _p676(p, ctx):
-    site = site_surface_conditions(ctx.site_lat_deg, ctx.site_lon_deg)
-    site.pop("altitude_m")
-    return _table(lambda el, f: itu_p676_db(el, f, **site), ctx)
+    def loss_db(el, f):  # at the table's first use: the site's maps are itur's largest
+        site = site_surface_conditions(ctx.site_lat_deg, ctx.site_lon_deg)
+        site.pop("altitude_m")
+        return itu_p676_db(el, f, **site)
+
+    return _table(loss_db, ctx)
 
 
 ATMOSPHERES.add(

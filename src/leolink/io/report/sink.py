@@ -72,7 +72,7 @@ class ReportSink:
         self.out_dir = None if out_dir is None else Path(out_dir)
         self.params, self.ephemeris, self.codebook = params, ephemeris, codebook
         self.epoch_utc = epoch_utc
-        self.stats, self.files, self.animation, self._jobs = None, [], None, []
+        self.stats, self.files, self.animation, self._drawn = None, [], None, None
 
     def start(self, info):
         uts = list(self.params.uts) or default_series_uts(info.population)
@@ -133,18 +133,15 @@ class ReportSink:
                 stats.add_satellites(times[lo + i], pos[i, serving], vel[i, serving], serving)
 
     def finish(self, final):
-        """Complete the statistics and save them; start drawing the animation (and the
-        exports) and the page's figures, each in a child process (:mod:`leolink.io.render`)."""
-        from leolink.io.render import start
-
+        """Complete the statistics and save them; draw the animation (and the exports)
+        and the page's figures, in this process."""
         self._flush()
         self._add_dwells(final.dwells)
         self._add_satellites()
         if self.out_dir is None:
             return
         self.files = [self.stats.save(self.out_dir / "report_stats.npz")]
-        self._jobs = [start("the report's animation", self._draw_files)]
-        self._jobs.append(start("the report's figures", self._draw_figures))
+        self._drawn = self._draw_files(), self._draw_figures()
 
     def _draw_files(self):
         """``footprint.gif`` (and the exports): ``(animation path or None, written)``."""
@@ -173,7 +170,7 @@ class ReportSink:
             return []
         from leolink.io.report.page import build_run_report
 
-        (self.animation, drawn), figures = (job.result() for job in self._jobs)
+        (self.animation, drawn), figures = self._drawn
         page = build_run_report(
             self.out_dir / "report.html",
             summary,
@@ -186,7 +183,5 @@ class ReportSink:
         return [*drawn, page]
 
     def abort(self):
-        """Drop the buffered rows; stop the drawing if it runs."""
-        self._buffer, self._n_buffered = [], 0
-        for job in self._jobs:
-            job.cancel()
+        """Drop the buffered rows and the drawings."""
+        self._buffer, self._n_buffered, self._drawn = [], 0, None

@@ -52,6 +52,11 @@ class LocalAxis:
 
     sats: np.ndarray
     n_beam: int
+    #: The last map of :meth:`_sources`, ``[(new axis, (rows, slots, src))]``: a mutable
+    #: holder of this frozen axis (every array of an epoch is carried by the same map).
+    _last_sources: list = dataclasses.field(
+        default_factory=list, init=False, repr=False, compare=False
+    )
 
     @classmethod
     def empty(cls, n_ut, n_beam):
@@ -136,14 +141,13 @@ class LocalAxis:
         """``(rows, slots, src)``: slot ``src[k]`` of this axis holds the satellite of slot
         ``slots[k]`` of row ``rows[k]`` of ``new`` (those on both axes); kept for the last
         ``new`` (every array of an epoch is carried by the same map)."""
-        last = self.__dict__.get("_last_sources")
-        if last is not None and last[0] is new:
-            return last[1]
+        if self._last_sources and self._last_sources[0][0] is new:
+            return self._last_sources[0][1]
         rows, slots = nonzero_2d(new.sats >= 0)
         src = self._slot(rows, new.sats[rows, slots])
         ok = src >= 0
         got = rows[ok], slots[ok], src[ok]
-        self.__dict__["_last_sources"] = (new, got)  # (frozen: as cached_property does)
+        self._last_sources[:] = [(new, got)]
         return got
 
     def remap(self, new, values, fill):
