@@ -1,6 +1,8 @@
 """The sinks' background thread: leolink.background.BackgroundWorker, and a run whose sinks
 take each block on that thread while the simulator computes the next one."""
 
+import contextlib
+import queue
 import sys
 import threading
 from pathlib import Path
@@ -9,7 +11,7 @@ import numpy as np
 import pytest
 
 from frame_helpers import BlockCapture
-from leolink.background import BackgroundWorker
+from leolink.background import BackgroundWorker, cancelled
 from leolink.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -67,6 +69,30 @@ def test_cancel_drops_what_waits_once_the_item_in_hand_is_done():
     threading.Timer(0.05, release.set).start()
     worker.cancel()
     assert seen == ["in hand"]
+
+
+def test_cancel_cuts_the_item_in_hand_short_where_it_asks():
+    """Issue 49: a long item asks :func:`cancelled` between its pieces and returns at the
+    first piece after ``cancel`` (a stop waits for one piece, not the whole item); the
+    caller's thread is never "cancelled"."""
+    pieces, started, tokens = [], threading.Event(), queue.SimpleQueue()
+    n_pieces = 100  # each waits for a token, 5 s at most: a cancel unseen reaches the end
+
+    def handle(item):
+        started.set()
+        for _ in range(n_pieces):
+            if cancelled():
+                return
+            with contextlib.suppress(queue.Empty):
+                tokens.get(timeout=0.05)
+            pieces.append(item)
+
+    worker = BackgroundWorker(handle)
+    worker.put("long")
+    started.wait(5.0)
+    worker.cancel()
+    assert len(pieces) < n_pieces  # it stopped at the piece after the cancel
+    assert not cancelled()
 
 
 class _Interrupt(BaseException):

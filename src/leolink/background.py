@@ -3,7 +3,10 @@
 ``put`` hands an item over and returns at once unless one item already waits: at most
 two are alive, the one in hand and the one waiting, so memory stays bounded. An error on
 the thread is raised by the next ``put`` or by ``close``; ``cancel`` (a run that stops)
-drops what waits and returns once the item in hand is done.
+drops what waits and returns once the item in hand is done. A long item is cut short:
+its handler asks :func:`cancelled` between bounded pieces of work (a writer's slices of
+rows, a sink group's sinks) and returns early once its worker is cancelled, since what it
+makes is dropped: a stop waits for one piece, not for the whole item (issue 49).
 
 The caller's side is safe to interrupt: a signal handler that raises (Ctrl-C, SIGTERM in
 :mod:`leolink.app.guard`) may do so between any two bytecodes of the main thread, also
@@ -20,9 +23,17 @@ from __future__ import annotations
 import queue
 import threading
 
-__all__ = ["BackgroundWorker"]
+__all__ = ["BackgroundWorker", "cancelled"]
 
 _STOP = object()  # after the items: the thread ends
+_here = threading.local()  # .worker: the BackgroundWorker whose thread this is
+
+
+def cancelled():
+    """True on a worker's thread once its worker is cancelled (its item in hand may stop
+    early: what it makes is dropped); always False on any other thread."""
+    worker = getattr(_here, "worker", None)
+    return worker is not None and worker._cancelled
 
 
 class BackgroundWorker:
@@ -46,6 +57,7 @@ class BackgroundWorker:
         threading.Thread(target=self._run, name=name, daemon=True).start()
 
     def _run(self):
+        _here.worker = self
         try:
             while (item := self._items.get()) is not _STOP:
                 self._room.put(None)  # taken in hand: the next one may wait

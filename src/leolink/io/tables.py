@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa  # core only (~0.1 s); pyarrow.csv / .parquet when a format needs them
 
-from leolink.background import BackgroundWorker
+from leolink.background import BackgroundWorker, cancelled
 from leolink.errors import ConfigError, require_at_least
 from leolink.io.arrow import (
     NUMPY_TYPES,
@@ -88,6 +88,9 @@ CHUNK_BYTES = 8 * 2**20
 #: x 3,600 epochs, four string columns in chunks of ~30,000 rows): 0.43-0.46 -> 0.24-0.25
 #: s, the import and the first million rows included.
 TAKE_AFTER_ROWS = 1_000_000
+#: Rows of a chunk's CSV written at once (the same bytes as the whole chunk at once): a stop
+#: waits for one slice's text, not a chunk's (:func:`leolink.background.cancelled`).
+CSV_SLICE_ROWS = 8_192
 
 
 class TableWriter:
@@ -198,6 +201,8 @@ class TableWriter:
             to_table(columns, self.schema)  # raises naming the lengths
         n_rows, start = len(arrays[names[0]]), 0
         while start < n_rows:
+            if cancelled():  # a stop: the rows are dropped, abort follows
+                return
             take = min(n_rows - start, self.chunk_rows - self._n_filled)
             for n in names:
                 self._chunk[n][self._n_filled : self._n_filled + take] = arrays[n][
@@ -245,7 +250,10 @@ class TableWriter:
     def _write(self, tables):
         csv, parquet = tables
         if csv is not None:
-            self._csv.write_table(csv)
+            for start in range(0, csv.num_rows, CSV_SLICE_ROWS):
+                if cancelled():  # a stop: the file is removed next
+                    return
+                self._csv.write_table(csv.slice(start, CSV_SLICE_ROWS))
         if parquet is not None:
             self._parquet.write_table(parquet, row_group_size=self.chunk_rows)
         for growing in self._growing.values():  # (on the writer's thread when it has one)

@@ -23,7 +23,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from leolink.background import BackgroundWorker
+from leolink.background import BackgroundWorker, cancelled
 
 __all__ = ["BlockFrame", "EpochFrame", "FinalFrame", "RunInfo", "Sink", "SinkGroup", "deliver"]
 
@@ -176,6 +176,8 @@ def deliver(sink, frame):
         whole(frame)
         return
     for epoch in frame.frames():
+        if cancelled():  # a stop (SinkGroup.abort): the rest is dropped
+            return
         sink.epoch(epoch)
 
 
@@ -234,6 +236,8 @@ class SinkGroup:
     def _hand(self, item):
         whole, frame = item
         for sink in self.sinks:
+            if cancelled():  # a stop: the frame is dropped, the sinks abort next
+                return
             if whole:
                 deliver(sink, frame)
             else:
@@ -248,7 +252,8 @@ class SinkGroup:
 
     def abort(self):
         """Abort every sink whose ``start`` was entered (all of them after a full start),
-        once the frame a sink has in hand is done (the frames still waiting are dropped)."""
+        once the sink in hand has done with its frame, which it cuts short
+        (:func:`~leolink.background.cancelled`; the frames still waiting are dropped)."""
         if self._worker is not None:
             worker, self._worker = self._worker, None
             worker.cancel()
