@@ -178,6 +178,10 @@ def _threads_asked():
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
 SPLIT_MIN_ROWS = 16_384
+#: Most rows (in pairs, ``row_size``) of one compiled call: a signal's handler (a stop,
+#: :mod:`leolink.app.guard`) runs only between two, and the pool's threads finish the
+#: piece in hand before the process exits (issue 49: a stop waits for a piece, not a call).
+PIECE_ROWS = 1 << 17
 
 
 @functools.cache
@@ -196,18 +200,28 @@ def run_rows(kernel, n, *args, row_size=1):
     """``kernel(*args, lo, hi)`` over the rows ``0 .. n - 1``, split over
     :func:`n_threads` threads when large (the compiled loops release the GIL). Each row is
     computed by one thread with the same operations: the bits of a single call.
-    ``row_size``: the work of a row, in units of a pair (a UT's row of satellites)."""
+    ``row_size``: the work of a row, in units of a pair (a UT's row of satellites). The
+    rows go in pieces of at most :data:`PIECE_ROWS` pairs, every ``k``-th to this thread;
+    on a stop the pieces not yet begun are cancelled."""
     k = min(n_threads(), n * row_size // SPLIT_MIN_ROWS, n)
+    m = min(n, max(k, 1, -(-n * row_size // PIECE_ROWS)))
+    edges = [n * i // m for i in range(m + 1)]
+    pieces = list(zip(edges[:-1], edges[1:], strict=True))
     if k <= 1:
-        kernel(*args, 0, n)
+        for lo, hi in pieces:
+            kernel(*args, lo, hi)
         return
-    edges = [n * i // k for i in range(k + 1)]
     pool = _pool()
-    shares = zip(edges[1:-1], edges[2:], strict=True)
-    tasks = [pool.submit(kernel, *args, lo, hi) for lo, hi in shares]
-    kernel(*args, 0, edges[1])  # this thread's share
-    for task in tasks:
-        task.result()
+    tasks = [pool.submit(kernel, *args, *piece) for i, piece in enumerate(pieces) if i % k]
+    try:
+        for lo, hi in pieces[::k]:  # this thread's share
+            kernel(*args, lo, hi)
+        for task in tasks:
+            task.result()
+    except BaseException:
+        for task in tasks:
+            task.cancel()
+        raise
 
 
 def single_threaded_blas(environ=os.environ):
