@@ -13,13 +13,15 @@ merge into the outputs), ``speedup_two_over_single`` and ``speedup_two_over_seri
 and for 1,000,000 UTs x 600 s: ``parts_core_hours_1m`` (the parts' cost per UT-epoch x
 6e8: spread over a cluster's cores) and ``merge_hours_1m`` (the merge scaled by its rows:
 one parent), so a cluster of C cores needs about ``parts / C + merge`` hours.
-Run alone: ``python benchmarks/bench_split.py [--uts N] [--duration-s S] [--parts P]``.
+Run alone: ``python benchmarks/bench_split.py [--uts N] [--duration-s S] [--parts P]``,
+or on another config as it is: ``... --config configs/global.toml``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import tempfile
 from pathlib import Path
 
@@ -32,7 +34,7 @@ CONFIG = ROOT / "tests" / "data" / "global_split.toml"
 def _run(config, out, extra):
     wall, rss, cpu = run_cli(["run", str(config), "--out", str(out), "--quiet", *extra])
     run = json.loads((out / "summary.json").read_text("utf-8"))["run"]
-    return wall, rss, cpu, run.get("split")
+    return wall, rss, cpu, run
 
 
 def main(argv=None):
@@ -40,16 +42,18 @@ def main(argv=None):
     ap.add_argument("--uts", type=int, default=10_000)
     ap.add_argument("--duration-s", type=float, default=60.0)
     ap.add_argument("--parts", type=int, default=8)
+    ap.add_argument("--config", type=Path, help="another config, as it is (no --uts, --duration-s)")
     args = ap.parse_args(argv)
-    figures, n_ut_epochs = {}, args.uts * round(args.duration_s)
-    print(f"split: {args.uts:,} UTs over land, 4,399 satellites, {args.duration_s:g} s, "
-          f"{args.parts} parts")  # fmt: skip
+    figures, config = {}, (args.config or CONFIG).resolve()
+    sets = [] if args.config else ["--set", f"run.duration_s={args.duration_s!r}", "--set",
+                                   f"population.0.count={args.uts}"]  # fmt: skip
+    what = args.config or f"{args.uts:,} UTs over land, 4,399 satellites, {args.duration_s:g} s"
+    print(f"split: {what}, {args.parts} parts; load average {os.getloadavg()[0]:.1f}")
     with tempfile.TemporaryDirectory() as tmp:
-        sets = ["--set", f"run.duration_s={args.duration_s!r}", "--set",
-                f"population.0.count={args.uts}"]  # fmt: skip
         parts = ["--parts", str(args.parts)]
         for tag, extra in (("single", []), ("serial", parts), ("two", ["--workers", "2", *parts])):
-            wall, rss, cpu, split = _run(CONFIG, Path(tmp) / tag, [*sets, *extra])
+            wall, rss, cpu, run = _run(config, Path(tmp) / tag, [*sets, *extra])
+            split, n_ut_epochs = run.get("split"), run["n_ut"] * run["n_epochs"]
             figures.update({f"{tag}_wall_s": wall, f"{tag}_cpu_s": cpu, f"{tag}_peak_rss_mib": rss})
             row(f"{tag}: wall time", wall, "s")
             row(f"{tag}: CPU time (process and workers)", cpu, "s")
@@ -67,6 +71,7 @@ def main(argv=None):
     big = 1_000_000 * 600
     figures["parts_core_hours_1m"] = figures["part_cpu_s_per_ut_epoch"] * big / 3600.0
     figures["merge_hours_1m"] = figures["merge_s"] * big / n_ut_epochs / 3600.0
+    print(f"  ({n_ut_epochs:,} UT-epochs; load average at the end {os.getloadavg()[0]:.1f})")
     for name in ("part_cpu_s_per_ut_epoch", "merge_s", "two_worker_peak_rss_mib",
                  "speedup_two_over_single", "speedup_two_over_serial",
                  "parts_core_hours_1m", "merge_hours_1m"):  # fmt: skip

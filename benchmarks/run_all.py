@@ -33,7 +33,7 @@ MODULES = ("bench_engine", "bench_sim", "bench_constellation", "bench_features",
            "bench_small", "bench_memory", "bench_visibility", "bench_peer",
            "bench_atmosphere")  # fmt: skip
 #: Benchmarks run on their own, not by this command (minutes each, or a part's floor).
-RUN_ALONE = ("bench_report", "bench_report_cost", "bench_split", "bench_writer")
+RUN_ALONE = ("bench_report", "bench_report_cost", "bench_split", "bench_stops", "bench_writer")
 #: The variants of bench_features (its VARIANTS).
 FEATURES = ("a3", "cho", "t1", "time_to_exit", "predictive", "urban", "report", "global")
 #: Aims of the issue (speed at constellation scale): name -> (unit, "<=" or ">=", aim).

@@ -204,7 +204,7 @@ def run_rows(kernel, n, *args, row_size=1):
     rows go in pieces of at most :data:`PIECE_ROWS` pairs, every ``k``-th to this thread;
     on a stop the pieces not yet begun are cancelled."""
     k = min(n_threads(), n * row_size // SPLIT_MIN_ROWS, n)
-    m = min(n, max(k, 1, -(-n * row_size // PIECE_ROWS)))
+    m = max(1, min(n, max(k, -(-n * row_size // PIECE_ROWS))))  # (no rows: one empty call)
     edges = [n * i // m for i in range(m + 1)]
     pieces = list(zip(edges[:-1], edges[1:], strict=True))
     if k <= 1:
