@@ -133,14 +133,14 @@ def _sib19(cfg, series):
         "feeder_link": "not modelled (the satellite stands for the gNB)",
         "ephemeris_error": cfg.ephemeris_error.model,
         "units": {
-            "epoch_s": "s since time_zero_utc",
+            "epoch_s": "s of simulation time (UTC: time_zero_utc + epoch_s)",
             "position_m": "m",
             "velocity_m_s": "m/s",
             "ta_common_s": "s",
             "ta_common_drift_s_s": "s/s",
             "k_offset_ms": "slots of 15 kHz (1 ms)",
             "validity_s": "s",
-        },  # fmt: skip
+        },
         "records": sib19_records(cfg, served, believed),
     }
 
