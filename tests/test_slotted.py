@@ -84,10 +84,11 @@ def test_through_slot_prefers_a_satellite_that_still_serves_at_the_next_boundary
     assert _policy("max_snr").choose(12.0, now, _state([-1]))[0] == 0
 
 
-def test_slotted_is_registered_and_needs_its_run():
+def test_slotted_is_registered_and_chooses_only_for_a_run():
     assert "slotted" in POLICIES
-    with pytest.raises(ValueError, match="built for a run"):
-        POLICIES.build("slotted", POLICIES["slotted"].config())
+    bare = POLICIES.build("slotted", POLICIES["slotted"].config())  # as compare's same_as
+    with pytest.raises(ValueError, match="n_beam and epoch_s"):
+        bare.choose(12.0, np.zeros((1, 2)), _state([0]))
 
 
 def test_a_bad_rule_is_one_clear_line():

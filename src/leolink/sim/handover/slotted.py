@@ -98,11 +98,13 @@ class Slotted:
         if rule not in RULES:
             raise ValueError(f"rule = {rule!r}; use one of {RULES}")
         self.slot_s, self.phase_s, self.rule = float(slot_s), float(phase_s), rule
-        self.n_beam, self.epoch_s = int(n_beam), float(epoch_s)
+        self.n_beam, self.epoch_s = n_beam, epoch_s  # None: built without a run
         self.utc_offset_s = float(utc_offset_s)
         self.lookahead_s = self.slot_s if rule == "through_slot" else 0.0
 
     def choose(self, t_s, snr_db, state, future_snr_db=None):
+        if self.n_beam is None or self.epoch_s is None:
+            raise ValueError("Slotted.choose needs the run's n_beam and epoch_s (build context)")
         table = snr_db if isinstance(snr_db, Candidates) else Candidates.dense(snr_db)
         if slot_boundary(t_s, self.epoch_s, self.slot_s, self.phase_s, self.utc_offset_s):
             return self._by_rule(table, state, future_snr_db)
@@ -142,10 +144,10 @@ class Slotted:
 
 def _build(params, context=None):
     """The policy of ``[controller.slotted]`` for the run of ``context`` (``n_beam``,
-    ``epoch_s`` and ``utc_offset_s`` of ``leolink.app.scenario._policy_context``)."""
-    if context is None or getattr(context, "epoch_s", None) is None:
-        raise ValueError("controller.policy = 'slotted' is built for a run (n_beam, epoch_s)")
-    return Slotted(params.slot_s, params.phase_s, params.rule, context.n_beam, context.epoch_s,
+    ``epoch_s`` and ``utc_offset_s`` of ``leolink.app.scenario._policy_context``); without
+    one (``leolink compare`` asks a policy for ``same_as``) it cannot choose."""
+    return Slotted(params.slot_s, params.phase_s, params.rule,
+                   getattr(context, "n_beam", None), getattr(context, "epoch_s", None),
                    getattr(context, "utc_offset_s", 0.0))  # fmt: skip
 
 
