@@ -97,7 +97,7 @@ def common_ta_s(sat_pos_m, radius_m, reference_point="nadir"):
         raise ValueError(f"reference_point = {reference_point!r}; use one of {REFERENCE_POINTS}")
     r = np.linalg.norm(np.asarray(sat_pos_m, float), axis=-1)
     if reference_point == "satellite":
-        return np.zeros_like(r)
+        return r * 0.0  # (NaN stays NaN: a row without a link)
     return 2.0 * propagation_delay_s(r - radius_m)
 
 
@@ -200,7 +200,7 @@ def timing_columns(params, ut_pos_m, ut_vel_m_s, believed, true_doppler_hz):
         "common_ta_s": common,
         "k_offset_ms": k_offset_ms(
             altitude, params.min_elevation_rad, params.radius_m, common, params.n_ta_offset
-        ),  # fmt: skip
+        ),
         "doppler_residual_hz": doppler_residual_hz(
             true_doppler_hz, (pos, vel), ut_pos_m, ut_vel_m_s, params.freq_hz
         ),
