@@ -41,6 +41,9 @@ VARIANTS = {
     "predictive": ['controller.policy="predictive"', "controller.predictive.lookahead_s=60.0"],
     "urban": [f'population.{i}.environment="urban"' for i in range(len(COUNTS))],
     "report": ["output.report.enabled=true"],
+    # issue 46: satellites reassigned on the 15 s grid; the NTN timing columns
+    "slotted": ['controller.policy="slotted"'],
+    "timing": ["timing.enabled=true"],
     # UTs spread over -60..60 deg of latitude (uniform on the sphere) instead of the ROI:
     # the same UT-epochs, so the CPU ratio is the ratio per UT-epoch (floor 1.5).
     "global": [

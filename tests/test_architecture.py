@@ -42,7 +42,7 @@ LAYERS = {
     "geometry": 1, "geodesy": 1, "greatcircle": 1, "land": 1,
     "orbit": 2, "roi": 2, "placement": 2, "passes": 2, "visibility": 2,
     "ephemeris_error": 2, "compiled": 0,
-    "antenna": 3, "link": 3, "kinematics": 3, "coverage": 3,
+    "antenna": 3, "link": 3, "kinematics": 3, "coverage": 3, "timing": 3,
     "engine": 4, "multibeam": 4,
     "sim": 5,
     "io": 6, "config": 6,

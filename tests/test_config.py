@@ -155,7 +155,7 @@ MISTAKES = [
     (
         ['controller.policy="greedy"'],
         r"controller\.policy = 'greedy' is not allowed: .*'max_snr', 'hysteresis', "
-        r"'predictive', 'a3', .*'time_to_exit', 'cho' or 'a2a4'",
+        r"'predictive', 'a3', .*'time_to_exit', 'cho', 'a2a4' or 'slotted'",
     ),
     (
         ["population.1.x_m=[1.0, 2.0, 3.0]"],

@@ -239,7 +239,7 @@ def test_policies_from_the_config_tables():
     assert isinstance(h, Hysteresis) and (h.margin_db, h.time_to_trigger_s) == (2.0, 0.5)
     assert policy(policy="predictive", predictive={"lookahead_s": 4.0}).lookahead_s == 4.0
     with pytest.raises(
-        ConfigError, match="'max_snr', 'hysteresis', 'predictive', 'a3', .*'cho' or 'a2a4'"
+        ConfigError, match="'max_snr', 'hysteresis', 'predictive', .*'cho', 'a2a4' or 'slotted'"
     ):
         policy(policy="greedy")
     with pytest.raises(ConfigError, match="controller.hysteresis.lookahead_s is not a known key"):

@@ -107,8 +107,9 @@ def test_to_xarray_holds_every_trace_column_with_its_type_and_units(result):
 
 def test_every_trace_column_has_units_and_a_description():
     from leolink.io.table_schemas import ENVIRONMENT_COLUMNS, TRACE_COLUMN_DOCS, TRACE_COLUMNS
+    from leolink.timing import TIMING_COLUMNS
 
-    assert set(TRACE_COLUMN_DOCS) == set(TRACE_COLUMNS + ENVIRONMENT_COLUMNS)
+    assert set(TRACE_COLUMN_DOCS) == set(TRACE_COLUMNS + ENVIRONMENT_COLUMNS + TIMING_COLUMNS)
     assert all(description for _, description in TRACE_COLUMN_DOCS.values())
 
 

@@ -1,5 +1,5 @@
 """Command line: ``leolink run | coverage | budget | codebook | sweep | compare | report |
-validate | examples | init | passes``.
+validate | examples | init | passes | export-ntn``.
 
 Errors leolink raises on purpose, and errors of the environment (a folder that cannot
 be written, a full disk, an unreachable dask scheduler), are printed as one line (exit
@@ -281,6 +281,18 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_export_ntn(args) -> int:
+    import leolink
+    from leolink.app.export_ntn import export_ntn
+
+    paths = export_ntn(Path(args.dir), Path(args.out), overwrite=args.overwrite,
+                       version=leolink.__version__)  # fmt: skip
+    if not args.quiet:
+        for path in paths:
+            print(path)
+    return 0
+
+
 def _ut_list(text):
     try:
         uts = [int(u) for u in text.split(",")]
@@ -392,6 +404,13 @@ def build_parser() -> argparse.ArgumentParser:
     _compare_parser(add("compare", cmd_compare, "run policies on the same seeds, compare KPIs"))
     what = "rebuild report.html of a run folder, no rerun"
     _add_report(sub.add_parser("report", help=what, description=what[0].upper() + what[1:] + "."))
+    what = "write a run's per-UT NTN series and a SIB19-like ephemeris (docs/ntn_export.md)"
+    p = sub.add_parser("export-ntn", help=what, description=what[0].upper() + what[1:] + ".")
+    p.add_argument("dir", metavar="RUN_DIR", help="folder of a finished leolink run")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_export_ntn)
     _add_examples(sub)
     return parser
 

@@ -35,6 +35,7 @@ from leolink.sim.mobility.models import OnWgs84, take_uts
 from leolink.sim.mobility.populations import PopulationContext
 from leolink.sim.runner import Scenario, epoch_times
 from leolink.sim.service_link import ServiceLink
+from leolink.timing import TimingParams
 
 __all__ = [
     "beams_from",
@@ -279,12 +280,24 @@ def build_scenario(cfg, ut_ids=None):
         estimated_ephemeris=estimated_ephemeris(cfg, ephemeris),
         roi_frame=frame,
         ut_keys=keys,
+        timing=timing_params(cfg),
     )
 
 
+def timing_params(cfg):
+    """The :class:`~leolink.timing.TimingParams` of ``[timing]``, None when it is off."""
+    t = cfg.timing
+    if not t.enabled:
+        return None
+    return TimingParams(t.reference_point, t.n_ta_offset,
+                        math.radians(cfg.constellation.min_elevation_deg), cfg.earth.radius_m,
+                        cfg.link.freq_hz)  # fmt: skip
+
+
 def _policy_context(cfg, n_sat, n_beam):
-    """What the policies are built with: the L3 filter, the level of ``[cells]`` and the
-    ``[[controller.cell_offsets]]`` (each cell checked against the constellation)."""
+    """What the policies are built with: the L3 filter, the level of ``[cells]``, the
+    ``[[controller.cell_offsets]]`` (each cell checked against the constellation), the
+    beams per satellite, the epoch and the UTC second of time 0 (``slotted``'s grid)."""
     for i, c in enumerate(cfg.controller.cell_offsets):
         for key, value, n in (("sat_id", c.sat_id, n_sat), ("beam_id", c.beam_id, n_beam)):
             if value is not None and value >= n:
@@ -292,10 +305,15 @@ def _policy_context(cfg, n_sat, n_beam):
                     f"controller.cell_offsets.{i}.{key} = {value} is not allowed: use 0 .. "
                     f"{n - 1} (the run has {n})"
                 )
+    utc0 = cfg.utc_of_time_zero()
     return SimpleNamespace(
         filter=cfg.controller.filter,
         level="satellite" if cfg.cells.per == "satellite" else None,
         cell_offsets=cfg.controller.cell_offsets,
+        n_beam=n_beam,
+        epoch_s=cfg.run.epoch_s,
+        # seconds past the UTC minute of simulation time 0 (the slotted policy's grid)
+        utc_offset_s=0.0 if utc0 is None else utc0.second + utc0.microsecond * 1e-6,
     )
 
 

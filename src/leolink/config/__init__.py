@@ -32,6 +32,7 @@ from leolink.config.schema import (
     RunSection,
     SatelliteArraySection,
     Section,
+    TimingSection,
 )
 from leolink.errors import ConfigError
 from leolink.registry import REGISTRIES, generation
@@ -125,6 +126,7 @@ class ConfigBase(Section):
         cells: Any
         controller: Any
         kpi: Any
+        timing: Any
 
     @model_validator(mode="after")
     def _check(self):
@@ -254,6 +256,7 @@ def _model(gen):
         "cells": CellsConfig,
         "kpi": KpiConfig,
         "multibeam": MultibeamSection,
+        "timing": TimingSection,
     }  # fmt: skip
     fields: dict[str, Any] = {k: (m, Field(default_factory=m)) for k, m in sections.items()}
     fields["population"] = (

@@ -50,6 +50,7 @@ OWNERS = (
     "leolink.link.atmosphere",
     "leolink.sim.handover.policies",
     "leolink.sim.handover.trigger_policies",
+    "leolink.sim.handover.slotted",
     "leolink.sim.mobility.populations",
     "leolink.io.tracks",
     "leolink.io.sinks",

@@ -417,3 +417,28 @@ class MultibeamSection(Section):
                 f"multibeam.tiers = {self.tiers!r}"
             )
         return self
+
+
+class TimingSection(Section):
+    """``[timing]``: the NTN timing columns of the trace (:mod:`leolink.timing`)."""
+
+    enabled: bool = _f(
+        False,
+        doc="add ta_s, common_ta_s, k_offset_ms and doppler_residual_hz to the trace (the "
+        "UT's timing advance and Doppler pre-compensation from the believed ephemeris)",
+    )
+    reference_point: Literal["nadir", "satellite"] = _f(
+        "nadir",
+        doc="uplink synchronisation reference point (the feeder link is not modelled): "
+        "'nadir', common TA = 2 x altitude / c; 'satellite', common TA = 0",
+    )
+    n_ta_offset: Literal[0, 25600, 39936] = _f(
+        0, doc="n-TimingAdvanceOffset in T_c (TS 38.331: n0, n25600, n39936)"
+    )
+    sib19_validity_s: Literal[5, 10, 15, 20, 25, 30, 35, 40, 45, 50, 55, 60, 120, 180, 240, 900] = (
+        _f(
+            10,
+            doc="export-ntn: ntn-UlSyncValidityDuration of each ephemeris record [s] "
+            "(TS 38.331: s5..s60 in 5 s steps, s120, s180, s240, s900)",
+        )
+    )

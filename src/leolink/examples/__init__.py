@@ -39,6 +39,7 @@ EXAMPLES: dict[str, str] = {
     "sls_leo600_set1_s_reuse1": "TR 38.821 system-level calibration, LEO-600 Set-1 S, reuse 1",
     "sls_leo600_set1_s_reuse3": "TR 38.821 system-level calibration, LEO-600 Set-1 S, reuse 3",
     "global": "the paper's 4,399 satellites over UTs on a 2 deg grid over land, 600 s",
+    "starlink_like": "a 72 x 22 shell at 550 km, satellites reassigned on a 15 s grid, 300 s",
 }
 
 

@@ -20,7 +20,10 @@ recording waits for the end of the block.
 
 Timing: ``delay_s`` is the link's slant range / c, ``delay_rate_s_s`` its rate, the
 range rate / c (from the link's total Doppler, :mod:`leolink.kinematics`); in outage rows
-those of the best candidate, as the geometry.
+those of the best candidate, as the geometry. With ``[timing]`` (``timing``), the NTN
+columns of :mod:`leolink.timing` (``ta_s``, ``common_ta_s``, ``k_offset_ms``,
+``doppler_residual_hz``) of the same link, from the satellite state the UT believes
+(NaN without a link).
 
 Beyond the engine's columns (:class:`~leolink.sim.service_link.ServiceLink`): the link
 figures (EIRP, C/N0, Es/N0, margin, MODCOD, ACM throughput), and with a SINR service
@@ -42,6 +45,7 @@ from leolink.rng import complex_normal
 from leolink.sim.handover.controller import SERVICE_HANDOVER, SERVICE_OUTAGE, interruption_s
 from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import BlockFrame, EpochFrame, deliver
+from leolink.timing import TIMING_COLUMNS, timing_columns
 
 __all__ = ["FadingDraws", "Monitor"]
 
@@ -111,10 +115,14 @@ class Monitor:
         engine's power and bandwidth, service as the controller judged it).
     service : leolink.sim.beams.service.BeamService, optional
         Beam sharing and precoding (adds the ``n_sharing`` column); None: today's links.
+    timing : leolink.timing.TimingParams, optional
+        Adds the NTN timing columns (module docstring); None: without them.
     """
 
-    def __init__(self, sink, decider, fading=None, population=(), link=None, service=None):
+    def __init__(self, sink, decider, fading=None, population=(), link=None, service=None,
+                 timing=None):  # fmt: skip
         self.engine, self.sink, self.decider = decider.engine, sink, decider
+        self.timing = timing
         self.rlf, self.epoch_s = decider.rlf, decider.epoch_s
         self.service, self.fading = service, fading
         self.freq_hz = float(self.engine.params.freq_hz)
@@ -202,6 +210,8 @@ class Monitor:
             none = eng.serve_pairs(None, np.full(rows.size, -1), geo_beam, None)
             if self.service is not None:  # the trace's column, as for unserved rows
                 none["n_sharing"] = np.zeros(rows.size, np.int64)
+            if self.timing is not None:
+                none.update({name: np.full(rows.size, np.nan) for name in TIMING_COLUMNS})
             return self._finish(none, geo_beam)
         pl = self._pair_links(rows, geo_sat, served, n_ut)
         up_enu = None if dec.enu is None else per_row(dec.enu)
@@ -236,7 +246,16 @@ class Monitor:
                           sat_pos_est_m=pl.sat_pos_est_m,
                           sat_vel_est_m=pl.sat_vel_est_m)  # fmt: skip
             self._share(recs, cols, inputs)
+        if self.timing is not None:
+            cols.update(self._timing(pl, ut_pos, per_row(mb.ut_vel_m_s), cols["doppler_hz"]))
         return self._finish(cols, geo_beam, pl)
+
+    def _timing(self, pl, ut_pos, ut_vel, doppler):
+        """The NTN timing columns of the rows (:mod:`leolink.timing`), NaN without a link."""
+        pos = pl.sat_pos_m if pl.sat_pos_est_m is None else pl.sat_pos_est_m
+        vel = pl.sat_vel_m_s if pl.sat_vel_est_m is None else pl.sat_vel_est_m
+        nan = np.where(pl.pair >= 0, 1.0, np.nan)[:, None]
+        return timing_columns(self.timing, ut_pos, ut_vel, (pos * nan, vel * nan), doppler)
 
     def _pair_links(self, rows, geo_sat, served, n_ut):
         """The links of the rows' (UT, satellite) pairs: those the controller's search

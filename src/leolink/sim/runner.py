@@ -43,6 +43,7 @@ from leolink.sim.processes import (
 )
 from leolink.sim.service_link import ServiceLink
 from leolink.sim.streams import FinalFrame, RunInfo, SinkGroup
+from leolink.timing import TIMING_COLUMNS
 
 __all__ = ["RunStats", "Scenario", "epoch_times", "run_simulation"]
 
@@ -97,6 +98,8 @@ class Scenario:
         (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
     roi_frame : leolink.app.orbits.RoiFrame or None, the ROI frame the populations were
         placed in (the run's notes say it); None: not known (a scenario built by hand).
+    timing : leolink.timing.TimingParams or None, the NTN timing columns of ``[timing]``
+        (``ta_s``, ``common_ta_s``, ``k_offset_ms``, ``doppler_residual_hz``); None: off.
     ut_keys : ndarray of uint64 (n_ut,) or None, the UTs' random keys; None:
         ``leolink.rng.ut_keys(seed, n_ut)``. A part of a split run carries its UTs' keys of
         the whole run (:mod:`leolink.app.split`), so its draws are the whole run's.
@@ -128,6 +131,7 @@ class Scenario:
     estimated_ephemeris: Callable | None = None
     roi_frame: object | None = None
     ut_keys: np.ndarray | None = None
+    timing: object | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,9 +198,10 @@ def _monitor(scen, sink, decide, keys, names):
     """The run's monitor; with an ephemeris error, the links on the true states."""
     fading = None if scen.fading_k is None else FadingDraws(scen.fading_k, keys)
     args = (sink, decide, fading, names, scen.link)
+    kw = dict(service=scen.service, timing=scen.timing)
     if scen.estimated_ephemeris is None:
-        return Monitor(*args, service=scen.service)
-    return TrueLinkMonitor(*args, service=scen.service, true_ephemeris=scen.ephemeris)
+        return Monitor(*args, **kw)
+    return TrueLinkMonitor(*args, **kw, true_ephemeris=scen.ephemeris)
 
 
 def run_simulation(
@@ -263,7 +268,7 @@ def run_simulation(
     info = RunInfo(
         n_ut, scen.ephemeris.n_sat, scen.engine.n_beam, scen.epoch_s,
         float(times[scen.n_warmup]), len(times) - scen.n_warmup, names, environment,
-        ("n_sharing",) if scen.service is not None else (),
+        ("n_sharing",) * (scen.service is not None) + TIMING_COLUMNS * (scen.timing is not None),
     )  # fmt: skip
     t_wall = time.perf_counter()
     try:  # start inside: a signal while the later sinks start aborts the earlier ones
