@@ -242,7 +242,8 @@ def _applied_rules(t_s, limits, n_beam, tables, target, was):
         _rules_rows(t_s, limits, n_beam, (table.cell, table.snr_db), target, was, out)
         return out
     ut = _table_facts(table, usable, target, was[0])
-    out = _rules(t_s, limits, n_beam, ut, was)
+    with np.errstate(invalid="ignore"):  # (NaN times compared: never pending)
+        out = _rules(t_s, limits, n_beam, ut, was)
     return tuple(np.asarray(v, dtype) for v, dtype in zip(out, _OUT_DTYPES, strict=True))
 
 
