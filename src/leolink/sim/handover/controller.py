@@ -193,14 +193,19 @@ def _rules(t_s, limits, n_beam, ut, was):
 #: The dtypes of :func:`_rules`' outputs.
 _OUT_DTYPES = (np.int64, np.int64, float, float, float, bool, bool, float,
                np.int64, np.int64, np.int8, np.int8, float, float, bool, bool)  # fmt: skip
+#: Where :func:`_rules_rows` writes each output: (int64, float, int8, bool array, row).
+_OUT_ROWS = ((0, 0), (0, 1), (1, 0), (1, 1), (1, 2), (3, 0), (3, 1), (1, 3),
+             (0, 2), (0, 3), (2, 0), (2, 1), (1, 4), (1, 5), (3, 2), (3, 3))  # fmt: skip
 
 
 @compiled.jit
 def _rules_rows(t_s, limits, n_beam, table, target, was, out):
-    """:func:`_rules` UT by UT into ``out`` (arrays of :data:`_OUT_DTYPES`), each UT's
-    facts read from its row of ``table`` ``(cell, snr_db)`` as :func:`_table_facts`
-    reads them (the first slot holding a cell; a usable SNR is finite and >= the minimum)."""
+    """:func:`_rules` UT by UT into ``out``, its outputs grouped by dtype (int64, float,
+    int8, bool: rows in :data:`_OUT_ROWS`' order), each UT's facts read from its row of
+    ``table`` ``(cell, snr_db)`` as :func:`_table_facts` reads them (the first slot
+    holding a cell; a usable SNR is finite and >= the minimum)."""
     cell, snr_db = table
+    ints, floats, codes, flags = out
     for i in range(target.size):
         old, has_usable, current_db, target_db = was[0][i], False, np.nan, np.nan
         for j in range(cell.shape[1]):
@@ -217,10 +222,11 @@ def _rules_rows(t_s, limits, n_beam, table, target, was, out):
         r = _rules(t_s, limits, n_beam, (has_usable, current_db, target[i], target_db),
                    (old, was[1][i], was[2][i], was[3][i], was[4][i], was[5][i], was[6][i],
                     was[7][i]))  # fmt: skip
-        out[0][i], out[1][i], out[2][i], out[3][i] = r[0], r[1], r[2], r[3]
-        out[4][i], out[5][i], out[6][i], out[7][i] = r[4], r[5], r[6], r[7]
-        out[8][i], out[9][i], out[10][i], out[11][i] = r[8], r[9], r[10], r[11]
-        out[12][i], out[13][i], out[14][i], out[15][i] = r[12], r[13], r[14], r[15]
+        ints[0, i], ints[1, i], ints[2, i], ints[3, i] = r[0], r[1], r[8], r[9]
+        floats[0, i], floats[1, i], floats[2, i] = r[2], r[3], r[4]
+        floats[3, i], floats[4, i], floats[5, i] = r[7], r[12], r[13]
+        codes[0, i], codes[1, i] = r[10], r[11]
+        flags[0, i], flags[1, i], flags[2, i], flags[3, i] = r[5], r[6], r[14], r[15]
 
 
 def _table_facts(table, usable, target, serving):
@@ -238,9 +244,11 @@ def _applied_rules(t_s, limits, n_beam, tables, target, was):
     that table masked below the minimum SNR."""
     n, (table, usable) = target.size, tables
     if compiled.use(n):
-        out = tuple(np.empty(n, dtype) for dtype in _OUT_DTYPES)
+        # Four arrays, not sixteen: a compiled call's cost grows with its arguments.
+        out = (np.empty((4, n), np.int64), np.empty((6, n)), np.empty((2, n), np.int8),
+               np.empty((4, n), bool))  # fmt: skip
         _rules_rows(t_s, limits, n_beam, (table.cell, table.snr_db), target, was, out)
-        return out
+        return tuple(out[group][row] for group, row in _OUT_ROWS)
     ut = _table_facts(table, usable, target, was[0])
     with np.errstate(invalid="ignore"):  # (NaN times compared: never pending)
         out = _rules(t_s, limits, n_beam, ut, was)
