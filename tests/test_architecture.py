@@ -28,7 +28,6 @@ PENDING: set[str] = {
     "io/report/animation.py:build_frames",
     "engine/__init__.py:evaluate_pairs",
     "visibility.py:tle_elevations_rad",
-    "sim/handover/controller.py:_apply_changes",
     "sim/handover/controller.py:step",
     "engine/links.py:pair_geometry",
 }

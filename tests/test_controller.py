@@ -19,6 +19,9 @@ from leolink.sim.handover.policies import Hysteresis, MaxSnr, Predictive
 
 HANDOVER_KINDS = ("beam_handover", "sat_handover")
 
+# controller._rules runs compiled (numba) and as numpy code: both must pass.
+pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
+
 
 def run(policy, snr_seq, dt_s=1.0, min_snr_db=0.0, handover_time_s=0.0, n_beam=1, future=None):
     """Drive step() over snr_seq (n_epoch, n_ut, n_cand); t accumulated like SimPy does."""

@@ -30,6 +30,9 @@ from leolink.sim.handover.policies import Hysteresis, MaxSnr
 
 TOL_S = 1e-9  # the documented epoch-time tolerance (1 ns)
 
+# controller._rules runs compiled (numba) and as numpy code: both must pass.
+pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
+
 
 class Given:
     """A policy whose choice is passed to step() as ``target`` (never asked)."""

@@ -138,6 +138,7 @@ def test_constant_velocity_kinematics(lat, lon, heading, speed, alt, t):
     np.testing.assert_allclose(s.acc_m_s2, num_acc, atol=ACC_TOL_M_S2)
 
 
+@pytest.mark.usefixtures("compiled_and_numpy")  # great_circle_state both ways
 def test_constant_velocity_starts_along_heading_and_uses_presets():
     lat, lon = np.radians([30.0, -60.0]), np.radians([0.0, 100.0])
     heading = np.radians([90.0, 200.0])
@@ -161,6 +162,7 @@ def test_constant_velocity_starts_along_heading_and_uses_presets():
         ConstantVelocity(0.0, 0.0, 0.0, 0.0, -1.0)
 
 
+@pytest.mark.usefixtures("compiled_and_numpy")  # great_circle_state both ways
 def test_constant_velocity_goes_around_the_world():
     speed = 250.0
     period_s = 2 * np.pi * R / speed

@@ -64,6 +64,7 @@ def run_all(tree, out, python=sys.executable):
 def _summary(path):
     data = json.loads(path.read_text())
     data.get("run", {}).pop("wall_time_s", None)
+    data.get("run", {}).pop("config_file", None)  # (the base's is in its own worktree)
     return data
 
 

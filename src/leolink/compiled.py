@@ -36,7 +36,7 @@ __all__ = [
     "jitable",
     "n_threads",
 ]
-__all__ += ["run_rows", "single_threaded_blas", "use"]
+__all__ += ["run_rows", "select", "single_threaded_blas", "use"]
 
 #: The variables BLAS libraries take their thread count from (OpenBLAS, numpy's own, reads
 #: the first three in this order; MKL its own).
@@ -45,6 +45,8 @@ BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_TH
 #: The physics functions the compiled loops call (:func:`jitable`), registered with numba
 #: when a loop is first compiled.
 _JITABLE: list = []
+#: Whether :func:`select`'s numba version is registered (once, at the first compilation).
+_SELECT_REGISTERED: list = []
 #: Held while a loop compiles (numba's cache folder is set for it: :func:`_compile`).
 _COMPILE_LOCK = threading.Lock()
 
@@ -92,6 +94,25 @@ def jitable(fn):
     return fn
 
 
+def select(cond, a, b):
+    """``a`` where ``cond``, else ``b``: :func:`numpy.where` on arrays, and in a compiled
+    loop on one element's scalars (``a if cond else b``), so that a rule written with it
+    runs on every UT at once in numpy and UT by UT when compiled, from one source."""
+    import numpy as np  # (not at the top: the leolink command sets BLAS up before numpy)
+
+    return np.where(cond, a, b)
+
+
+def _select_overload(cond, a, b):
+    """numba's :func:`select`: the scalar choice on a scalar condition, else numpy's."""
+    import numpy as np
+    from numba import types
+
+    if isinstance(cond, types.Boolean):
+        return lambda cond, a, b: a if cond else b
+    return lambda cond, a, b: np.where(cond, a, b)
+
+
 def jit(fn):
     """``numba.njit(cache=True, nogil=True)`` of the loop ``fn``, compiled at its first call
     (``fn`` itself, in Python, where numba is absent)."""
@@ -122,6 +143,11 @@ def _compile(fn):
     from numba.core import config
     from numba.extending import register_jitable
 
+    if not _SELECT_REGISTERED:
+        from numba.extending import overload
+
+        overload(select)(_select_overload)
+        _SELECT_REGISTERED.append(True)
     while _JITABLE:
         register_jitable(_JITABLE.pop())
     saved, config.CACHE_DIR = config.CACHE_DIR, str(_cache_dir())

@@ -34,12 +34,18 @@ def numeric_array(values, arrow_type):
     return pa.Array.from_buffers(arrow_type, data.size, [None, pa.py_buffer(data)])
 
 
-def iso_utc_text(timestamps):
-    """ISO 8601 text (``2026-03-21T12:00:00.250000Z``) of an Arrow array of
-    :data:`UTC_TIMESTAMP` (the CSV form of a timestamp column)."""
+def iso_utc_text(microseconds):
+    """ISO 8601 text (``2026-03-21T12:00:00.250000Z``) of UTC timestamps given as int64
+    microseconds since 1970-01-01T00:00:00Z (the CSV form of a timestamp column).
+
+    Each distinct instant is formatted once, then gathered: a trace repeats every epoch's
+    time for each UT, and Arrow's ``strftime`` costs ~1.5 us a value (600,000 rows of
+    1,000 UTs: 0.93 s of CPU, against 0.024 s so; the same strings)."""
     import pyarrow.compute as pc  # ~50 ms, only for a table with timestamps
 
-    return pc.strftime(timestamps, format="%Y-%m-%dT%H:%M:%SZ")
+    distinct, row = np.unique(np.asarray(microseconds, np.int64), return_inverse=True)
+    text = pc.strftime(numeric_array(distinct, UTC_TIMESTAMP), format="%Y-%m-%dT%H:%M:%SZ")
+    return pc.take(text, numeric_array(row.reshape(-1), pa.int64()))
 
 
 def string_array(names):

@@ -33,7 +33,6 @@ from leolink.background import BackgroundWorker, cancelled
 from leolink.errors import ConfigError, require_at_least
 from leolink.io.arrow import (
     NUMPY_TYPES,
-    UTC_TIMESTAMP,
     Vocabulary,
     decoded_array,
     dictionary_array,
@@ -228,7 +227,7 @@ class TableWriter:
 
         def values(f):
             if f.name in TIMESTAMP_COLUMNS and pa.types.is_string(f.type):  # the CSV's text
-                return iso_utc_text(numeric_array(cols[f.name], UTC_TIMESTAMP))
+                return iso_utc_text(cols[f.name])
             return numeric_array(cols[f.name], f.type)
 
         arrays = [strings(f.name) if f.name in self._vocab else values(f) for f in schema]

@@ -120,6 +120,8 @@ def choose_groups(ut_pos_m, n_sat, reach_rad):
         cost = n_sat * float(counts @ cap) + GROUP_COST_PAIRS * len(counts)
         if best is None:
             one = cost  # m = 0: every UT in one group
+            if GROUP_COST_PAIRS > TILE_GAIN * one:  # no tiling can cost less (>= 1 group)
+                return [np.arange(len(unit))]
         if best is None or cost < best[0]:
             best = (cost, group.reshape(-1))
     if best[0] > TILE_GAIN * one:  # (the one group's dense path is the faster per pair)

@@ -18,11 +18,12 @@ the simulator removes from the epoch's throughput. An interruption may span epoc
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 
 import numpy as np
 
+from leolink import compiled
+from leolink.compiled import select
 from leolink.sim.candidates.table import Candidates
 from leolink.sim.handover.events import (  # noqa: F401  (the tables' names, re-exported)
     DWELL_COLUMNS,
@@ -113,28 +114,145 @@ class StepResult:
     beam_id: np.ndarray
 
 
-def _time_to_trigger(t_s, target, was_pending, was_since_s, wants, immediate, ttt_s):
-    """Pending bookkeeping (``was_*``: the state's ``pending`` and ``pending_since_s``).
-    Returns (fire, pending, pending_since_s)."""
-    if not wants.any():  # (most epochs: nothing fires, nothing pends)
-        n = wants.shape
-        return np.zeros(n, bool), np.full(n, -1, np.int64), np.full(n, np.nan)
-    pending = np.where(wants & ~immediate, target, -1)
-    same = (pending >= 0) & (pending == was_pending)
-    since = np.where(same, was_since_s, np.where(pending >= 0, t_s, np.nan))
-    with np.errstate(invalid="ignore"):
-        waited = t_s - since >= ttt_s - TIME_TOL_S
-    fire = wants & (immediate | waited)
-    return fire, np.where(fire, -1, pending), np.where(fire | (pending < 0), np.nan, since)
+@compiled.jitable
+def _rules(t_s, limits, n_beam, ut, was):
+    """Every rule of :func:`step` after the policy's choice, written once: on every UT's
+    arrays at once (the numpy code), or on one UT's scalars (:func:`_rules_rows`, the loop
+    numba compiles from this source). Comparisons, ``&``, ``|``, ``~`` and
+    :func:`~leolink.compiled.select` only.
+
+    Parameters
+    ----------
+    t_s : float [s]
+    limits : (min_snr_db, handover_time_s, time_to_trigger_s, time tolerance) [dB, s, s, s]
+    n_beam : int
+    ut : (has_usable, current_db, target, target_db), each (n_ut,) or one UT's: whether a
+        UT has a usable candidate, its serving cell's SNR [dB] (NaN without one), the
+        policy's target and the target's SNR [dB] (NaN where absent), both from the full
+        table.
+    was : the state's values (serving, pending, pending_since_s, interrupted_until_s,
+        serving_since_s, in_outage, dwell_censored_start, serving_snr_db).
+
+    Returns
+    -------
+    tuple of 16
+        The new state's eight values (``was``'s order), then ``sat_id``, ``beam_id`` and
+        the service code of the new serving cell, the event kind (index of
+        ``EVENT_KINDS``, -1: none), the new serving cell's SNR and the old link's last
+        [dB] (the event's columns), whether a dwell closes, and whether the target is
+        unusable where one is needed (``step`` raises).
+    """
+    min_snr_db, handover_time_s, ttt_s, tol = limits
+    has_usable, current_db, target, target_db = ut
+    old, was_pending, was_since_s, until, since_s, in_outage, censored, last_snr_db = was
+    first = has_usable & (old < 0) & ~in_outage
+    interrupted = (old >= 0) & (t_s < until - tol)
+    bad = has_usable & ~interrupted & ~(np.isfinite(target_db) & (target_db >= min_snr_db))
+    immediate = ~(np.isfinite(current_db) & (current_db >= min_snr_db))
+    wants = has_usable & (old >= 0) & ~interrupted & (target != old)
+    outage_start = ~has_usable & ~in_outage
+    outage_end = has_usable & in_outage
+    # Time to trigger: a target pends until it has been wanted for ttt_s (at once where
+    # the serving link is no longer usable).
+    pending = select(wants & ~immediate, target, -1)
+    since = select((pending >= 0) & (pending == was_pending), was_since_s,
+                   select(pending >= 0, t_s, np.nan))  # fmt: skip
+    handover = wants & (immediate | (t_s - since >= ttt_s - tol))
+    adopt = handover | outage_end | first
+    dropped = adopt | outage_start  # nothing pends for these
+    new = select(adopt, target, select(outage_start, -1, old))
+    new_db = select(adopt, target_db, select(outage_start, np.nan, current_db))
+    last_db = select(np.isfinite(current_db), current_db, last_snr_db)
+    # A handover adopts the target: its satellite is the new one's.
+    kind = select(handover, select(new // n_beam == old // n_beam, 0, 1), -1)
+    kind = select(outage_end, 3, select(outage_start, 2, kind))
+    until = select(handover, t_s + handover_time_s, select(outage_start, -np.inf, until))
+    in_outage = (in_outage & ~outage_end) | outage_start
+    kept = select(new == old, last_db, np.nan)
+    service = select((new >= 0) & (t_s < until - tol), SERVICE_HANDOVER, SERVICE_SERVED)
+    return (
+        new,
+        select(dropped, -1, pending),
+        select(dropped | (pending < 0), np.nan, since),
+        until,
+        select(adopt, t_s, select(outage_start, np.nan, since_s)),
+        in_outage,
+        select(first, True, select(adopt, False, censored)),
+        select(new < 0, np.nan, select(np.isfinite(new_db), new_db, kept)),
+        select(new >= 0, new // n_beam, -1),
+        select(new >= 0, new % n_beam, -1),
+        select(in_outage | (new < 0), SERVICE_OUTAGE, service),
+        kind,
+        new_db,
+        last_db,
+        (handover | outage_start) & (old >= 0),
+        bad,
+    )
 
 
-def _check_targets(policy, target, target_db, needs):
-    """A policy must return a usable candidate wherever one is needed (``target_db``: the
-    usable SNR of ``target``)."""
-    ok = np.isfinite(target_db)
-    bad = np.flatnonzero(needs & ~ok)
-    if bad.size:
-        _raise_unusable(policy, target, bad.size, bad[0])
+#: The dtypes of :func:`_rules`' outputs.
+_OUT_DTYPES = (np.int64, np.int64, float, float, float, bool, bool, float,
+               np.int64, np.int64, np.int8, np.int8, float, float, bool, bool)  # fmt: skip
+#: Where :func:`_rules_rows` writes each output: (int64, float, int8, bool array, row).
+_OUT_ROWS = ((0, 0), (0, 1), (1, 0), (1, 1), (1, 2), (3, 0), (3, 1), (1, 3),
+             (0, 2), (0, 3), (2, 0), (2, 1), (1, 4), (1, 5), (3, 2), (3, 3))  # fmt: skip
+
+
+@compiled.jit
+def _rules_rows(t_s, limits, n_beam, table, target, was, out):
+    """:func:`_rules` UT by UT into ``out``, its outputs grouped by dtype (int64, float,
+    int8, bool: rows in :data:`_OUT_ROWS`' order), each UT's facts read from its row of
+    ``table`` ``(cell, snr_db)`` as :func:`_table_facts` reads them (the first slot
+    holding a cell; a usable SNR is finite and >= the minimum)."""
+    cell, snr_db = table
+    ints, floats, codes, flags = out
+    for i in range(target.size):
+        old, has_usable, current_db, target_db = was[0][i], False, np.nan, np.nan
+        for j in range(cell.shape[1]):
+            v = snr_db[i, j]
+            has_usable |= np.isfinite(v) and v >= limits[0]
+        for j in range(cell.shape[1]):
+            if old >= 0 and cell[i, j] == old:
+                current_db = snr_db[i, j]
+                break
+        for j in range(cell.shape[1]):
+            if target[i] >= 0 and cell[i, j] == target[i]:
+                target_db = snr_db[i, j]
+                break
+        r = _rules(t_s, limits, n_beam, (has_usable, current_db, target[i], target_db),
+                   (old, was[1][i], was[2][i], was[3][i], was[4][i], was[5][i], was[6][i],
+                    was[7][i]))  # fmt: skip
+        ints[0, i], ints[1, i], ints[2, i], ints[3, i] = r[0], r[1], r[8], r[9]
+        floats[0, i], floats[1, i], floats[2, i] = r[2], r[3], r[4]
+        floats[3, i], floats[4, i], floats[5, i] = r[7], r[12], r[13]
+        codes[0, i], codes[1, i] = r[10], r[11]
+        flags[0, i], flags[1, i], flags[2, i], flags[3, i] = r[5], r[6], r[14], r[15]
+
+
+def _table_facts(table, usable, target, serving):
+    """Per UT (numpy): whether it has a usable candidate (``usable``: the table masked
+    below the minimum), its serving cell's SNR and its target's [dB] (NaN where absent)."""
+    # The usable table has the cells of the full one: each cell's slot is found once.
+    slot_old, slot_target = table.slot_of(serving, target)
+    has_usable = np.isfinite(usable.snr_db).any(axis=1)
+    return has_usable, table.at(slot_old), target, table.at(slot_target)
+
+
+def _applied_rules(t_s, limits, n_beam, tables, target, was):
+    """:func:`_rules` of every UT, as arrays of :data:`_OUT_DTYPES`: compiled, UT by UT,
+    or numpy's on the arrays (``LEOLINK_JIT=0``). ``tables``: the candidate table and
+    that table masked below the minimum SNR."""
+    n, (table, usable) = target.size, tables
+    if compiled.use(n):
+        # Four arrays, not sixteen: a compiled call's cost grows with its arguments.
+        out = (np.empty((4, n), np.int64), np.empty((6, n)), np.empty((2, n), np.int8),
+               np.empty((4, n), bool))  # fmt: skip
+        _rules_rows(t_s, limits, n_beam, (table.cell, table.snr_db), target, was, out)
+        return tuple(out[group][row] for group, row in _OUT_ROWS)
+    ut = _table_facts(table, usable, target, was[0])
+    with np.errstate(invalid="ignore"):  # (NaN times compared: never pending)
+        out = _rules(t_s, limits, n_beam, ut, was)
+    return tuple(np.asarray(v, dtype) for v, dtype in zip(out, _OUT_DTYPES, strict=True))
 
 
 def _raise_unusable(policy, target, n_bad, first):
@@ -185,6 +303,7 @@ def step(
     Dwells run from the epoch a candidate became serving to the epoch it stopped.
     ``snr_before_db`` of an event is the serving link's last finite SNR (this epoch's, or
     the last epoch's if its satellite has set), NaN only without a serving link.
+    The rules themselves are :func:`_rules` (numpy, or compiled from the same source).
     """
     snr_db = _as_table(snr_db)
     usable_db = snr_db.masked(min_snr_db)
@@ -192,135 +311,40 @@ def step(
     if target is None:
         target = policy.choose(t_s, usable_db, state, future_db)
     target = np.asarray(target, np.int64)
-    old = state.serving
-    # The usable table has the cells of the full one: each cell's slot is found once.
-    slot_old, slot_target = snr_db.slot_of(old, target)
-    has_usable = np.isfinite(usable_db.snr_db).any(axis=1)
-    first = has_usable & (old < 0) & ~state.in_outage
-    interrupted = (old >= 0) & (t_s < state.interrupted_until_s - TIME_TOL_S)
-    _check_targets(policy, target, usable_db.at(slot_target), has_usable & ~interrupted)
-
-    current_db = snr_db.at(slot_old)
-    with np.errstate(invalid="ignore"):  # the serving cell's usable SNR, as in usable_db
-        immediate = ~np.isfinite(np.where(current_db >= min_snr_db, current_db, np.nan))
-    wants = has_usable & (old >= 0) & ~interrupted & (target != old)
-    outage_start = ~has_usable & ~state.in_outage
-    outage_end = has_usable & state.in_outage
-    res = _unchanged(t_s, state, current_db, n_beam)
-    u = np.flatnonzero(wants | first | outage_start | outage_end)
-    if u.size:  # (none in most epochs of small runs)
-        # Every rule is per UT: applied to the UTs ``u`` that change, written over what the
-        # rules give the others (:func:`_unchanged`'s result).
-        sub = _Subset(old[u], target[u], wants[u], first[u], outage_start[u], outage_end[u],
-                      immediate[u], slot_old[u], slot_target[u], current_db[u])  # fmt: skip
-        ttt_s = float(policy.time_to_trigger_s)
-        _apply_changes(res, t_s, state, u, snr_db, sub, ttt_s, handover_time_s, n_beam)
+    limits = (float(min_snr_db), float(handover_time_s), float(policy.time_to_trigger_s),
+              TIME_TOL_S)  # fmt: skip
+    out = _applied_rules(float(t_s), limits, int(n_beam), (snr_db, usable_db), target,
+                         _state_arrays(state))  # fmt: skip
+    new_state = ControllerState(*out[:7], n_beam=int(n_beam), serving_snr_db=out[7])
+    sat, beam, service, kind, new_db, last_db, closing, bad = out[8:]
+    n_bad = int(np.count_nonzero(bad))
+    if n_bad:
+        _raise_unusable(policy, target, n_bad, int(np.argmax(bad)))
+    res = StepResult(new_state, no_events(), no_dwells(), service, sat, beam)
+    if kind.max(initial=-1) >= 0:
+        old = state.serving
+        res.events = events_table(t_s, kind, old, split_cells(old, n_beam), (sat, beam), new_db,
+                                  last_db)  # fmt: skip
+    if closing.any():
+        u = np.flatnonzero(closing)
+        old = state.serving[u]
+        res.dwells = dwells_table(u, old, state.serving_since_s[u], t_s,
+                                  state.dwell_censored_start[u], False, n_beam,
+                                  split_cells(old, n_beam))  # fmt: skip
     return res
 
 
-#: :func:`step`'s per-UT arrays of the UTs that change.
-_Subset = collections.namedtuple("_Subset", "old target wants first outage_start outage_end "
-                                 "immediate slot_old slot_target current_db")  # fmt: skip
-
-
-def _apply_changes(res, t_s, state, u, snr_db, sub, ttt_s, handover_time_s, n_beam):
-    """The rules of :func:`step` for the UTs ``u`` (their arrays ``sub``), written into
-    ``res``, :func:`_unchanged`'s result: events, dwells, state, cells and service."""
-    old, target = sub.old, sub.target
-    handover, pending, pending_since = _time_to_trigger(
-        t_s, target, state.pending[u], state.pending_since_s[u], sub.wants, sub.immediate, ttt_s
-    )
-    adopt = handover | sub.outage_end | sub.first
-    new = np.where(adopt, target, np.where(sub.outage_start, -1, old))
-    slot_new = np.where(adopt, sub.slot_target, np.where(sub.outage_start, -1, sub.slot_old))
-    old_split, new_split = split_cells(old, n_beam), split_cells(new, n_beam)
-
-    # A handover adopts the target: its satellite is the new one's.
-    same_sat = new_split[0] == old_split[0]
-    kind = np.full(old.shape, -1, np.int64)
-    kind[handover] = np.where(same_sat[handover], 0, 1)
-    kind[sub.outage_start] = 2
-    kind[sub.outage_end] = 3
-    last_db = _last_serving_db(state, sub.current_db, u)
-    new_db = snr_db.rows(u).at(slot_new)
-    res.events = events_table(t_s, kind, old, old_split, new_split, new_db, last_db, ut_id=u)
-    closing = np.flatnonzero((handover | sub.outage_start) & (old >= 0))
-    res.dwells = dwells_table(u[closing], old[closing], state.serving_since_s[u[closing]], t_s,
-                              state.dwell_censored_start[u[closing]], False, n_beam,
-                              (old_split[0][closing], old_split[1][closing]))  # fmt: skip
-    dropped = adopt | sub.outage_start  # nothing pends for these
-    new_state = res.state  # its arrays that are not the state's own are written in place
-    new_state.pending[u] = np.where(dropped, -1, pending)
-    new_state.pending_since_s[u] = np.where(dropped, np.nan, pending_since)
-    new_state.serving_snr_db[u] = _serving_db(old, new, new_db, last_db)
-    new_state.serving = _scattered(state.serving, u, new)
-    until = np.where(sub.outage_start, -np.inf, state.interrupted_until_s[u])
-    new_state.interrupted_until_s = _scattered(
-        state.interrupted_until_s, u, np.where(handover, t_s + handover_time_s, until)
-    )
-    since = np.where(sub.outage_start, np.nan, state.serving_since_s[u])
-    new_state.serving_since_s = _scattered(state.serving_since_s, u, np.where(adopt, t_s, since))
-    new_state.in_outage = _scattered(
-        state.in_outage, u, (state.in_outage[u] & ~sub.outage_end) | sub.outage_start
-    )
-    censored = np.where(adopt, False, state.dwell_censored_start[u])
-    new_state.dwell_censored_start = _scattered(
-        state.dwell_censored_start, u, np.where(sub.first, True, censored)
-    )
-    res.sat_id[u], res.beam_id[u] = new_split
-    res.service = service_codes(t_s, new_state)
-
-
-def _scattered(values, idx, new):
-    """A copy of ``values`` with ``new`` at ``idx``."""
-    out = values.copy()
-    out[idx] = new
-    return out
-
-
-def _unchanged(t_s, state, current_db, n_beam):
-    """:func:`step`'s result where no UT wants another cell, is assigned a first one,
-    starts or ends an outage: every cell kept, nothing pending (a target no longer
-    wanted stops pending, as in :func:`_time_to_trigger`), no events, no dwells; only the
-    serving links' last SNR moves. Its ``pending``, ``pending_since_s``,
-    ``serving_snr_db``, ``sat_id`` and ``beam_id`` are new arrays (:func:`step` writes the
-    UTs that change into them); the other state arrays are the state's own."""
-    n = state.serving.shape
-    last_db = _last_serving_db(state, current_db)
-    new_state = ControllerState(  # (not dataclasses.replace: ~5 us of introspection)
-        serving=state.serving,
-        pending=np.full(n, -1, np.int64),
-        pending_since_s=np.full(n, np.nan),
-        interrupted_until_s=state.interrupted_until_s,
-        serving_since_s=state.serving_since_s,
-        in_outage=state.in_outage,
-        dwell_censored_start=state.dwell_censored_start,
-        n_beam=int(n_beam),
-        serving_snr_db=np.where(state.serving < 0, np.nan, last_db),
-    )
-    sat, beam = split_cells(state.serving, n_beam)
-    return StepResult(new_state, no_events(), no_dwells(), service_codes(t_s, new_state),
-                      sat, beam)  # fmt: skip
+def _state_arrays(state):
+    """The state's arrays in :func:`_rules`' order (the serving SNR NaN if unrecorded)."""
+    last = state.serving_snr_db
+    return (state.serving, state.pending, state.pending_since_s, state.interrupted_until_s,
+            state.serving_since_s, state.in_outage, state.dwell_censored_start,
+            np.full(state.n_ut, np.nan) if last is None else last)  # fmt: skip
 
 
 def _as_table(snr_db):
     """A :class:`Candidates` table (a dense matrix: the cells of its columns)."""
     return snr_db if isinstance(snr_db, Candidates) else Candidates.dense(snr_db)
-
-
-def _last_serving_db(state, current_db, ut=slice(None)):
-    """The serving link's SNR now if finite, else its last recorded value (of the UTs
-    ``ut``, ``current_db`` theirs)."""
-    last = state.serving_snr_db
-    if last is None:
-        last = np.full(state.n_ut, np.nan)
-    return np.where(np.isfinite(current_db), current_db, last[ut])
-
-
-def _serving_db(old, new, new_db, last_db):
-    """``serving_snr_db`` of the new state."""
-    kept = np.where(new == old, last_db, np.nan)
-    return np.where(new < 0, np.nan, np.where(np.isfinite(new_db), new_db, kept))
 
 
 def interruption_s(t_s, epoch_s, state):

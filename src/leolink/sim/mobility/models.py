@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from leolink import compiled
 from leolink.constants import EARTH_RADIUS_M
 from leolink.errors import ConfigError
 from leolink.geometry import ecef_to_geodetic, enu_basis, geodetic_to_ecef
@@ -184,38 +185,68 @@ class ConstantVelocity:
 
     def state(self, t_s):
         """State at ``t_s`` [s] (scalar), all UTs at once."""
+        at = self.states(np.array([float(t_s)]))
+        return UTState(at.pos_m[0], at.vel_m_s[0], at.acc_m_s2[0], at.lat_rad[0], at.lon_rad[0],
+                       self.alt_m.copy())  # fmt: skip
+
+    def states(self, times_s):
+        """:meth:`state` at each of ``times_s`` (n_t,), a leading time axis: every value by
+        :func:`great_circle_state` (in one compiled pass where the loops run)."""
         r_m = self.radius_m + self.alt_m
         # The great circle u(phi) = cos(phi) u0 + sin(phi) e0, phi = distance / r: two
         # trigonometric calls per UT (the simulator moves every UT every epoch).
-        phi = self.speed_m_s * (float(t_s) - self.t0_s) / r_m
-        c, s = np.cos(phi)[:, None], np.sin(phi)[:, None]
-        up = c * self._u0 + s * self._e0
-        tangent = c * self._e0 - s * self._u0
-        pos = r_m[:, None] * up
-        lat = np.arcsin(np.clip(up[:, 2], -1.0, 1.0))
-        lon = np.arctan2(up[:, 1], up[:, 0])
-        vel = self.speed_m_s[:, None] * tangent
-        acc = -(self.speed_m_s**2 / r_m)[:, None] * up
-        return UTState(pos, vel, acc, lat, lon, self.alt_m.copy())
-
-    def states(self, times_s):
-        """:meth:`state` at each of ``times_s`` (n_t,), a leading time axis: the same bits."""
-        r_m = self.radius_m + self.alt_m
         phi = self.speed_m_s * (np.asarray(times_s, float)[:, None] - self.t0_s) / r_m
-        c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
-        up = c * self._u0 + s * self._e0
-        tangent = c * self._e0 - s * self._u0
-        pos = r_m[:, None] * up
-        lat = np.arcsin(np.clip(up[..., 2], -1.0, 1.0))
-        lon = np.arctan2(up[..., 1], up[..., 0])
-        vel = self.speed_m_s[:, None] * tangent
-        acc = -(self.speed_m_s**2 / r_m)[:, None] * up
-        return UTState(pos, vel, acc, lat, lon, np.broadcast_to(self.alt_m, phi.shape))
+        alt = np.broadcast_to(self.alt_m, phi.shape)
+        if compiled.use(phi.size):
+            vectors = tuple(np.empty(phi.shape + (3,)) for _ in range(3))
+            out = (*vectors, np.empty(phi.shape), np.empty(phi.shape))
+            _great_circle_rows(phi, (self._u0, self._e0, r_m, self.speed_m_s), out)
+            return UTState(*out, alt)
+        pos, vel, acc, lat, lon = great_circle_state(phi, self._u0, self._e0, r_m, self.speed_m_s)
+        vectors = (np.stack(v, axis=-1) for v in (pos, vel, acc))
+        return UTState(*vectors, lat, lon, alt)
 
     def take(self, index):
         """The UTs ``index`` (:func:`take_uts`)."""
         rows = (self.lat0_rad, self.lon0_rad, self.alt_m, self.heading_rad, self.speed_m_s)
         return ConstantVelocity(*(a[index] for a in rows), self.t0_s, self.radius_m)
+
+
+@compiled.jitable
+def great_circle_state(phi_rad, u0, e0, r_m, speed_m_s):
+    """A mover's state after the arc ``phi`` along its great circle ``u(phi) = cos(phi) u0
+    + sin(phi) e0`` (``u0`` the unit up at the start, ``e0`` the unit tangent of the
+    heading): position ``r u``, velocity ``v u'(phi)`` and the centripetal acceleration
+    ``-(v^2 / r) u`` [m, m/s, m/s^2], each as its (x, y, z) components, then the spherical
+    latitude and longitude of ``u`` [rad]. Arrays (``phi`` (..., n); ``u0``, ``e0``
+    (n, 3); ``r_m``, ``speed_m_s`` (n,)), or one mover's scalars and 3-vectors in a
+    compiled loop (:func:`_great_circle_rows`)."""
+    c, s = np.cos(phi_rad), np.sin(phi_rad)
+    up = (c * u0[..., 0] + s * e0[..., 0], c * u0[..., 1] + s * e0[..., 1],
+          c * u0[..., 2] + s * e0[..., 2])  # fmt: skip
+    tangent = (c * e0[..., 0] - s * u0[..., 0], c * e0[..., 1] - s * u0[..., 1],
+               c * e0[..., 2] - s * u0[..., 2])  # fmt: skip
+    k = -(speed_m_s * speed_m_s / r_m)
+    pos = (r_m * up[0], r_m * up[1], r_m * up[2])
+    vel = (speed_m_s * tangent[0], speed_m_s * tangent[1], speed_m_s * tangent[2])
+    acc = (k * up[0], k * up[1], k * up[2])
+    lat = np.arcsin(np.minimum(np.maximum(up[2], -1.0), 1.0))
+    return pos, vel, acc, lat, np.arctan2(up[1], up[0])
+
+
+@compiled.jit
+def _great_circle_rows(phi, movers, out):
+    """:func:`great_circle_state` of every (time, UT) of ``phi`` (n_t, n_ut) into ``out``
+    (pos, vel, acc (n_t, n_ut, 3); lat, lon (n_t, n_ut)); ``movers``: (u0, e0, r_m,
+    speed_m_s) of the UTs."""
+    u0, e0, r_m, speed = movers
+    pos, vel, acc, lat, lon = out
+    for t in range(phi.shape[0]):
+        for i in range(phi.shape[1]):
+            p, v, a, lat[t, i], lon[t, i] = great_circle_state(phi[t, i], u0[i], e0[i],
+                                                               r_m[i], speed[i])  # fmt: skip
+            for k in range(3):
+                pos[t, i, k], vel[t, i, k], acc[t, i, k] = p[k], v[k], a[k]
 
 
 @dataclass(frozen=True)
