@@ -162,6 +162,27 @@ MODULES = {
     ],
     "link/figures": ["tests/test_figures.py", "tests/test_link_figures.py"],
     "antenna/steering": ["tests/test_steering.py", "tests/test_engine_contracts.py"],
+    # The handover modules of issue 45's list: the trigger conditions (3GPP and NTN), RLF,
+    # the KPIs; then the beam scheduler and the environments.
+    # The sparse-vs-dense check of test_trigger_run.py (8-16 s a mutant) compares two
+    # callers of the same conditions: it adds no path of triggers.py.
+    "sim/handover/triggers": [
+        "tests/test_triggers.py",
+        "tests/test_trigger_run.py",
+        "tests/test_handover.py",
+        "tests/test_handover_config.py",
+        "--deselect=tests/test_trigger_run.py::test_sparse_tables_choose_exactly_as_the_dense_axis",
+    ],
+    "sim/handover/triggers_ntn": [
+        "tests/test_triggers.py",
+        "tests/test_handover.py",
+        "tests/test_service_time.py",
+    ],
+    "sim/handover/rlf": ["tests/test_rlf.py", "tests/test_handover_wiring.py"],
+    "sim/handover/kpi": ["tests/test_kpi.py", "tests/test_procedure.py"],
+    "sim/beams/scheduler": ["tests/test_scheduler.py", "tests/test_active_beams.py"],
+    "sim/environment": ["tests/test_environment_in_run.py"],
+    "link/environment": ["tests/test_environment.py", "tests/test_environment_in_run.py"],
 }
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
 #: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
