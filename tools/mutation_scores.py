@@ -168,6 +168,7 @@ MODULES = {
     # callers of the same conditions: it adds no path of triggers.py.
     "sim/handover/triggers": [
         "tests/test_triggers.py",
+        "tests/test_triggers_contracts.py",
         "tests/test_trigger_run.py",
         "tests/test_handover.py",
         "tests/test_handover_config.py",

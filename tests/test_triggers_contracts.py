@@ -1,0 +1,117 @@
+"""Trigger events of TS 38.331: the clauses that mutation testing found unchecked (issue 45,
+docs/testing.md): event A2 (5.5.4.3), the leaving conditions of A3 and A5 when one side
+can no longer be measured, and the refusal messages of every parameter.
+
+Expected instants are worked out by hand from the clause's inequalities (measurements are
+multiples of 0.5 dB so that equalities are exact); the accounting helpers are those of
+``tests/test_triggers.py``.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from leolink.errors import ConfigError
+from leolink.sim.handover.triggers import A2, A3, A4, A5, Epoch, TriggerState, advance
+from test_triggers import meas_steps, run_trigger, times
+
+NAN = math.nan
+
+
+def a2_log(trigger, serving_db):
+    """A2 is a serving-cell event: one condition column per UT (candidate 0)."""
+    state, log = TriggerState.initial(1, 1), []
+    for k, ms in enumerate(serving_db):
+        t = round(k * 0.1, 9)
+        ep = Epoch(t_s=t, serving=np.array([1]), meas=np.array([[-80.0, ms]]))
+        enter, leave = trigger.conditions(ep)
+        assert enter.shape == leave.shape == (1, 1)
+        was = state.triggered.copy()
+        state, _ = advance(state, t, enter, leave, trigger.time_to_trigger_s, np.ones((1, 1), bool))
+        if state.triggered[0, 0] != was[0, 0]:
+            log.append(("triggered" if state.triggered[0, 0] else "left", t))
+    return log
+
+
+def test_a2_enters_below_threshold_minus_hysteresis_and_leaves_above_threshold_plus_it():
+    """A2-1 ``Ms + Hys < Thresh``, A2-2 ``Ms - Hys > Thresh``; Thresh = -100, Hys = 1.5: it
+    enters below -101.5 (the equality -101.5 does not), leaves above -98.5 (the equality
+    keeps it); between the two the state holds. The neighbour (-80 dB) plays no part."""
+    a2 = A2(threshold_db=-100.0, hysteresis_db=1.5)
+    serving = [-99.0, -101.0, -101.5, -102.0, -100.0, -98.5, -98.0, -101.0, -102.0]
+    assert a2_log(a2, serving) == [("triggered", 0.3), ("left", 0.6), ("triggered", 0.8)]
+
+
+def test_a2_time_to_trigger_and_no_serving_measurement_leaves():
+    """TTT = 0.2 s: the run from 0.1 s triggers at 0.3 s; the serving cell becomes
+    unmeasurable (NaN) at 0.5 s: the leaving condition holds and the event leaves 0.2 s
+    later, at 0.7 s."""
+    a2 = A2(threshold_db=-100.0, hysteresis_db=0.0, time_to_trigger_s=0.2)
+    serving = [-99.0, -101.0, -101.0, -101.0, -101.0, NAN, NAN, NAN, NAN]
+    assert a2_log(a2, serving) == [("triggered", 0.3), ("left", 0.7)]
+
+
+def test_a2_reads_the_serving_cell_only_and_names_itself_without_measurements():
+    a2 = A2(threshold_db=-100.0)
+    ep = Epoch(t_s=0.0, serving=np.array([0, 1]), meas=np.array([[-120.0, -90.0]] * 2))
+    enter, _ = a2.conditions(ep)
+    assert enter[:, 0].tolist() == [True, False]  # UT 0 is served by the -120 dB cell
+    with pytest.raises(ValueError, match="^A2 needs Epoch.meas; the controller"):
+        a2.conditions(Epoch(t_s=0.0, serving=np.array([0])))
+
+
+def test_a3_leaves_when_the_serving_cell_can_no_longer_be_measured():
+    """A triggered neighbour leaves after the TTT once ``Mp`` is NaN (the serving cell is
+    unmeasurable), as it does when ``Mn`` is NaN (tests/test_triggers.py)."""
+    a3 = A3(offset_db=1.0, hysteresis_db=0.5, time_to_trigger_s=0.1)
+    log = run_trigger(a3, meas_steps([-100.0, -100.0, NAN, NAN, NAN], [-95.0] * 5))
+    assert times(log, "triggered") == [0.1] and times(log, "left") == [0.3]
+
+
+@pytest.mark.parametrize("which", ["serving", "neighbour"])
+def test_a5_leaves_when_either_side_can_no_longer_be_measured(which):
+    """Th1 = -100, Th2 = -95: triggered at 0.0 s; from 0.1 s on ``Mp`` (or ``Mn``) is NaN,
+    so A5-3 or A5-4 cannot be evaluated and the cell leaves at 0.1 s (TTT 0)."""
+    serving, neighbour = [-105.0] * 3, [-90.0] * 3
+    (serving if which == "serving" else neighbour)[1:] = [NAN, NAN]
+    log = run_trigger(A5(-100.0, -95.0), meas_steps(serving, neighbour))
+    assert times(log, "triggered") == [0.0] and times(log, "left") == [0.1]
+
+
+FINITE = "is not allowed; use a finite number"
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: A3(hysteresis_db=-0.5),
+         "controller.a3.hysteresis_db = -0.5 is not allowed; use a value >= 0.0 "
+         "(hysteresis [dB])"),
+        (lambda: A3(offset_db=math.inf), f"controller.a3.offset_db = inf {FINITE}"),
+        (lambda: A3(time_to_trigger_s=-0.1),
+         "controller.time_to_trigger_s = -0.1 is not allowed; use a value >= 0.0 "
+         "(time-to-trigger [s])"),
+        (lambda: A3(time_to_trigger_s=math.nan), f"controller.time_to_trigger_s = nan {FINITE}"),
+        (lambda: A2(threshold_db=math.nan), f"controller.a2a4.a2_threshold_db = nan {FINITE}"),
+        (lambda: A2(hysteresis_db=-1.0),
+         "controller.a2a4.hysteresis_db = -1.0 is not allowed; use a value >= 0.0 "
+         "(hysteresis [dB])"),
+        (lambda: A2(time_to_trigger_s=-1.0), "controller.time_to_trigger_s = -1.0"),
+        (lambda: A4(threshold_db=-math.inf), f"controller.a4.threshold_db = -inf {FINITE}"),
+        (lambda: A4(hysteresis_db=-1.0),
+         "controller.a4.hysteresis_db = -1.0 is not allowed; use a value >= 0.0 "
+         "(hysteresis [dB])"),
+        (lambda: A4(time_to_trigger_s=-1.0), "controller.time_to_trigger_s = -1.0"),
+        (lambda: A5(threshold1_db=math.nan), f"controller.a5.threshold1_db = nan {FINITE}"),
+        (lambda: A5(threshold2_db=math.inf), f"controller.a5.threshold2_db = inf {FINITE}"),
+        (lambda: A5(hysteresis_db=-2.0),
+         "controller.a5.hysteresis_db = -2.0 is not allowed; use a value >= 0.0 "
+         "(hysteresis [dB])"),
+        (lambda: A5(time_to_trigger_s=-1.0), "controller.time_to_trigger_s = -1.0"),
+    ],
+)  # fmt: skip
+def test_each_refusal_names_the_key_the_value_and_what_is_allowed(make, message):
+    with pytest.raises(ConfigError) as err:
+        make()
+    assert str(err.value).startswith(message)
