@@ -115,3 +115,25 @@ def test_each_refusal_names_the_key_the_value_and_what_is_allowed(make, message)
     with pytest.raises(ConfigError) as err:
         make()
     assert str(err.value).startswith(message)
+
+
+def test_no_candidate_at_all_and_a_single_candidate():
+    """An empty candidate axis (no UT has a satellite): the serving quantity is NaN per
+    UT, so A2 leaves and A3 has nothing to compare; with one candidate, the serving
+    value is that candidate's."""
+    empty = Epoch(t_s=0.0, serving=np.array([-1, -1]), meas=np.zeros((2, 0)))
+    np.testing.assert_array_equal(empty.at_serving(empty.meas), np.full((2, 1), np.nan))
+    enter, leave = A2(threshold_db=-100.0).conditions(empty)
+    assert enter.tolist() == [[False], [False]] and leave.tolist() == [[True], [True]]
+    assert A3().conditions(empty)[0].shape == (2, 0)
+    one = Epoch(t_s=0.0, serving=np.array([0, -1]), meas=np.array([[-101.0], [-120.0]]))
+    assert one.at_serving(one.meas)[:, 0].tolist()[0] == -101.0
+    enter, _ = A2(threshold_db=-100.0).conditions(one)
+    assert enter.tolist() == [[True], [False]]  # UT 1 has no serving cell
+
+
+@pytest.mark.parametrize("trigger", [A3(), A4(), A5()], ids=["A3", "A4", "A5"])
+def test_a_measurement_event_without_measurements_names_itself(trigger):
+    name = type(trigger).__name__
+    with pytest.raises(ValueError, match=f"^{name} needs Epoch.meas; the controller did not"):
+        trigger.conditions(Epoch(t_s=0.0, serving=np.array([0])))
