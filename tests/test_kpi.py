@@ -436,3 +436,80 @@ def test_ping_pong_fraction_without_handovers_is_nan_and_counts_only_its_level()
     ev = events((1.0, 0, B, 0, 0, 0, 1), (1.2, 0, B, 0, 1, 0, 0))
     assert ping_pong_fraction(ev, 1.0, "satellite")[1:] == (0, 0)
     assert math.isnan(ping_pong_fraction(ev, 1.0, "satellite")[0])
+
+
+def test_defaults_are_one_second_windows_at_cell_and_beam_level():
+    """TR 36.839's minimum time of stay (1 s) and leolink's 1 s MRO window: a return after
+    1.5 s is no ping-pong, a failure 1.5 s after a handover is too late; stays are beams."""
+    from leolink.sim.handover.kpi import mro_classes, mro_counts
+
+    ev = events((1.0, 0, B, 0, 0, 0, 1), (2.5, 0, B, 0, 1, 0, 0), (4.0, 0, "rlf", 0, 0, -1, -1),
+                (4.5, 0, "outage_end", -1, -1, 0, 2))  # fmt: skip
+    assert not ping_pong_mask(ev).any() and ping_pong_fraction(ev)[1] == 0
+    assert ping_pong_mask(ev, 1.6).tolist() == [False, True, False, False]
+    assert mro_counts(ev)["too_late_count"] == 1 and mro_classes(ev)["too_late"][2]
+    assert mro_counts(ev, 1.6)["wrong_cell_count"] == 1  # (0, 2): neither (0, 1) nor (0, 0)
+    # at satellite level (0, 2) is the source satellite: too early, not wrong cell
+    assert mro_counts(ev, 1.6, "satellite")["too_early_count"] == 1
+    dw = dwells((0, 0, 0, 0.0, 1.0, False, False), (0, 0, 1, 1.0, 3.0, False, False))
+    assert stays(dw)["end_s"].tolist() == [1.0, 3.0]  # beams: not joined
+    assert time_of_stay(dw)["durations_s"].tolist() == [1.0, 2.0]
+    kpi = summarize(ev, dw, 60.0, 1)
+    assert (kpi["ping_pong_count"], kpi["too_late_count"], kpi["mro_window_s"]) == (0, 1, 1.0)
+
+
+def test_ping_pong_needs_the_previous_serving_change_to_be_a_handover():
+    """A handover failure names both cells but is no handover: a handover back to where it
+    started is not a return of a ping-pong pair."""
+    ev = events(
+        (1.0, 0, B, 0, 0, 0, 1),
+        (1.2, 0, "handover_failure", 0, 1, 0, 2),
+        (1.4, 0, B, 0, 2, 0, 1),
+    )
+    assert ping_pong_mask(ev, 1.0).tolist() == [False, False, False]
+
+
+def test_ping_pong_compares_each_pair_not_the_first_handover():
+    """Satellites 1 -> 2 at 0 s, 2 -> 3 at 5 s, 3 -> 2 at 5.3 s: only the last returns, to
+    satellite 2, 0.3 s after leaving it (the first handover is 5.3 s earlier)."""
+    ev = events((0.0, 0, S, 1, 0, 2, 0), (5.0, 0, S, 2, 0, 3, 0), (5.3, 0, S, 3, 0, 2, 0))
+    for level in ("cell", "satellite"):
+        assert ping_pong_mask(ev, 1.0, level).tolist() == [False, False, True]
+
+
+def test_stays_of_an_empty_table_and_the_ut_of_each_joined_stay():
+    empty = dwells()
+    empty = {k: np.zeros(0, float if k.endswith("_s") else int) for k in empty}
+    for level in ("beam", "satellite"):
+        got = time_of_stay(empty, level)
+        assert (got["n_complete"], got["n_censored"]) == (0, 0) and math.isnan(got["mean_s"])
+        assert all(len(v) == 0 for v in stays(empty, level).values())
+    dw = dwells((4, 7, 0, 0.0, 2.0, False, False), (2, 7, 1, 2.0, 3.0, False, False),
+                (4, 7, 1, 2.0, 3.0, False, True))  # fmt: skip
+    st = stays(dw, "satellite")
+    assert st["ut_id"].tolist() == [2, 4] and st["end_s"].tolist() == [3.0, 3.0]
+    assert st["censored_end"].tolist() == [False, True]
+
+
+def test_mro_never_borrows_another_uts_handover_or_re_establishment():
+    from leolink.sim.handover.kpi import mro_counts
+
+    # UT 0 hands over; UT 1 fails 0.5 s later without a handover of its own: too late
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.5, 1, "rlf", X_, NONE),
+                   (11.0, 1, "outage_end", NONE, S_))  # fmt: skip
+    assert (got["too_late_count"], got["too_early_count"]) == (1, 0)
+    # one UT, never re-established: no class, whatever its handover
+    ev = _mro_events((10.0, 0, "sat_handover", S_, T_), (10.5, 0, "rlf", T_, NONE))
+    assert sum(mro_counts(ev).values()) == 0
+
+
+def test_a_handover_failure_re_established_in_a_third_cell_is_wrong_cell():
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.03, 0, "handover_failure", S_, T_),
+                   (11.0, 0, "outage_end", NONE, X_))  # fmt: skip
+    assert (got["handover_failure_count"], got["wrong_cell_count"], got["too_early_count"]) == (
+        1, 1, 0)  # fmt: skip
+
+
+def test_handover_rates_with_no_counted_kind_are_zero():
+    r = handover_rates(events((1.0, 0, B, 0, 0, 0, 1)), observed_s=60.0, n_ut=2, kinds=())
+    assert r["overall"] == 0.0 and r["per_ut"].tolist() == [0.0, 0.0] and r["by_kind"] == {}
