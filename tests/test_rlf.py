@@ -274,6 +274,10 @@ def test_declare_starts_re_establishment_at_its_own_time_for_the_given_uts_only(
     assert back == [0.7]
     # UTs 0 and 2: 3 in-sync in a row (0.2, 0.3, 0.4 s) stopped T310; UT 1 is connected again
     assert not state.t310_running.any() and not state.reestablishing.any()
+    # an out-of-sync run in progress (T310 not running) is cleared too
+    state, _, _ = step(RlfState.initial(1), 0.0, np.array([BAD]), p)
+    assert state.n_oos.tolist() == [1] and not state.t310_running.any()
+    assert declare(state, np.array([True]), 0.05).n_oos.tolist() == [0]
 
 
 def test_t310_below_the_time_tolerance_is_ms0():
