@@ -230,3 +230,38 @@ def test_beam_groups_need_both_a_satellite_and_a_beam():
 def test_delivered_rate_of_a_rate_per_ut_is_its_share_of_it():
     schedule = np.array([[0, 2], [1, 2], [0, -1]])
     np.testing.assert_allclose(delivered_rate(schedule, [3.0, 6.0, 9.0]), [2.0, 2.0, 6.0])
+
+
+def test_beam_groups_with_nobody_or_only_group_zero_served():
+    group, n_sharing = beam_groups([-1, -1], [-1, -1], n_beam=3)
+    assert group.tolist() == [-1, -1] and n_sharing.tolist() == [0, 0]
+    group, n_sharing = beam_groups([0, -1, 0], [0, -1, 0], n_beam=3)
+    assert group.tolist() == [0, -1, 0] and n_sharing.tolist() == [2, 0, 2]
+
+
+def test_round_robin_slots_of_a_fresh_start_are_numbered_from_zero():
+    _, _, last = round_robin_slots(np.zeros(3, int), 1, 3, np.full(3, -np.inf))
+    assert last.tolist() == [0.0, 1.0, 2.0]
+    _, _, last = round_robin_slots(np.zeros(2, int), 1, 1, np.array([0.0, -np.inf]))
+    assert last.tolist() == [0.0, 1.0]  # after slot 0, slot 1
+
+
+def test_proportional_fair_window_of_one_slot_and_new_uts_without_a_rate():
+    """t_c = 1 (the smallest window) is allowed: R is the rate of the last slot served, 0
+    otherwise. A new UT (R = 0) without a rate is not first in line: a UT with a rate and
+    any finite metric goes before it; with no rate anywhere the lower id is served."""
+    _, _, avg = proportional_fair(np.array([0, 0]), 1, np.array([[3.0, 5.0]]), np.zeros(2), 1.0)
+    assert avg.tolist() == [3.0, 0.0]
+    schedule, _, _ = proportional_fair(np.array([0, 0]), 1, np.array([[0.0, 2.0]]),
+                                       np.array([0.0, 4.0]), 10.0)  # fmt: skip
+    assert schedule.tolist() == [[1]]  # metric 2 / 4 = 0.5 beats the new UT's 0
+    schedule, _, _ = proportional_fair(np.array([0, 0]), 1, np.array([[0.0, 0.0]]),
+                                       np.array([0.0, 1.0]), 10.0)  # fmt: skip
+    assert schedule.tolist() == [[0]]  # both metrics 0: the lower id
+
+
+def test_proportional_fair_defaults_are_its_configs():
+    from leolink.sim.beams.scheduler import ProportionalFair, ProportionalFairConfig
+
+    pf, cfg = ProportionalFair(), ProportionalFairConfig()
+    assert (pf.n_slots, pf.t_c_slots) == (cfg.slots_per_epoch, cfg.t_c_slots) == (10, 100.0)
