@@ -1,6 +1,7 @@
 """Trigger events of TS 38.331: the clauses that mutation testing found unchecked (issue 45,
 docs/testing.md): event A2 (5.5.4.3), the leaving conditions of A3 and A5 when one side
-can no longer be measured, and the refusal messages of every parameter.
+can no longer be measured, the elevation and time-to-exit events at each boundary, and
+the refusal messages of every parameter.
 
 Expected instants are worked out by hand from the clause's inequalities (measurements are
 multiples of 0.5 dB so that equalities are exact); the accounting helpers are those of
@@ -14,6 +15,7 @@ import pytest
 
 from leolink.errors import ConfigError
 from leolink.sim.handover.triggers import A2, A3, A4, A5, Epoch, TriggerState, advance
+from leolink.sim.handover.triggers_ntn import D1, D2, T1, Elevation, TimeToExit
 from test_triggers import meas_steps, run_trigger, times
 
 NAN = math.nan
@@ -137,3 +139,132 @@ def test_a_measurement_event_without_measurements_names_itself(trigger):
     name = type(trigger).__name__
     with pytest.raises(ValueError, match=f"^{name} needs Epoch.meas; the controller did not"):
         trigger.conditions(Epoch(t_s=0.0, serving=np.array([0])))
+
+
+# --- The NTN and leolink events (triggers_ntn.py): each inequality at its boundary ------
+
+
+def _cand(trigger, field, serving_value, candidate_value, t_s=0.0):
+    """(enter, leave) of candidate 1 for one UT served by candidate 0."""
+    values = np.array([[serving_value, candidate_value]])
+    enter, leave = trigger.conditions(Epoch(t_s=t_s, serving=np.array([0]), **{field: values}))
+    return bool(enter[0, 1]), bool(leave[0, 1])
+
+
+@pytest.mark.parametrize(
+    ("el_p", "el_n", "want"),
+    [
+        (0.375, 0.5, (False, False)),  # El_p + Hys = Thresh1: not below
+        (0.25, 0.375, (False, False)),  # El_n - Hys = Thresh2: not above
+        (0.25, 0.5, (True, False)),
+        (0.625, 0.5, (False, False)),  # El_p - Hys = Thresh1: not leaving
+        (0.75, 0.5, (False, True)),
+        (0.25, 0.125, (False, False)),  # El_n + Hys = Thresh2: not leaving
+        (0.25, 0.0625, (False, True)),
+        (NAN, 0.5, (False, True)),  # no serving elevation
+        (0.25, NAN, (False, True)),
+    ],
+)
+def test_elevation_entering_and_leaving_at_each_boundary(el_p, el_n, want):
+    """Thresh1 = 0.5 rad (serving below), Thresh2 = 0.25 rad (candidate above), Hys =
+    0.125 rad: enters for El_p < 0.375 and El_n > 0.375, leaves for El_p > 0.625 or
+    El_n < 0.125 (values exact in binary)."""
+    trigger = Elevation(serving_below_rad=0.5, candidate_above_rad=0.25, hysteresis_rad=0.125)
+    assert _cand(trigger, "elevation_rad", el_p, el_n) == want
+
+
+@pytest.mark.parametrize(
+    ("r_p", "r_n", "want"),
+    [
+        (40.0, 52.0, (False, False)),  # R_n - Hys = R_p + Off: not better
+        (40.0, 53.0, (True, False)),
+        (40.0, 48.0, (False, False)),  # R_n + Hys = R_p + Off: not leaving
+        (40.0, 47.0, (False, True)),
+        (48.0, 70.0, (False, False)),  # R_p + Hys = below: not running out
+        (52.0, 70.0, (False, False)),  # R_p - Hys = below: not leaving
+        (53.0, 70.0, (False, True)),
+        (NAN, 70.0, (False, True)),  # not served now
+        (40.0, NAN, (False, True)),
+    ],
+)
+def test_time_to_exit_entering_and_leaving_at_each_boundary(r_p, r_n, want):
+    """Off = 10 s, Hys = 2 s, serving_below = 50 s, at t = 100 s (R = end - t): enters for
+    R_n > R_p + 12 and R_p < 48, leaves for R_n < R_p + 8 or R_p > 52."""
+    trigger = TimeToExit(offset_s=10.0, hysteresis_s=2.0, serving_below_s=50.0)
+    assert _cand(trigger, "service_end_s", 100.0 + r_p, 100.0 + r_n, t_s=100.0) == want
+
+
+def test_service_ends_given_per_candidate_for_every_ut():
+    """``service_end_s`` of shape (n_cand,) is every UT's: the remaining times and T1's
+    window are per UT from it."""
+    end = np.array([30.0, 90.0])
+    ep = Epoch(t_s=10.0, serving=np.array([0, 1]), service_end_s=end)
+    np.testing.assert_array_equal(TimeToExit().rank(ep), [[20.0, 80.0], [20.0, 80.0]])
+    enter, leave = TimeToExit().conditions(ep)
+    assert enter.tolist() == [[False, True], [False, False]] and not leave[0, 1]
+    ep = Epoch(t_s=29.5, serving=np.array([0, 1]), service_end_s=end, meas=np.zeros((2, 2)))
+    enter, _ = T1(duration_s=1.0, lead_s=1.0).conditions(ep)  # window (29, 30] for UT 0
+    assert enter.tolist() == [[True, True], [False, False]]
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: D1(threshold1_m=-1.0),
+         "controller.d1.threshold1_m = -1.0 is not allowed; use a value >= 0.0 "
+         "(distanceThreshFromReference1)"),
+        (lambda: D1(threshold2_m=-1.0),
+         "controller.d1.threshold2_m = -1.0 is not allowed; use a value >= 0.0 "
+         "(distanceThreshFromReference2)"),
+        (lambda: D2(hysteresis_m=-1.0),
+         "controller.d2.hysteresis_m = -1.0 is not allowed; use a value >= 0.0 "
+         "(hysteresisLocation [m])"),
+        (lambda: D1(time_to_trigger_s=-1.0), "controller.time_to_trigger_s = -1.0"),
+        (lambda: T1(duration_s=-1.0),
+         "controller.t1.duration_s = -1.0 is not allowed; use a value >= 0.0 (duration [s])"),
+        (lambda: T1(lead_s=math.nan), f"controller.t1.lead_s = nan {FINITE}"),
+        (lambda: Elevation(serving_below_rad=-2.0),
+         "controller.elevation.serving_below_rad = -2.0 is not allowed; use a value >= "
+         f"{-math.pi / 2} ([rad])"),
+        (lambda: Elevation(candidate_above_rad=-2.0),
+         "controller.elevation.candidate_above_rad = -2.0 is not allowed; use a value >= "
+         f"{-math.pi / 2} ([rad])"),
+        (lambda: Elevation(hysteresis_rad=-0.1),
+         "controller.elevation.hysteresis_rad = -0.1 is not allowed; use a value >= 0.0 "
+         "(hysteresis [rad])"),
+        (lambda: Elevation(time_to_trigger_s=-1.0), "controller.time_to_trigger_s = -1.0"),
+        (lambda: TimeToExit(offset_s=math.inf), f"controller.time_to_exit.offset_s = inf {FINITE}"),
+        (lambda: TimeToExit(hysteresis_s=-1.0),
+         "controller.time_to_exit.hysteresis_s = -1.0 is not allowed; use a value >= 0.0 "
+         "(hysteresis [s])"),
+        (lambda: TimeToExit(time_to_trigger_s=-1.0), "controller.time_to_trigger_s = -1.0"),
+        (lambda: TimeToExit(serving_below_s=0.0),
+         "controller.time_to_exit.serving_below_s = 0.0 is not allowed; use a value > 0 [s] "
+         "(or inf)"),
+    ],
+)  # fmt: skip
+def test_each_ntn_refusal_names_the_key_the_value_and_what_is_allowed(make, message):
+    with pytest.raises(ConfigError) as err:
+        make()
+    assert str(err.value).startswith(message)
+
+
+@pytest.mark.parametrize(
+    ("trigger", "epoch_fields"),
+    [
+        (T1(), {"service_end_s": np.zeros((1, 2))}),  # rank reads meas
+        (Elevation(), {}),
+        (TimeToExit(), {}),
+        (D1(), {"ref_pos_m": np.zeros((2, 3))}),
+        (D2(), {"moving_ref_pos_m": np.zeros((2, 3))}),
+    ],
+    ids=["T1", "Elevation", "TimeToExit", "D1", "D2"],
+)
+def test_an_ntn_event_without_its_inputs_names_itself(trigger, epoch_fields):
+    name = type(trigger).__name__
+    ep = Epoch(t_s=0.0, serving=np.array([0]), **epoch_fields)
+    with pytest.raises(ValueError, match=f"^{name} needs Epoch\\."):
+        trigger.rank(ep)
+    if name != "T1":
+        with pytest.raises(ValueError, match=f"^{name} needs Epoch\\."):
+            trigger.conditions(ep)

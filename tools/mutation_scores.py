@@ -177,6 +177,7 @@ MODULES = {
     ],
     "sim/handover/triggers_ntn": [
         "tests/test_triggers.py",
+        "tests/test_triggers_contracts.py",
         "tests/test_handover.py",
         "tests/test_service_time.py",
     ],
