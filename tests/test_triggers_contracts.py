@@ -268,3 +268,40 @@ def test_an_ntn_event_without_its_inputs_names_itself(trigger, epoch_fields):
     if name != "T1":
         with pytest.raises(ValueError, match=f"^{name} needs Epoch\\."):
             trigger.conditions(ep)
+
+
+@pytest.mark.parametrize(
+    ("ml1", "ml2", "want"),
+    [
+        (2000.0, 400.0, (False, False)),  # Ml2 + Hys = Thresh2: not inside
+        (2000.0, 300.0, (True, False)),
+        (NAN, 300.0, (False, True)),  # the serving reference unknown
+        (2000.0, NAN, (False, True)),  # the candidate's unknown
+    ],
+)
+def test_d1_entering_at_the_candidate_boundary_and_leaving_without_a_reference(ml1, ml2, want):
+    """UT at the origin, serving reference at (Ml1, 0, 0), the candidate's at (0, Ml2, 0);
+    Thresh1 = 1000 m, Thresh2 = 500 m, Hys = 100 m: enters for Ml1 > 1100 and Ml2 < 400."""
+    ref = np.array([[ml1, 0.0, 0.0], [0.0, ml2, 0.0]])
+    ep = Epoch(t_s=0.0, serving=np.array([0]), ut_pos_m=np.zeros((1, 3)), ref_pos_m=ref)
+    enter, leave = D1(1000.0, 500.0, 100.0).conditions(ep)
+    assert (bool(enter[0, 1]), bool(leave[0, 1])) == want
+
+
+def test_d1_reference_locations_per_ut():
+    """References of shape (n_ut, n_cand, 3): each UT measures its own. UT 0 at the origin
+    sees the candidate 300 m away, UT 1 at (0, 0, 1000) sees its own candidate reference
+    (0, 0, 1000 + 2000) 2000 m away; both serving references are 3000 m away."""
+    ut = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1000.0]])
+    ref = np.array([[[3000.0, 0.0, 0.0], [0.0, 300.0, 0.0]],
+                    [[0.0, 3000.0, 1000.0], [0.0, 0.0, 3000.0]]])  # fmt: skip
+    ep = Epoch(t_s=0.0, serving=np.array([0, 0]), ut_pos_m=ut, ref_pos_m=ref)
+    np.testing.assert_allclose(D1().rank(ep), -np.array([[3000.0, 300.0], [3000.0, 2000.0]]))
+    enter, _ = D1(1000.0, 500.0).conditions(ep)
+    assert enter[:, 1].tolist() == [True, False]
+
+
+def test_t1_conditions_name_t1_and_any_positive_serving_below_is_allowed():
+    with pytest.raises(ValueError, match="^T1 needs Epoch.service_end_s"):
+        T1().conditions(Epoch(t_s=0.0, serving=np.array([0]), meas=np.zeros((1, 2))))
+    assert TimeToExit(serving_below_s=0.5).serving_below_s == 0.5
