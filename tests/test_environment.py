@@ -207,8 +207,9 @@ def test_unknown_environment_lists_the_allowed_ones():
 def test_open_environment_keeps_the_broadcast_shape_of_its_inputs():
     el = np.array([10.0, 45.0, 90.0])
     los = np.array([[True], [False]])
-    np.testing.assert_array_equal(env.los_probability(el, "open"), np.ones(3))
-    np.testing.assert_array_equal(env.clutter_loss_db(el, "open", "ka"), np.zeros(3))
+    p_los, clutter = env.los_probability(el, "open"), env.clutter_loss_db(el, "open", "ka")
+    assert p_los.shape == clutter.shape == (3,)
+    assert p_los.tolist() == [1.0] * 3 and clutter.tolist() == [0.0] * 3
     assert env.shadow_sigma_db(el, "open", "ka", los).shape == (2, 3)
     assert not env.shadow_sigma_db(el, "open", "ka", los).any()
 
