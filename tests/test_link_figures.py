@@ -172,6 +172,8 @@ def _f32_cases():
         "cn0_dbhz": (fig.cn0_dbhz, [60.3, 180.2, 15.9]),
         "cnr_db": (fig.cnr_db, [95.3, 400e6]),
         "symbol_rate_baud": (fig.symbol_rate_baud, [400e6, 0.2]),
+        "symbol_rate_baud rolloff": (lambda r: fig.symbol_rate_baud(400e6, r), [0.2]),
+        "system_noise_temp_k noise figure": (lambda f: fig.system_noise_temp_k(150.3, f), [1.2]),
         "esn0_db": (fig.esn0_db, [95.3, 333e6]),
         "ebn0_db": (fig.ebn0_db, [9.7, 2.5]),
         "margin_db": (fig.margin_db, [9.7, 6.3]),
