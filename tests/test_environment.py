@@ -4,6 +4,8 @@ Expected numbers are typed from 3GPP TR 38.811 V15.4.0 (2020-09): Table 6.6.1-1,
 Tables 6.6.2-1 / 6.6.2-2 / 6.6.2-3 and Table 6.6.6.2.1-1, not read from the data files.
 """
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -180,3 +182,44 @@ def test_scintillation_switches_model_at_6_ghz():
     assert env.scintillation_db([30.0, 60.0], 2e9, 0.0) == pytest.approx([2.2, 2.2])
     with pytest.raises(ConfigError, match="geomagnetic_latitude_deg is required"):
         env.scintillation_db(30.0, 2e9)
+
+
+# --- Written from a mutation run's survivors (issue 45, docs/testing.md) ---------------
+
+
+def test_the_band_limits_are_inclusive_and_ka_starts_at_the_geometric_mean():
+    """0.5-100 GHz both included; Ka from sqrt(2 GHz x 20 GHz) = 6.3246 GHz on (decision 2)."""
+    assert env.band_for_frequency(0.5e9) == "s" and env.band_for_frequency(100e9) == "ka"
+    for f_hz in (0.5e9 - 1.0, 100e9 + 1.0):
+        with pytest.raises(ConfigError, match="freq_hz"):
+            env.band_for_frequency(f_hz)
+    edge_hz = math.sqrt(2.0e9 * 20.0e9)
+    assert env.band_for_frequency(edge_hz) == "ka"
+    assert env.band_for_frequency(math.nextafter(edge_hz, 0.0)) == "s"
+
+
+def test_unknown_environment_lists_the_allowed_ones():
+    with pytest.raises(ConfigError) as err:
+        env.validate_environment("forest")
+    assert str(err.value).endswith("use one of open, rural, suburban, urban, dense_urban")
+
+
+def test_open_environment_keeps_the_broadcast_shape_of_its_inputs():
+    el = np.array([10.0, 45.0, 90.0])
+    los = np.array([[True], [False]])
+    p_los, clutter = env.los_probability(el, "open"), env.clutter_loss_db(el, "open", "ka")
+    assert p_los.shape == clutter.shape == (3,)
+    assert p_los.tolist() == [1.0] * 3 and clutter.tolist() == [0.0] * 3
+    assert env.shadow_sigma_db(el, "open", "ka", los).shape == (2, 3)
+    assert not env.shadow_sigma_db(el, "open", "ka", los).any()
+
+
+def test_ionospheric_scintillation_includes_the_20_degree_edge_and_6_ghz_is_tropospheric():
+    """Clause 6.6.6.1.4: within 20 degrees of the geomagnetic equator, edge included
+    (6.22 / 2^1.5 = 2.2 dB at 2 GHz); clause 6.6.6.1 applies below 6 GHz, so 6 GHz itself
+    takes the tropospheric model."""
+    at_edge = env.ionospheric_scintillation_db(2e9, 20.0)
+    assert at_edge == pytest.approx(1.1 * 2**1.5 / math.sqrt(2), rel=1e-12)
+    assert env.ionospheric_scintillation_db(2e9, math.nextafter(20.0, 90.0)) == 0.0
+    np.testing.assert_allclose(env.scintillation_db(30.0, 6e9, 0.0),
+                               env.tropospheric_scintillation_db(30.0, 6e9))  # fmt: skip

@@ -336,3 +336,180 @@ def test_satellite_level_compares_satellites():
     assert _classes(*rows)["wrong_cell_count"] == 1  # beam (1, 7) is a third cell
     sat = _classes(*rows, level="satellite")
     assert (sat["wrong_cell_count"], sat["too_early_count"]) == (0, 1)  # satellite 1: source
+
+
+# --- Written from the survivors of a mutation run (issue 45, docs/testing.md) ----------
+
+
+def test_summary_block_with_non_default_windows_by_hand():
+    """Every key of ``overall.kpi`` on a table worked out by hand, with ping_pong_s = 2 s,
+    mro_window_s = 0.5 s at satellite level, and per-UT observation times (2 + 1 min)."""
+    ev = events(
+        (1.0, 0, S, 1, 0, 2, 0),  # sat 1 -> 2
+        (2.5, 0, S, 2, 0, 1, 0),  # back after 1.5 s < 2 s: a ping-pong at both levels
+        (3.0, 0, B, 1, 0, 1, 1),
+        (3.2, 0, "rlf", 1, 1, -1, -1),  # 0.2 s after the beam handover (1, 0) -> (1, 1)
+        (3.4, 0, "outage_end", -1, -1, 1, 2),  # re-established on satellite 1: the source
+        (5.0, 1, B, 3, 0, 3, 1),
+    )
+    dw = dwells(
+        (0, 1, 0, 0.0, 1.0, True, False),
+        (0, 2, 0, 1.0, 2.5, False, False),
+        (0, 1, 0, 2.5, 3.0, False, False),
+        (0, 1, 1, 3.0, 3.2, False, False),
+        (0, 1, 2, 3.4, 120.0, False, True),
+        (1, 3, 0, 0.0, 5.0, True, False),
+        (1, 3, 1, 5.0, 60.0, False, True),
+    )
+    kpi = summarize(ev, dw, observed_s=np.array([120.0, 60.0]), n_ut=2, ping_pong_s=2.0,
+                    mro_window_s=0.5, mro_level="satellite")  # fmt: skip
+    want = {
+        "handover_rate_per_ut_min": 4 / 3,
+        "handover_rate_per_ut_min_by_kind": {B: 2 / 3, S: 2 / 3},
+        "ping_pong_s": 2.0,
+        "ping_pong_fraction": 1 / 4,  # cells: the return to (1, 0) of 4 handovers
+        "ping_pong_count": 1,
+        "ping_pong_fraction_satellite": 1 / 2,  # of the 2 satellite handovers
+        "ping_pong_count_satellite": 1,
+        "rlf_count": 1,
+        # satellite level: the failure 0.2 s < 0.5 s after a handover from satellite 1,
+        # re-established on satellite 1: too early
+        "handover_failure_count": 0,
+        "too_early_count": 1,
+        "too_late_count": 0,
+        "wrong_cell_count": 0,
+        "mro_window_s": 0.5,
+        "rlf_rate_per_ut_min": 1 / 3,
+        # beam stays 1.5, 0.5, 0.2 s; satellite stays 1.5 and 0.7 (2.5-3.0 and 3.0-3.2
+        # joined; 3.4 s is after a gap); percentiles interpolate at rank (n - 1) q
+        "mean_time_of_stay_s": {"beam": 2.2 / 3, "satellite": 1.1},
+        "time_of_stay_s": {
+            "beam": _stay(0.5, 0.26, 1.3, 3, 4),
+            "satellite": _stay(1.1, 0.78, 1.42, 2, 3),
+        },
+    }
+    assert _nested_approx(kpi, want)
+    # the same failure at cell level is in a third cell ((1, 2): neither (1, 0), (1, 1))
+    cell = summarize(ev, dw, np.array([120.0, 60.0]), 2, 2.0, 0.5)
+    assert (cell["wrong_cell_count"], cell["too_early_count"]) == (1, 0)
+    # with the default 1 s the return after 1.5 s is no ping-pong
+    assert summarize(ev, dw, np.array([120.0, 60.0]), 2)["ping_pong_count"] == 0
+
+
+def _stay(median_s, p10_s, p90_s, n_complete, n_censored):
+    return {"median_s": median_s, "p10_s": p10_s, "p90_s": p90_s, "n_complete": n_complete,
+            "n_censored": n_censored}  # fmt: skip
+
+
+def _nested_approx(got, want):
+    assert got.keys() == want.keys()
+    for k, v in want.items():
+        if isinstance(v, dict):
+            _nested_approx(got[k], v)
+        else:
+            assert got[k] == pytest.approx(v, rel=1e-12), k
+            assert type(got[k]) is type(v) or isinstance(v, float), k
+    return True
+
+
+def test_handover_rates_count_the_given_kinds_and_take_one_observation_time_for_all():
+    ev = events((1.0, 0, B, 0, 0, 0, 1), (2.0, 1, S, 0, 1, 1, 3), (3.0, 1, "rlf", 1, 3, -1, -1))
+    r = handover_rates(ev, observed_s=30.0, n_ut=3, kinds=(S, "rlf"))
+    assert r["by_kind"] == {S: pytest.approx(1 / 1.5), "rlf": pytest.approx(1 / 1.5)}
+    np.testing.assert_allclose(r["per_ut"], [0.0, 4.0, 0.0])  # 2 events in half a minute
+    with pytest.raises(ValueError, match="^observed_s must be > 0 for every UT$"):
+        handover_rates(ev, observed_s=np.array([60.0, 0.0, 60.0]), n_ut=3)
+
+
+def test_unknown_levels_are_refused_by_name():
+    ev = events((1.0, 0, B, 0, 0, 0, 1))
+    with pytest.raises(ValueError, match="^level = 'beam'; use 'cell' or 'satellite'$"):
+        ping_pong_mask(ev, 1.0, "beam")
+    with pytest.raises(ValueError, match="^level = 'cell'; use 'beam' or 'satellite'$"):
+        stays(dwells((0, 0, 0, 0.0, 1.0, False, False)), "cell")
+
+
+def test_ping_pong_fraction_without_handovers_is_nan_and_counts_only_its_level():
+    ev = events((1.0, 0, "outage_start", 0, 0, -1, -1), (1.5, 0, "outage_end", -1, -1, 0, 0))
+    frac, n_pp, n_ho = ping_pong_fraction(ev, 1.0)
+    assert math.isnan(frac) and (n_pp, n_ho) == (0, 0)
+    ev = events((1.0, 0, B, 0, 0, 0, 1), (1.2, 0, B, 0, 1, 0, 0))
+    assert ping_pong_fraction(ev, 1.0, "satellite")[1:] == (0, 0)
+    assert math.isnan(ping_pong_fraction(ev, 1.0, "satellite")[0])
+
+
+def test_defaults_are_one_second_windows_at_cell_and_beam_level():
+    """TR 36.839's minimum time of stay (1 s) and leolink's 1 s MRO window: a return after
+    1.5 s is no ping-pong, a failure 1.5 s after a handover is too late; stays are beams."""
+    from leolink.sim.handover.kpi import mro_classes, mro_counts
+
+    ev = events((1.0, 0, B, 0, 0, 0, 1), (2.5, 0, B, 0, 1, 0, 0), (4.0, 0, "rlf", 0, 0, -1, -1),
+                (4.5, 0, "outage_end", -1, -1, 0, 2))  # fmt: skip
+    assert not ping_pong_mask(ev).any() and ping_pong_fraction(ev)[1] == 0
+    assert ping_pong_mask(ev, 1.6).tolist() == [False, True, False, False]
+    assert mro_counts(ev)["too_late_count"] == 1 and mro_classes(ev)["too_late"][2]
+    assert mro_counts(ev, 1.6)["wrong_cell_count"] == 1  # (0, 2): neither (0, 1) nor (0, 0)
+    # at satellite level (0, 2) is the source satellite: too early, not wrong cell
+    assert mro_counts(ev, 1.6, "satellite")["too_early_count"] == 1
+    dw = dwells((0, 0, 0, 0.0, 1.0, False, False), (0, 0, 1, 1.0, 3.0, False, False))
+    assert stays(dw)["end_s"].tolist() == [1.0, 3.0]  # beams: not joined
+    assert time_of_stay(dw)["durations_s"].tolist() == [1.0, 2.0]
+    kpi = summarize(ev, dw, 60.0, 1)
+    assert (kpi["ping_pong_count"], kpi["too_late_count"], kpi["mro_window_s"]) == (0, 1, 1.0)
+
+
+def test_ping_pong_needs_the_previous_serving_change_to_be_a_handover():
+    """A handover failure names both cells but is no handover: a handover back to where it
+    started is not a return of a ping-pong pair."""
+    ev = events(
+        (1.0, 0, B, 0, 0, 0, 1),
+        (1.2, 0, "handover_failure", 0, 1, 0, 2),
+        (1.4, 0, B, 0, 2, 0, 1),
+    )
+    assert ping_pong_mask(ev, 1.0).tolist() == [False, False, False]
+
+
+def test_ping_pong_compares_each_pair_not_the_first_handover():
+    """Satellites 1 -> 2 at 0 s, 2 -> 3 at 5 s, 3 -> 2 at 5.3 s: only the last returns, to
+    satellite 2, 0.3 s after leaving it (the first handover is 5.3 s earlier)."""
+    ev = events((0.0, 0, S, 1, 0, 2, 0), (5.0, 0, S, 2, 0, 3, 0), (5.3, 0, S, 3, 0, 2, 0))
+    for level in ("cell", "satellite"):
+        assert ping_pong_mask(ev, 1.0, level).tolist() == [False, False, True]
+
+
+def test_stays_of_an_empty_table_and_the_ut_of_each_joined_stay():
+    empty = dwells()
+    empty = {k: np.zeros(0, float if k.endswith("_s") else int) for k in empty}
+    for level in ("beam", "satellite"):
+        got = time_of_stay(empty, level)
+        assert (got["n_complete"], got["n_censored"]) == (0, 0) and math.isnan(got["mean_s"])
+        assert all(len(v) == 0 for v in stays(empty, level).values())
+    dw = dwells((4, 7, 0, 0.0, 2.0, False, False), (2, 7, 1, 2.0, 3.0, False, False),
+                (4, 7, 1, 2.0, 3.0, False, True))  # fmt: skip
+    st = stays(dw, "satellite")
+    assert st["ut_id"].tolist() == [2, 4] and st["end_s"].tolist() == [3.0, 3.0]
+    assert st["censored_end"].tolist() == [False, True]
+
+
+def test_mro_never_borrows_another_uts_handover_or_re_establishment():
+    from leolink.sim.handover.kpi import mro_counts
+
+    # UT 0 hands over; UT 1 fails 0.5 s later without a handover of its own: too late
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.5, 1, "rlf", X_, NONE),
+                   (11.0, 1, "outage_end", NONE, S_))  # fmt: skip
+    assert (got["too_late_count"], got["too_early_count"]) == (1, 0)
+    # one UT, never re-established: no class, whatever its handover
+    ev = _mro_events((10.0, 0, "sat_handover", S_, T_), (10.5, 0, "rlf", T_, NONE))
+    assert sum(mro_counts(ev).values()) == 0
+
+
+def test_a_handover_failure_re_established_in_a_third_cell_is_wrong_cell():
+    got = _classes((10.0, 0, "sat_handover", S_, T_), (10.03, 0, "handover_failure", S_, T_),
+                   (11.0, 0, "outage_end", NONE, X_))  # fmt: skip
+    assert (got["handover_failure_count"], got["wrong_cell_count"], got["too_early_count"]) == (
+        1, 1, 0)  # fmt: skip
+
+
+def test_handover_rates_with_no_counted_kind_are_zero():
+    r = handover_rates(events((1.0, 0, B, 0, 0, 0, 1)), observed_s=60.0, n_ut=2, kinds=())
+    assert r["overall"] == 0.0 and r["per_ut"].tolist() == [0.0, 0.0] and r["by_kind"] == {}

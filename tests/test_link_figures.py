@@ -148,3 +148,50 @@ def test_satellite_beamwidth_from_aperture_diameter(case):
     assert np.degrees(bw_rad) == pytest.approx(
         _f(row, "sat_beamwidth_3db_deg"), abs=BEAMWIDTH_TOLERANCE_DEG
     )
+
+
+# --- Input precision (issue 45's mutation run of link/figures.py, docs/testing.md) -----
+
+
+# As for the budget (test_budget.py): float32 carries 7 digits (4e-6 dB on a 60 dBW EIRP);
+# a figure of float32 values equals the float64 figure of the same (exact) values.
+def _f32_cases():
+    from leolink.link import figures as fig
+
+    return {
+        "eirp_dbw": (fig.eirp_dbw, [15.3, 0.7, 38.1]),
+        "eirp_density_dbw_mhz": (fig.eirp_density_dbw_mhz, [53.1, 400e6]),
+        "eirp_from_density_dbw": (fig.eirp_from_density_dbw, [34.1, 400e6]),
+        "system_noise_temp_k": (fig.system_noise_temp_k, [150.3, 1.2]),
+        "g_over_t_db_k gain": (lambda g: fig.g_over_t_db_k(g, noise_temp_dbk=24.7), [39.7]),
+        "g_over_t_db_k noise_temp_k": (lambda t: fig.g_over_t_db_k(39.7, noise_temp_k=t), [290.7]),
+        "g_over_t_db_k noise_temp_dbk": (
+            lambda t: fig.g_over_t_db_k(39.7, noise_temp_dbk=t),
+            [24.7],
+        ),
+        "cn0_dbhz": (fig.cn0_dbhz, [60.3, 180.2, 15.9]),
+        "cnr_db": (fig.cnr_db, [95.3, 400e6]),
+        "symbol_rate_baud": (fig.symbol_rate_baud, [400e6, 0.2]),
+        "symbol_rate_baud rolloff": (lambda r: fig.symbol_rate_baud(400e6, r), [0.2]),
+        "system_noise_temp_k noise figure": (lambda f: fig.system_noise_temp_k(150.3, f), [1.2]),
+        "esn0_db": (fig.esn0_db, [95.3, 333e6]),
+        "ebn0_db": (fig.ebn0_db, [9.7, 2.5]),
+        "margin_db": (fig.margin_db, [9.7, 6.3]),
+    }
+
+
+@pytest.mark.parametrize("name", list(_f32_cases()))
+def test_float32_figures_are_computed_in_float64(name):
+    func, args = _f32_cases()[name]
+    x32 = np.array([args[0]], dtype=np.float32)
+    got = func(x32, *args[1:])
+    want = func(x32.astype(np.float64), *args[1:])
+    assert np.asarray(got).dtype == np.float64
+    np.testing.assert_allclose(got, want, rtol=1e-15)
+
+
+def test_g_over_t_needs_exactly_one_noise_temperature():
+    for kwargs in ({}, {"noise_temp_k": 290.0, "noise_temp_dbk": 24.6}):
+        with pytest.raises(TypeError) as err:
+            g_over_t_db_k(30.0, **kwargs)
+        assert str(err.value) == "g_over_t_db_k needs exactly one of noise_temp_k, noise_temp_dbk"

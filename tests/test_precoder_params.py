@@ -94,3 +94,50 @@ def test_idle_beams_option_reaches_the_precoder(kind):
     assert PRECODERS.build(kind).idle_beams == "silent"
     assert PRECODERS.build(kind, entry.config(idle_beams="transmit")).idle_beams == "transmit"
     assert PRECODERS.build("none").idle_beams == "transmit"
+
+
+# --- The survivors of the second run (issue 45, docs/testing.md) ---------------------
+
+
+def test_defaults_are_unit_chain_power_and_the_configs_values():
+    """Without ``p_rf`` the most loaded chain carries 1 (the unit of H); Peel's
+    ``alpha = K / rho`` is then ``K / n_beam``; the precoder objects default to their
+    configs' ``alpha_scale = 1`` and ``idle_beams = "silent"``."""
+    from leolink.link.precoder import _Fixed, chain_power, mmse_regularization
+
+    h = _channel(3, 4, seed=13)
+    assert mmse_regularization(3, 4) == 0.75
+    for kind in ("zf", "zf_normalized", "mmse"):
+        assert np.max(chain_power(precoder_matrix(h, kind))) == pytest.approx(1.0, rel=RTOL)
+        assert np.max(chain_power(_Fixed(kind)(h))) == pytest.approx(1.0, rel=RTOL)
+    np.testing.assert_allclose(_Fixed("mmse")(h), _mmse(h, 0.75, 1.0), rtol=RTOL)
+    fixed, cfg = _Fixed("mmse"), MmseConfig()
+    assert (fixed.alpha_scale, fixed.idle_beams) == (cfg.alpha_scale, cfg.idle_beams)
+    assert cfg.alpha_scale == 1.0 and cfg.idle_beams == "silent"
+
+
+def test_mmse_alpha_scale_two_per_problem_of_a_batch():
+    """alpha_scale = 2 on a batch of two problems: 3 UTs on 4 beams, and 2 UTs on a
+    single lit beam (alpha = 2 x 2 / (1 p_rf)); each against Peel's formula alone."""
+    h_full = np.stack([_channel(3, 4, seed=17), _channel(3, 4, seed=19)])
+    ut_mask = np.array([[True, True, True], [True, False, True]])
+    beam_mask = np.array([[True, True, True, True], [False, False, True, False]])
+    p_rf = 0.8
+    f = PRECODERS.build("mmse", MmseConfig(alpha_scale=2.0))(
+        h_full, p_rf, ut_mask=ut_mask, beam_mask=beam_mask)  # fmt: skip
+    for b, (n_ut, n_beam) in enumerate([(3, 4), (2, 1)]):
+        h = h_full[b][np.ix_(ut_mask[b], beam_mask[b])]
+        want = _mmse(h, 2.0 * n_ut / (n_beam * p_rf), p_rf)
+        np.testing.assert_allclose(f[b][np.ix_(beam_mask[b], ut_mask[b])], want, rtol=RTOL)
+
+
+def test_no_precoder_on_a_batch_is_the_selection_scaled_per_problem():
+    """``"none"`` on a batch of two problems of 2 UTs and 3 beams: the 0/1 selection of each
+    UT's beam; in the second both UTs share beam 1, whose chain then carries 2 before the
+    scale, so each entry is 1 / sqrt(2)."""
+    h = np.stack([_channel(2, 3, seed=23), _channel(2, 3, seed=29)])
+    f = precoder_matrix(h, "none", serving_beam=np.array([[0, 2], [1, 1]]))
+    want = np.zeros((2, 3, 2))
+    want[0, 0, 0] = want[0, 2, 1] = 1.0
+    want[1, 1, :] = 1 / np.sqrt(2)
+    np.testing.assert_allclose(f, want, rtol=RTOL, atol=0)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from leolink.errors import ConfigError
-from leolink.sim.handover.rlf import RlfParams, RlfState, reset, step
+from leolink.sim.handover.rlf import RlfParams, RlfState, declare, reset, step
 
 DT_S = 0.1
 BAD, MID, GOOD = -12.0, -7.0, 0.0  # below Q_out = -8, between, above Q_in = -6
@@ -110,12 +110,16 @@ def test_unmonitored_uts_give_no_indication():
     assert rlf_t == [pytest.approx(0.2 + 0.1)]
 
 
-def reference_rlf(sinr, p):
-    """Scalar transcription of 5.3.10.1-5.3.10.3 for one UT: list of RLF epoch indices."""
+def reference_rlf(sinr, p, counters=None):
+    """Scalar transcription of 5.3.10.1-5.3.10.3 for one UT: list of RLF epoch indices.
+
+    ``counters``: a list that receives ``(n_oos, n_is, T310 running)`` after each epoch."""
     n_oos = n_is = 0
     t310 = rlf_at = None
     out = []
     for k, s in enumerate(sinr):
+        if counters is not None and k:
+            counters.append((n_oos, n_is, t310 is not None))
         t = k * DT_S
         if rlf_at is not None:
             if t - rlf_at >= p.reestablishment_s - 1e-9:
@@ -137,6 +141,8 @@ def reference_rlf(sinr, p):
             n_is = 0 if oos else n_is + ins
             if n_is >= p.n311:
                 t310, n_oos, n_is = None, 0, 0
+    if counters is not None:
+        counters.append((n_oos, n_is, t310 is not None))
     return out
 
 
@@ -190,3 +196,115 @@ def test_a_serving_change_in_the_expiry_epoch_pre_empts_the_rlf():
             "beam_id": np.array([-1, 0, 0]), "interruption_s": np.zeros(3)}  # fmt: skip
     _, rlf_events, _ = run.after_links(1.0, c, events, cols, np.zeros(3, bool))
     assert rlf_events["ut_id"].tolist() == [2]
+
+
+# --- Written from the survivors of a mutation run (issue 45, docs/testing.md) ----------
+
+
+@pytest.mark.parametrize("n310, n311", [(3, 2), (2, 3)])
+def test_counters_and_t310_follow_the_scalar_transcription_epoch_by_epoch(n310, n311):
+    """The state itself (consecutive counts, T310 running), not only the RLF times: every
+    start, stop, expiry and recovery clears both counts (5.3.10.1-5.3.10.3)."""
+    rng = np.random.default_rng(7 * n310 + n311)
+    n_ut, n_t = 12, 250
+    # a slow walk plus fast jitter: in-sync indications arrive while T310 runs
+    walk = np.cumsum(rng.normal(0, 1.2, (n_t, n_ut)), axis=0) * 0.3
+    sinr = -7 + walk + rng.normal(0, 2.0, (n_t, n_ut))
+    p = RlfParams(t310_s=0.5, n310=n310, n311=n311, reestablishment_s=0.3)
+    state, got = RlfState.initial(n_ut), []
+    for k in range(n_t):
+        state, _, _ = step(state, k * DT_S, sinr[k], p)
+        got.append(np.stack([state.n_oos, state.n_is, state.t310_running], axis=1).tolist())
+    kinds = set()
+    for u in range(n_ut):
+        ref = []
+        reference_rlf(sinr[:, u], p, ref)
+        mine = [tuple(int(v) for v in got[k][u]) for k in range(n_t)]
+        assert mine == [tuple(int(v) for v in r) for r in ref]
+        kinds |= {(r[0] > 0, r[1] > 0, r[2]) for r in ref}
+    # the walk visits counting out-of-sync, T310 with in-sync counted, and T310 idle
+    assert {(True, False, False), (False, True, True), (False, False, True)} <= kinds
+
+
+def test_a_handover_clears_the_out_of_sync_run_and_the_in_sync_count():
+    """N310 = 3: two out-of-sync indications, a handover (reset) for UT 0 only, then one
+    more. UT 1 reaches 3 and starts T310 at 0.2 s; UT 0 starts again from 0 and needs
+    three more (T310 at 0.4 s). Both fail T310 = 0.2 s later."""
+    p = RlfParams(t310_s=0.2, n310=3, n311=2, reestablishment_s=10.0)
+    state, times = RlfState.initial(2), {0: [], 1: []}
+    for k in range(8):
+        if k == 2:
+            state = reset(state, np.array([True, False]))
+            assert state.n_oos.tolist() == [0, 2]
+        state, rlf, _ = step(state, k * DT_S, np.array([BAD, BAD]), p)
+        for u in np.flatnonzero(rlf):
+            times[u].append(round(k * DT_S, 9))
+    assert times == {0: [0.6], 1: [0.4]}
+    # the in-sync count while T310 runs: one in-sync of N311 = 2, then a handover
+    state = RlfState.initial(1)
+    for k, s in enumerate([BAD, BAD, BAD, GOOD]):
+        state, _, _ = step(state, k * DT_S, np.array([s]), p)
+    assert state.n_is.tolist() == [1] and state.t310_running.all()
+    state = reset(state, np.array([True]))
+    assert (state.n_oos.tolist(), state.n_is.tolist(), bool(state.t310_running[0])) == (
+        [0], [0], False)  # fmt: skip
+
+
+def test_declare_starts_re_establishment_at_its_own_time_for_the_given_uts_only():
+    """A handover failure declared at t_c = 0.35 s (between epochs, TS 38.331 5.3.7): the UT
+    is re-establishing from 0.35 s with T310 stopped and its counts cleared, service back at
+    the first epoch >= 0.35 + 0.3 = 0.65 s, i.e. 0.7 s; the other UTs keep their state."""
+    p = RlfParams(t310_s=5.0, n310=2, n311=3, reestablishment_s=0.3)
+    state = RlfState.initial(3)
+    for k, s in enumerate([BAD, BAD, GOOD]):  # T310 since 0.1 s, one in-sync counted
+        state, _, _ = step(state, k * DT_S, np.full(3, s), p)
+    assert state.n_is.tolist() == [1, 1, 1] and state.t310_running.all()
+    assert declare(state, np.zeros(3, bool), 0.35) is state  # nothing to declare
+    state = declare(state, np.array([False, True, False]), np.array([9.0, 0.35, 9.0]))
+    assert state.reestablishing.tolist() == [False, True, False]
+    assert state.rlf_at_s[1] == 0.35
+    assert state.t310_running.tolist() == [True, False, True]
+    assert state.n_is.tolist() == [1, 0, 1] and state.n_oos.tolist() == [0, 0, 0]
+    back = []
+    for k in range(3, 9):
+        state, rlf, rec = step(state, k * DT_S, np.full(3, GOOD), p)
+        assert not rlf.any()
+        back += [round(k * DT_S, 9)] * bool(rec[1])
+        assert not rec[[0, 2]].any()
+    assert back == [0.7]
+    # UTs 0 and 2: 3 in-sync in a row (0.2, 0.3, 0.4 s) stopped T310; UT 1 is connected again
+    assert not state.t310_running.any() and not state.reestablishing.any()
+    # an out-of-sync run in progress (T310 not running) is cleared too
+    state, _, _ = step(RlfState.initial(1), 0.0, np.array([BAD]), p)
+    assert state.n_oos.tolist() == [1] and not state.t310_running.any()
+    assert declare(state, np.array([True]), 0.05).n_oos.tolist() == [0]
+
+
+def test_t310_below_the_time_tolerance_is_ms0():
+    """A T310 under the 1 ns clock tolerance expires the moment it starts, as ms0 does."""
+    p = RlfParams(t310_s=0.5e-9, n310=1, reestablishment_s=10.0)
+    assert drive([GOOD, BAD, BAD], p)[0] == [pytest.approx(0.1)]
+    p = RlfParams(t310_s=RlfParams().t310_s * 1e-9, n310=1, reestablishment_s=10.0)
+    assert drive([GOOD, BAD, BAD], p)[0] == [pytest.approx(0.1)]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"q_out_db": -5.0, "q_in_db": -6.0},
+         "rlf.q_in_db = -6.0 is not allowed; use a value >= -5.0 (Q_in >= Q_out [dB])"),
+        ({"t310_s": -0.1}, "rlf.t310_s = -0.1 is not allowed; use a value >= 0.0 (timer T310 [s])"),
+        ({"n310": 0},
+         "rlf.n310 = 0 is not allowed; use a value >= 1 (consecutive out-of-sync indications)"),
+        ({"n311": 0},
+         "rlf.n311 = 0 is not allowed; use a value >= 1 (consecutive in-sync indications)"),
+        ({"reestablishment_s": -1.0},
+         "rlf.reestablishment_s = -1.0 is not allowed; use a value >= 0.0 ([s])"),
+        ({"t310_s": float("inf")}, "rlf.t310_s = inf is not allowed; finite"),
+        ({"q_out_db": float("nan")}, "rlf.q_out_db = nan is not allowed; finite"),
+    ],
+)  # fmt: skip
+def test_each_refusal_names_the_key_the_value_and_what_is_allowed(kwargs, message):
+    with pytest.raises(ConfigError) as err:
+        RlfParams(**kwargs)
+    assert str(err.value) == message

@@ -55,7 +55,7 @@ __all__ = [
 
 
 @runtime_checkable
-class Scheduler(Protocol):
+class Scheduler(Protocol):  # pragma: no mutate block (a contract, no code)
     """How the UTs of one beam share its time (``scheduler.kind``)."""
 
     #: False: no sharing, every UT of a beam at the beam's full rate (today's leolink).
