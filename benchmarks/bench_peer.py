@@ -239,7 +239,9 @@ def main(argv=None):
         figures["peer_process_s"] / figures["leolink_process_s"]
     )
     figures["ratio_peer_loop_over_leolink_warm"] = min(loops) / figures["leolink_warm_s"]
-    figures["peer_loop_cpu_s"] = min(json.loads(out.splitlines()[-1])["loop_cpu_s"] for _, out in runs)
+    figures["peer_loop_cpu_s"] = min(
+        json.loads(out.splitlines()[-1])["loop_cpu_s"] for _, out in runs
+    )
     figures["ratio_peer_loop_over_leolink_warm_cpu"] = (
         figures["peer_loop_cpu_s"] / figures["leolink_warm_cpu_s"]
     )
