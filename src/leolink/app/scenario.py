@@ -19,7 +19,7 @@ from leolink.antenna.panel import PanelOrientation
 from leolink.antenna.terminal import TerminalGroups, pruning_terminal
 from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
-from leolink.app.steering import steering_from_config
+from leolink.app.steering import steering_from_config, surface_point
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.ephemeris_error import EstimatedEphemeris
 from leolink.errors import ConfigError
@@ -285,18 +285,33 @@ def build_scenario(cfg, ut_ids=None):
 def _policy_context(cfg, n_sat, n_beam):
     """What the policies are built with: the L3 filter, the level of ``[cells]`` and the
     ``[[controller.cell_offsets]]`` (each cell checked against the constellation)."""
-    for i, c in enumerate(cfg.controller.cell_offsets):
-        for key, value, n in (("sat_id", c.sat_id, n_sat), ("beam_id", c.beam_id, n_beam)):
-            if value is not None and value >= n:
-                raise ConfigError(
-                    f"controller.cell_offsets.{i}.{key} = {value} is not allowed: use 0 .. "
-                    f"{n - 1} (the run has {n})"
-                )
+    for table in ("cell_offsets", "reference_points"):
+        for i, c in enumerate(getattr(cfg.controller, table)):
+            for key, value, n in (("sat_id", c.sat_id, n_sat), ("beam_id", c.beam_id, n_beam)):
+                if value is not None and value >= n:
+                    raise ConfigError(
+                        f"controller.{table}.{i}.{key} = {value} is not allowed: use 0 .. "
+                        f"{n - 1} (the run has {n})"
+                    )
     return SimpleNamespace(
         filter=cfg.controller.filter,
         level="satellite" if cfg.cells.per == "satellite" else None,
         cell_offsets=cfg.controller.cell_offsets,
+        reference_points=_reference_points(cfg),
+        steering=cfg.satellite_array.steering,
+        measurement=cfg.controller.measurement,
+        noise_temp_dbk=cfg.link.system_noise_temp_dbk,
     )
+
+
+def _reference_points(cfg):
+    """``[[controller.reference_points]]`` as ``(sat_id, beam_id or None, (x, y, z) [m])``,
+    on the run's Earth (the satellites' Earth-fixed frame)."""
+    out = []
+    for c in cfg.controller.reference_points:
+        pos = surface_point(cfg, math.radians(c.lat_deg), math.radians(c.lon_deg))
+        out.append((c.sat_id, c.beam_id, tuple(np.asarray(pos, float).ravel())))
+    return tuple(out)
 
 
 def estimated_ephemeris(cfg, ephemeris):
