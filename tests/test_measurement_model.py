@@ -19,7 +19,7 @@ from leolink.sim.handover.local_axis import LocalAxis
 from leolink.sim.handover.measurement_model import MeasurementModel, MeasurementRun, in_smtc_window
 from leolink.sim.handover.measurements import L3Filter, L3State
 from leolink.sim.handover.trigger_run import TriggerRun
-from leolink.sim.handover.triggers import A3, A4
+from leolink.sim.handover.triggers import A3
 from leolink.sim.handover.triggers_ntn import D1
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -195,14 +195,14 @@ def test_d1_on_configured_points_against_brute_force_distances():
     """Points for some cells (a whole satellite, one beam, a later entry overriding);
     moving UTs; the chosen target is the triggered cell nearest its point, by loops."""
     n_sat, nb = 4, 2
-    pts = {0: (0.0, 0.0), 1: (0.0, 3.0), 2: (2.0, 1.0), 3: (-2.0, 1.5)}
+    pts = {0: (0.0, 0.0), 1: (0.0, 3.0), 2: (2.0, 1.0), 3: (-0.5, 3.5)}
     points = [(0, None, tuple(_ground(*pts[0]))), (1, 0, tuple(_ground(*pts[1]))),
               (1, 1, tuple(_ground(*pts[2]))), (2, None, tuple(_ground(9.0, 9.0))),
               (2, None, tuple(_ground(*pts[3])))]  # fmt: skip
     ref = {0: pts[0], 1: pts[0], 2: pts[1], 3: pts[2], 4: pts[3], 5: pts[3]}  # by global cell
     run, d1 = _d1_run("points", points)
     rng = np.random.default_rng(5)
-    n_ut, hits = 30, 0
+    n_ut, chosen = 30, []
     for k in range(12):
         ut = _ground(rng.uniform(-1, 3, n_ut), rng.uniform(-1, 4, n_ut))
         cells = np.arange(n_sat * nb)
@@ -218,8 +218,8 @@ def test_d1_on_configured_points_against_brute_force_distances():
             ok = [c for c in dist if c != 0 and ml1 > 400e3 and dist[c] < 300e3]
             want = min(ok, key=lambda c: (dist[c], c)) if ok else 0
             assert got[i] == want, (k, i, dist)
-            hits += want != 0
-    assert hits > 20
+            chosen.append(want)
+    assert set(chosen) >= {2, 3, 4}  # each configured point wins somewhere
 
 
 def test_d1_on_earth_fixed_cells_reads_the_steering_cells():

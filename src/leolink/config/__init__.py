@@ -86,8 +86,9 @@ class ControllerBase(kinds.SelectorSection):
     )
     reference_points: list[ReferencePointConfig] = Field(
         default_factory=list,
-        description="referenceLocation of cells (TS 38.331 D1, Earth-fixed): what d1 with "
-        "reference = 'points' measures distances to",
+        description="referenceLocation of cells (TS 38.331 D1, Earth-fixed), what d1 with "
+        "reference = 'points' measures distances to: entries {sat_id, beam_id (none: every "
+        "beam), lat_deg, lon_deg} on the run's Earth; a later entry for a cell wins",
     )
     signalling: SignallingConfig = Field(
         default_factory=SignallingConfig,  # type: ignore[arg-type]

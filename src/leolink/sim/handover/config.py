@@ -91,6 +91,7 @@ class A5Config(Params):
 
 
 class _DistanceConfig(Params):
+    kind: Literal["d1", "d2"]
     threshold1_m: float = Field(
         0.0, ge=0, description="distance to the serving reference above it [m]"
     )
@@ -103,7 +104,7 @@ class _DistanceConfig(Params):
 
 
 class D1Config(_DistanceConfig):
-    kind: Literal["d1"] = "d1"
+    kind: Literal["d1"] = "d1"  # type: ignore[assignment]
     reference: Literal["beam", "cell", "points"] = Field(
         "beam",
         description="reference locations: 'beam' each beam's boresight ground point now "
@@ -114,7 +115,7 @@ class D1Config(_DistanceConfig):
 
 
 class D2Config(_DistanceConfig):
-    kind: Literal["d2"] = "d2"
+    kind: Literal["d2"] = "d2"  # type: ignore[assignment]
 
 
 class T1Config(Params):
@@ -302,8 +303,8 @@ class MeasurementConfig(Params):
     )
     smtc_offsets: list[SmtcOffsetConfig] = Field(
         default_factory=list,
-        description="per-satellite SMTC offsets (Rel-17 smtc4list-r17: the NTN's SMTCs per "
-        "satellite group)",
+        description="per-satellite SMTC offsets, entries {sat_id, offset_s} (Rel-17 "
+        "smtc4list-r17: the NTN's SMTCs per satellite group)",
     )
 
     @model_validator(mode="after")
