@@ -50,10 +50,12 @@ References
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
 
+from leolink.arrays import KeyTable
 from leolink.link.budget import rsrp_dbm
 from leolink.link.channel_state import pair_keys
 from leolink.rng import complex_normal
@@ -113,12 +115,14 @@ class MeasurementModel:
             self.quantity == "snr"
         )
 
+    @functools.cached_property
+    def _offsets(self):
+        return KeyTable([s for s, _ in self.smtc_offsets], [o for _, o in self.smtc_offsets])
+
     def offsets_s(self, sat_id):
-        """Each satellite's SMTC offset [s], the shape of ``sat_id``."""
-        out = np.full(np.shape(sat_id), self.smtc_offset_s, float)
-        for sat, offset in self.smtc_offsets:  # a few configured satellites
-            out[np.asarray(sat_id) == sat] = offset
-        return out
+        """Each satellite's SMTC offset [s], the shape of ``sat_id`` (a later entry for a
+        satellite wins)."""
+        return self._offsets.get(sat_id, self.smtc_offset_s)
 
 
 class MeasurementRun:

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.arrays import nonzero_2d
+from leolink.arrays import KeyTable, nonzero_2d
 from leolink.geometry import ray_to_ground
 from leolink.sim.handover.decisions import PolicyState
 from leolink.sim.handover.local_axis import LocalAxis
@@ -82,8 +82,8 @@ class TriggerRun:
         self.cell_offsets = ()  # (sat_id, beam_id or None, Ocn [dB]): the entry sets them
         # D1's configured reference locations: (sat_id, beam_id or None, (x, y, z) [m]).
         self.reference_points = ()
-        self._points = None  # their (keys, xyz) table, built at the first epoch
-        self._ocn = None  # (global cells, Ocn) sorted, built at the first epoch
+        self._points = None  # their KeyTable, built at the first epoch
+        self._ocn = None  # KeyTable of Ocn by global cell, built at the first epoch
         # The measurement stage (measurement_model.MeasurementRun); None: every detected
         # cell every epoch, without error, in SNR (the entry sets it).
         self.measurement = None
@@ -148,14 +148,9 @@ class TriggerRun:
                 beams = np.arange(nb) if beam is None else np.array([beam])
                 cells.append(sat * nb + beams)
                 values.append(np.full(beams.size, float(db)))
-            cells, values = np.concatenate(cells), np.concatenate(values)
-            last = len(cells) - 1 - np.unique(cells[::-1], return_index=True)[1]
-            self._ocn = (cells[last], values[last])
-        keys, values = self._ocn
+            self._ocn = KeyTable(np.concatenate(cells), np.concatenate(values))
         local = self._cells(axis)
-        at = np.minimum(np.searchsorted(keys, local), len(keys) - 1)
-        hit = (keys[at] == local) & (local >= 0)
-        return np.where(hit, values[at], 0.0)
+        return np.where(local >= 0, self._ocn.get(local, 0.0), 0.0)
 
     @staticmethod
     def _cells(axis):
@@ -224,17 +219,14 @@ class TriggerRun:
             satellite = self.policy.level == "satellite"
             if self._points is None:
                 self._points = self._point_table(satellite)
-            keys, xyz = self._points
-            units = axis.sats if satellite else cells
-            ok = sat_ok if satellite else usable
-            at = np.minimum(np.searchsorted(keys, units), max(len(keys) - 1, 0))
-            hit = (keys[at] == units) & (units >= 0) & ok if len(keys) else np.zeros_like(ok)
-            out["point_ref_pos_m"] = np.where(hit[..., None], xyz[at], np.nan)
+            units, ok = (axis.sats, sat_ok) if satellite else (cells, usable)
+            got = self._points.get(np.where(units >= 0, units, -1), np.nan)
+            out["point_ref_pos_m"] = np.where(ok[..., None], got, np.nan)
         return out
 
     def _point_table(self, satellite):
-        """``(keys, xyz)``: the configured reference points by global cell (or satellite,
-        from the entries without a beam), sorted; a later entry for a cell wins."""
+        """The configured reference points (a :class:`~leolink.arrays.KeyTable` of
+        ``(x, y, z)``) by global cell, or by satellite from the entries without a beam."""
         nb, keys, xyz = self.n_beam, [np.zeros(0, np.int64)], [np.zeros((0, 3))]
         for sat, beam, pos in self.reference_points:
             if satellite:
@@ -243,9 +235,7 @@ class TriggerRun:
                 units = sat * nb + (np.arange(nb) if beam is None else np.array([beam]))
             keys.append(units)
             xyz.append(np.tile(np.asarray(pos, float), (units.size, 1)))
-        keys, xyz = np.concatenate(keys), np.concatenate(xyz)
-        last = len(keys) - 1 - np.unique(keys[::-1], return_index=True)[1]
-        return keys[last], xyz[last]
+        return KeyTable(np.concatenate(keys), np.concatenate(xyz))
 
     @staticmethod
     def _gather(axis, uniq, values):
