@@ -11,8 +11,11 @@ Measurement instants. With ``period_s = P > 0`` the UT measures at the instants 
 ``k`` it has not sampled yet lies at or before it (so with ``epoch_s = P`` every epoch
 samples, with ``epoch_s = P / 4`` every fourth). Between instants the filtered values are
 held (a cell that stopped being detected still drops out at once: the NaN rule of
-:mod:`~leolink.sim.handover.trigger_run`), so the layer-3 filter runs once per instant with
-``dt = P`` (TS 38.331 5.5.3.2: one filter step per measurement result). ``P`` plays the
+:mod:`~leolink.sim.handover.trigger_run`), so the layer-3 filter steps once per sample
+(TS 38.331 5.5.3.2: one step per measurement result) with ``dt`` the time since the last
+sample: ``P`` when the epochs fall on the multiples of ``P``, ``epoch_s`` when ``P`` is
+shorter than an epoch (the sample is the epoch's value: the simulator has none between
+epochs). ``P`` plays the
 role of TS 38.133's L1 measurement period (9.2.5.2: max(200 ms, 5 SMTC periods) in FR1
 without DRX); leolink takes it as given.
 
