@@ -214,6 +214,13 @@ BROKEN = [
         r"controller\.measurement\.smtc_duration_s = 0\.03 is not allowed: use at most",
     ),
     (
+        "measurement_model_of_a_policy_without_triggers",
+        PAPER,
+        ["controller.policy=max_snr", "controller.measurement.error_db=2"],
+        r"controller\.measurement\.error_db = 2\.0 is not allowed with controller\.policy = "
+        r"'max_snr': the measurement model feeds the 3GPP trigger policies",
+    ),
+    (
         "d1_points_without_points",
         PAPER,
         ["controller.policy=d1", "controller.d1.reference='points'"],

@@ -257,7 +257,7 @@ def build_scenario(cfg, ut_ids=None):
         engine=engine,
         ephemeris=ephemeris,
         populations=populations,
-        policy=cfg.controller.build(_policy_context(cfg, ephemeris.n_sat, engine.n_beam)),
+        policy=_policy(cfg, ephemeris.n_sat, engine.n_beam),
         min_snr_db=cfg.controller.min_snr_db,
         handover_time_s=cfg.controller.handover_time_s,
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
@@ -280,6 +280,20 @@ def build_scenario(cfg, ut_ids=None):
         roi_frame=frame,
         ut_keys=keys,
     )
+
+
+def _policy(cfg, n_sat, n_beam):
+    """The controller's policy; a measurement model only where a trigger policy reads it."""
+    policy = cfg.controller.build(_policy_context(cfg, n_sat, n_beam))
+    m = cfg.controller.measurement
+    if not hasattr(policy, "run") and m != type(m)():
+        changed = next(k for k, v in m if v != getattr(type(m)(), k))
+        raise ConfigError(
+            f"controller.measurement.{changed} = {getattr(m, changed)!r} is not allowed with "
+            f"controller.policy = {cfg.controller.policy!r}: the measurement model feeds the "
+            "3GPP trigger policies (a3, a4, a5, a2a4, d1, d2, t1, elevation, time_to_exit, cho)"
+        )
+    return policy
 
 
 def _policy_context(cfg, n_sat, n_beam):
