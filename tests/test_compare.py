@@ -144,7 +144,8 @@ def test_cli_compare(tmp_path, capsys):
     code = main(["compare", PAPER, "--policies", "max_snr,a3", "--out", str(tmp_path),
                  "--set", "run.duration_s=5", "--set", "output.trace.enabled=false"])  # fmt: skip
     assert code == 0
-    assert "| a3 |" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "| a3 |" in out and out == (tmp_path / "compare.md").read_text(encoding="utf-8")
     assert len(pd.read_csv(tmp_path / "compare.csv")) == 2
 
 
