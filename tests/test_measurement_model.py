@@ -55,6 +55,15 @@ def test_the_error_has_its_sigma_and_is_independent_across_cells_and_instants():
         assert abs(r) < 6 / math.sqrt(np.size(a))  # consecutive instants; two cells
 
 
+def test_the_real_normal_is_the_real_part_of_the_complex_one():
+    from leolink.rng import complex_normal, standard_normal
+
+    keys = ut_keys(3, 1000)
+    for counter in (0, 7):
+        want = math.sqrt(2.0) * complex_normal(keys, counter).real
+        np.testing.assert_allclose(standard_normal(keys, counter), want, rtol=0, atol=1e-12)
+
+
 def test_the_error_of_a_ut_depends_on_its_key_cell_and_instant_only():
     model = MeasurementModel(error_db=1.0)
     every = _samples(model, ut_keys(11, 40), 5, 4)

@@ -58,10 +58,10 @@ import math
 
 import numpy as np
 
-from leolink.arrays import KeyTable
+from leolink.arrays import KeyTable, nonzero_2d
 from leolink.link.budget import rsrp_dbm
 from leolink.link.channel_state import pair_keys
-from leolink.rng import complex_normal
+from leolink.rng import standard_normal
 from leolink.sim.handover.measurements import L3State, l3_update
 from leolink.sim.handover.triggers import TIME_TOL_S
 
@@ -150,19 +150,15 @@ class MeasurementRun:
         self.last_k = k
         return True
 
-    def _sample(self, t_s, raw, cells):
-        """The quantity with its error, ``(n_ut, n_cand)``."""
+    def _sample(self, raw, ut_keys, cells):
+        """The quantity with its error at the given (UT, cell) pairs, flat arrays."""
         m = self.model
         value = raw
         if m.quantity == "rsrp":
             value = rsrp_dbm(raw, m.noise_temp_dbk, m.subcarrier_spacing_hz)
         if m.error_db > 0:
-            if self.ut_keys is None:
-                raise ValueError("MeasurementRun: error_db > 0 needs the UTs' keys (ut_keys)")
-            keys = pair_keys(np.asarray(self.ut_keys, np.uint64) ^ _ERROR_DOMAIN, cells)
-            # Re of CN(0, 1) is N(0, 1/2): scaled to N(0, 1).
-            e = math.sqrt(2.0) * complex_normal(keys.ravel(), self.count).real
-            value = value + m.error_db * e.reshape(value.shape)
+            keys = pair_keys(ut_keys ^ _ERROR_DOMAIN, cells[:, None]).ravel()
+            value = value + m.error_db * standard_normal(keys, self.count)
         return value
 
     def step(self, t_s, filt, raw, usable, cells, l3):
@@ -181,14 +177,21 @@ class MeasurementRun:
         if not self._instant(t_s):
             return L3State(held, filt.t_s), held
         m = self.model
-        sample = np.where(usable, self._sample(t_s, raw, cells), np.nan)
-        measured = usable
+        rows, cols = nonzero_2d(usable)  # only detected cells are measured (and drawn for)
+        cell = cells[rows, cols]
         if m.smtc_period_s > 0:
-            sats = np.where(cells >= 0, cells // self.n_beam, -1)
-            window = in_smtc_window(t_s, m.offsets_s(sats), m.smtc_period_s, m.smtc_duration_s)
-            measured = usable & window
+            offsets = m.offsets_s(cell // self.n_beam)
+            inside = in_smtc_window(t_s, offsets, m.smtc_period_s, m.smtc_duration_s)
+            rows, cols, cell = rows[inside], cols[inside], cell[inside]
+        keys = None
+        if m.error_db > 0:
+            if self.ut_keys is None:
+                raise ValueError("MeasurementRun: error_db > 0 needs the UTs' keys (ut_keys)")
+            keys = np.asarray(self.ut_keys, np.uint64)[rows]
+        sample = np.full(raw.shape, np.nan)
+        sample[rows, cols] = self._sample(raw[rows, cols], keys, cell)
         self.count += 1
-        state, filtered = l3_update(filt, t_s, np.where(measured, sample, np.nan), l3)
-        keep = usable & ~measured  # outside its window: no sample, the filter holds
+        state, filtered = l3_update(filt, t_s, sample, l3)
+        keep = usable & np.isnan(sample)  # outside its window: no sample, the filter holds
         filtered = np.where(keep, held, filtered)
         return L3State(filtered, state.t_s), filtered
