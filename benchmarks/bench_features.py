@@ -1,7 +1,8 @@
 """Every feature at the speed of the core: each variant of ``configs/constellation.toml`` side
 by side with the max-SNR baseline, in one run (issue 44).
 
-Variants: the 3GPP trigger policies ``a3``, ``cho``, ``t1``, ``time_to_exit``; ``predictive``
+Variants: the 3GPP trigger policies ``a3``, ``cho``, ``t1``, ``time_to_exit``; ``a3_measured``
+(a3 behind ``[controller.measurement]``: error, period, SMTC, RSRP); ``predictive``
 with a 60 s look-ahead; every population in the TR 38.811 ``urban`` environment; the report
 on; UTs spread over -60..60 deg of latitude (``global``, floor 1.5). Each is a
 ``leolink run`` process (plots off; the report off but in the ``report``
@@ -35,6 +36,15 @@ BASE = ["output.plots.enabled=false", "output.report.enabled=false"]
 #: name -> settings added to the baseline's (the last one wins).
 VARIANTS = {
     "a3": ['controller.policy="a3"'],
+    # a3 behind the measurement model (issue 46): error, period, SMTC, RSRP
+    "a3_measured": [
+        'controller.policy="a3"',
+        "controller.measurement.error_db=3.0",
+        "controller.measurement.period_s=1.0",
+        "controller.measurement.smtc_period_s=0.5",
+        "controller.measurement.smtc_duration_s=0.25",
+        'controller.measurement.quantity="rsrp"',
+    ],
     "cho": ['controller.policy="cho"'],
     "t1": ['controller.policy="t1"'],
     "time_to_exit": ['controller.policy="time_to_exit"'],

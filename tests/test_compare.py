@@ -67,6 +67,41 @@ def test_the_table_is_the_mean_and_spread_of_the_runs(compared):
     assert "| a3,hysteresis_db=3 |" in (out / "compare.md").read_text()
 
 
+def test_the_report_names_its_columns_and_the_policies_conditions(compared):
+    """compare.md: a legend (rates, counts and fractions named as such), served-only SINR,
+    each policy's parameters in effect; no column empty for every policy anywhere."""
+    out, table = compared
+    md = (out / "compare.md").read_text()
+    head = md.splitlines()[0]
+    for heading in ("handovers /UT-min", "ping-pongs (cell)", "ping-pong fraction (cell)",
+                    "served SINR p5 [dB]"):  # fmt: skip
+        assert f"| {heading} |" in head and f"- **{heading}**: " in md
+    assert "a count per run" in md and "a fraction in [0, 1]" in md
+    assert "mean ± sample standard deviation over 2 seed(s)" in md
+    mine = md.split("- **a3,hysteresis_db=3**: `")[1].split("`")[0]
+    assert mine.startswith("a3 {") and '"hysteresis_db": 3.0' in mine
+    assert '"offset_db": 0.0' in mine and '"time_to_trigger_s": 0.0' in mine
+    disk = pd.read_csv(out / "compare.csv")
+    assert disk.notna().any().all()  # no empty column
+    assert (table.kpi_sinr_db_percentiles_served_p5 >= table.kpi_sinr_db_percentiles_p5).all()
+
+
+def test_one_seed_leaves_out_the_spreads_and_empty_kpis():
+    from leolink.app.compare import _aggregate, report_table
+
+    runs = pd.DataFrame({"policy": ["a", "b"], "seed": [1, 1], "run": ["x", "y"],
+                         "kpi_handover_rate_per_ut_min": [1.5, 2.0],
+                         "kpi_ping_pong_fraction_satellite": [np.nan, np.nan],
+                         "kpi_rlf_count": [np.nan, 2.0]})  # fmt: skip
+    table = _aggregate(runs)
+    assert list(table.columns) == ["policy", "n_seeds", "kpi_handover_rate_per_ut_min",
+                                   "kpi_rlf_count"]  # fmt: skip
+    md = report_table(table, {"a": "a3 {}", "b": "max_snr {}"})
+    assert md.splitlines()[0] == "| policy | handovers /UT-min | RLFs |"
+    assert md.splitlines()[2] == "| a | 1.500 |  |" and "±" not in md
+    assert "one run per policy, 1 seed(s)" in md and "- **b**: `max_snr {}`" in md
+
+
 def test_the_manifest_lists_every_file_and_every_run(compared):
     """run.json, written last, hashes the tables and plots and each run's own manifest."""
     import hashlib
@@ -109,7 +144,8 @@ def test_cli_compare(tmp_path, capsys):
     code = main(["compare", PAPER, "--policies", "max_snr,a3", "--out", str(tmp_path),
                  "--set", "run.duration_s=5", "--set", "output.trace.enabled=false"])  # fmt: skip
     assert code == 0
-    assert "| a3 |" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "| a3 |" in out and out == (tmp_path / "compare.md").read_text(encoding="utf-8")
     assert len(pd.read_csv(tmp_path / "compare.csv")) == 2
 
 

@@ -160,6 +160,8 @@ def test_kpis_equal_the_trace_and_events_recomputed(tmp_path):
         got = kpi["sinr_db_percentiles"][f"p{q}"]
         assert (got is None and want == -np.inf) or abs(got - want) <= 0.005 + 1e-9
         assert abs(kpi["throughput_bps_percentiles"][f"p{q}"] - np.percentile(tput, q)) <= 5e4
+        served = np.percentile(tr.sinr_db.dropna(), q)  # the served UT-epochs only
+        assert abs(kpi["sinr_db_percentiles_served"][f"p{q}"] - served) <= 0.005 + 1e-9
     assert kpi["interruption_s"] == {"handover": 0.0, "rlf": 0.0, "outage": 0.0}
 
 

@@ -204,6 +204,50 @@ BROKEN = [
         r"roi\.semi_axis_x_m = 9000000\.0 is not allowed: it must be at most 2\.988e\+06 m",
     ),
     ("right_key_name", PAPER, ["link.rician_k=-1"], r"^leolink: error: \S+: link\.rician_k = -1 "),
+    (
+        "smtc_window_longer_than_its_period",
+        PAPER,
+        [
+            "controller.measurement.smtc_period_s=0.02",
+            "controller.measurement.smtc_duration_s=0.03",
+        ],
+        r"controller\.measurement\.smtc_duration_s = 0\.03 is not allowed: use at most",
+    ),
+    (
+        "measurement_model_of_a_policy_without_triggers",
+        PAPER,
+        ["controller.policy=max_snr", "controller.measurement.error_db=2"],
+        r"controller\.measurement\.error_db = 2\.0 is not allowed with controller\.policy = "
+        r"'max_snr': the measurement model feeds the 3GPP trigger policies",
+    ),
+    (
+        "d1_points_without_points",
+        PAPER,
+        ["controller.policy=d1", "controller.d1.reference='points'"],
+        r"controller\.d1\.reference = 'points' is not allowed without "
+        r"\[\[controller\.reference_points\]\]",
+    ),
+    (
+        "cho_d1_on_cells_of_body_fixed_beams",
+        PAPER,
+        [
+            "controller.policy=cho",
+            "controller.cho.release=18",
+            "controller.cho.execute=[{kind='d1', reference='cell'}]",
+        ],
+        r"controller\.cho\.execute\.0\.reference = 'cell' is not allowed with "
+        r"satellite_array\.steering = 'body_fixed'",
+    ),  # fmt: skip
+    (
+        "reference_point_of_no_satellite",
+        PAPER,
+        [
+            "controller.policy=d1",
+            "controller.d1.reference='points'",
+            "controller.reference_points=[{sat_id=5, lat_deg=0, lon_deg=0}]",
+        ],
+        r"controller\.reference_points\.0\.sat_id = 5 is not allowed: use 0 \.\. 0",
+    ),  # fmt: skip
 ]
 
 

@@ -149,6 +149,20 @@ def test_parts_in_one_process_do_not_depend_on_the_partition(tmp_path):
     _same_outputs(one, seven)
 
 
+def test_measurement_errors_do_not_depend_on_the_partition(tmp_path):
+    """A3 behind measurement errors drawn per UT, cell and instant (issue 46): the same
+    events in one part and in five."""
+    config = _config(tmp_path, **{**SPHERE, "report": "false", "duration": 4.0})
+    sets = ["--set", "controller.policy='a3'", "--set", "controller.measurement.error_db=4.0",
+            "--set", "controller.filter.k=0"]  # fmt: skip
+    one = _run(config, tmp_path / "one", "--parts", "1", *sets)
+    five = _run(config, tmp_path / "five", "--parts", "5", *sets)
+    a, _ = _same_outputs(one, five)
+    plain = _run(config, tmp_path / "plain", *sets[:2], *sets[4:])
+    events = (pd.read_csv(d / "events.csv") for d in (one, plain))
+    assert not next(events).equals(next(events))  # the errors change the handovers
+
+
 def _marker(folder):
     """``tmp_path/lost-once`` of the part ``tmp_path/dask/.parts-*/part-*``."""
     return Path(folder).parents[2] / "lost-once"

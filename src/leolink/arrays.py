@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["nonzero_2d", "take_rows"]
+__all__ = ["KeyTable", "nonzero_2d", "take_rows"]
 
 #: From this many entries on, the flat path of :func:`nonzero_2d` is faster (measured on
 #: numpy 2.4: the two break even near 1,000 entries).
@@ -64,3 +64,31 @@ def take_rows(a, *index):
     for size, idx in zip(lead[1:], index[1:], strict=True):
         flat = flat * size + np.asarray(idx, np.intp)
     return np.take(a.reshape(-1, *a.shape[len(index) :]), flat, axis=0)
+
+
+class KeyTable:
+    """A lookup of configured values by integer key (a cell, a satellite), the later of
+    two entries for one key winning, vectorized over the queries.
+
+    Parameters
+    ----------
+    keys : array_like of int, shape (n,)
+    values : array_like, shape (n, ...)
+    """
+
+    def __init__(self, keys, values):
+        keys = np.asarray(keys, np.int64).reshape(-1)
+        values = np.asarray(values, float)
+        last = len(keys) - 1 - np.unique(keys[::-1], return_index=True)[1]  # sorted keys
+        self.keys, self.values = keys[last], values[last]
+
+    def get(self, query, fill):
+        """``values`` at each key of ``query`` (any shape), ``fill`` where it has none;
+        shape ``query.shape + values.shape[1:]``."""
+        query = np.asarray(query, np.int64)
+        tail = self.values.shape[1:]
+        if self.keys.size == 0:
+            return np.full(query.shape + tail, fill, float)
+        at = np.minimum(np.searchsorted(self.keys, query), self.keys.size - 1)
+        hit = (self.keys[at] == query).reshape(query.shape + (1,) * len(tail))
+        return np.where(hit, self.values[at], fill)

@@ -310,14 +310,14 @@ def _version():
 
 
 def cmd_compare(args) -> int:
-    from leolink.app.compare import report_table, run_compare
+    from leolink.app.compare import run_compare
     from leolink.app.sweep import Execution
 
     _config(args)  # config mistakes fail here, before any run
     policies = list(args.policy or [])
     for group in args.policies or []:
         policies += [p for p in group.split(",") if p.strip()]
-    table = run_compare(
+    run_compare(
         args.config,
         policies,
         Path(args.out),
@@ -330,8 +330,8 @@ def cmd_compare(args) -> int:
             overwrite=args.overwrite,
         ),
     )
-    if not args.quiet:
-        print(report_table(table), end="")
+    if not args.quiet:  # compare.md: the table, its legend, the policies' parameters
+        print((Path(args.out) / "compare.md").read_text(encoding="utf-8"), end="")
     return 0
 
 

@@ -73,3 +73,12 @@ def complex_normal(keys, counter):
     u2 = uniform(keys, counter, stream=1)
     radius = np.sqrt(-np.log(u1))  # |g|^2 ~ Exp(1)
     return radius * np.exp(2j * np.pi * u2)
+
+
+def standard_normal(keys, counter):
+    """Real Gaussian N(0, 1) draws (Box-Muller), one per key: ``sqrt(2)`` times the real
+    part of :func:`complex_normal`'s draw of the same key and counter, without its
+    imaginary part."""
+    u1 = uniform(keys, counter, stream=0)
+    u2 = uniform(keys, counter, stream=1)
+    return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)

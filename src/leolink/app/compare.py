@@ -15,8 +15,11 @@ Outputs (written at the end, the manifest ``run.json`` last, as for a run):
 - ``compare_runs.csv``: one row per (policy, seed), the flattened overall summary;
 - ``compare.csv``: one row per policy, column ``policy``, ``n_seeds``, and for every
   numeric summary column its mean over seeds and ``<column>_std`` (sample standard
-  deviation; NaN with one seed);
-- ``compare.md``: the main KPIs as a table (mean +- std);
+  deviation); a column empty for every policy (every ``_std`` with one seed, a KPI no
+  run reports) is left out;
+- ``compare.md``: the main KPIs as a table (mean +- std), with a legend (rates, counts
+  and fractions named as such; SINR over the served UT-epochs) and every policy's
+  parameters in effect;
 - ``compare_kpis.png``, ``compare_tradeoff.png``, ``compare_sinr_cdf.png`` (the SINR of
   every UT-epoch of every seed, read back from each run's trace);
 - ``run.json``: the files above and every run's own ``run.json``, with sizes and SHA-256.
@@ -37,22 +40,40 @@ from leolink.app.guard import raise_pending
 from leolink.app.sweep import Execution, _base_overrides, _progress_bar, _run_point
 from leolink.errors import ConfigError
 
-__all__ = ["MAIN_KPIS", "parse_policy", "policy_twins", "run_compare"]
+__all__ = ["MAIN_KPIS", "parse_policy", "policy_conditions", "policy_twins", "run_compare"]
 
-#: (column of compare.csv, heading, scale, format) of the report table.
+#: (column of compare.csv, heading, scale, format, legend) of the report table: rates per
+#: UT-minute, counts per run, fractions in [0, 1], as each heading says.
 MAIN_KPIS = (
-    ("kpi_handover_rate_per_ut_min", "HO /UT-min", 1.0, "{:.3f}"),
-    ("kpi_handover_rate_per_ut_min_by_kind_sat_handover", "sat HO /UT-min", 1.0, "{:.3f}"),
-    ("kpi_ping_pong_fraction", "ping-pong cell", 1.0, "{:.3f}"),
-    ("kpi_ping_pong_fraction_satellite", "ping-pong sat", 1.0, "{:.3f}"),
-    ("kpi_rlf_rate_per_ut_min", "RLF /UT-min", 1.0, "{:.4f}"),
-    ("kpi_mean_time_of_stay_s_beam", "stay beam [s]", 1.0, "{:.1f}"),
-    ("kpi_mean_time_of_stay_s_satellite", "stay sat [s]", 1.0, "{:.1f}"),
-    ("outage_fraction", "outage", 1.0, "{:.4f}"),
-    ("kpi_sinr_db_percentiles_p5", "SINR p5 [dB]", 1.0, "{:.2f}"),
-    ("kpi_sinr_db_percentiles_p50", "SINR p50 [dB]", 1.0, "{:.2f}"),
-    ("mean_throughput_bps", "thr. [Mb/s]", 1e-6, "{:.1f}"),
-)
+    ("kpi_handover_rate_per_ut_min", "handovers /UT-min", 1.0, "{:.3f}",
+     "handovers (beam and satellite) per UT-minute: a rate"),
+    ("kpi_handover_rate_per_ut_min_by_kind_sat_handover", "sat handovers /UT-min", 1.0,
+     "{:.3f}", "satellite changes per UT-minute: a rate"),
+    ("kpi_ping_pong_count", "ping-pongs (cell)", 1.0, "{:.1f}",
+     "handovers back to the cell left less than kpi.ping_pong_s before: a count per run"),
+    ("kpi_ping_pong_fraction", "ping-pong fraction (cell)", 1.0, "{:.3f}",
+     "ping-pongs (cell) / handovers: a fraction in [0, 1]"),
+    ("kpi_ping_pong_fraction_satellite", "ping-pong fraction (sat)", 1.0, "{:.3f}",
+     "the same on satellites (a return to the satellite left): a fraction in [0, 1]"),
+    ("kpi_rlf_count", "RLFs", 1.0, "{:.1f}", "radio link failures: a count per run"),
+    ("kpi_handover_failure_count", "handover failures", 1.0, "{:.1f}",
+     "handovers that failed (T304, target below Q_out): a count per run"),
+    ("kpi_too_early_count", "too early", 1.0, "{:.1f}",
+     "too-early handovers (TS 38.300 15.5.2.2.2, window kpi.mro_window_s): a count per run"),
+    ("kpi_too_late_count", "too late", 1.0, "{:.1f}", "too-late handovers: a count per run"),
+    ("kpi_mean_time_of_stay_s_beam", "stay beam [s]", 1.0, "{:.1f}",
+     "mean time of stay in a beam, completed stays only [s]"),
+    ("kpi_mean_time_of_stay_s_satellite", "stay sat [s]", 1.0, "{:.1f}",
+     "mean time of stay on a satellite, completed stays only [s]"),
+    ("outage_fraction", "outage fraction", 1.0, "{:.4f}",
+     "unserved UT-epochs / UT-epochs: a fraction in [0, 1]"),
+    ("kpi_sinr_db_percentiles_served_p5", "served SINR p5 [dB]", 1.0, "{:.2f}",
+     "5th percentile of the SINR of the served UT-epochs (outage left out) [dB]"),
+    ("kpi_sinr_db_percentiles_served_p50", "served SINR p50 [dB]", 1.0, "{:.2f}",
+     "median SINR of the served UT-epochs [dB]"),
+    ("mean_throughput_bps", "throughput [Mb/s]", 1e-6, "{:.1f}",
+     "mean throughput per UT-epoch, unserved epochs at 0 [Mb/s]"),
+)  # fmt: skip
 _SAFE = re.compile(r"[^A-Za-z0-9._=+-]+")
 
 
@@ -136,14 +157,14 @@ def _jobs(cfg_path, specs, seeds, base, out_dir, resume):
 
 
 def _aggregate(runs):
-    """compare.csv from compare_runs.csv: mean and std over seeds, policies in order."""
+    """compare.csv from compare_runs.csv: mean and std over seeds, policies in order;
+    a column empty for every policy (a spread of one seed, a KPI no run has) is left out."""
     numeric = [c for c in runs.columns if c not in ("policy", "seed", "run")]
     numeric = [c for c in numeric if pd.api.types.is_numeric_dtype(runs[c])]
     groups = runs.groupby("policy", sort=False)
     mean, std = groups[numeric].mean(), groups[numeric].std(ddof=1)
-    table = mean.copy()
-    for col in numeric:
-        table[f"{col}_std"] = std[col]
+    table = pd.concat([mean, std.add_suffix("_std")], axis=1)
+    table = table.loc[:, table.notna().any()]
     table.insert(0, "n_seeds", groups.size())
     return table.reset_index()
 
@@ -165,21 +186,43 @@ def _cdfs(runs):
     return out
 
 
-def report_table(table):
-    """The main KPIs of ``compare.csv`` as a Markdown table (mean +- std over seeds)."""
-    cols = [c for c in MAIN_KPIS if c[0] in table.columns]
-    lines = ["| policy | " + " | ".join(h for _, h, _, _ in cols) + " |"]
+def report_table(table, conditions=None):
+    """``compare.md``: the main KPIs of ``compare.csv`` as a Markdown table (mean +- std
+    over seeds), a legend of its columns and, with ``conditions`` (``{policy: text}``),
+    every policy's parameters in effect. A KPI empty for every policy is left out."""
+    cols = [c for c in MAIN_KPIS if c[0] in table.columns and table[c[0]].notna().any()]
+    lines = ["| policy | " + " | ".join(c[1] for c in cols) + " |"]
     lines.append("|" + "---|" * (len(cols) + 1))
     for _, row in table.iterrows():
         cells = []
-        for col, _, scale, fmt in cols:
-            text = fmt.format(row[col] * scale)
+        for col, _, scale, fmt, _ in cols:
+            text = "" if pd.isna(row[col]) else fmt.format(row[col] * scale)
             std = row.get(f"{col}_std")
-            if std is not None and np.isfinite(std):
+            if text and std is not None and np.isfinite(std):
                 text += " ± " + fmt.format(std * scale)
             cells.append(text)
         lines.append(f"| {row['policy']} | " + " | ".join(cells) + " |")
+    n = sorted(set(int(v) for v in table["n_seeds"])) if "n_seeds" in table else [1]
+    spread = "mean ± sample standard deviation over" if max(n) > 1 else "one run per policy,"
+    lines += ["", f"Legend ({spread} {'/'.join(map(str, n))} seed(s)):", ""]
+    lines += [f"- **{head}**: {legend}" for _, head, _, _, legend in cols]
+    if conditions:
+        lines += ["", "Policies (the parameters in effect):", ""]
+        lines += [f"- **{label}**: `{text}`" for label, text in conditions.items()]
     return "\n".join(lines) + "\n"
+
+
+def policy_conditions(cfg_path, specs, base=()):
+    """``{label: text}``: each policy's name and its ``[controller.<name>]`` table in
+    effect (every condition of a CHO, every threshold), as compact JSON."""
+    from leolink.config import load_config
+
+    out = {}
+    for label, overrides in map(parse_policy, specs):
+        ctl = load_config(cfg_path, [*base, *overrides]).controller
+        params = json.dumps(ctl.params.model_dump(mode="json"))
+        out[label] = f"{ctl.chosen} {params}"
+    return out
 
 
 def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, how=None):
@@ -235,8 +278,9 @@ def run_compare(cfg_path, policies, out_dir, base_overrides=None, seeds=1, *, ho
         ]
     )
     table = _aggregate(runs)
+    report = report_table(table, policy_conditions(cfg_path, policies, base))
     files = [write_csv_atomic(runs, out_dir / "compare_runs.csv"),
-             write_text_atomic(out_dir / "compare.md", report_table(table))]  # fmt: skip
+             write_text_atomic(out_dir / "compare.md", report)]  # fmt: skip
     if how.plot:
         from leolink.io.compare_plots import plot_compare
 

@@ -19,7 +19,7 @@ from leolink.antenna.panel import PanelOrientation
 from leolink.antenna.terminal import TerminalGroups, pruning_terminal
 from leolink.app.codebook import codebook_from_config
 from leolink.app.orbits import ephemeris_from_config, overhead_satellite, roi_frame
-from leolink.app.steering import steering_from_config
+from leolink.app.steering import steering_from_config, surface_point
 from leolink.engine import LinkEngine, LinkParams, reuse_colors
 from leolink.ephemeris_error import EstimatedEphemeris
 from leolink.errors import ConfigError
@@ -258,7 +258,7 @@ def build_scenario(cfg, ut_ids=None):
         engine=engine,
         ephemeris=ephemeris,
         populations=populations,
-        policy=cfg.controller.build(_policy_context(cfg, ephemeris.n_sat, engine.n_beam)),
+        policy=_policy(cfg, ephemeris.n_sat, engine.n_beam),
         min_snr_db=cfg.controller.min_snr_db,
         handover_time_s=cfg.controller.handover_time_s,
         min_elevation_rad=math.radians(cfg.constellation.min_elevation_deg),
@@ -294,17 +294,33 @@ def timing_params(cfg):
                         cfg.link.freq_hz)  # fmt: skip
 
 
+def _policy(cfg, n_sat, n_beam):
+    """The controller's policy; a measurement model only where a trigger policy reads it."""
+    policy = cfg.controller.build(_policy_context(cfg, n_sat, n_beam))
+    m = cfg.controller.measurement
+    if not hasattr(policy, "run") and m != type(m)():
+        changed = next(k for k, v in m if v != getattr(type(m)(), k))
+        raise ConfigError(
+            f"controller.measurement.{changed} = {getattr(m, changed)!r} is not allowed with "
+            f"controller.policy = {cfg.controller.policy!r}: the measurement model feeds the "
+            "3GPP trigger policies (a3, a4, a5, a2a4, d1, d2, t1, elevation, time_to_exit, cho)"
+        )
+    return policy
+
+
 def _policy_context(cfg, n_sat, n_beam):
     """What the policies are built with: the L3 filter, the level of ``[cells]``, the
-    ``[[controller.cell_offsets]]`` (each cell checked against the constellation), the
-    beams per satellite, the epoch and the UTC second of time 0 (``slotted``'s grid)."""
-    for i, c in enumerate(cfg.controller.cell_offsets):
-        for key, value, n in (("sat_id", c.sat_id, n_sat), ("beam_id", c.beam_id, n_beam)):
-            if value is not None and value >= n:
-                raise ConfigError(
-                    f"controller.cell_offsets.{i}.{key} = {value} is not allowed: use 0 .. "
-                    f"{n - 1} (the run has {n})"
-                )
+    ``[[controller.cell_offsets]]`` and ``[[controller.reference_points]]`` (each cell checked
+    against the constellation), the beams per satellite, the epoch and the UTC second of time
+    0 (``slotted``'s grid)."""
+    for table in ("cell_offsets", "reference_points"):
+        for i, c in enumerate(getattr(cfg.controller, table)):
+            for key, value, n in (("sat_id", c.sat_id, n_sat), ("beam_id", c.beam_id, n_beam)):
+                if value is not None and value >= n:
+                    raise ConfigError(
+                        f"controller.{table}.{i}.{key} = {value} is not allowed: use 0 .. "
+                        f"{n - 1} (the run has {n})"
+                    )
     utc0 = cfg.utc_of_time_zero()
     return SimpleNamespace(
         filter=cfg.controller.filter,
@@ -314,7 +330,21 @@ def _policy_context(cfg, n_sat, n_beam):
         epoch_s=cfg.run.epoch_s,
         # seconds past the UTC minute of simulation time 0 (the slotted policy's grid)
         utc_offset_s=0.0 if utc0 is None else utc0.second + utc0.microsecond * 1e-6,
+        reference_points=_reference_points(cfg),
+        steering=cfg.satellite_array.steering,
+        measurement=cfg.controller.measurement,
+        noise_temp_dbk=cfg.link.system_noise_temp_dbk,
     )
+
+
+def _reference_points(cfg):
+    """``[[controller.reference_points]]`` as ``(sat_id, beam_id or None, (x, y, z) [m])``,
+    on the run's Earth (the satellites' Earth-fixed frame)."""
+    out = []
+    for c in cfg.controller.reference_points:
+        pos = surface_point(cfg, math.radians(c.lat_deg), math.radians(c.lon_deg))
+        out.append((c.sat_id, c.beam_id, tuple(np.asarray(pos, float).ravel())))
+    return tuple(out)
 
 
 def estimated_ephemeris(cfg, ephemeris):

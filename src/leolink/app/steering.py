@@ -16,7 +16,14 @@ import numpy as np
 from leolink.geodesy import wgs84_to_ecef
 from leolink.geometry import ecef_to_geodetic, geodetic_to_ecef, ray_to_ground
 
-__all__ = ["steering_from_config"]
+__all__ = ["steering_from_config", "surface_point"]
+
+
+def surface_point(cfg, lat_rad, lon_rad):
+    """Points on the run's Earth (``[earth]``: the sphere, or WGS 84) [m], ``(..., 3)``."""
+    if cfg.earth.model == "wgs84":
+        return wgs84_to_ecef(lat_rad, lon_rad, 0.0)
+    return geodetic_to_ecef(lat_rad, lon_rad, 0.0, cfg.earth.radius_m)
 
 
 def steering_from_config(cfg, codebook, ephemeris=None):
@@ -30,9 +37,7 @@ def steering_from_config(cfg, codebook, ephemeris=None):
     u = np.asarray(codebook.u_xy, float)
 
     def surface(lat_rad, lon_rad):
-        if cfg.earth.model == "wgs84":
-            return wgs84_to_ecef(lat_rad, lon_rad, 0.0)
-        return geodetic_to_ecef(lat_rad, lon_rad, 0.0, radius)
+        return surface_point(cfg, lat_rad, lon_rad)
 
     def footprint_cells(t_s):
         eph = ephemeris_from_config(cfg) if ephemeris is None else ephemeris

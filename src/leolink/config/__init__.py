@@ -41,8 +41,11 @@ from leolink.sim.handover.config import (
     CellsConfig,
     FilterConfig,
     KpiConfig,
+    MeasurementConfig,
+    ReferencePointConfig,
     RlfConfig,
     SignallingConfig,
+    interruption_field,
 )
 from leolink.textfile import read_text
 
@@ -60,15 +63,17 @@ __all__ = [
 class ControllerBase(kinds.SelectorSection):
     """``[controller]``: the policy and what every policy shares."""
 
-    handover_time_s: float = Field(
-        0.0, ge=0.0, le=3600.0, description="service interruption per handover [s]"
-    )
+    handover_time_s: float = interruption_field("service interruption per handover [s]")
     min_snr_db: float = Field(
         -10.0, ge=-100.0, le=100.0, description="below this SNR the UT is in outage [dB]"
     )
     filter: FilterConfig = Field(
         default_factory=FilterConfig,  # type: ignore[arg-type]
         description="layer-3 filter of the trigger policies' measurements (TS 38.331 5.5.3.2)",
+    )
+    measurement: MeasurementConfig = Field(
+        default_factory=MeasurementConfig,  # type: ignore[arg-type]
+        description="the trigger policies' measurements: period, error, SMTC, quantity",
     )
     rlf: RlfConfig = Field(
         default_factory=RlfConfig,  # type: ignore[arg-type]
@@ -79,6 +84,12 @@ class ControllerBase(kinds.SelectorSection):
         description="cellIndividualOffset Ocn of cells (TS 38.331 5.5.4): added to the cell's "
         "measurement in A3 (Ocn and Ocp), A4, A5 and a2a4's A4; at satellite level a "
         "satellite's offset is its beams' largest",
+    )
+    reference_points: list[ReferencePointConfig] = Field(
+        default_factory=list,
+        description="referenceLocation of cells (TS 38.331 D1, Earth-fixed), what d1 with "
+        "reference = 'points' measures distances to: entries {sat_id, beam_id (none: every "
+        "beam), lat_deg, lon_deg} on the run's Earth; a later entry for a cell wins",
     )
     signalling: SignallingConfig = Field(
         default_factory=SignallingConfig,  # type: ignore[arg-type]

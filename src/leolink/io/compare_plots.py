@@ -55,7 +55,9 @@ def plot_compare(table, out_dir, cdfs=None):
         ax = axes[0, 0]
         x = table["kpi_handover_rate_per_ut_min"].to_numpy(float)
         y = table["mean_throughput_bps"].to_numpy(float) * 1e-6
-        pp = table["kpi_ping_pong_fraction_satellite"].to_numpy(float)
+        # (compare.csv leaves out a column no policy has: no satellite handover, no ping-pong)
+        pp = table.get("kpi_ping_pong_fraction_satellite", np.nan * x)
+        pp = np.asarray(pp, float)
         sc = ax.scatter(x, y, c=np.nan_to_num(pp), cmap="viridis", s=60, zorder=3)
         for xi, yi, name in zip(x, y, labels, strict=True):
             ax.annotate(name, (xi, yi), textcoords="offset points", xytext=(5, 4), fontsize=8)

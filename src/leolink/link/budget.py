@@ -28,6 +28,7 @@ __all__ = [
     "interference_dbw",
     "lin",
     "noise_power_dbw",
+    "rsrp_dbm",
     "rss_dbw",
     "sinr_lin",
     "snr_db",
@@ -85,6 +86,33 @@ def noise_power_dbw(noise_temp_dbk, bandwidth_hz):
         Noise power [dBW].
     """
     return np.asarray(noise_temp_dbk, dtype=float) + BOLTZMANN_DBW_K_HZ + db(bandwidth_hz)
+
+
+def rsrp_dbm(snr_db, noise_temp_dbk, subcarrier_spacing_hz):
+    """SS-RSRP per resource element [dBm] of a link with SNR ``snr_db`` (TS 38.215 5.1.1).
+
+    RSRP is the power of one resource element (one subcarrier ``df``) of the SSS:
+    ``RSRP = EIRP_RE - L + G_RX`` with ``EIRP_RE = EIRP - 10 log10(B / df)`` the EIRP
+    density per subcarrier of a beam spreading its power evenly over its band ``B``.
+    Its SNR is ``EIRP - L + G_RX - (T + k + 10 log10 B)`` (:func:`noise_power_dbw`), so
+
+        RSRP [dBm] = SNR + (T + k + 10 log10 df) + 30,
+
+    the SNR plus the thermal noise of one subcarrier, whatever ``B`` (and the reuse
+    colour's share of it) is.
+
+    Parameters
+    ----------
+    snr_db : array_like [dB]
+    noise_temp_dbk : float [dBK], system noise temperature.
+    subcarrier_spacing_hz : float [Hz], the SSB's subcarrier spacing (15 or 30 kHz in
+        FR1, 120 or 240 kHz in FR2).
+
+    Returns
+    -------
+    ndarray [dBm]
+    """
+    return np.asarray(snr_db, float) + noise_power_dbw(noise_temp_dbk, subcarrier_spacing_hz) + 30.0
 
 
 def rss_dbw(ptx_dbw, cable_db, gain_tx_db, atm_db, fspl_db, gain_rx_db):

@@ -254,8 +254,12 @@ def run_simulation(
             scen.signalling, n_ut, scen.engine.n_beam, scen.epoch_s, conditional
         )
     keys = None
-    if scen.fading_k is not None or scen.environments:
+    measuring = getattr(decide.trigger, "measurement", None)  # the trigger's measurement stage
+    needs_keys = measuring is not None and measuring.needs_ut_keys
+    if scen.fading_k is not None or scen.environments or needs_keys:
         keys = ut_keys(scen.seed, n_ut) if scen.ut_keys is None else scen.ut_keys
+    if measuring is not None and needs_keys:
+        measuring.ut_keys = keys
     names = tuple(name for name, pop in scen.populations for _ in range(pop.n_ut))
     environment = ()
     if scen.environments:

@@ -12,6 +12,8 @@ ping-pong after TR 36.839, time of stay without censored stays); besides them:
   percentile that falls among unserved epochs is -inf, written ``null``;
   ``unserved_fraction`` says how many there are. Resolution: 0.01 dB and 100 kb/s
   (a percentile is within half a bin of numpy's on the same samples).
+  ``sinr_db_percentiles_served``: the same over the served UT-epochs only (the link
+  quality a served UT sees, without the outage).
 - ``interruption_s``: UT-time without service by cause [s]: ``handover`` (execution
   times), ``rlf`` (re-establishment, whole epochs), ``outage`` (no usable candidate);
   ``interruption_per_handover_s``: the handover part per handover.
@@ -45,6 +47,7 @@ class KpiAccumulator:
         self.n_beam_switch = np.zeros(self.n_ut, np.int64)
         self._events = []
         self.sinr = PercentileHistogram(-60.0, 80.0, 0.01)
+        self.sinr_served = PercentileHistogram(-60.0, 80.0, 0.01)  # served UT-epochs only
         self.throughput = PercentileHistogram(0.0, 1.0e10, 1.0e5, unserved_value=0.0)
         self.n_samples = 0
         self.n_unserved = 0
@@ -52,6 +55,7 @@ class KpiAccumulator:
     def add_trace(self, columns):
         sinr = np.asarray(columns["sinr_db"], float)
         self.sinr.add(sinr)
+        self.sinr_served.add(sinr[~np.isnan(sinr)])
         self.throughput.add(np.asarray(columns["throughput_bps"], float))
         self.n_samples += sinr.size
         self.n_unserved += int(np.isnan(sinr).sum())
@@ -91,6 +95,7 @@ class KpiAccumulator:
             interruption_per_handover_s=interruption_s["handover"] / n_ho if n_ho else None,
             unserved_fraction=self.n_unserved / self.n_samples if self.n_samples else None,
             sinr_db_percentiles=self.sinr.summary(),
+            sinr_db_percentiles_served=self.sinr_served.summary(),
             throughput_bps_percentiles=self.throughput.summary(),
         )
         rates = handover_rates(events, observed_s, self.n_ut)

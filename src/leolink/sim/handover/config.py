@@ -19,12 +19,14 @@ from typing import Annotated, Literal
 
 from pydantic import Discriminator, Field, Tag, model_validator
 
+from leolink.errors import ConfigError
 from leolink.registry import Params
 from leolink.sim.handover.decisions import (
     ConditionalHandover,
     GatedTriggerPolicy,
     TriggerPolicy,
 )
+from leolink.sim.handover.measurement_model import MeasurementModel
 from leolink.sim.handover.measurements import FILTER_COEFFICIENTS, L3Filter
 from leolink.sim.handover.procedure import SignallingParams
 from leolink.sim.handover.rlf import RlfParams
@@ -40,6 +42,14 @@ _LEVEL = Field(
     "a5, d1; satellite for d2, t1, elevation, time_to_exit)",
 )
 _TTT = Field(0.0, ge=0, description="time-to-trigger [s] (TS 38.331: ms0..ms5120)")
+#: Longest service interruption a config may give one handover or beam switch [s].
+MAX_INTERRUPTION_S = 3600.0
+
+
+def interruption_field(doc):
+    """The config field of a service interruption [s]: 0 by default, 0 .. 1 h (the one
+    definition of ``controller.handover_time_s`` and ``cells.beam_switch_s``)."""
+    return Field(0.0, ge=0.0, le=MAX_INTERRUPTION_S, description=doc)
 
 
 class A3Config(Params):
@@ -80,8 +90,8 @@ class A5Config(Params):
     level: Level = _LEVEL
 
 
-class D1Config(Params):
-    kind: Literal["d1"] = "d1"
+class _DistanceConfig(Params):
+    kind: Literal["d1", "d2"]
     threshold1_m: float = Field(
         0.0, ge=0, description="distance to the serving reference above it [m]"
     )
@@ -93,7 +103,18 @@ class D1Config(Params):
     level: Level = _LEVEL
 
 
-class D2Config(D1Config):
+class D1Config(_DistanceConfig):
+    kind: Literal["d1"] = "d1"  # type: ignore[assignment]
+    reference: Literal["beam", "cell", "points"] = Field(
+        "beam",
+        description="reference locations: 'beam' each beam's boresight ground point now "
+        "(moves with body-fixed beams), 'cell' the Earth-fixed cells of "
+        "satellite_array.steering = 'earth_fixed', 'points' the configured "
+        "[[controller.reference_points]] (TS 38.331 referenceLocation1/2)",
+    )
+
+
+class D2Config(_DistanceConfig):
     kind: Literal["d2"] = "d2"  # type: ignore[assignment]
 
 
@@ -229,6 +250,86 @@ class FilterConfig(Params):
     )
 
 
+class SmtcOffsetConfig(Params):
+    """One ``[[controller.measurement.smtc_offsets]]`` entry: a satellite's SMTC offset."""
+
+    sat_id: int = Field(ge=0, description="satellite")
+    offset_s: float = Field(ge=0, description="its SMTC offset [s], below smtc_period_s")
+
+
+#: SSB subcarrier spacings of NR (TS 38.211 4.2; SSB: 15, 30 kHz FR1, 120, 240 kHz FR2).
+SUBCARRIER_SPACINGS_HZ = (15_000, 30_000, 120_000, 240_000)
+
+
+class MeasurementConfig(Params):
+    """``[controller.measurement]``: the measurement model of the trigger policies
+    (:mod:`leolink.sim.handover.measurement_model`); the defaults are today's model:
+    every detected cell every epoch, without error, in SNR."""
+
+    quantity: Literal["snr", "rsrp"] = Field(
+        "snr",
+        description="trigger quantity: the SNR [dB], or SS-RSRP per resource element [dBm] "
+        "(TS 38.215 5.1.1); thresholds of a4, a5, a2a4 are then in dBm",
+    )
+    subcarrier_spacing_hz: Literal[SUBCARRIER_SPACINGS_HZ] = Field(  # type: ignore[valid-type]
+        15_000, description="SSB subcarrier spacing [Hz] of the RSRP's resource element"
+    )
+    period_s: float = Field(
+        0.0,
+        ge=0,
+        le=60.0,
+        description="measurement period [s]: samples at its multiples only, the filter "
+        "steps once per sample (TS 38.133 9.2.5: >= 200 ms in FR1); 0: every epoch",
+    )
+    error_db: float = Field(
+        0.0,
+        ge=0,
+        le=30.0,
+        description="sigma of each sample's Gaussian error [dB], drawn per UT, cell and "
+        "instant (seeded by run.seed)",
+    )
+    smtc_period_s: float = Field(
+        0.0,
+        ge=0,
+        le=60.0,
+        description="SMTC periodicity [s] (SSB-MTC: 5..160 ms); 0: no SMTC, every cell is "
+        "measured at every instant",
+    )
+    smtc_duration_s: float = Field(
+        0.005, gt=0, le=60.0, description="SMTC window duration [s] (SSB-MTC: 1..5 ms)"
+    )
+    smtc_offset_s: float = Field(
+        0.0, ge=0, description="SMTC offset of every satellite not in smtc_offsets [s]"
+    )
+    smtc_offsets: list[SmtcOffsetConfig] = Field(
+        default_factory=list,
+        description="per-satellite SMTC offsets, entries {sat_id, offset_s} (Rel-17 "
+        "smtc4list-r17: the NTN's SMTCs per satellite group)",
+    )
+
+    @model_validator(mode="after")
+    def _smtc(self):
+        if self.smtc_period_s <= 0:
+            return self
+        p = self.smtc_period_s
+        if self.smtc_duration_s > p:
+            raise ValueError(
+                f"controller.measurement.smtc_duration_s = {self.smtc_duration_s!r} is not "
+                f"allowed: use at most smtc_period_s = {p!r} [s]"
+            )
+        offsets = [("smtc_offset_s", self.smtc_offset_s)]
+        offsets += [
+            (f"smtc_offsets.{i}.offset_s", o.offset_s) for i, o in enumerate(self.smtc_offsets)
+        ]
+        for key, value in offsets:
+            if value >= p:
+                raise ValueError(
+                    f"controller.measurement.{key} = {value!r} is not allowed: use 0 <= "
+                    f"offset < smtc_period_s = {p!r} [s]"
+                )
+        return self
+
+
 class RlfConfig(Params):
     """``[controller.rlf]``: radio link failure (TS 38.331 5.3.10; defaults 9.2.3)."""
 
@@ -240,6 +341,15 @@ class RlfConfig(Params):
     n310: int = Field(1, ge=1, le=20, description="out-of-sync indications to start T310")
     n311: int = Field(1, ge=1, le=10, description="in-sync indications to stop T310")
     reestablishment_s: float = Field(0.2, ge=0, description="RLF to service [s] (placeholder)")
+
+
+class ReferencePointConfig(Params):
+    """One ``[[controller.reference_points]]`` entry: a cell's referenceLocation (D1)."""
+
+    sat_id: int = Field(ge=0, description="satellite of the cell")
+    beam_id: int | None = Field(None, ge=0, description="beam of the cell; none: every beam")
+    lat_deg: float = Field(ge=-90, le=90, description="latitude [deg] (geodetic on WGS 84)")
+    lon_deg: float = Field(ge=-180, le=360, description="longitude [deg]")
 
 
 class CellOffsetConfig(Params):
@@ -295,9 +405,7 @@ class CellsConfig(Params):
         "'satellite': a satellite is one cell, a beam change inside it is a beam_switch "
         "(L1/L2, not a handover) and the trigger policies compare satellites",
     )
-    beam_switch_s: float = Field(
-        0.0, ge=0, le=3600, description="service interruption per beam_switch [s]"
-    )
+    beam_switch_s: float = interruption_field("service interruption per beam_switch [s]")
 
 
 class KpiConfig(Params):
@@ -316,7 +424,9 @@ _TRIGGER_OF = {
     "a3": lambda c: A3(c.offset_db, c.hysteresis_db, c.time_to_trigger_s),
     "a4": lambda c: A4(c.threshold_db, c.hysteresis_db, c.time_to_trigger_s),
     "a5": lambda c: A5(c.threshold1_db, c.threshold2_db, c.hysteresis_db, c.time_to_trigger_s),
-    "d1": lambda c: D1(c.threshold1_m, c.threshold2_m, c.hysteresis_m, c.time_to_trigger_s),
+    "d1": lambda c: D1(
+        c.threshold1_m, c.threshold2_m, c.hysteresis_m, c.time_to_trigger_s, c.reference
+    ),
     "d2": lambda c: D2(c.threshold1_m, c.threshold2_m, c.hysteresis_m, c.time_to_trigger_s),
     "t1": lambda c: T1(c.duration_s, c.lead_s),
     "elevation": lambda c: Elevation(
@@ -348,9 +458,33 @@ POLICY_CONFIGS: dict[str, type[Params]] = {
 }
 
 
-def build_trigger(config):
-    """The trigger event of a validated trigger config."""
+def build_trigger(config, context=None, key=None):
+    """The trigger event of a validated trigger config; with a build ``context`` (what
+    the run has: ``steering``, ``reference_points``), a D1 reference the run cannot give
+    is refused, naming ``key`` (the config table)."""
+    if config.kind == "d1" and context is not None:
+        _check_reference(config, context, key or "controller.d1")
     return _TRIGGER_OF[config.kind](config)
+
+
+def _check_reference(config, context, key):
+    ref = config.reference
+    steering = getattr(context, "steering", "body_fixed")
+    if ref == "cell" and steering != "earth_fixed":
+        raise ConfigError(
+            f"{key}.reference = 'cell' is not allowed with satellite_array.steering = "
+            f"{steering!r}: Earth-fixed cells need 'earth_fixed' (use 'beam' or 'points')"
+        )
+    if ref == "points" and not getattr(context, "reference_points", ()):
+        raise ConfigError(
+            f"{key}.reference = 'points' is not allowed without [[controller.reference_points]]:"
+            " give each cell's referenceLocation (sat_id, beam_id, lat_deg, lon_deg)"
+        )
+    if ref == "cell" and (config.level or getattr(context, "level", None)) == "satellite":
+        raise ConfigError(
+            f"{key}.reference = 'cell' is not allowed at level 'satellite' (cells.per = "
+            "'satellite' or level = 'satellite'): a satellite has no one Earth-fixed cell"
+        )
 
 
 def build_policy(config, context=None):
@@ -363,17 +497,37 @@ def build_policy(config, context=None):
         return GatedTriggerPolicy(gate, trigger, level)
     if config.kind == "cho":
         return ConditionalHandover(
-            build_trigger(config.prepare),
-            [build_trigger(c) for c in config.execute],
+            build_trigger(config.prepare, context, "controller.cho.prepare"),
+            [
+                build_trigger(c, context, f"controller.cho.execute.{i}")
+                for i, c in enumerate(config.execute)
+            ],
             config.max_prepared,
             config.preparation_delay_s,
             level,
         )
-    return TriggerPolicy(build_trigger(config), level)
+    return TriggerPolicy(build_trigger(config, context, f"controller.{config.kind}"), level)
 
 
 def build_filter(config):
     return L3Filter(config.k, config.reference_period_s)
+
+
+def build_measurement(config, noise_temp_dbk):
+    """The measurement model of ``[controller.measurement]`` (``noise_temp_dbk`` [dBK]:
+    the system noise temperature RSRP is counted from), None when it is today's."""
+    model = MeasurementModel(
+        config.period_s,
+        config.error_db,
+        config.quantity,
+        float(noise_temp_dbk),
+        float(config.subcarrier_spacing_hz),
+        config.smtc_period_s,
+        config.smtc_duration_s,
+        config.smtc_offset_s,
+        tuple((o.sat_id, o.offset_s) for o in config.smtc_offsets),
+    )
+    return None if model.is_off else model
 
 
 def build_rlf(config):

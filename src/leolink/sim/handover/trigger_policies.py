@@ -40,7 +40,14 @@ from __future__ import annotations
 
 import math
 
-from leolink.sim.handover.config import POLICY_CONFIGS, FilterConfig, build_filter, build_policy
+from leolink.sim.handover.config import (
+    POLICY_CONFIGS,
+    FilterConfig,
+    build_filter,
+    build_measurement,
+    build_policy,
+)
+from leolink.sim.handover.measurement_model import MeasurementRun
 from leolink.sim.handover.policies import POLICIES
 from leolink.sim.handover.trigger_run import TriggerRun
 
@@ -72,9 +79,11 @@ class TriggerPolicyEntry:
     neighbour_window_db = math.inf
     usable_cells_only = True  # blind below the service threshold (module docstring)
 
-    def __init__(self, name, inner, l3, horizon, cell_offsets=()):
+    def __init__(self, name, inner, l3, horizon, cell_offsets=(), measurement=None, points=()):
         self.name, self.inner, self.l3, self.horizon_s = name, inner, l3, float(horizon)
         self.cell_offsets = tuple(cell_offsets)  # (sat_id, beam_id or None, offset_db)
+        self.measurement = measurement  # MeasurementModel, or None (today's measurements)
+        self.reference_points = tuple(points)  # (sat_id, beam_id or None, (x, y, z) [m])
 
     @property
     def level(self):
@@ -91,7 +100,9 @@ class TriggerPolicyEntry:
         run = TriggerRun(
             self.inner, self.l3, engine, min_snr_db, radius_m, future_state, epoch_s, self.horizon_s
         )
-        run.cell_offsets = self.cell_offsets
+        run.cell_offsets, run.reference_points = self.cell_offsets, self.reference_points
+        if self.measurement is not None:
+            run.measurement = MeasurementRun(self.measurement, engine.n_beam)
         return run
 
     def __repr__(self):
@@ -101,11 +112,17 @@ class TriggerPolicyEntry:
 def entry(name, policy, context=None, horizon=DEFAULT_HORIZON_S):
     """The registry's object for ``policy`` (a TriggerPolicy or ConditionalHandover), with
     the layer-3 filter of the build context (``[controller.filter]``; fc4 without one) and
-    its cell offsets (``[[controller.cell_offsets]]``)."""
+    its cell offsets (``[[controller.cell_offsets]]``) and measurement model
+    (``[controller.measurement]``, with the ``noise_temp_dbk`` of the context)."""
     section = getattr(context, "filter", None)
     l3 = build_filter(section if section is not None else FilterConfig())
     offsets = [(c.sat_id, c.beam_id, c.offset_db) for c in getattr(context, "cell_offsets", ())]
-    return TriggerPolicyEntry(name, policy, l3, horizon, offsets)
+    section = getattr(context, "measurement", None)
+    model = None
+    if section is not None:
+        model = build_measurement(section, getattr(context, "noise_temp_dbk", math.nan))
+    points = getattr(context, "reference_points", ())
+    return TriggerPolicyEntry(name, policy, l3, horizon, offsets, model, points)
 
 
 def _builder(name):

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.arrays import nonzero_2d
+from leolink.arrays import KeyTable, nonzero_2d
 from leolink.geometry import ray_to_ground
 from leolink.sim.handover.decisions import PolicyState
 from leolink.sim.handover.local_axis import LocalAxis
@@ -80,7 +80,13 @@ class TriggerRun:
         self.axis_beams = 1 if _on_cells(policy) else self.n_beam
         self.axis, self.pstate, self.filt = None, None, None
         self.cell_offsets = ()  # (sat_id, beam_id or None, Ocn [dB]): the entry sets them
-        self._ocn = None  # (global cells, Ocn) sorted, built at the first epoch
+        # D1's configured reference locations: (sat_id, beam_id or None, (x, y, z) [m]).
+        self.reference_points = ()
+        self._points = None  # their KeyTable, built at the first epoch
+        self._ocn = None  # KeyTable of Ocn by global cell, built at the first epoch
+        # The measurement stage (measurement_model.MeasurementRun); None: every detected
+        # cell every epoch, without error, in SNR (the entry sets it).
+        self.measurement = None
 
     # -- state across epochs ---------------------------------------------------------------
     def _live_sats(self):
@@ -142,15 +148,16 @@ class TriggerRun:
                 beams = np.arange(nb) if beam is None else np.array([beam])
                 cells.append(sat * nb + beams)
                 values.append(np.full(beams.size, float(db)))
-            cells, values = np.concatenate(cells), np.concatenate(values)
-            last = len(cells) - 1 - np.unique(cells[::-1], return_index=True)[1]
-            self._ocn = (cells[last], values[last])
-        keys, values = self._ocn
+            self._ocn = KeyTable(np.concatenate(cells), np.concatenate(values))
+        local = self._cells(axis)
+        return np.where(local >= 0, self._ocn.get(local, 0.0), 0.0)
+
+    @staticmethod
+    def _cells(axis):
+        """The global cell id of every local cell, ``(n_ut, n_cand)``, -1 in unused slots."""
         ab = axis.n_beam  # the local units' beams: 1 on a cell axis
         local = (axis.sats[:, :, None] * ab + np.arange(ab)).reshape(axis.n_ut, -1)
-        at = np.minimum(np.searchsorted(keys, local), len(keys) - 1)
-        hit = (keys[at] == local) & (np.repeat(axis.sats, ab, axis=1) >= 0)
-        return np.where(hit, values[at], 0.0)
+        return np.where(np.repeat(axis.sats, ab, axis=1) >= 0, local, -1)
 
     def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up):
         """The Epoch fields of ``policy.needs`` besides ``meas``, NaN where not usable."""
@@ -188,6 +195,8 @@ class TriggerRun:
                     )  # (n_uniq, n_beam, 3)
                     cells = self._gather(axis, uniq, ground).reshape(n_ut, n_loc * nb, 3)
                     fields["ref_pos_m"] = np.where(usable[..., None], cells, np.nan)
+        if "cell_ref_pos_m" in needs or "point_ref_pos_m" in needs:
+            fields.update(self._fixed_references(axis, usable, sat_ok))
         if "elevation_rad" in needs:
             el = self._elevation(axis, ut_pos_m, sat_pos_m, ut_up)
             fields["elevation_rad"] = np.repeat(np.where(sat_ok, el, np.nan), nb, axis=1)
@@ -195,6 +204,38 @@ class TriggerRun:
             end_cell, end_sat = self.service.update(t_s, axis, usable, ut_up, not satellite)
             fields["service_end_s"] = np.repeat(end_sat, nb, axis=1) if satellite else end_cell
         return fields
+
+    def _fixed_references(self, axis, usable, sat_ok):
+        """D1's Earth-fixed reference locations (``cell_ref_pos_m``, ``point_ref_pos_m``)
+        of the local candidates, NaN where not usable or without one."""
+        needs, nb, out = self.policy.needs, self.n_beam, {}
+        cells = self._cells(axis)  # (n_ut, n_local * n_beam): the satellite axis's cells
+        if "cell_ref_pos_m" in needs:
+            fixed = self.engine.steering.cells_m  # (n_sat or 1, n_beam, 3)
+            rows = 0 if len(fixed) == 1 else np.maximum(cells, 0) // nb
+            got = fixed[rows, np.maximum(cells, 0) % nb]
+            out["cell_ref_pos_m"] = np.where((usable & (cells >= 0))[..., None], got, np.nan)
+        if "point_ref_pos_m" in needs:
+            satellite = self.policy.level == "satellite"
+            if self._points is None:
+                self._points = self._point_table(satellite)
+            units, ok = (axis.sats, sat_ok) if satellite else (cells, usable)
+            got = self._points.get(np.where(units >= 0, units, -1), np.nan)
+            out["point_ref_pos_m"] = np.where(ok[..., None], got, np.nan)
+        return out
+
+    def _point_table(self, satellite):
+        """The configured reference points (a :class:`~leolink.arrays.KeyTable` of
+        ``(x, y, z)``) by global cell, or by satellite from the entries without a beam."""
+        nb, keys, xyz = self.n_beam, [np.zeros(0, np.int64)], [np.zeros((0, 3))]
+        for sat, beam, pos in self.reference_points:
+            if satellite:
+                units = np.array([sat] if beam is None else [], np.int64)
+            else:
+                units = sat * nb + (np.arange(nb) if beam is None else np.array([beam]))
+            keys.append(units)
+            xyz.append(np.tile(np.asarray(pos, float), (units.size, 1)))
+        return KeyTable(np.concatenate(keys), np.concatenate(xyz))
 
     @staticmethod
     def _gather(axis, uniq, values):
@@ -238,7 +279,11 @@ class TriggerRun:
         raw = axis.values(table)
         with np.errstate(invalid="ignore"):
             usable = raw >= self.min_snr_db  # False for NaN and -inf (a beam's null)
-        filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)
+        if self.measurement is None:
+            filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)
+        else:
+            cells = self._cells(axis)
+            filt, meas = self.measurement.step(t_s, filt, raw, usable, cells, self.l3)
         extra = self._fields(t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up)
         local_serving = axis.local_cell(serving)
         if self.cell_offsets:

@@ -63,7 +63,12 @@ class Epoch:
     offset_db : float, (n_cand,) or (n_ut, n_cand) [dB], ``Ofn + Ocn`` of each candidate
         (``Ofp + Ocp`` at the serving index), default 0.
     ut_pos_m : (n_ut, 3) [m] or None, UT positions (D1, D2), any Cartesian frame.
-    ref_pos_m : (n_cand, 3) [m] or None, D1 fixed reference locations (cells' ground centres).
+    ref_pos_m : (n_cand, 3) [m] or None, D1 reference locations ``reference = "beam"``:
+        the cells' ground centres now (the beams' boresight points).
+    cell_ref_pos_m : the same, ``reference = "cell"``: the Earth-fixed cells of
+        ``satellite_array.steering = "earth_fixed"``.
+    point_ref_pos_m : the same, ``reference = "points"``: the configured referenceLocation
+        of each cell (``[[controller.reference_points]]``), NaN for a cell without one.
     moving_ref_pos_m : (n_cand, 3) [m] or None, D2 moving reference locations at ``t_s``
         (one row per satellite when D2 runs on the satellite axis, its default).
     elevation_rad : (n_ut, n_cand) [rad] or None, elevation of each candidate seen by the UT.
@@ -79,6 +84,8 @@ class Epoch:
     offset_db: Any = 0.0
     ut_pos_m: np.ndarray | None = None
     ref_pos_m: np.ndarray | None = None
+    cell_ref_pos_m: np.ndarray | None = None
+    point_ref_pos_m: np.ndarray | None = None
     moving_ref_pos_m: np.ndarray | None = None
     elevation_rad: np.ndarray | None = None
     service_end_s: np.ndarray | None = None

@@ -25,6 +25,9 @@ import numpy as np
 from leolink.errors import ConfigError
 from leolink.sim.handover.triggers import any_nan, check_param, check_ttt
 
+#: Epoch field of each D1 reference location (:class:`D1`).
+D1_REFERENCES = {"beam": "ref_pos_m", "cell": "cell_ref_pos_m", "points": "point_ref_pos_m"}
+
 
 def _distances_m(epoch, field, who):
     """``(Ml1 (n_ut, 1), Ml2 (n_ut, n_cand))`` [m]: UT to the serving's / each candidate's
@@ -46,21 +49,39 @@ class D1:
     Entering: D1-1 ``Ml1 - Hys > Thresh1`` and D1-2 ``Ml2 + Hys < Thresh2``; leaving:
     D1-3 ``Ml1 + Hys < Thresh1`` or D1-4 ``Ml2 - Hys > Thresh2`` [m]. Distances are
     straight-line (chord) distances between the given positions; on a sphere the arc
-    exceeds the chord by about ``c**3 / (24 R**2)`` (128 m at c = 500 km). Reads
-    ``Epoch.ref_pos_m`` (the cells' ground centres): decides the cell. Ranks triggered
-    candidates by nearest reference location.
+    exceeds the chord by about ``c**3 / (24 R**2)`` (128 m at c = 500 km). Decides the
+    cell. Ranks triggered candidates by nearest reference location.
+
+    ``reference`` (:data:`D1_REFERENCES`) says which reference locations it reads:
+    "beam" the cells' ground centres now (``Epoch.ref_pos_m``; with body-fixed beams they
+    move with the satellite), "cell" the Earth-fixed cells of quasi-Earth-fixed steering
+    (``Epoch.cell_ref_pos_m``), "points" the configured referenceLocation1/2 of each
+    cell (``Epoch.point_ref_pos_m``). The last two are fixed on the Earth, as TS 38.331
+    ``referenceLocation`` is.
     """
 
     threshold1_m: float = 0.0
     threshold2_m: float = 0.0
     hysteresis_m: float = 0.0
     time_to_trigger_s: float = 0.0
+    reference: str = "beam"
     level = "cell"
-    needs = ("ut_pos_m", "ref_pos_m")
-    _field = "ref_pos_m"
+
+    @property
+    def _field(self):
+        return D1_REFERENCES[self.reference]
+
+    @property
+    def needs(self):
+        return ("ut_pos_m", self._field)
 
     def __post_init__(self):
         name = type(self).__name__.lower()
+        if self.reference not in D1_REFERENCES:
+            raise ConfigError(
+                f"{name}.reference = {self.reference!r} is not allowed: use one of "
+                f"{', '.join(map(repr, D1_REFERENCES))}"
+            )
         check_param(f"{name}.threshold1_m", self.threshold1_m, 0.0, "distanceThreshFromReference1")
         check_param(f"{name}.threshold2_m", self.threshold2_m, 0.0, "distanceThreshFromReference2")
         check_param(f"{name}.hysteresis_m", self.hysteresis_m, 0.0, "hysteresisLocation [m]")
@@ -89,8 +110,8 @@ class D2(D1):
     """
 
     level = "satellite"
-    needs = ("ut_pos_m", "moving_ref_pos_m")
-    _field = "moving_ref_pos_m"
+    needs = ("ut_pos_m", "moving_ref_pos_m")  # type: ignore[assignment]
+    _field = "moving_ref_pos_m"  # type: ignore[assignment]
 
 
 @dataclasses.dataclass(frozen=True)
