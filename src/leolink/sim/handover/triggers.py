@@ -188,6 +188,7 @@ class Trigger(Protocol):
     time_to_trigger_s: float
     level: str  # default candidate axis: "cell" or "satellite" (leolink.sim.handover.decisions)
     needs: tuple[str, ...]  # the Epoch fields it reads
+    # (optional) ``serving_only``: those of ``needs`` it reads at the serving index alone
 
     def conditions(self, epoch: Epoch) -> tuple[np.ndarray, np.ndarray]: ...
 
