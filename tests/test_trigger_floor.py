@@ -67,7 +67,8 @@ def test_t1_looking_ahead_the_serving_satellite_alone_chooses_as_looking_ahead_e
     from leolink.sim.handover import trigger_run
 
     sets = ["controller.policy=t1", "controller.t1.lead_s=2.0", "controller.t1.duration_s=3.0",
-            f"controller.t1.level={level!r}", "run.duration_s=600", "population.1.count=8"]  # fmt: skip
+            f"controller.t1.level={level!r}", "run.duration_s=600",
+            "population.1.count=8"]  # fmt: skip
     assert trigger_run._serving_only(
         build_scenario(load_config(WALKER, sets)).policy.inner, "service_end_s"
     )
