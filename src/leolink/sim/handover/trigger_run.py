@@ -154,9 +154,10 @@ class TriggerRun:
         hit = (keys[at] == local) & (np.repeat(axis.sats, ab, axis=1) >= 0)
         return np.where(hit, values[at], 0.0)
 
-    def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up, serving):
+    def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up, serving=None):
         """The Epoch fields of ``policy.needs`` besides ``meas``, NaN where not usable
-        (``serving``: the local serving cells, -1 for none)."""
+        (``serving``: the local serving cells, -1 for none; None: every usable satellite's
+        end of service is looked ahead)."""
         needs, nb = self.policy.needs, self.n_beam
         fields = {}
         if "ut_pos_m" in needs:
@@ -196,7 +197,7 @@ class TriggerRun:
             fields["elevation_rad"] = np.repeat(np.where(sat_ok, el, np.nan), nb, axis=1)
         if "service_end_s" in needs:
             ahead = usable
-            if self.serving_end_only:  # only the serving satellite's end is read (T1)
+            if self.serving_end_only and serving is not None:  # only the serving's is read (T1)
                 slot = np.where(serving >= 0, serving // nb, -1)
                 ahead = usable & np.repeat(np.arange(n_loc)[None, :] == slot[:, None], nb, axis=1)
             end_cell, end_sat = self.service.update(t_s, axis, ahead, ut_up, not satellite)
