@@ -3,9 +3,13 @@
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from leolink.sim.handover.local_axis import LocalAxis
 from leolink.sim.handover.service_time import ServiceTimes
+
+# both paths of the first failures (compiled loop, numpy) against the brute-force scan
+pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
 
 N_UT, N_SAT, N_BEAM, N_T, DT_S, MIN_SNR_DB = 3, 4, 2, 60, 1.0, 0.0
 

@@ -54,3 +54,27 @@ def test_predictive_on_the_thresholded_tables_chooses_as_on_every_cell():
     assert events.kind.isin(["beam_handover", "sat_handover"]).sum() > 10
     pd.testing.assert_frame_equal(trace, trace_ref)
     pd.testing.assert_frame_equal(events, events_ref)
+
+
+@pytest.mark.parametrize("level", ["satellite", "cell"])
+def test_t1_looking_ahead_the_serving_satellite_alone_chooses_as_looking_ahead_every_one(
+    level, monkeypatch
+):
+    # T1 reads the end of service at the serving candidate only (Thresh1), so the run looks
+    # ahead the serving satellite alone (trigger_run._serving_only); the reference looks
+    # ahead every usable satellite, as for time_to_exit. A 2 s lead and a 3 s duration put
+    # the T1 window inside the passes of this run.
+    from leolink.sim.handover import trigger_run
+
+    sets = ["controller.policy=t1", "controller.t1.lead_s=2.0", "controller.t1.duration_s=3.0",
+            f"controller.t1.level={level!r}", "run.duration_s=600",
+            "population.1.count=8"]  # fmt: skip
+    assert trigger_run._serving_only(
+        build_scenario(load_config(WALKER, sets)).policy.inner, "service_end_s"
+    )
+    trace, events = _run(sets, exhaustive=False)
+    monkeypatch.setattr(trigger_run, "_serving_only", lambda policy, field: False)
+    trace_ref, events_ref = _run(sets, exhaustive=False)
+    assert events.kind.isin(["sat_handover"]).sum() > 10
+    pd.testing.assert_frame_equal(trace, trace_ref)
+    pd.testing.assert_frame_equal(events, events_ref)

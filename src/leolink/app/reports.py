@@ -30,7 +30,7 @@ from leolink.geometry import (
     slant_range_from_elevation_m,
 )
 from leolink.io.tables import NO_MODCOD_NAME
-from leolink.link.acm import LinkFigureParams
+from leolink.link.acm import LinkFigureParams, esn0_and_modcod
 from leolink.link.budget import LinkBudget
 from leolink.link.figures import (
     cn0_dbhz,
@@ -40,7 +40,7 @@ from leolink.link.figures import (
     margin_db,
     symbol_rate_baud,
 )
-from leolink.link.modcod import modcod_names, modcod_throughput_bps, select_modcod
+from leolink.link.modcod import modcod_names, modcod_throughput_bps
 from leolink.orbit import orbital_speed_m_s
 
 __all__ = ["codebook_table", "link_budget_at_elevation"]
@@ -110,11 +110,12 @@ def _figures(cfg, budget, sinr_db):
     path_db = budget["fspl_db"] + budget["atm_db"] + budget["other_loss_db"]
     cn0 = float(cn0_dbhz(budget["eirp_dbw"], path_db, gt))
     rs = float(symbol_rate_baud(bw, m.rolloff))
-    ratio_db = sinr_db if m.metric == "sinr" and sinr_db is not None else float(cnr_db(cn0, bw))
-    esn0 = ratio_db + 10.0 * math.log10(1.0 + m.rolloff)
+    # Es/N0 and the MODCOD from the CNR (the budget's SNR) or the engine's SINR: link.acm's
+    metric = m.metric if sinr_db is not None else "snr"
     params = LinkFigureParams(0.0, 0.0, bw, m.rolloff, m.implementation_margin_db,
-                              m.required_esn0_db)  # fmt: skip
-    row = int(select_modcod(esn0, m.implementation_margin_db))
+                              m.required_esn0_db, metric)  # fmt: skip
+    _, esn0, row = esn0_and_modcod(float(cnr_db(cn0, bw)), sinr_db, params)
+    esn0, row = float(esn0), int(row)
     shannon_sinr = budget["snr_db"] if sinr_db is None else sinr_db
     return {
         "eirp_density_dbw_mhz": float(eirp_density_dbw_mhz(budget["eirp_dbw"], bw)),
@@ -124,7 +125,7 @@ def _figures(cfg, budget, sinr_db):
         "cnr_db": float(cnr_db(cn0, bw)),
         "rolloff": m.rolloff,
         "symbol_rate_baud": rs,
-        "esn0_metric": m.metric if sinr_db is not None else "snr",
+        "esn0_metric": metric,
         "esn0_db": esn0,
         "required_esn0_db": params.threshold_db,
         "margin_db": float(margin_db(esn0, params.threshold_db)),

@@ -39,6 +39,7 @@ __all__ = [
     "ROLLOFFS",
     "THROUGHPUT_COLUMNS",
     "LinkFigureParams",
+    "esn0_and_modcod",
     "link_figure_columns",
     "link_modcod",
 ]
@@ -91,7 +92,7 @@ class LinkFigureParams:
         return float(modcod_table().esn0_ideal_db.min()) + self.implementation_margin_db
 
 
-def _esn0_and_modcod(snr_db, sinr_db, p):
+def esn0_and_modcod(snr_db, sinr_db, p):
     """``(ratio_db, esn0_db, modcod)`` of the metric ``p.metric``: Es/N0 = ratio + 10 log10(1 +
     alpha) (the symbol rate B / (1 + alpha) in the noise bandwidth B), the most efficient
     MODCOD whose threshold plus the implementation margin it meets (-1: none)."""
@@ -103,7 +104,7 @@ def _esn0_and_modcod(snr_db, sinr_db, p):
 def link_modcod(snr_db, sinr_db, params):
     """The MODCOD row of each serving link (int, -1 where none closes it or no link), as
     the ``modcod`` column of :func:`link_figure_columns`; shapes (n_ut,)."""
-    return _esn0_and_modcod(snr_db, sinr_db, params)[2]
+    return esn0_and_modcod(snr_db, sinr_db, params)[2]
 
 
 def link_figure_columns(snr_db, sinr_db, gain_tx_db, params, served_fraction=1.0):
@@ -127,7 +128,7 @@ def link_figure_columns(snr_db, sinr_db, gain_tx_db, params, served_fraction=1.0
     """
     p = params
     snr_db = np.asarray(snr_db, float)
-    ratio_db, esn0, modcod = _esn0_and_modcod(snr_db, sinr_db, p)
+    ratio_db, esn0, modcod = esn0_and_modcod(snr_db, sinr_db, p)
     eta = modcod_spectral_efficiency(modcod)
     no_link = np.isnan(ratio_db)
     acm = np.where(no_link, np.nan, eta * p.symbol_rate_baud * served_fraction)

@@ -220,13 +220,11 @@ class CandidateSearch:
         if len(groups) == 1 or loss is not None:  # one region, or environments: by cones
             return self._chunk_one_cone(ks, n_ut, geo, cones, nrm, grids)
         row, sat, code, bound, top = self._screened(ks, n_ut, geo, nrm, groups)
-        chosen = (code == UNCERTAIN) | (bound == top)  # (bound >= 0 where code > 0)
+        chosen = _first_pairs(code, bound, top)
         links1 = self.evaluate(*geo, n_ut, row[chosen], sat[chosen], nrm)
-        low = self._low(geo[0].shape[0], links1)(row)
-        with np.errstate(invalid="ignore"):
-            more = (bound >= low) & ~chosen
+        more = _more_pairs(code, bound, self._low(geo[0].shape[0], links1)(row), chosen)
         links2 = self.evaluate(*geo, n_ut, row[more], sat[more], nrm)
-        unseen = row[(code == VISIBLE) & ~chosen & ~more] - ks.start * n_ut
+        unseen = row[_unseen_pairs(code, chosen, more)] - ks.start * n_ut
         sure = np.bincount(unseen, minlength=n_rows)
         return Links.concat([links1, links2]), sure, None
 
@@ -244,10 +242,7 @@ class CandidateSearch:
             code, bound = self._screen(pos, up, rows, sat_pos_m[k][cone], axes, ut_id, nrm, cone)
             # Each path's bound after its environment (the loss is known: an exact bound).
             env = bound if not grids else bound * 10.0 ** (-grids[k] / 10.0)
-            first = np.argmax(env, axis=1)
-            chosen = code == UNCERTAIN
-            has = np.flatnonzero(env[ut_id, first] >= 0.0)
-            chosen[has, first[has]] = True
+            chosen = _first_pairs(code, env, np.max(env, axis=1, initial=-1.0)[:, None])
             r, s = nonzero_2d(chosen)
             rows1.append(rows[r])
             sats1.append(cone[s])
@@ -258,15 +253,13 @@ class CandidateSearch:
         for i, rows, cone, code, bound, env, chosen in screened:
             # the window's and the floor's cells, and every pair that may hold the best
             # cell (the diagnostics', below the floor too)
-            low = self._low_of(reach[rows])
-            with np.errstate(invalid="ignore"):
-                more = (code > 0) & (env >= low[:, None]) & ~chosen
-                if reach_open is not None:  # and every pair that may hold the open best
-                    more |= (code > 0) & (bound >= reach_open[rows][:, None]) & ~chosen
+            more = _more_pairs(code, env, self._low_of(reach[rows])[:, None], chosen)
+            if reach_open is not None:  # and every pair that may hold the open best
+                more |= _more_pairs(code, bound, reach_open[rows][:, None], chosen)
             r, s = nonzero_2d(more)
             rows2.append(rows[r])
             sats2.append(cone[s])
-            sure[i * n_ut : (i + 1) * n_ut] = ((code == VISIBLE) & ~chosen & ~more).sum(axis=1)
+            sure[i * n_ut : (i + 1) * n_ut] = _unseen_pairs(code, chosen, more).sum(axis=1)
         links2 = self.evaluate(*geo, n_ut, rows2, sats2, nrm)
         pair_loss = None if not grids else np.r_[loss1, _pair_loss(grids, n_ut, cones, links2)]
         return Links.concat([links1, links2]), sure, pair_loss
@@ -445,6 +438,26 @@ class CandidateSearch:
             best_cell, _ = table.best()
         return BlockCandidates(k0, n_ut, nb, table, n_visible, best_cell, best_db, links,
                                eng.beam_ix, eng.beam_iy, open_db)  # fmt: skip
+
+
+def _first_pairs(code, bound, top):
+    """The pairs evaluated first (module docstring), from their screening ``code`` and
+    ``bound`` (linear SNR) and their row's largest bound ``top`` (broadcast): every
+    uncertain pair, and the pairs of the row's largest bound (none where it is NaN or
+    negative: no pair above the mask)."""
+    return (code == UNCERTAIN) | ((bound == top) & (top >= 0.0))
+
+
+def _more_pairs(code, bound, low, first):
+    """The pairs evaluated next: above the mask, not among ``first``, their bound at least
+    ``low`` (their row's :meth:`CandidateSearch._low_of`, broadcast; NaN keeps none)."""
+    with np.errstate(invalid="ignore"):
+        return (code > 0) & (bound >= low) & ~first
+
+
+def _unseen_pairs(code, first, more):
+    """The visible pairs left out (counted in ``n_visible``, never evaluated)."""
+    return (code == VISIBLE) & ~first & ~more
 
 
 def _row_best(rows, snr, out):

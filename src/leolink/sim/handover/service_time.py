@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from leolink import compiled
 from leolink.arrays import nonzero_2d
 
 # Epoch times accumulate float rounding; 1 ns is far below any epoch length.
@@ -166,22 +167,57 @@ class ServiceTimes:
             ut_ring[slot, ut], pos_ring[slot, sat], vel_ring[slot, sat], m, m,
             ut_up=None if ut_up is None else ut_up[ut], ut_id=ut, sat_id=sat,
         )  # fmt: skip
-        snr = links.snr_db_bm(eng.beam_ix, eng.beam_iy).T  # (combinations, n_beam)
-        serves = links.visible[:, None] & (snr >= self.min_snr_db)
-        # combinations are pair-major, steps ascending: a pair's first failing combination
-        # is its end, and a beam's first failing one up to it the beam's
-        nb = serves.shape[1]
-        first_sat = np.full(open_.size, steps.size)
-        fail = np.flatnonzero(~serves.any(axis=1))
-        got, at = np.unique(pair[fail], return_index=True)
-        first_sat[got] = step[fail[at]]
-        combo, beam = np.divmod(np.flatnonzero(~serves), nb)
-        keep = step[combo] <= first_sat[pair[combo]]
-        got, at = np.unique(pair[combo[keep]] * nb + beam[keep], return_index=True)
-        p_cell, b_cell = np.divmod(got, nb)
+        snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, combinations)
+        first_sat, first_beam = _first_failures(
+            snr_bm, links.visible, pair, step, self.min_snr_db, open_.size, steps.size
+        )
         cells = end_cell[open_]
-        hit = np.isposinf(cells[p_cell, b_cell])
-        cells[p_cell[hit], b_cell[hit]] = t_j[step[combo[keep][at[hit]]]]
+        hit = np.isposinf(cells) & (first_beam < steps.size)
+        cells[hit] = t_j[first_beam[hit]]
         end_cell[open_] = cells
         ended = first_sat < steps.size
         end_sat[open_[ended]] = t_j[first_sat[ended]]
+
+
+def _first_failures(snr_bm, visible, pair, step, min_snr_db, n_pair, n_step):
+    """Each pair's first step at which none of its beams serves, and each (pair, beam)'s
+    first step up to it at which the beam does not serve (``n_step``: none), from the
+    combinations' SNRs ``snr_bm (n_beam, m)`` [dB], pair-major with ascending steps.
+
+    By the compiled :func:`_first_failures_loop` where it runs, else numpy (the same
+    steps)."""
+    nb = snr_bm.shape[0]
+    first_sat = np.full(n_pair, n_step, np.int64)
+    first_beam = np.full((n_pair, nb), n_step, np.int64)
+    if compiled.use(pair.size):
+        _first_failures_loop(snr_bm, visible, pair, step, float(min_snr_db), first_sat, first_beam)
+        return first_sat, first_beam
+    serves = visible[:, None] & (snr_bm.T >= min_snr_db)
+    fail = np.flatnonzero(~serves.any(axis=1))
+    got, at = np.unique(pair[fail], return_index=True)
+    first_sat[got] = step[fail[at]]
+    combo, beam = np.divmod(np.flatnonzero(~serves), nb)
+    keep = step[combo] <= first_sat[pair[combo]]
+    got, at = np.unique(pair[combo[keep]] * nb + beam[keep], return_index=True)
+    first_beam.reshape(-1)[got] = step[combo[keep][at]]
+    return first_sat, first_beam
+
+
+@compiled.jit
+def _first_failures_loop(snr_bm, visible, pair, step, min_snr_db, first_sat, first_beam):
+    """:func:`_first_failures` combination by combination, in place (``first_sat``,
+    ``first_beam`` filled with the no-failure step): a pair's steps after its end are
+    skipped."""
+    nb = snr_bm.shape[0]
+    for c in range(pair.size):
+        p, s = pair[c], step[c]
+        if s > first_sat[p]:
+            continue
+        serves_any = False
+        for b in range(nb):
+            if visible[c] and snr_bm[b, c] >= min_snr_db:
+                serves_any = True
+            elif first_beam[p, b] > s:
+                first_beam[p, b] = s
+        if not serves_any:
+            first_sat[p] = s

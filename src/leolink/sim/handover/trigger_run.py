@@ -24,7 +24,8 @@ one of them through a run whose candidates come as sparse per-UT tables
    sphere; beams are fixed in the satellite body, so these move with the satellite:
    leolink has earth-moving cells only); ``moving_ref_pos_m``, the satellites' nadir
    points now (D2); ``elevation_rad``; ``service_end_s`` from the ephemeris look-ahead
-   (:mod:`leolink.sim.handover.service_time`);
+   (:mod:`leolink.sim.handover.service_time`), of the serving satellite alone (NaN
+   elsewhere) when every trigger reading it reads the serving's only (T1's Thresh1);
 4. ``decide``; the target is turned back into a global cell. A UT without a usable
    serving cell (first assignment, serving cell lost) gets its best usable cell, as
    under every policy (the controller switches such a UT at once).
@@ -74,6 +75,7 @@ class TriggerRun:
             if "service_end_s" in needs
             else None
         )
+        self.serving_end_only = _serving_only(policy, "service_end_s")
         # The units of the local axis: cells for a cell-level policy that reads only the
         # measurements (and the UT positions), so its state is kept for the detected cells
         # alone; satellites (each with all its beams) for the others.
@@ -159,8 +161,10 @@ class TriggerRun:
         local = (axis.sats[:, :, None] * ab + np.arange(ab)).reshape(axis.n_ut, -1)
         return np.where(np.repeat(axis.sats, ab, axis=1) >= 0, local, -1)
 
-    def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up):
-        """The Epoch fields of ``policy.needs`` besides ``meas``, NaN where not usable."""
+    def _fields(self, t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up, serving=None):
+        """The Epoch fields of ``policy.needs`` besides ``meas``, NaN where not usable
+        (``serving``: the local serving cells, -1 for none; None: every usable satellite's
+        end of service is looked ahead)."""
         needs, nb = self.policy.needs, self.n_beam
         fields = {}
         if "ut_pos_m" in needs:
@@ -201,7 +205,11 @@ class TriggerRun:
             el = self._elevation(axis, ut_pos_m, sat_pos_m, ut_up)
             fields["elevation_rad"] = np.repeat(np.where(sat_ok, el, np.nan), nb, axis=1)
         if "service_end_s" in needs:
-            end_cell, end_sat = self.service.update(t_s, axis, usable, ut_up, not satellite)
+            ahead = usable
+            if self.serving_end_only and serving is not None:  # only the serving's is read (T1)
+                slot = np.where(serving >= 0, serving // nb, -1)
+                ahead = usable & np.repeat(np.arange(n_loc)[None, :] == slot[:, None], nb, axis=1)
+            end_cell, end_sat = self.service.update(t_s, axis, ahead, ut_up, not satellite)
             fields["service_end_s"] = np.repeat(end_sat, nb, axis=1) if satellite else end_cell
         return fields
 
@@ -284,8 +292,10 @@ class TriggerRun:
         else:
             cells = self._cells(axis)
             filt, meas = self.measurement.step(t_s, filt, raw, usable, cells, self.l3)
-        extra = self._fields(t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up)
         local_serving = axis.local_cell(serving)
+        extra = self._fields(
+            t_s, axis, usable, ut_pos_m, sat_pos_m, sat_vel_m_s, ut_up, local_serving
+        )
         if self.cell_offsets:
             extra["offset_db"] = self._offsets(axis)
         epoch = Epoch(t_s=float(t_s), serving=local_serving, meas=meas, **extra)
@@ -300,6 +310,17 @@ class TriggerRun:
 
 #: The Epoch fields a policy on a cell axis may read (none needs a satellite's geometry).
 CELL_AXIS_NEEDS = frozenset({"meas", "ut_pos_m"})
+
+
+def _serving_only(policy, field):
+    """Whether every trigger of ``policy`` that reads ``field`` reads it at the serving
+    index alone (its ``serving_only``): then the run computes it for the serving satellite
+    only, NaN elsewhere, which changes no condition and no ranking. False when no trigger
+    of a known kind reads it (the safe answer: every candidate's value)."""
+    found = [getattr(policy, "trigger", None), getattr(policy, "gate", None),
+             getattr(policy, "prepare", None), *getattr(policy, "execute", ())]  # fmt: skip
+    users = [t for t in found if t is not None and field in t.needs]
+    return bool(users) and all(field in getattr(t, "serving_only", ()) for t in users)
 
 
 def _on_cells(policy):

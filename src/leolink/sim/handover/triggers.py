@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -195,6 +195,7 @@ class Trigger(Protocol):
     time_to_trigger_s: float
     level: str  # default candidate axis: "cell" or "satellite" (leolink.sim.handover.decisions)
     needs: tuple[str, ...]  # the Epoch fields it reads
+    # (optional) ``serving_only``: those of ``needs`` it reads at the serving index alone
 
     def conditions(self, epoch: Epoch) -> tuple[np.ndarray, np.ndarray]: ...
 
@@ -273,7 +274,25 @@ class A3(_Signal):
 
 
 @dataclasses.dataclass(frozen=True)
-class A2(_Signal):
+class _Threshold(_Signal):
+    """The parameters of a one-threshold event (A2, A4) and their checks: ``threshold_db``
+    (Thresh) and ``hysteresis_db`` (Hys) [dB], ``time_to_trigger_s`` [s]; ``_keys``: the
+    config keys of the first two and the threshold's meaning, for the error message."""
+
+    threshold_db: float = 0.0
+    hysteresis_db: float = 0.0
+    time_to_trigger_s: float = 0.0
+    _keys: ClassVar[tuple[str, str, str]] = ("threshold_db", "hysteresis_db", "threshold")
+
+    def __post_init__(self):
+        threshold_key, hysteresis_key, meaning = self._keys
+        check_param(threshold_key, self.threshold_db, -math.inf, meaning)
+        check_param(hysteresis_key, self.hysteresis_db, 0.0, "hysteresis [dB]")
+        check_ttt(self.time_to_trigger_s)
+
+
+@dataclasses.dataclass(frozen=True)
+class A2(_Threshold):
     """Event A2, serving becomes worse than threshold (TS 38.331 5.5.4.3).
 
     Entering A2-1: ``Ms + Hys < Thresh``; leaving A2-2: ``Ms - Hys > Thresh`` (``Ms``
@@ -281,14 +300,7 @@ class A2(_Signal):
     no serving measurement leaves it.
     """
 
-    threshold_db: float = 0.0
-    hysteresis_db: float = 0.0
-    time_to_trigger_s: float = 0.0
-
-    def __post_init__(self):
-        check_param("a2a4.a2_threshold_db", self.threshold_db, -math.inf, "a2-Threshold")
-        check_param("a2a4.hysteresis_db", self.hysteresis_db, 0.0, "hysteresis [dB]")
-        check_ttt(self.time_to_trigger_s)
+    _keys = ("a2a4.a2_threshold_db", "a2a4.hysteresis_db", "a2-Threshold")
 
     def conditions(self, epoch):
         ms = epoch.at_serving(epoch.need("meas", "A2"))
@@ -298,21 +310,14 @@ class A2(_Signal):
 
 
 @dataclasses.dataclass(frozen=True)
-class A4(_Signal):
+class A4(_Threshold):
     """Event A4, neighbour becomes better than threshold (TS 38.331 5.5.4.5).
 
     Entering A4-1: ``Mn + Ofn + Ocn - Hys > Thresh``; leaving A4-2:
     ``Mn + Ofn + Ocn + Hys < Thresh``. Decides the cell.
     """
 
-    threshold_db: float = 0.0
-    hysteresis_db: float = 0.0
-    time_to_trigger_s: float = 0.0
-
-    def __post_init__(self):
-        check_param("a4.threshold_db", self.threshold_db, -math.inf, "a4-Threshold [dB or dBm]")
-        check_param("a4.hysteresis_db", self.hysteresis_db, 0.0, "hysteresis [dB]")
-        check_ttt(self.time_to_trigger_s)
+    _keys = ("a4.threshold_db", "a4.hysteresis_db", "a4-Threshold [dB or dBm]")
 
     def conditions(self, epoch):
         mn, _, _, _ = self._mn_mp(epoch)

@@ -135,6 +135,9 @@ class T1:
     time_to_trigger_s = 0.0
     level = "satellite"
     needs = ("service_end_s", "meas")
+    # It reads the end of service at the serving candidate alone (Thresh1): the run looks
+    # ahead the serving satellite only (leolink.sim.handover.trigger_run).
+    serving_only = ("service_end_s",)
 
     def __post_init__(self):
         check_param("t1.duration_s", self.duration_s, 0.0, "duration [s]")
