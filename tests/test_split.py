@@ -152,7 +152,7 @@ def test_parts_in_one_process_do_not_depend_on_the_partition(tmp_path):
 def test_measurement_errors_do_not_depend_on_the_partition(tmp_path):
     """A3 behind measurement errors drawn per UT, cell and instant (issue 46): the same
     events in one part and in five."""
-    config = _config(tmp_path, **{**SPHERE, "report": "false", "duration": 4.0})
+    config = _config(tmp_path, **{**SPHERE, "report": False, "duration": 4.0})
     sets = ["--set", "controller.policy='a3'", "--set", "controller.measurement.error_db=4.0",
             "--set", "controller.filter.k=0"]  # fmt: skip
     one = _run(config, tmp_path / "one", "--parts", "1", *sets)
