@@ -1,5 +1,5 @@
 """Block frames against what they mean, not against the epoch path (the sixth mutation
-pass, docs/testing.md): a block's rows and times are its epochs' (times from the config,
+pass, docs/testing_log.md): a block's rows and times are its epochs' (times from the config,
 not from the run), its events and dwells split at their own epochs, the warm-up's cut
 dwells censored, the sinks' block methods (progress, plots, link statistics) against
 sums and positions recomputed from the captured rows one epoch at a time.

@@ -6,7 +6,7 @@ documented rules (``step``'s docstring, the module docstring), one UT and one ep
 time with plain Python scalars: no array code of the module is reused. The other tests
 are hand-built sequences whose handover times, interruptions and dwells are known in
 closed form. Written from the mutants of ``sim/controller`` that survived
-``tests/test_controller.py`` and the run tests (docs/testing.md, fifth pass).
+``tests/test_controller.py`` and the run tests (docs/testing_log.md, fifth pass).
 """
 
 import math

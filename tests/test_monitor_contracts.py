@@ -37,7 +37,7 @@ with numpy's default dtype (``<U`` strings) instead of ``object``: the array rea
 the trace's ``population`` column, and every sink that reads that column (the trace
 writer's ``Vocabulary.codes``, ``to_table`` of the in-memory and plot sinks) takes
 ``values.astype(str)``, the same array from both; the output files of two runs are the
-same bytes (docs/testing.md, eighth pass).
+same bytes (docs/testing_log.md, eighth pass).
 """
 
 import math
