@@ -313,7 +313,8 @@ def plot_map(
 
 
 def draw_ut_tracks(ax, ut_tracks, linewidth=2.0):
-    """UT tracks as line segments, each coloured by the serving beam at its start."""
+    """UT tracks as line segments, each coloured by the serving beam at its start; the
+    collection, or None where no UT has two consecutive finite points."""
     from matplotlib.collections import LineCollection
 
     ut = np.asarray(ut_tracks["ut_id"])
@@ -323,6 +324,8 @@ def draw_ut_tracks(ax, ut_tracks, linewidth=2.0):
     ok = (ut[1:] == ut[:-1]) & (np.abs(np.diff(lon)) < 180.0)  # same UT, no antimeridian jump
     ok &= np.isfinite(lon[1:] + lon[:-1] + lat[1:] + lat[:-1])
     start = np.flatnonzero(ok)
+    if not start.size:  # one point per UT (a one-epoch run): no segment, no legend entry
+        return None
     segments = np.stack(
         [
             np.column_stack([lon[start], lat[start]]),
