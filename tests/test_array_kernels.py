@@ -84,7 +84,9 @@ PATHS_ABS_OF_PEAK = 1e-12
 def test_compiled_loop_and_numpy_product_agree(n, k, monkeypatch):
     """The kernels by the compiled loop (leolink.compiled on) and by the numpy product
     (off): random directions, the beams' peaks and grating lobes and their neighbours (the
-    recomputed entries), within PATHS_REL (PATHS_ABS_OF_PEAK of n at the nulls)."""
+    recomputed entries), within PATHS_REL (PATHS_ABS_OF_PEAK of n at the nulls); and both
+    against the explicit steering-vector sums on every 25th direction (the paths share
+    their coefficients, so their agreement alone would not see a wrong one)."""
     import leolink.compiled
 
     beams = np.linspace(-0.7, 0.7, k)
@@ -96,5 +98,9 @@ def test_compiled_loop_and_numpy_product_agree(n, k, monkeypatch):
     monkeypatch.setattr(leolink.compiled, "use", lambda size: False)
     want = dirichlet_kernels(u, beams, n)
     np.testing.assert_allclose(got, want, rtol=PATHS_REL, atol=PATHS_ABS_OF_PEAK * n)
+    some = slice(None, None, 25)
+    ref = _explicit_ula(u[None, some] - beams[:, None], n)
+    for kernels in (got, want):
+        np.testing.assert_allclose(kernels[:, some], ref, rtol=1e-9, atol=1e-12 * n)
     assert (want == n).sum() >= beams.size  # the peaks were met (and recomputed)
     assert (want > 1.0).sum() > 1000  # main lobes met, not only the nulls

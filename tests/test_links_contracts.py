@@ -274,6 +274,30 @@ def test_compiled_pair_geometry_agrees_with_numpy(wgs84_up, monkeypatch):
     np.testing.assert_allclose(
         got.elevation_rad[away], want.elevation_rad[away], 0, PATHS_ANGLE_RAD
     )
+    _check_pairs_independently(eng, args, (got, want))
+
+
+def _check_pairs_independently(eng, args, results):
+    """Range, elevation and kernels of every pair from tests/independent.py's body frame
+    and explicit steering-vector sums: both paths share ``body_frame`` and the kernels'
+    coefficients, so their agreement alone would not see a wrong one."""
+    import independent as ind
+
+    ut, sat, vel, iu, js, up = args
+    d = sat[js] - ut[iu]  # UT -> satellite
+    rho = np.linalg.norm(d, axis=1)
+    ups = _unit(ut) if up is None else up
+    u = ind.body_cosines(sat[js], vel[js], ut[iu])  # (m, 2)
+    for links in results:
+        np.testing.assert_allclose(links.slant_range_m, rho, rtol=1e-14)
+        np.testing.assert_allclose(np.sin(links.elevation_rad),
+                                   np.einsum("pk,pk->p", d, ups[iu]) / rho, 0, 1e-14)  # fmt: skip
+        lattice = ((eng.beam_ux, eng.codebook.n_sub_x), (eng.beam_uy, eng.codebook.n_sub_y))
+        for axis, (beams, n) in enumerate(lattice):
+            phase = np.pi * np.multiply.outer(u[None, :, axis] - beams[:, None], np.arange(n))
+            explicit = np.abs(np.exp(1j * phase).sum(axis=-1)) ** 2 / n
+            kernels = (links.kx, links.ky)[axis]
+            np.testing.assert_allclose(kernels, explicit, rtol=1e-9, atol=1e-12 * n)
 
 
 #: The compiled screening loop and the numpy matrix products round differently: far below

@@ -386,6 +386,15 @@ def test_serving_link_is_the_best_visible_satellite_and_beam(case):
     UT is in outage only when no satellite is above the mask."""
     name, cfg, tr, rec = case
     assert cfg.controller.policy == "max_snr"
+    check_serving_is_the_best(cfg, tr, rec)
+    if name == "walker_rotating":  # the scenario must exercise satellite handovers
+        assert tr[rec.served].groupby("ut_id").sat_id.nunique().min() >= 2
+
+
+def check_serving_is_the_best(cfg, tr, rec):
+    """Outage exactly where no visible (satellite, beam) reaches ``controller.min_snr_db``;
+    elsewhere the serving link is the best one, by brute force over every (satellite, beam)
+    above the mask (also the reference of tests/test_trigger_floor.py's pruned tables)."""
     sats, vel, ut = rec.sats(), rec.sat_vel(), rec.ut()
     el = np.degrees(ind.elevation_rad(ut[:, None, :], sats))  # (n_row, n_sat)
     row, sat = np.nonzero(el >= cfg.constellation.min_elevation_deg)
@@ -400,8 +409,6 @@ def test_serving_link_is_the_best_visible_satellite_and_beam(case):
     assert np.array_equal(row[is_serving], rec.rows)  # the serving satellite is visible
     got = snr[is_serving][np.arange(len(rec.rows)), tr.beam_id.to_numpy()[rec.rows]]
     np.testing.assert_allclose(got, best[rec.served], rtol=0, atol=GAIN_TOL_DB)
-    if name == "walker_rotating":  # the scenario must exercise satellite handovers
-        assert tr[rec.served].groupby("ut_id").sat_id.nunique().min() >= 2
 
 
 def test_doppler_doppler_rate_and_angular_speed(case):
