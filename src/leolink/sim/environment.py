@@ -15,6 +15,11 @@ gives the environment's extra loss of each path (:class:`EpochChannel`). The los
   ``scintillation_db`` columns and its SNR and SINR, the serving satellite's other beams
   sharing the path's state and each interfering satellite's path having its own.
 
+Speed: with the compiled loops on (:mod:`leolink.compiled`) one numba loop per
+population (:func:`_advance_rows`) does an epoch's look angles, state carry, ray shift,
+innovations and AR(1) step, calling the same physics functions as the numpy path
+(:func:`leolink.link.channel_state.advance`); the two agree to 1e-12 dB (tested).
+
 Which pairs have a state: at epoch ``k``, those of UT ``u`` and every satellite above
 the mask for ``u`` (0 degrees with other-satellite interference). That set is a function
 of the UT's own geometry, not of the other UTs (the epoch's satellite cone holds every
