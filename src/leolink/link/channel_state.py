@@ -51,6 +51,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from leolink import compiled
 from leolink import rng as lrng
 from leolink.errors import ConfigError
 from leolink.link import environment as env
@@ -83,8 +84,6 @@ _DEFAULTS = {
 }
 _MIN_ELEVATION_RAD = np.radians(10.0)  # lowest tabulated angle of TR 38.811
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
 # Separates the environment's streams from any other use of the same UT keys.
 _DOMAIN = np.uint64(0x6C62272E07BB0142)
 
@@ -202,12 +201,6 @@ def empty_state(n_ut):
     return ChannelState(np.zeros((n_ut, 0), dtype=np.int64), f, f, f, f, f, -1)
 
 
-def _mix(z):
-    z = (z ^ (z >> np.uint64(30))) * _M1
-    z = (z ^ (z >> np.uint64(27))) * _M2
-    return z ^ (z >> np.uint64(31))
-
-
 def pair_keys(ut_keys, sat_id):
     """64-bit key of each (UT, satellite) pair (SplitMix64 of the UT key and the id).
 
@@ -223,8 +216,14 @@ def pair_keys(ut_keys, sat_id):
     """
     sat = np.asarray(sat_id).astype(np.int64).view(np.uint64)
     with np.errstate(over="ignore"):
-        sat_key = _mix(sat * _GOLDEN + _DOMAIN)
-        return _mix(np.asarray(ut_keys, dtype=np.uint64)[:, None] ^ sat_key)
+        return pair_key(np.asarray(ut_keys, dtype=np.uint64)[:, None], sat)
+
+
+@compiled.jitable
+def pair_key(ut_key, sat):
+    """:func:`pair_keys` of uint64 UT keys and satellite ids (arrays that broadcast, or a
+    compiled loop's scalars)."""
+    return lrng.mix64(ut_key ^ lrng.mix64(sat * _GOLDEN + _DOMAIN))
 
 
 def innovations(keys, epoch):
@@ -237,11 +236,22 @@ def innovations(keys, epoch):
     -------
     ndarray, shape (3, n_ut, n_slot)
     """
-    g0 = lrng.complex_normal(keys, 2 * epoch)
-    g1 = lrng.complex_normal(keys, 2 * epoch + 1)
-    return np.sqrt(2.0) * np.stack([g0.real, g0.imag, g1.real])
+    with np.errstate(over="ignore"):
+        w = pair_innovations(keys, np.asarray(2 * epoch, dtype=np.uint64))
+    return np.stack(w)
 
 
+@compiled.jitable
+def pair_innovations(key, counter):
+    """:func:`innovations` of uint64 ``key`` at the counter ``2 epoch`` (uint64): the tuple
+    (w_los, w_sf_los, w_sf_nlos) (arrays, or a compiled loop's scalars)."""
+    g0 = lrng.complex_normal_of(key, counter)
+    g1 = lrng.complex_normal_of(key, counter + np.uint64(1))
+    s = np.sqrt(2.0)
+    return s * g0[0], s * g0[1], s * g1[0]
+
+
+@compiled.jitable
 def ar1_step(z_prev, distance_m, corr_distance_m, w):
     """Exponentially correlated Gaussian step, TR 38.901 Eq. (7.4-5) [2].
 
@@ -251,12 +261,12 @@ def ar1_step(z_prev, distance_m, corr_distance_m, w):
 
     Parameters
     ----------
-    z_prev, distance_m, w : array_like, broadcastable
+    z_prev, distance_m, w : ndarray or float, broadcastable
         Previous value, distance moved [m], fresh N(0, 1) innovation.
     corr_distance_m : float
         Correlation distance [m], > 0.
     """
-    rho = np.exp(-np.asarray(distance_m, dtype=float) / corr_distance_m)
+    rho = np.exp(-distance_m / corr_distance_m)
     return rho * z_prev + np.sqrt(1.0 - rho * rho) * w
 
 
@@ -270,9 +280,26 @@ def ray_clutter_offset_m(elevation_rad, azimuth_rad, clutter_height_m):
     -------
     ndarray, shape (..., 2)
     """
-    el = np.maximum(np.asarray(elevation_rad, dtype=float), _MIN_ELEVATION_RAD)
-    r_m = clutter_height_m / np.tan(el)
-    return np.stack([r_m * np.sin(azimuth_rad), r_m * np.cos(azimuth_rad)], axis=-1)
+    el = np.asarray(elevation_rad, dtype=float)
+    return np.stack(ray_offset_en_m(el, np.asarray(azimuth_rad, float), clutter_height_m), axis=-1)
+
+
+@compiled.jitable
+def ray_offset_en_m(elevation_rad, azimuth_rad, clutter_height_m):
+    """:func:`ray_clutter_offset_m` as the tuple (east, north) [m] (arrays, or a compiled
+    loop's scalars)."""
+    r_m = clutter_height_m / np.tan(np.maximum(elevation_rad, _MIN_ELEVATION_RAD))
+    return r_m * np.sin(azimuth_rad), r_m * np.cos(azimuth_rad)
+
+
+@compiled.jitable
+def ray_moved_m(ut_step_en_m, previous, current, clutter_height_m):
+    """Distance the ray's piercing point moved (:func:`effective_displacement_m` of a UT
+    step (east, north) [m]): ``previous`` and ``current`` the (elevation, azimuth) [rad]
+    of the two epochs (tuples of arrays that broadcast, or a compiled loop's scalars)."""
+    e1, n1 = ray_offset_en_m(current[0], current[1], clutter_height_m)
+    e0, n0 = ray_offset_en_m(previous[0], previous[1], clutter_height_m)
+    return np.hypot(ut_step_en_m[0] + (e1 - e0), ut_step_en_m[1] + (n1 - n0))
 
 
 def effective_displacement_m(ut_step_m, el_prev_rad, az_prev_rad, el_rad, az_rad, clutter_height_m):
@@ -292,12 +319,15 @@ def effective_displacement_m(ut_step_m, el_prev_rad, az_prev_rad, el_rad, az_rad
     ndarray, shape (n_ut, n_slot)
         Distance [m], >= 0.
     """
-    shift = ray_clutter_offset_m(el_rad, az_rad, clutter_height_m) - ray_clutter_offset_m(
-        el_prev_rad, az_prev_rad, clutter_height_m
-    )
+    el_prev, az_prev, el, az = (np.asarray(a, dtype=float) for a in
+                                (el_prev_rad, az_prev_rad, el_rad, az_rad))  # fmt: skip
     step = np.asarray(ut_step_m, dtype=float)
     if step.ndim == 2:
-        return np.hypot(*np.moveaxis(step[:, None, :] + shift, -1, 0))
+        return ray_moved_m((step[:, None, 0], step[:, None, 1]), (el_prev, az_prev), (el, az),
+                           clutter_height_m)  # fmt: skip
+    shift = ray_clutter_offset_m(el, az, clutter_height_m) - ray_clutter_offset_m(
+        el_prev, az_prev, clutter_height_m
+    )
     return np.sqrt(step[:, None] ** 2 + np.sum(shift * shift, axis=-1))
 
 
