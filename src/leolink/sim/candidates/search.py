@@ -43,7 +43,7 @@ import dataclasses
 import numpy as np
 
 from leolink import compiled
-from leolink.arrays import nonzero_2d, take_rows
+from leolink.arrays import nonzero_2d, take_rows, unique_inverse
 from leolink.engine.links import Links, beam_snr_db
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen, screen_ragged
 from leolink.geometry import body_frame, earth_central_angle_rad
@@ -385,7 +385,7 @@ class CandidateSearch:
             rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
             sats = np.concatenate(sats) if sats else np.zeros(0, np.int64)
         n_sat = sat_pos_m.shape[1]
-        key, inverse = np.unique((rows // n_ut) * n_sat + sats, return_inverse=True)
+        key, inverse = unique_inverse((rows // n_ut) * n_sat + sats)
         flat_pos = take_rows(sat_pos_m.reshape(-1, 3), key)
         flat_vel = take_rows(sat_vel_m_s.reshape(-1, 3), key)
         ut_id = np.arange(pos.shape[0]) % n_ut
