@@ -556,70 +556,50 @@ def link_window_entries(links, pairs, beams, rows, sat, window_db, best_db):
     out = (np.empty(m * nb, np.int64), np.empty(m * nb, np.int64), np.empty(m * nb))
     beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
     kernels = (links.kx, links.ky, links.path_snr_lin, beams)
-    # pieces of whole rows, one a thread: each writes its entries from its first pair's
-    # place in ``out``, then they are joined in order
-    k = compiled.n_threads()
-    bounds = np.unique(np.searchsorted(rows, rows[np.arange(k) * m // k]).tolist() + [m])
-    counts = np.zeros(bounds.size - 1, np.int64)
-    data = (kernels, np.asarray(idx, np.int64), rows, np.asarray(sat, np.int64))
-    compiled.run_rows(_link_window_rows, counts.size, data, float(window_db), best_db, out,
-                      (bounds, counts), row_size=max(1, m * nb // counts.size))  # fmt: skip
-    starts = bounds[:-1] * nb
-    keep = np.concatenate([np.arange(a, a + c) for a, c in zip(starts, counts, strict=True)])
-    return out[0][keep], out[1][keep], out[2][keep]
+    n = _link_window_rows(kernels, np.asarray(idx, np.int64), rows, np.asarray(sat, np.int64),
+                          float(window_db), best_db, out)  # fmt: skip
+    return out[0][:n].copy(), out[1][:n].copy(), out[2][:n].copy()
 
 
 @compiled.jit
-def _link_window_rows(data, window_db, best_db, out, pieces, p_lo, p_hi):
-    """:func:`_window_rows` of the pairs ``idx`` from their kernels (``data``: kernels,
-    ``idx``, ``rows``, ``sat``), in the pieces ``p_lo .. p_hi - 1`` of whole rows
-    (``pieces``: their first pairs, and the count of each one's entries, written from
-    ``nb`` times its first pair), row by row (:func:`_row_window`)."""
-    bounds, counts = pieces
-    nb = data[0][3].shape[1]
-    factor = 10.0 ** (-window_db / 10.0) * (1.0 - WINDOW_GAP)
-    for piece in range(p_lo, p_hi):
-        lo, n = bounds[piece], bounds[piece] * nb
-        while lo < bounds[piece + 1]:
-            lo, n = _row_window(data, (window_db, factor), best_db, out, lo, n)
-        counts[piece] = n - bounds[piece] * nb
-
-
-@compiled.jitable
-def _row_window(data, limits, best_db, out, lo, n):
-    """The row of the pair ``lo``: its largest linear SNR ``k_x k_y p`` first; only the
-    beams within ``factor`` of it (the window and :data:`WINDOW_GAP`) get their dB value
-    (:func:`~leolink.engine.links.beam_snr_db`), the row's best among them
-    (``numpy.fmax``'s rule), then its entries at or above best - window, written from
-    ``n``. Returns the next row's first pair and the next entry."""
-    (kx, ky, path_snr_lin, beams), idx, rows, sat = data
-    window_db, factor = limits
+def _link_window_rows(kernels, idx, rows, sat, window_db, best_db, out):
+    """:func:`_window_rows` of the pairs ``idx`` from their kernels: each row's largest
+    linear SNR ``k_x k_y p`` first; only the beams within :data:`WINDOW_GAP` of the window
+    below it get their dB value (:func:`~leolink.engine.links.beam_snr_db`), the row's
+    best among them (``numpy.fmax``'s rule), then the entries at or above best - window."""
+    kx, ky, path_snr_lin, beams = kernels
+    beam_ix, beam_iy = beams[0], beams[1]
     ut, cell, snr = out
-    beam_ix, beam_iy, nb = beams[0], beams[1], beams.shape[1]
-    hi, top = lo, -1.0
-    while hi < rows.size and rows[hi] == rows[lo]:
-        for b in range(nb):
-            g = kx[beam_ix[b], idx[hi]] * ky[beam_iy[b], idx[hi]] * path_snr_lin[idx[hi]]
-            if g > top:  # (a NaN path, below the mask: never the largest)
-                top = g
-        hi += 1
-    best, first = np.nan, n
-    for q in range(lo, hi):  # the candidates, kept for now
-        p = idx[q]
-        for b in range(nb):
-            if kx[beam_ix[b], p] * ky[beam_iy[b], p] * path_snr_lin[p] >= top * factor:
-                v = beam_snr_db(kx, ky, path_snr_lin, p, beam_ix[b], beam_iy[b])
-                if v > best or (np.isnan(best) and not np.isnan(v)):
-                    best = v
-                ut[n], cell[n], snr[n] = rows[q], sat[q] * nb + b, v
+    nb, m = beam_ix.size, idx.size
+    factor = 10.0 ** (-window_db / 10.0) * (1.0 - WINDOW_GAP)
+    n, lo = 0, 0
+    while lo < m:
+        hi, top = lo, -1.0
+        while hi < m and rows[hi] == rows[lo]:
+            p = idx[hi]
+            for b in range(nb):
+                g = kx[beam_ix[b], p] * ky[beam_iy[b], p] * path_snr_lin[p]
+                if g > top:  # (a NaN path, below the mask: never the largest)
+                    top = g
+            hi += 1
+        low, best, first = top * factor, np.nan, n
+        for q in range(lo, hi):  # the candidates, kept for now
+            p = idx[q]
+            for b in range(nb):
+                if kx[beam_ix[b], p] * ky[beam_iy[b], p] * path_snr_lin[p] >= low:
+                    v = beam_snr_db(kx, ky, path_snr_lin, p, beam_ix[b], beam_iy[b])
+                    if v > best or (np.isnan(best) and not np.isnan(v)):
+                        best = v
+                    ut[n], cell[n], snr[n] = rows[q], sat[q] * nb + b, v
+                    n += 1
+        best_db[rows[lo]] = best
+        last, n = n, first
+        for e in range(first, last):  # those in the window, in order
+            if snr[e] >= best - window_db:
+                ut[n], cell[n], snr[n] = ut[e], cell[e], snr[e]
                 n += 1
-    best_db[rows[lo]] = best
-    last, n = n, first
-    for e in range(first, last):  # those in the window, in order
-        if snr[e] >= best - window_db:
-            ut[n], cell[n], snr[n] = ut[e], cell[e], snr[e]
-            n += 1
-    return hi, n
+        lo = hi
+    return n
 
 
 def _dense_pairs(ks, n_ut, cones):
