@@ -1,11 +1,11 @@
-"""Tests of leolink.arrays: the fast 2-D nonzero and row gathers against numpy's own."""
+"""Tests of leolink.arrays: fast 2-D nonzero, row gathers and unique keys against numpy's own."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from leolink.arrays import FLAT_MIN_SIZE, nonzero_2d, take_rows
+from leolink.arrays import FLAT_MIN_SIZE, nonzero_2d, take_rows, unique_inverse
 
 
 def _same_as_numpy(a):
@@ -69,3 +69,23 @@ def test_take_rows_is_numpys_advanced_indexing(lead, trail, n_index, n_pick, see
     want = a[tuple(index)]
     assert got.shape == want.shape and got.dtype == want.dtype
     np.testing.assert_array_equal(got, want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(0, 300),
+    span=st.integers(1, 50),
+    ordered=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_unique_inverse_is_numpys_unique(n, span, ordered, seed):
+    """``unique_inverse`` against ``np.unique(return_inverse=True)``: sorted keys (its
+    linear path, repeats and all) and unsorted ones (numpy's), empty and single keys."""
+    keys = np.random.default_rng(seed).integers(-span, span, n)
+    if ordered:
+        keys = np.sort(keys)
+    got_unique, got_inverse = unique_inverse(keys)
+    want_unique, want_inverse = np.unique(keys, return_inverse=True)
+    np.testing.assert_array_equal(got_unique, want_unique)
+    np.testing.assert_array_equal(got_inverse, want_inverse)
+    np.testing.assert_array_equal(got_unique[got_inverse], keys)

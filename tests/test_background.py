@@ -249,3 +249,33 @@ def test_an_interrupted_finish_leaves_abort_to_stop_the_thread_first():
         if ran_whole:
             return
     raise AssertionError("finish takes more than 2000 bytecodes")
+
+
+class _Ordered(BlockCapture):
+    """Notes its ``flush_pending`` and ``finish`` calls in a list shared by the sinks."""
+
+    def __init__(self, name, calls):
+        super().__init__()
+        self.name, self.calls = name, calls
+
+    def flush_pending(self):
+        self.calls.append(("flush", self.name))
+
+    def finish(self, final):
+        self.calls.append(("finish", self.name))
+
+
+def test_every_sink_starts_writing_before_the_first_finishes():
+    """``SinkGroup.finish``: every sink's ``flush_pending`` (its files start being written
+    on their threads), then the ``finish`` of each in order; a sink without one is fine."""
+    from leolink.sim.streams import SinkGroup
+
+    real = BlockCapture()
+    _run([real])
+    calls = []
+    group = SinkGroup([_Ordered("a", calls), BlockCapture(), _Ordered("b", calls)], True)
+    group.start(real.info)
+    for frame in real.blocks:
+        group.block(frame)
+    group.finish(real.final)
+    assert calls == [("flush", "a"), ("flush", "b"), ("finish", "a"), ("finish", "b")]

@@ -329,3 +329,23 @@ def test_an_integer_beyond_64_bits_is_refused_and_nothing_is_left(tmp_path):
     with pytest.raises(TypeError):
         write_json_atomic(tmp_path / "big.json", {"n": [1, 2**64]})
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("chunk_rows", [5, 1_000_000])
+def test_a_trace_flushed_before_close_is_the_same_files(tmp_path, chunk_rows):
+    """``TableWriter.flush`` (the sinks' ``flush_pending``, before any sink finishes) hands
+    the partial chunk that ``close`` would: byte-identical CSV and Parquet files, whether
+    the chunk is partial (a flush with rows) or every chunk was written already."""
+    epochs = random_trace(n_epoch=10)
+    files = {}
+    for flushed in (False, True):
+        out = tmp_path / str(flushed)
+        w = TraceWriter(out, formats=("csv", "parquet"), chunk_rows=chunk_rows)
+        for e in epochs:
+            w.append(e)
+        if flushed:
+            w.flush()
+            assert w._n_filled == 0
+        w.close()
+        files[flushed] = [(out / f"trace.{f}").read_bytes() for f in ("csv", "parquet")]
+    assert files[True] == files[False]

@@ -532,3 +532,40 @@ def test_compiled_window_gives_the_numpy_windows_entries(window_db, monkeypatch)
     np.testing.assert_array_equal(got_best, want_best)
     assert np.isnan(want_best[rows[0]]) and (want_best == 7.0).any()  # untouched rows kept
     assert want[0].size > (m if window_db > 0 else 900 // 2)
+
+
+@pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
+def test_window_from_kernels_gives_the_window_of_the_snr_matrix(window_db):
+    """``search.link_window_entries`` (the compiled loop: a linear pre-selection, then the
+    dB sums of the few beams near the best) against ``window_entries`` of the full
+    ``Links.snr_db_bm`` matrix (the path it replaces, the same dB sums): the same entries
+    in the same order and the same row bests, bit for bit, with rows of one pair and of
+    many, pairs below the mask (NaN path), nulls (a zero kernel: -inf dB), exact ties
+    (equal kernels) and gaps of an ulp or two at the best (within the pre-selection's
+    margin, where a dB sum may tie or not)."""
+    from leolink.engine.links import Links
+
+    rng = np.random.default_rng(44)
+    m, n_rows = 4000, 1500
+    kx, ky = rng.uniform(0.0, 12.0, (5, m)), rng.uniform(0.0, 10.0, (3, m))
+    kx[1] = np.where(rng.random(m) < 0.3, kx[0], kx[1])  # exact ties between beams
+    kx[2] = np.where(rng.random(m) < 0.1, kx[0] * (1.0 + 4e-16), kx[2])  # an ulp or two
+    kx[rng.random((5, m)) < 0.02] = 0.0  # nulls
+    path = 10.0 ** rng.uniform(8.0, 11.0, m)
+    visible = rng.random(m) > 0.1
+    rows = np.sort(rng.integers(0, n_rows, m))
+    sat = rng.integers(0, 4000, m)
+    z = np.zeros(m)
+    links = Links(rows, sat, np.zeros((m, 3)), z, z, visible, path, kx, ky, 0.0)
+    beams = (np.repeat(np.arange(5), 3), np.tile(np.arange(3), 5))
+    for pairs in (slice(0, m), np.flatnonzero(visible)):
+        got_best, want_best = np.full(n_rows, 7.0), np.full(n_rows, 7.0)
+        r, s = rows[pairs], sat[pairs]
+        got = search.link_window_entries(links, pairs, beams, r, s, window_db, got_best)
+        snr_bm = links.snr_db_bm(*beams, pairs)
+        want = search.window_entries(snr_bm, r, s, window_db, want_best)
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_array_equal(g, w)
+        np.testing.assert_array_equal(got_best, want_best)
+        assert want[0].size > (m * 15 // 2 if window_db == np.inf else n_rows // 2)
+        assert np.isneginf(want[2]).any() == (window_db == np.inf)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["KeyTable", "nonzero_2d", "take_rows"]
+__all__ = ["KeyTable", "nonzero_2d", "take_rows", "unique_inverse"]
 
 #: From this many entries on, the flat path of :func:`nonzero_2d` is faster (measured on
 #: numpy 2.4: the two break even near 1,000 entries).
@@ -64,6 +64,25 @@ def take_rows(a, *index):
     for size, idx in zip(lead[1:], index[1:], strict=True):
         flat = flat * size + np.asarray(idx, np.intp)
     return np.take(a.reshape(-1, *a.shape[len(index) :]), flat, axis=0)
+
+
+def unique_inverse(keys):
+    """``np.unique(keys, return_inverse=True)`` of 1-D integer ``keys``: the sorted
+    distinct keys and each key's index among them, in one linear pass where ``keys`` are
+    sorted already (the search's pairs, epoch after epoch: numpy's sorts them again,
+    numpy 2.4 here: 2.1 -> 0.4 ms for 64,000 keys).
+
+    Returns
+    -------
+    unique : ndarray, shape (n_unique,)
+    inverse : ndarray of intp, shape keys.shape
+    """
+    keys = np.asarray(keys)
+    if keys.ndim != 1 or keys.size < 2 or (keys[1:] < keys[:-1]).any():
+        return np.unique(keys, return_inverse=True)
+    new = np.empty(keys.size, bool)
+    new[0], new[1:] = True, keys[1:] != keys[:-1]
+    return keys[new], np.cumsum(new, dtype=np.intp) - 1
 
 
 class KeyTable:

@@ -20,7 +20,7 @@ from leolink.antenna.array import dirichlet_kernels, kernels_of_direction
 from leolink.engine.steered import beam_centres, steered_kernels
 from leolink.geometry import body_frame
 
-__all__ = ["Links", "Snapshot", "group_constants_db", "pair_geometry"]
+__all__ = ["Links", "Snapshot", "beam_snr_db", "group_constants_db", "pair_geometry"]
 __all__ += ["panel_elevation_of_pairs", "reuse_colors", "rows_gain_db"]
 
 
@@ -168,6 +168,15 @@ class Links:
 
 
 @compiled.jitable
+def beam_snr_db(kx, ky, path_snr_lin, p, ix, iy):
+    """SNR [dB] of the beam of kernel rows ``ix``, ``iy`` of pair ``p``: the sum
+    ``10 log10 k_x + 10 log10 k_y + 10 log10 p`` of :meth:`Links.snr_db_bm`, for a
+    compiled loop that needs a few beams of a pair, not all."""
+    lx, ly = 10.0 * np.log10(kx[ix, p]), 10.0 * np.log10(ky[iy, p])
+    return lx + ly + 10.0 * np.log10(path_snr_lin[p])
+
+
+@compiled.jitable
 def _pair_db(kx, ky, path_snr_lin, p, lx, ly):
     """``10 log10`` of pair ``p``'s kernels into ``lx``, ``ly``, and of its path SNR
     (returned): the terms :meth:`Links.snr_db_bm` sums."""
@@ -226,8 +235,7 @@ def _best_beam_rows(kx, ky, path_snr_lin, beams, with_db, out, lo, hi):
             best[p] = arg
             if not with_db:
                 continue
-            lx_arg = 10.0 * np.log10(kx[beam_ix[arg], p])
-            best_db[p] = lx_arg + 10.0 * np.log10(ky[beam_iy[arg], p]) + 10.0 * np.log10(path)
+            best_db[p] = beam_snr_db(kx, ky, path_snr_lin, p, beam_ix[arg], beam_iy[arg])
             continue
         path_db = _pair_db(kx, ky, path_snr_lin, p, lx, ly)
         best[p], best_db[p] = 0, lx[beam_ix[0]] + ly[beam_iy[0]] + path_db

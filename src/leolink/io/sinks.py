@@ -92,6 +92,9 @@ class TraceSink:
 
     block = epoch  # the writer cuts chunks of ``chunk_rows`` whatever it is given
 
+    def flush_pending(self):
+        self.writer.flush()
+
     def finish(self, final):
         self.files = list(self.writer.close().values())
         self.digests = self.writer.digests
@@ -126,6 +129,9 @@ class EventSink:
             self.writer.append(frame.events)
 
     block = epoch
+
+    def flush_pending(self):
+        self.writer.flush()
 
     def finish(self, final):
         self.files = list(self.writer.close().values())

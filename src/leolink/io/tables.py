@@ -258,6 +258,13 @@ class TableWriter:
         for growing in self._growing.values():  # (on the writer's thread when it has one)
             growing.update()
 
+    def flush(self):
+        """Hand the rows buffered so far to the writer: with a writer thread, they are
+        written while the caller goes on (the chunk it would write at :meth:`close`: the
+        same files)."""
+        if self._n_filled and not self._done:
+            self._flush()
+
     def close(self):
         """Write what is buffered and rename the partial files to their final names."""
         if self._done:

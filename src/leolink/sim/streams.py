@@ -150,10 +150,13 @@ class Sink(Protocol):
 
     Optionally ``block(frame)``: a :class:`BlockFrame` instead of its epochs' ``epoch``
     calls (:func:`deliver`); ``epoch`` is still needed (runs with radio link failure
-    monitoring send epoch frames). Sinks get a block one after the other: a sink must not
-    read another's state before ``finish``. The simulator's :class:`SinkGroup` calls
-    ``epoch`` and ``block`` on a thread of its own (one, in order), ``start``, ``finish``
-    and ``abort`` on the caller's.
+    monitoring send epoch frames). Optionally ``flush_pending()``: start writing what it
+    holds without waiting for it (on a writer thread), called on every sink before the
+    first ``finish``, so that the writing overlaps the other sinks' finishing. Sinks get a
+    block one after the other: a sink must not read another's state before ``finish``.
+    The simulator's :class:`SinkGroup` calls ``epoch`` and ``block`` on a thread of its
+    own (one, in order), ``start``, ``flush_pending``, ``finish`` and ``abort`` on the
+    caller's.
     """
 
     def start(self, info: RunInfo) -> None: ...
@@ -247,6 +250,10 @@ class SinkGroup:
         if self._worker is not None:  # kept until closed: an abort must still stop it
             self._worker.close()
             self._worker = None
+        for sink in self.sinks:  # their files start being written, then each finishes
+            flush = getattr(sink, "flush_pending", None)
+            if flush is not None:
+                flush()
         for sink in self.sinks:
             sink.finish(final)
 

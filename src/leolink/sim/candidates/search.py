@@ -43,8 +43,8 @@ import dataclasses
 import numpy as np
 
 from leolink import compiled
-from leolink.arrays import nonzero_2d, take_rows
-from leolink.engine.links import Links
+from leolink.arrays import nonzero_2d, take_rows, unique_inverse
+from leolink.engine.links import Links, beam_snr_db
 from leolink.engine.screening import UNCERTAIN, VISIBLE, screen, screen_ragged
 from leolink.geometry import body_frame, earth_central_angle_rad
 from leolink.sim.candidates.table import Candidates
@@ -385,7 +385,7 @@ class CandidateSearch:
             rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
             sats = np.concatenate(sats) if sats else np.zeros(0, np.int64)
         n_sat = sat_pos_m.shape[1]
-        key, inverse = np.unique((rows // n_ut) * n_sat + sats, return_inverse=True)
+        key, inverse = unique_inverse((rows // n_ut) * n_sat + sats)
         flat_pos = take_rows(sat_pos_m.reshape(-1, 3), key)
         flat_vel = take_rows(sat_vel_m_s.reshape(-1, 3), key)
         ut_id = np.arange(pos.shape[0]) % n_ut
@@ -413,6 +413,11 @@ class CandidateSearch:
         for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
             pairs = slice(lo, hi) if every else vis[lo:hi]
             rows, sat = rows_vis[lo:hi], links.sat[pairs]
+            if pair_loss is None and self.floor_db == -np.inf and compiled.use(rows.size):
+                beams = (eng.beam_ix, eng.beam_iy)  # no (nb, m) matrix: the window's beams
+                entries.append(link_window_entries(links, pairs, beams, rows, sat,
+                                                   self.window_db, best_db))  # fmt: skip
+                continue
             snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
             if pair_loss is not None:  # the open best, then every SNR after the environment
                 _row_best(rows, snr_bm.T, open_db)
@@ -526,6 +531,73 @@ def _window_rows(snr_bm, rows, sat, window_db, best_db, out):
                 if snr_bm[b, p] >= best - window_db:
                     ut[n], cell[n], snr[n] = rows[p], sat[p] * nb + b, snr_bm[b, p]
                     n += 1
+        lo = hi
+    return n
+
+
+#: Relative margin of :func:`link_window_entries`' linear pre-selection: a beam whose
+#: linear SNR is below the row's largest times ``10^(-window/10) (1 - WINDOW_GAP)`` is
+#: out of the window in dB too (the dB sums err by < 1e-12 dB, 2.3e-13 relative).
+WINDOW_GAP = 1e-9
+
+
+def link_window_entries(links, pairs, beams, rows, sat, window_db, best_db):
+    """:func:`window_entries` of :meth:`Links.snr_db_bm <leolink.engine.links.Links.
+    snr_db_bm>` ``(*beams, pairs)`` (``pairs``: a slice or indices of the sorted
+    ``rows``' pairs), without the (n_beam, m) matrix: by the compiled
+    :func:`_link_window_rows` where it runs (the same entries and row bests, each dB value
+    the same sum), else by numpy on the matrix."""
+    beam_ix, beam_iy = beams
+    if not compiled.use(len(rows)):
+        snr_bm = links.snr_db_bm(beam_ix, beam_iy, pairs)
+        return window_entries(snr_bm, rows, sat, window_db, best_db)
+    idx = np.arange(links.n_pair)[pairs] if isinstance(pairs, slice) else pairs
+    m, nb = len(rows), len(beam_ix)
+    out = (np.empty(m * nb, np.int64), np.empty(m * nb, np.int64), np.empty(m * nb))
+    beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
+    kernels = (links.kx, links.ky, links.path_snr_lin, beams)
+    n = _link_window_rows(kernels, np.asarray(idx, np.int64), rows, np.asarray(sat, np.int64),
+                          float(window_db), best_db, out)  # fmt: skip
+    return out[0][:n].copy(), out[1][:n].copy(), out[2][:n].copy()
+
+
+@compiled.jit
+def _link_window_rows(kernels, idx, rows, sat, window_db, best_db, out):
+    """:func:`_window_rows` of the pairs ``idx`` from their kernels: each row's largest
+    linear SNR ``k_x k_y p`` first; only the beams within :data:`WINDOW_GAP` of the window
+    below it get their dB value (:func:`~leolink.engine.links.beam_snr_db`), the row's
+    best among them (``numpy.fmax``'s rule), then the entries at or above best - window."""
+    kx, ky, path_snr_lin, beams = kernels
+    beam_ix, beam_iy = beams[0], beams[1]
+    ut, cell, snr = out
+    nb, m = beam_ix.size, idx.size
+    factor = 10.0 ** (-window_db / 10.0) * (1.0 - WINDOW_GAP)
+    n, lo = 0, 0
+    while lo < m:
+        hi, top = lo, -1.0
+        while hi < m and rows[hi] == rows[lo]:
+            p = idx[hi]
+            for b in range(nb):
+                g = kx[beam_ix[b], p] * ky[beam_iy[b], p] * path_snr_lin[p]
+                if g > top:  # (a NaN path, below the mask: never the largest)
+                    top = g
+            hi += 1
+        low, best, first = top * factor, np.nan, n
+        for q in range(lo, hi):  # the candidates, kept for now
+            p = idx[q]
+            for b in range(nb):
+                if kx[beam_ix[b], p] * ky[beam_iy[b], p] * path_snr_lin[p] >= low:
+                    v = beam_snr_db(kx, ky, path_snr_lin, p, beam_ix[b], beam_iy[b])
+                    if v > best or (np.isnan(best) and not np.isnan(v)):
+                        best = v
+                    ut[n], cell[n], snr[n] = rows[q], sat[q] * nb + b, v
+                    n += 1
+        best_db[rows[lo]] = best
+        last, n = n, first
+        for e in range(first, last):  # those in the window, in order
+            if snr[e] >= best - window_db:
+                ut[n], cell[n], snr[n] = ut[e], cell[e], snr[e]
+                n += 1
         lo = hi
     return n
 
