@@ -507,12 +507,14 @@ def test_a_stepped_terminal_without_its_maximum_is_refused_at_config_time(steppe
         build_scenario(load_config("configs/paper.toml", sets))
 
 
+@pytest.mark.parametrize("floor_db", [-np.inf, -1.0])
 @pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
-def test_compiled_window_gives_the_numpy_windows_entries(window_db, monkeypatch):
+def test_compiled_window_gives_the_numpy_windows_entries(window_db, floor_db, monkeypatch):
     """``search.window_entries`` by the compiled loop and by numpy (as ``LEOLINK_JIT=0``):
-    the same entries in the same order and the same row bests, bit for bit (the same
-    comparisons of the same values), with rows of one pair and of many, rows whose every
-    SNR is NaN, -inf SNRs (a null) and exact ties at the best."""
+    the same entries in the same order, the same row bests and best cells, bit for bit
+    (the same comparisons of the same values), with rows of one pair and of many, rows
+    whose every SNR is NaN, -inf SNRs (a null), exact ties at the best, and a floor (the
+    trigger policies': entries below it left out, the best cell still seen)."""
     import leolink.compiled
 
     rng = np.random.default_rng(43)
@@ -524,14 +526,21 @@ def test_compiled_window_gives_the_numpy_windows_entries(window_db, monkeypatch)
     snr[rng.random((nb, m)) < 0.01] = -np.inf
     snr[:, rows == rows[0]] = np.nan  # a row with no finite SNR
     got_best, want_best = np.full(900, 7.0), np.full(900, 7.0)
-    got = search.window_entries(snr, rows, sat, window_db, got_best)
+    got_cell, want_cell = np.full(900, -2), np.full(900, -2)
+    limits = (window_db, floor_db)
+    got = search.window_entries(snr, rows, sat, limits, (got_best, got_cell))
     monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
-    want = search.window_entries(snr, rows, sat, window_db, want_best)
+    want = search.window_entries(snr, rows, sat, limits, (want_best, want_cell))
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(g, w)
     np.testing.assert_array_equal(got_best, want_best)
+    np.testing.assert_array_equal(got_cell, want_cell)
     assert np.isnan(want_best[rows[0]]) and (want_best == 7.0).any()  # untouched rows kept
-    assert want[0].size > (m if window_db > 0 else 900 // 2)
+    assert want_cell[rows[0]] == -2 and (want_cell >= 0).sum() > 800
+    if floor_db > -np.inf:
+        assert want[2].min() >= floor_db and (want_best < floor_db).any()
+    else:
+        assert want[0].size > (m if window_db > 0 else 900 // 2)
 
 
 @pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])

@@ -21,6 +21,27 @@ from leolink.sim.handover.triggers import A3, A4, A5, Epoch
 N_SAT, N_BEAM, MIN_SNR_DB, DT_S = 6, 3, -10.0, 1.0
 
 
+@pytest.mark.usefixtures("compiled_and_numpy")
+def test_local_axis_finds_each_satellites_slot_as_a_scan_of_its_row():
+    # Ragged rows (an empty one too); queries present, absent, negative and above every id:
+    # the slot found (binary search per row compiled, one search over all rows in numpy)
+    # is the one a plain scan of the row finds.
+    rng = np.random.default_rng(44)
+    ut = rng.integers(0, 40, 600)
+    sat = rng.integers(0, 90, 600)
+    axis = LocalAxis.union(41, 1, ut, sat)
+    rows = rng.integers(0, 41, 3000)
+    picked = axis.sats[rows, rng.integers(0, axis.n_local, rows.size)]
+    query = np.where(rng.random(rows.size) < 0.5, picked, rng.integers(-3, 120, rows.size))
+    got = axis._slot(rows, query)
+    pairs = zip(rows, query, strict=True)
+    hits = [np.flatnonzero((axis.sats[r] == q) & (q >= 0)) for r, q in pairs]
+    want = [h[0] if h.size else -1 for h in hits]
+    np.testing.assert_array_equal(got, want)
+    assert 0.3 < np.mean(got >= 0) < 0.7
+
+
+@pytest.mark.usefixtures("compiled_and_numpy")
 def test_local_axis_maps_cells_both_ways_and_carries_values_by_satellite():
     axis = LocalAxis.union(2, N_BEAM, [0, 0, 1, 0], [4, 1, 2, 4])
     np.testing.assert_array_equal(axis.sats, [[1, 4], [2, -1]])

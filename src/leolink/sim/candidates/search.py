@@ -422,21 +422,9 @@ class CandidateSearch:
             if pair_loss is not None:  # the open best, then every SNR after the environment
                 _row_best(rows, snr_bm.T, open_db)
                 snr_bm = snr_bm - pair_loss[pairs][None, :]
-            if self.floor_db == -np.inf and compiled.use(rows.size):  # no (m, nb) temporaries
-                entries.append(window_entries(snr_bm, rows, sat, self.window_db, best_db))
-                continue
-            snr = snr_bm.T  # (m, nb)
-            _row_best(rows, snr, best_db)
-            with np.errstate(invalid="ignore"):
-                keep = snr >= (best_db[rows] - self.window_db)[:, None]
-            if self.floor_db > -np.inf:  # the diagnostics' best cell does not see the floor
-                cells = sat[:, None] * nb + np.arange(nb)[None, :]
-                _best_cells(rows, cells, snr, best_db, best_cell)
-                with np.errstate(invalid="ignore"):
-                    keep &= snr >= self.floor_db
-            # the kept entries in (pair, beam) order, as boolean indexing gives them
-            pair, beam = np.divmod(np.flatnonzero(keep), nb)
-            entries.append((rows[pair], sat[pair] * nb + beam, snr[pair, beam]))
+            # (the diagnostics' best cell does not see the floor: kept here when it has one)
+            best = (best_db, None if self.floor_db == -np.inf else best_cell)
+            entries.append(window_entries(snr_bm, rows, sat, (self.window_db, self.floor_db), best))
         ut, cell, snr = (np.concatenate(e) for e in zip(*entries, strict=True))
         table = Candidates.from_entries(n_rows, ut, cell, snr)
         if self.floor_db == -np.inf:
@@ -490,46 +478,64 @@ def _pair_loss(grids, n_ut, cones, links):
     return out
 
 
-def window_entries(snr_bm, rows, sat, window_db, best_db):
+def window_entries(snr_bm, rows, sat, limits, best):
     """The window's entries of pairs of the sorted ``rows`` (each row's pairs together):
-    every cell whose SNR is at least the row's best minus ``window_db``, in (pair, beam)
-    order, ``(ut, cell, snr)``; each row's best (NaN ignored; NaN where all are) written
-    into ``best_db``. ``snr_bm``: (n_beam, m) [dB]; ``sat``: each pair's satellite.
-    By the compiled :func:`_window_rows` where it runs, else numpy (the same entries)."""
+    every cell whose SNR is at least the row's best minus the window and at least the
+    floor, in (pair, beam) order, ``(ut, cell, snr)``; each row's best (NaN ignored; NaN
+    where all are) written into ``best_db``. ``snr_bm``: (n_beam, m) [dB]; ``sat``: each
+    pair's satellite; ``limits``: ``(window_db, floor_db)`` [dB] (a float: the window,
+    no floor); ``best``: ``best_db``, or ``(best_db, best_cell)`` to write each row's best
+    cell too (:func:`_best_cells`' rule; None: not). By the compiled
+    :func:`_window_rows` where it runs, else numpy (the same entries)."""
+    window_db, floor_db = limits if isinstance(limits, tuple) else (limits, -np.inf)
+    best_db, best_cell = best if isinstance(best, tuple) else (best, None)
     nb, m = snr_bm.shape
     if compiled.use(m):
         ut, cell, snr = np.empty(m * nb, np.int64), np.empty(m * nb, np.int64), np.empty(m * nb)
         out = (ut, cell, snr)
-        n = _window_rows(snr_bm, rows, np.asarray(sat, np.int64), float(window_db), best_db, out)
+        cells_out = np.full(0, -1, np.int64) if best_cell is None else best_cell
+        n = _window_rows(snr_bm, rows, np.asarray(sat, np.int64),
+                         (float(window_db), float(floor_db)), (best_db, cells_out),
+                         out)  # fmt: skip
         return ut[:n].copy(), cell[:n].copy(), snr[:n].copy()
     snr = snr_bm.T  # (m, nb)
     _row_best(rows, snr, best_db)
     with np.errstate(invalid="ignore"):
-        keep = snr >= (best_db[rows] - window_db)[:, None]
+        keep = (snr >= (best_db[rows] - window_db)[:, None]) & (snr >= floor_db)
+    if best_cell is not None:
+        _best_cells(rows, sat[:, None] * nb + np.arange(nb)[None, :], snr, best_db, best_cell)
+    # the kept entries in (pair, beam) order, as boolean indexing gives them
     pair, beam = np.divmod(np.flatnonzero(keep), nb)
     return rows[pair], sat[pair] * nb + beam, snr[pair, beam]
 
 
 @compiled.jit
-def _window_rows(snr_bm, rows, sat, window_db, best_db, out):
-    """:func:`window_entries` row by row: the row's best (``numpy.fmax``'s rule), then its
-    entries at or above best - window (a NaN best keeps none); returns their count."""
+def _window_rows(snr_bm, rows, sat, limits, best, out):
+    """:func:`window_entries` row by row: the row's best (``numpy.fmax``'s rule) and its
+    first cell in (pair, beam) order holding it (written where it is finite and
+    ``best[1]`` has room), then its entries at or above best - window and the floor (a
+    NaN best keeps none); returns their count."""
     ut, cell, snr = out
+    window_db, floor_db = limits
+    best_db, best_cell = best
     nb, m = snr_bm.shape
     n, lo = 0, 0
     while lo < m:
-        hi, best = lo, np.nan
+        hi, top, top_cell = lo, np.nan, -1
         while hi < m and rows[hi] == rows[lo]:
             for b in range(nb):
                 v = snr_bm[b, hi]
-                if v > best or (np.isnan(best) and not np.isnan(v)):
-                    best = v
+                if v > top or (np.isnan(top) and not np.isnan(v)):
+                    top, top_cell = v, sat[hi] * nb + b
             hi += 1
-        best_db[rows[lo]] = best
+        best_db[rows[lo]] = top
+        if best_cell.size and np.isfinite(top):
+            best_cell[rows[lo]] = top_cell
         for p in range(lo, hi):
             for b in range(nb):
-                if snr_bm[b, p] >= best - window_db:
-                    ut[n], cell[n], snr[n] = rows[p], sat[p] * nb + b, snr_bm[b, p]
+                v = snr_bm[b, p]
+                if v >= top - window_db and v >= floor_db:
+                    ut[n], cell[n], snr[n] = rows[p], sat[p] * nb + b, v
                     n += 1
         lo = hi
     return n
