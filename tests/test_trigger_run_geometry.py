@@ -1,4 +1,4 @@
-"""The geometry a trigger run hands its policies, checked through the decisions it causes.
+"""The geometry and state a trigger run hands its policies, checked through the decisions.
 
 Each scenario places the satellites by hand (an elevation, a nadir point at a chosen Earth
 central angle, a beam's ground centre by the law of sines) so that the correct inputs
@@ -14,10 +14,14 @@ import numpy as np
 import pytest
 
 from leolink.sim.candidates.table import Candidates
-from leolink.sim.handover.decisions import TriggerPolicy
+from leolink.sim.handover.decisions import (
+    ConditionalHandover,
+    GatedTriggerPolicy,
+    TriggerPolicy,
+)
 from leolink.sim.handover.measurements import L3Filter
 from leolink.sim.handover.trigger_run import TriggerRun
-from leolink.sim.handover.triggers import A3
+from leolink.sim.handover.triggers import A2, A3, A4
 from leolink.sim.handover.triggers_ntn import D1, D2, Elevation
 
 R_M, H_M, MIN_SNR_DB, N_BEAM = 6.371e6, 600e3, -10.0, 2
@@ -108,6 +112,22 @@ def test_elevation_trigger_hands_over_at_the_epoch_the_hand_elevations_cross(til
     assert list(path) == [0, 0, 0, 3, 3]
 
 
+def test_elevation_trigger_sees_each_ut_from_its_own_place():
+    """Two UTs: UT 0 at (R, 0, 0) with the scene above, UT 1 at (0, R, 0) with the same
+    elevations about its own up (the scene turned 90 deg about z, satellites renumbered
+    3, 4, 5, cells 6 to 11). Each hands over at t = 3 s to its own rising satellite."""
+    ut0, sats0, snr0 = _elevation_scene(np.array([1.0, 0.0, 0.0]))
+    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    sats = np.concatenate([sats0, sats0 @ turn.T], axis=1)
+    snr = np.full((5, 2, 6 * N_BEAM), np.nan)
+    snr[:, 0, :6], snr[:, 1, 6:] = snr0[:, 0], snr0[:, 0]
+    ut = np.vstack([ut0, ut0 @ turn.T])
+    policy = TriggerPolicy(Elevation(np.radians(30.0), np.radians(40.0)))
+    path = _path(_run(policy), snr, ut, sats)
+    assert list(path[:, 0]) == [0, 0, 0, 3, 3]
+    assert list(path[:, 1]) == [6, 6, 6, 9, 9]
+
+
 def test_elevation_trigger_on_cells_chooses_the_same_satellite():
     """The same trigger deciding cells: both beams of a satellite share its elevation
     (a tie: any beam of satellite 1), and the handover is at t = 3 s as on satellites."""
@@ -135,8 +155,10 @@ def test_d2_hands_over_when_the_nadir_chords_cross_their_thresholds():
     snr[:, 0, :] = [2.0, 4.0, 9.0, 6.0, -20.0, -11.0]
     snr[:, 1, 2:4] = [5.0, 7.0]
     assert _chord_m(0.20) > 1e6 > _chord_m(0.15)
-    for level in ("satellite", "cell"):
-        policy = TriggerPolicy(D2(1e6, 1e6), level=level)
+    # D1 on beams, deciding satellites, reads each satellite's nadir too (one reference
+    # per satellite, leolink's decision): the same epoch.
+    for level, trigger in (("satellite", D2), ("cell", D2), ("satellite", D1)):
+        policy = TriggerPolicy(trigger(1e6, 1e6), level=level)
         path = _path(_run(policy), snr, ut, sats)
         # on cells both beams of satellite 0 share its nadir: either beam
         assert list(path[:, 0] // N_BEAM) == [1, 1, 1, 0], level
@@ -176,6 +198,26 @@ def test_d1_hands_over_between_the_beams_of_one_satellite_at_their_ground_centre
     run = _run(TriggerPolicy(D1(half, half)), _engine(u_xy=[[0.0, 0.0], [0.3, 0.0]]))
     path = _path(run, snr, _ground(gamma / 2)[None], sats, sat_vel=vel)[:, 0]
     assert list(path) == [0, 0, 0]
+
+
+def test_d1_beam_centres_on_the_runs_own_sphere_for_every_ut():
+    """The same geometry on a sphere of radius 6,400 km (the run's radius, not a default
+    one), with a second UT at the nadir, which stays on beam 0."""
+    r_m = 6.4e6
+    theta = np.arcsin(0.3)
+    gamma = np.arcsin((r_m + H_M) / r_m * np.sin(theta)) - theta
+    ut = np.array([[r_m * np.cos(gamma), r_m * np.sin(gamma), 0.0], [r_m, 0.0, 0.0]])
+    sats = np.array([[[r_m + H_M, 0.0, 0.0]]] * 3)
+    vel = np.array([[[0.0, 7.5e3, 0.0]]] * 3)
+    half = r_m * np.sin(gamma / 2.0)  # half the chord to the nadir
+    snr = np.full((3, 2, N_BEAM), np.nan)
+    snr[:, :, :] = [8.0, 5.0]
+    engine = _engine(u_xy=[[0.0, 0.0], [0.3, 0.0]])
+    # threshold2 5 km: on a 6,371 km sphere the ray meets the ground ~30 km off the UT
+    run = TriggerRun(TriggerPolicy(D1(half, 5e3)), NO_FILTER, engine, MIN_SNR_DB, r_m, None,
+                     1.0, 100.0)  # fmt: skip
+    path = _path(run, snr, ut, sats, sat_vel=vel)
+    assert list(path[:, 0]) == [0, 1, 1] and list(path[:, 1]) == [0, 0, 0]
 
 
 @pytest.mark.parametrize("rows,sat", [(1, 1), (2, 0)])
@@ -226,3 +268,61 @@ def test_cell_offsets_by_satellite_and_by_beam_with_the_later_entry_winning():
     sats = np.zeros((3, 2, 3))
     path = _path(run, snr, _ground(0.0)[None], sats, serving=[0])[:, 0]
     assert path[-1] == 2 and set(path) <= {0, 2}
+
+
+# -- state carried across a satellite's absence ---------------------------------------------
+def test_a_triggered_but_unprepared_satellite_keeps_its_state_through_a_gap():
+    """CHO on satellites: prepare A3(-3 dB, TTT 2 s), preparation delay 2 s, execute
+    A3(+2 dB, TTT 0). Serving satellite 0 at 5 dB; satellite 1 at 9 dB from t = 1 s, absent
+    from the table at t = 4 s only. Its prepare condition enters at t = 1 s and triggers at
+    t = 3 s; the gap starts the leaving run (2 s to go), which lapses at t = 5 s, when
+    the satellite is back and, triggered for 2 s, becomes prepared and executes at once.
+    A satellite forgotten with its table at t = 4 s would restart at t = 5 s: triggered at
+    7 s, prepared and executed at t = 9 s."""
+    policy = ConditionalHandover(A3(-3.0, 0.0, 2.0), [A3(2.0, 0.0, 0.0)], 8, 2.0,
+                                 level="satellite")  # fmt: skip
+    snr = np.full((10, 1, 2 * N_BEAM), np.nan)
+    snr[:, 0, :2] = [5.0, 1.0]
+    snr[1:, 0, 2:] = [9.0, 8.0]
+    snr[4, 0, 2:] = np.nan
+    sats = np.zeros((10, 2, 3))
+    path = _path(_run(policy), snr, _ground(0.0)[None], sats)[:, 0]
+    assert list(path) == [0] * 5 + [2] * 5
+
+
+def test_the_filter_of_a_lone_satellites_beams_runs_on_across_epochs():
+    """One satellite, A3(+2 dB) between its beams, fc8 with a 1 s reference period
+    (a = 1/4). Beam 0 serves at 5 dB; beam 1 is at 0 dB at t = 0, 10 dB after: its
+    filtered value 0, 2.5, 4.375, 5.78, 6.84, 7.63 dB exceeds 5 + 2 first at t = 5 s.
+    (A filter restarted every epoch would hand over at t = 1 s.)"""
+    snr = np.full((7, 1, N_BEAM), np.nan)
+    snr[:, 0, 0] = 5.0
+    snr[:, 0, 1] = [0.0] + [10.0] * 6
+    run = TriggerRun(TriggerPolicy(A3(2.0, 0.0, 0.0)), L3Filter(8, 1.0), _engine(), MIN_SNR_DB,
+                     R_M, None, 1.0, 100.0)  # fmt: skip
+    path = _path(run, snr, _ground(0.0)[None], np.zeros((7, 1, 3)))[:, 0]
+    assert list(path) == [0] * 5 + [1] * 2
+
+
+def test_the_a2_gate_of_a2a4_holds_its_time_to_trigger_across_epochs():
+    """A4(6 dB) measured while A2(3 dB, TTT 2 s) holds. The serving cell is at 5 dB, then
+    2 dB from t = 2 s: A2 enters at t = 2 s and triggers at t = 4 s, when the neighbour
+    (satellite 1, 8 dB all along) is measured and hands the UT over at once."""
+    policy = GatedTriggerPolicy(A2(3.0, 0.0, 2.0), A4(6.0, 0.0, 0.0))
+    snr = np.full((6, 1, 2 * N_BEAM), np.nan)
+    snr[:, 0, 0] = [5.0, 5.0, 2.0, 2.0, 2.0, 2.0]
+    snr[:, 0, 2] = 8.0
+    path = _path(_run(policy), snr, _ground(0.0)[None], np.zeros((6, 2, 3)), serving=[0])[:, 0]
+    assert list(path) == [0] * 4 + [2] * 2
+
+
+def test_a_cell_exactly_at_the_service_threshold_is_detected():
+    """The service threshold is inclusive (a cell at or above it is detected): A4(-11 dB)
+    hands the UT from cell 0 (5 dB, serving from before t = 0) to cell 2, at exactly the
+    -10 dB threshold, at the first epoch; at -10.01 dB it is never measured."""
+    for level, expected in ((MIN_SNR_DB, 2), (MIN_SNR_DB - 0.01, 0)):
+        snr = np.full((1, 1, 2 * N_BEAM), np.nan)
+        snr[:, 0, 0], snr[:, 0, 2] = 5.0, level
+        run = _run(TriggerPolicy(A4(-11.0, 0.0, 0.0)))
+        path = _path(run, snr, _ground(0.0)[None], np.zeros((1, 2, 3)), serving=[0])[:, 0]
+        assert list(path) == [expected], level

@@ -205,8 +205,18 @@ MODULES = {
     "sim/beams/scheduler": ["tests/test_scheduler.py", "tests/test_active_beams.py"],
     # The selectors, the hopping cycle and the chains by hand (test_beams.py), in a run
     # (test_active_beams.py).
-    "sim/beams/active": ["tests/test_beams.py", "tests/test_active_beams.py"],
-    "sim/environment": ["tests/test_environment_in_run.py"],
+    "sim/beams/active": [
+        "tests/test_beams.py",
+        "tests/test_beams_by_hand.py",
+        "tests/test_active_beams.py",
+    ],
+    # (the compiled-vs-numpy check needs numba's loops, which LEOLINK_JIT=0 turns off)
+    "sim/environment": [
+        "tests/test_environment_tracker.py",
+        "tests/test_environment_in_run.py",
+        "--deselect=tests/test_environment_in_run.py::test_compiled_loops_and_numpy_agree_"
+        "with_environments",
+    ],
     # The trigger policies' run state (sparse tables onto the local axis, the epoch's
     # fields, the target): the sparse-vs-dense check, the hand-placed geometries, the
     # numpy ids of the compiled/numpy pairs (LEOLINK_JIT=0), two runs of the wiring. The
@@ -223,6 +233,7 @@ MODULES = {
     "sim/handover/trigger_policies": [
         "tests/test_handover_config.py",
         "tests/test_trigger_run_geometry.py",
+        "tests/test_trigger_policies_entry.py",
         *TRIGGER_RUN_WIRING,
         "tests/test_measurement_model.py::test_defaults_are_todays_run_and_rsrp_shifts_"
         "thresholds_by_the_re_noise",
