@@ -165,5 +165,6 @@ def test_the_dark_fallback_skips_unseen_beams_before_the_best():
     dark: it is a UT with a dark best beam."""
     snr = np.array([[[np.nan, 4.0], [2.0, 9.0]]])
     lit = np.array([[True, True], [True, False]])
-    _, dark = restrict_to_lit(snr, lit, "neighbour")
+    out, dark = restrict_to_lit(snr, lit)  # the default fallback: a lit neighbour
     np.testing.assert_array_equal(dark, [True])
+    np.testing.assert_array_equal(out[0], [[np.nan, 4.0], [2.0, np.nan]])

@@ -46,7 +46,8 @@ def test_the_horizon_is_the_largest_of_the_policy_and_its_conditions():
 
 def test_a_trigger_policy_is_driven_by_its_run_not_by_choose():
     entry = POLICIES.build("a3", A3Config())
-    with pytest.raises(TypeError, match=r"policy 'a3' keeps per-cell state.*policy\.run"):
+    said = r"policy 'a3' keeps per-cell state.*policy\.run\(\.\.\.\) .*, not choose\(\)$"
+    with pytest.raises(TypeError, match=said):
         entry.choose(0.0, np.zeros((1, 1, 1)), None)
 
 

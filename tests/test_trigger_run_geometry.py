@@ -271,23 +271,26 @@ def test_cell_offsets_by_satellite_and_by_beam_with_the_later_entry_winning():
 
 
 # -- state carried across a satellite's absence ---------------------------------------------
-def test_a_triggered_but_unprepared_satellite_keeps_its_state_through_a_gap():
+@pytest.mark.parametrize("serving_sat", [0, 1])
+def test_a_triggered_but_unprepared_satellite_keeps_its_state_through_a_gap(serving_sat):
     """CHO on satellites: prepare A3(-3 dB, TTT 2 s), preparation delay 2 s, execute
     A3(+2 dB, TTT 0). Serving satellite 0 at 5 dB; satellite 1 at 9 dB from t = 1 s, absent
     from the table at t = 4 s only. Its prepare condition enters at t = 1 s and triggers at
     t = 3 s; the gap starts the leaving run (2 s to go), which lapses at t = 5 s, when
     the satellite is back and, triggered for 2 s, becomes prepared and executes at once.
     A satellite forgotten with its table at t = 4 s would restart at t = 5 s: triggered at
-    7 s, prepared and executed at t = 9 s."""
+    7 s, prepared and executed at t = 9 s. The same with the roles of the satellites
+    swapped (satellite 0 the candidate)."""
     policy = ConditionalHandover(A3(-3.0, 0.0, 2.0), [A3(2.0, 0.0, 0.0)], 8, 2.0,
                                  level="satellite")  # fmt: skip
+    s, c = 2 * serving_sat, 2 * (1 - serving_sat)  # the cells of the two satellites
     snr = np.full((10, 1, 2 * N_BEAM), np.nan)
-    snr[:, 0, :2] = [5.0, 1.0]
-    snr[1:, 0, 2:] = [9.0, 8.0]
-    snr[4, 0, 2:] = np.nan
+    snr[:, 0, s : s + 2] = [5.0, 1.0]
+    snr[1:, 0, c : c + 2] = [9.0, 8.0]
+    snr[4, 0, c : c + 2] = np.nan
     sats = np.zeros((10, 2, 3))
     path = _path(_run(policy), snr, _ground(0.0)[None], sats)[:, 0]
-    assert list(path) == [0] * 5 + [2] * 5
+    assert list(path) == [s] * 5 + [c] * 5
 
 
 def test_the_filter_of_a_lone_satellites_beams_runs_on_across_epochs():
