@@ -36,6 +36,23 @@ SIM_RUN_TESTS = [
 #: The block frames (sim/streams.py BlockFrame, deliver; the monitor's flush): every output
 #: file of three runs by block and by epoch, and the frames against what they mean.
 BLOCK_TESTS = ["tests/test_block_frames.py", "tests/test_block_frame_contracts.py"]
+_COMPILED_IDS = (
+    "test_end_of_service_equals_a_brute_force_scan_every_epoch",
+    "test_satellite_ends_alone_stay_exact_without_per_cell_look_ahead",
+    "test_t1_hands_over_lead_s_before_the_serving_satellite_stops_serving",
+)
+TRIGGER_RUN_WIRING = [
+    "tests/test_handover_wiring.py::test_d1_references_are_the_beams_ground_centres",
+    "tests/test_handover_wiring.py::test_a_negative_cell_offset_keeps_the_trigger_policies_"
+    "off_that_satellite",
+]
+TRIGGER_RUN_DESELECT = [
+    *(f"--deselect=tests/test_service_time.py::{name}[compiled]" for name in _COMPILED_IDS),
+    "--deselect=tests/test_measurement_model.py::test_defaults_are_todays_run_and_rsrp_shifts_"
+    "thresholds_by_the_re_noise",
+    "--deselect=tests/test_measurement_model.py::test_a_satellite_whose_smtc_window_misses_"
+    "every_instant_is_never_a_target",
+]
 #: module -> the fast tests that exercise it (the whole suite would cost ~2 min per mutant
 #: batch; these run in seconds).
 MODULES = {
@@ -186,7 +203,41 @@ MODULES = {
     # under load); test_kpi.py has them by hand.
     "sim/handover/kpi": ["tests/test_kpi.py"],
     "sim/beams/scheduler": ["tests/test_scheduler.py", "tests/test_active_beams.py"],
-    "sim/environment": ["tests/test_environment_in_run.py"],
+    # The selectors, the hopping cycle and the chains by hand (test_beams.py), in a run
+    # (test_active_beams.py).
+    "sim/beams/active": [
+        "tests/test_beams.py",
+        "tests/test_beams_by_hand.py",
+        "tests/test_active_beams.py",
+    ],
+    # (the compiled-vs-numpy check needs numba's loops, which LEOLINK_JIT=0 turns off)
+    "sim/environment": [
+        "tests/test_environment_tracker.py",
+        "tests/test_environment_in_run.py",
+        "--deselect=tests/test_environment_in_run.py::test_compiled_loops_and_numpy_agree_"
+        "with_environments",
+    ],
+    # The trigger policies' run state (sparse tables onto the local axis, the epoch's
+    # fields, the target): the sparse-vs-dense check, the hand-placed geometries, the
+    # numpy ids of the compiled/numpy pairs (LEOLINK_JIT=0), two runs of the wiring. The
+    # whole runs (test_trigger_floor.py, the other wiring and measurement-model runs: 2-40
+    # s a mutant) reach the same paths through the simulator.
+    "sim/handover/trigger_run": [
+        "tests/test_trigger_run.py",
+        "tests/test_trigger_run_geometry.py",
+        "tests/test_service_time.py",
+        "tests/test_measurement_model.py",
+        *TRIGGER_RUN_WIRING,
+        *TRIGGER_RUN_DESELECT,
+    ],
+    "sim/handover/trigger_policies": [
+        "tests/test_handover_config.py",
+        "tests/test_trigger_run_geometry.py",
+        "tests/test_trigger_policies_entry.py",
+        *TRIGGER_RUN_WIRING,
+        "tests/test_measurement_model.py::test_defaults_are_todays_run_and_rsrp_shifts_"
+        "thresholds_by_the_re_noise",
+    ],
     # The TR 38.811 tables and formulas, by hand and against the tables (the in-run tests
     # reach them through whole runs, minutes per mutant).
     "link/environment": ["tests/test_environment.py"],

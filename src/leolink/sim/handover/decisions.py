@@ -115,6 +115,8 @@ def pick(mask, score):
 def best_beam(sat, meas, n_beam):
     """Cell of the best ``meas`` inside satellite ``sat`` (n_ut,); -1 where none usable."""
     meas = np.asarray(meas, float)
+    if meas.shape[-1] == 0:  # no candidate on any UT's axis (every UT out of coverage)
+        return np.full(len(sat), -1, np.int64)
     rows = meas.reshape(meas.shape[0], -1, n_beam)[np.arange(len(sat)), np.maximum(sat, 0)]
     beam = pick(np.ones(rows.shape, bool), rows)
     return np.where((sat >= 0) & (beam >= 0), np.maximum(sat, 0) * n_beam + beam, -1)

@@ -122,7 +122,9 @@ class TriggerRun:
     def _carry(self, axis):
         """Policy state and filter on ``axis`` (initial at the first epoch)."""
         n_ut = axis.n_ut
-        if self.axis is None:
+        # (an empty last axis, every UT out of coverage, carries nothing; its zero-width
+        # state could not tell a satellite axis from a cell axis)
+        if self.axis is None or self.axis.n_local == 0:
             return self.policy.initial_state(n_ut, axis.n_cand, axis.n_beam), L3State.initial(
                 n_ut, axis.n_cand
             )
