@@ -46,9 +46,13 @@ def test_the_horizon_is_the_largest_of_the_policy_and_its_conditions():
 
 def test_a_trigger_policy_is_driven_by_its_run_not_by_choose():
     entry = POLICIES.build("a3", A3Config())
-    said = r"policy 'a3' keeps per-cell state.*policy\.run\(\.\.\.\) .*, not choose\(\)$"
-    with pytest.raises(TypeError, match=said):
+    said = (
+        "policy 'a3' keeps per-cell state: the simulator drives it through policy.run(...) "
+        "(leolink.sim.handover.trigger_run), not choose()"
+    )
+    with pytest.raises(TypeError) as raised:
         entry.choose(0.0, np.zeros((1, 1, 1)), None)
+    assert str(raised.value) == said
 
 
 @pytest.mark.parametrize(
@@ -111,3 +115,48 @@ def test_the_measurement_period_of_the_build_context_delays_the_trigger():
         run = _run("a3", A3Config(offset_db=2.0), context)
         path = _path(run, snr, _ground(0.0)[None], np.zeros((4, 1, 3)))[:, 0]
         assert list(path) == [0] * first + [1] * (4 - first)
+
+
+def _t1_handover_s(horizon):
+    """The epoch at which T1 through the registry hands the UT from satellite 0 to 1.
+
+    test_service_time.py's scene: one UT, two one-beam satellites 1 s apart in time;
+    satellite 0 (12 dB) serves until t = 10 s, satellite 1 (5 dB) all along. T1 (lead
+    4 s, duration 3 s): Thresh1 = 10 - 4 = 6 s once the end is known. The run looks ahead
+    ``horizon`` epochs from each epoch, so the end at 10 s is known from t = 10 - horizon
+    on: the handover is at the first t > 6 s at which it is known, ``max(7, 10 -
+    horizon)`` (within the window t <= Thresh1 + 3 s = 9 s)."""
+    from leolink.sim.candidates.table import Candidates
+
+    snr = np.full((60, 1, 2), 5.0)
+    snr[:10, 0, 0], snr[10:, 0, 0] = 12.0, -30.0
+
+    def future(t_s):
+        ut, sats = np.full((1, 3), t_s), np.zeros((2, 3))  # the time in the UT's row
+        sats[:, 0] = [0.0, 1.0]  # the satellite's index in its row
+        return ut, sats, sats.copy()
+
+    def evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, **_):
+        k = np.round(ut_pos_m[ut, 0]).astype(int)
+        values = snr[k, 0, sat_pos_m[sat, 0].astype(int)][:, None]  # (m, 1 beam)
+        return SimpleNamespace(visible=np.ones(len(ut), bool), snr_db_bm=lambda ix, iy: values.T)
+
+    engine = SimpleNamespace(n_beam=1, codebook=SimpleNamespace(u_xy=np.zeros((1, 2))),
+                             beam_ix=None, beam_iy=None, evaluate_pairs=evaluate_pairs)  # fmt: skip
+    params = T1Config(duration_s=3.0, lead_s=4.0, horizon_s=horizon)
+    run = POLICIES.build("t1", params, SimpleNamespace(filter=FilterConfig(k=0)))
+    run = run.run(engine, MIN_SNR_DB, R_M, future, 1.0)
+    serving = np.array([-1])
+    for k in range(16):
+        new = run.target(float(k), Candidates.dense(snr[k]), serving, np.zeros((1, 3)), None, None)
+        if serving[0] == 0 and new[0] == 1:
+            return k
+        serving = new
+    return None
+
+
+@pytest.mark.parametrize("horizon,handover_s", [(300.0, 7), (30.0, 7), (2.0, 8), (1.0, 9)])
+def test_the_horizon_epoch_and_future_of_a_t1_policy_reach_its_end_of_service(horizon, handover_s):
+    """The registry's T1 looks ahead with the run's future states, the run's epoch and the
+    config's horizon: a short horizon learns the end of service late (docstring above)."""
+    assert _t1_handover_s(horizon) == handover_s

@@ -38,6 +38,7 @@ detected (:mod:`leolink.sim.handover.trigger_run`), so the candidate search leav
 
 from __future__ import annotations
 
+import functools
 import math
 
 from leolink.sim.handover.config import (
@@ -125,11 +126,12 @@ def entry(name, policy, context=None, horizon=DEFAULT_HORIZON_S):
     return TriggerPolicyEntry(name, policy, l3, horizon, offsets, model, points)
 
 
-def _builder(name):
-    def build(params, context=None):
-        return entry(name, build_policy(params, context), context, horizon_s(params))
+def _build(name, params, context=None):
+    """The registry's builder of policy ``name`` (bound to each name below).
 
-    return build
+    A module-level function bound with :func:`functools.partial`, not a closure made at
+    import: it is looked up when a policy is built, so mutation testing reaches it."""
+    return entry(name, build_policy(params, context), context, horizon_s(params))
 
 
 _DOCS = {
@@ -147,4 +149,4 @@ _DOCS = {
 
 for _name, _config in POLICY_CONFIGS.items():
     if _name not in POLICIES:
-        POLICIES.add(_name, _builder(_name), doc=_DOCS[_name], config=_config)
+        POLICIES.add(_name, functools.partial(_build, _name), doc=_DOCS[_name], config=_config)
