@@ -253,3 +253,120 @@ def test_pruned_tables_are_the_exhaustive_tables_with_re_steered_beams(constella
     (r1, c1, s1, n1), (r2, c2, s2, n2) = out
     assert np.array_equal(r1, r2) and np.array_equal(c1, c2) and np.array_equal(s1, s2)
     assert n1 < 0.2 * n2  # the pruning did prune
+
+
+# -- the steering modes by hand ------------------------------------------------------------
+R_EARTH_M, SAT_R_M = 6_371_000.0, 7_000_000.0
+#: A satellite over the north pole, body frame by hand: x, y along the Earth's x, y and z
+#: up (radial), as :func:`leolink.geometry.body_frame` gives for a velocity along x.
+POLE_AXES = np.eye(3)[None]
+
+
+def _meridian_cells(angles_deg):
+    """Ground cells at Earth central angles ``angles_deg`` from the pole, in the x-z plane."""
+    a = np.radians(angles_deg)
+    return R_EARTH_M * np.stack([np.sin(a), 0 * a, np.cos(a)], -1)
+
+
+@pytest.mark.parametrize("bits", [None, 1, 16])
+def test_phase_bits_from_1_to_16_are_accepted(bits):
+    from leolink.antenna.steering import BodyFixed
+
+    assert BodyFixed(np.zeros((1, 2)), bits).phase_bits == bits
+    assert EarthFixed(_meridian_cells([0.0])[None], 0.0, 1.0, bits).phase_bits == bits
+
+
+@pytest.mark.parametrize("bits", [0, 17])
+@pytest.mark.parametrize("mode", ["body_fixed", "earth_fixed"])
+def test_phase_bits_outside_1_to_16_are_refused_by_the_modes_themselves(bits, mode):
+    """The config's schema bounds them too; a mode built in code checks its own."""
+    from leolink.antenna.steering import BodyFixed
+    from leolink.errors import ConfigError
+
+    said = (
+        f"satellite_array.phase_bits = {bits} is not allowed; use 1 to 16 or leave it out "
+        "(ideal phase shifters)"
+    )
+    with pytest.raises(ConfigError) as raised:
+        if mode == "body_fixed":
+            BodyFixed(np.zeros((1, 2)), bits)
+        else:
+            EarthFixed(_meridian_cells([0.0])[None], 0.0, 1.0, bits)
+    assert str(raised.value) == said
+
+
+def test_steered_cosines_are_the_x_and_y_cosines_of_each_cell():
+    """Cells 0 and 30 deg from the pole, seen from 7,000 km: nadir (0, 0) and, by the law
+    of sines, x = sin(nadir angle), y = 0; two components per beam."""
+    sat = np.array([[0.0, 0.0, SAT_R_M]])
+    cells = _meridian_cells([0.0, 30.0])[None]
+    v, _, _ = steered_cosines(cells, sat, POLE_AXES)
+    rho = np.hypot(R_EARTH_M * 0.5, SAT_R_M - R_EARTH_M * np.cos(np.radians(30.0)))
+    assert v.shape == (1, 2, 2)
+    np.testing.assert_allclose(v[0], [[0.0, 0.0], [R_EARTH_M * 0.5 / rho, 0.0]], atol=1e-15)
+
+
+def test_a_cell_exactly_at_the_mask_or_the_field_of_regard_keeps_its_beam_on():
+    """The nadir cell is seen at exactly 90 deg elevation and 0 deg off nadir (unit vectors
+    along z, exact in floats): a 90 deg mask or a 0 deg field of regard keeps it on (the
+    limits are inclusive), a 1 deg off-nadir cell is then off."""
+    sat = np.array([[0.0, 0.0, SAT_R_M]])
+    cells = _meridian_cells([0.0, 1.0])[None]
+    _, on = EarthFixed(cells, np.pi / 2, np.pi / 2).beam_cosines(sat, POLE_AXES, np.array([0]))
+    assert on.tolist() == [[True, False]]
+    _, on = EarthFixed(cells, -np.pi / 2, 0.0).beam_cosines(sat, POLE_AXES, np.array([0]))
+    assert on.tolist() == [[True, False]]
+
+
+def test_cells_per_satellite_follow_the_satellite_id_and_one_row_serves_every_id():
+    """Two satellites at the same place over the pole. Per-satellite cells: satellite 1's
+    row (cells 80 deg away: below the horizon) is off, satellite 0's (the nadir) on,
+    whichever row of the call holds which id. One row of cells: shared by ids 0 and 7."""
+    sat, axes = np.array([[0.0, 0.0, SAT_R_M]] * 2), np.repeat(POLE_AXES, 2, 0)
+    near, far = _meridian_cells([0.0, 0.5]), _meridian_cells([80.0, 80.5])
+    steer = EarthFixed(np.stack([near, far]), 0.0, np.pi / 2)
+    _, on = steer.beam_cosines(sat, axes, np.array([1, 0]))
+    assert on.tolist() == [[False, False], [True, True]]
+    v, on = EarthFixed(near[None], 0.0, np.pi / 2).beam_cosines(sat, axes, np.array([0, 7]))
+    assert on.all()
+    np.testing.assert_array_equal(v[0], v[1])
+
+
+def test_the_array_factor_is_exact_beyond_two_chunks():
+    """600 directions (more than twice the 256-pair chunk): every one is its Dirichlet
+    closed form, none left unwritten."""
+    from leolink.antenna.steering import _AF_CHUNK
+
+    rng = np.random.default_rng(11)
+    u, v = _random_beams(rng, 600, 2)
+    assert len(u) > 2 * _AF_CHUNK
+    direct = quantized_gain_lin(u, v, 4, 6, None)
+    closed = ula_gain(u[None, :, 0] - v[..., 0].T, 4) * ula_gain(u[None, :, 1] - v[..., 1].T, 6)
+    np.testing.assert_allclose(direct, closed, rtol=CLOSED_FORM_REL, atol=1e-9)
+
+
+def test_earth_fixed_cells_are_the_footprint_at_the_configured_reference_instant():
+    """``reference_time_s = 30``: the cells are where the codebook beams meet the ground
+    at t = 30 s (not the run's middle, 60 s): the direction cosines of the cells from the
+    satellite at 30 s are the codebook's."""
+    scen = build_scenario(
+        load_config(PAPER, [*EARTH_FIXED, "satellite_array.earth_fixed.reference_time_s=30"])
+    )
+    cells, cb = scen.engine.steering.cells_m, scen.engine.codebook
+    pos, vel, _ = scen.ephemeris(np.array([30.0]))
+    np.testing.assert_allclose(direction_cosines(pos[0, 0], vel[0, 0], cells[0]), cb.u_xy,
+                               atol=1e-9)  # fmt: skip
+
+
+def test_earth_fixed_beams_with_phase_bits_lose_gain_at_their_cells():
+    """3-bit phases on re-steered beams: at its own cell a beam's gain is at most the ideal
+    12 x 24 = 288, and on average the rounding's loss (~0.22 dB, Mailloux) below it (the
+    centre beam, at direction (0, 0), has exact phases: no loss)."""
+    scen = build_scenario(load_config(PAPER, [*EARTH_FIXED, "satellite_array.phase_bits=3"]))
+    eng = scen.engine
+    pos, vel, _ = scen.ephemeris(np.array([60.0]))
+    cells = eng.steering.cells_m[0]
+    gain = eng.evaluate(cells, pos[0], vel[0]).gain_tx_lin[:, 0, :]  # (n_cell, n_beam)
+    own = gain[np.arange(len(cells)), np.arange(len(cells))]
+    loss_db = 10 * np.log10(288 / own)
+    assert (loss_db > -1e-9).all() and 0.1 < loss_db.mean() < 0.5

@@ -160,3 +160,19 @@ def test_the_horizon_epoch_and_future_of_a_t1_policy_reach_its_end_of_service(ho
     """The registry's T1 looks ahead with the run's future states, the run's epoch and the
     config's horizon: a short horizon learns the end of service late (docstring above)."""
     assert _t1_handover_s(horizon) == handover_s
+
+
+def test_the_build_context_reaches_the_policy_build():
+    """Through the registry: the context's level (``cells.per = "satellite"``) is the
+    level of a policy whose config gives none, and D1 on reference points is refused
+    when the context has none (a config without a context builds)."""
+    from leolink.errors import ConfigError
+
+    assert POLICIES.build("a3", A3Config()).level == "cell"  # A3's own default
+    assert POLICIES.build("a3", A3Config(), SimpleNamespace(level="satellite")).level == (
+        "satellite"
+    )
+    params = D1Config(threshold1_m=1e6, threshold2_m=5e5, reference="points")
+    POLICIES.build("d1", params)
+    with pytest.raises(ConfigError, match=r"controller\.d1\.reference = 'points'"):
+        POLICIES.build("d1", params, SimpleNamespace(reference_points=()))
