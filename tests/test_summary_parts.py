@@ -1,0 +1,260 @@
+"""The parts of summary.json by hand: the environment blocks, the per-UT records, the
+streamed dB statistics (leolink.io.summary.environment, .records, .stats).
+
+Every expectation is counted or divided by hand from the small inputs written here.
+"""
+
+import warnings
+from types import SimpleNamespace
+
+import numpy as np
+
+from leolink.io.summary.environment import by_environment, with_environment
+from leolink.io.summary.records import handover_counts, nanmax, per_ut_records
+from leolink.io.summary.stats import DbStats, grouped_percentiles, running_sum
+from leolink.sim.handover.events import EVENT_KINDS
+
+
+# -- environment ----------------------------------------------------------------------------
+def _acc(environment=("urban", "rural", "urban", "sea")):
+    """Four UTs, 2 s epochs; the sea UT was never recorded (every count 0)."""
+    return SimpleNamespace(
+        environment=environment,
+        epoch_s=2.0,
+        n_epochs=np.array([10, 4, 6, 0]),
+        n_outage=np.array([3, 1, 2, 0]),
+        n_no_satellite=np.array([1, 0, 1, 0]),
+        n_below_threshold=np.array([1, 1, 0, 0]),
+        n_blocked=np.array([1, 0, 1, 0]),
+        interrupted_s=np.array([2.0, 0.0, 1.0, 0.0]),
+        n_los=np.array([5, 2, 3, 0]),
+        n_link=np.array([8, 4, 5, 0]),
+    )
+
+
+COUNTS = {
+    "beam_handover": np.array([2, 1, 0, 0]),
+    "sat_handover": np.array([1, 0, 3, 0]),
+    "rlf": np.array([0, 1, 1, 0]),
+}
+
+
+def test_by_environment_pools_the_uts_of_each_environment():
+    """Urban: UTs 0 and 2, 16 epochs = 32 UT-s; rural: UT 1, 4 epochs = 8 UT-s; sea: no
+    epoch, so no fraction. Environments in the order they first appear."""
+    out = by_environment(_acc().environment, _acc(), COUNTS)
+    assert list(out) == ["urban", "rural", "sea"]
+    assert out["urban"] == {
+        "n_ut": 2,
+        "n_ut_epochs": 16,
+        "outage_fraction": 5 / 16,
+        "outage_fraction_by_reason": {
+            "no_satellite": 2 / 16,
+            "below_threshold": 1 / 16,
+            "blocked": 2 / 16,
+            "handover": 3.0 / 32,
+        },
+        "handovers": {"beam_handover": 2, "sat_handover": 4, "rlf": 1, "handovers_total": 6},
+        "handovers_per_ut_hour": 6 * 3600 / 32,
+        "los_fraction": 8 / 13,
+    }
+    assert out["rural"] == {
+        "n_ut": 1,
+        "n_ut_epochs": 4,
+        "outage_fraction": 1 / 4,
+        "outage_fraction_by_reason": {
+            "no_satellite": 0.0,
+            "below_threshold": 1 / 4,
+            "blocked": 0.0,
+            "handover": 0.0,
+        },
+        "handovers": {"beam_handover": 1, "sat_handover": 0, "rlf": 1, "handovers_total": 1},
+        "handovers_per_ut_hour": 3600 / 8,
+        "los_fraction": 2 / 4,
+    }
+    sea = out["sea"]
+    assert (sea["n_ut"], sea["n_ut_epochs"], sea["handovers"]["handovers_total"]) == (1, 0, 0)
+    fractions = [sea["outage_fraction"], sea["handovers_per_ut_hour"], sea["los_fraction"]]
+    assert fractions + list(sea["outage_fraction_by_reason"].values()) == [None] * 7
+
+
+def test_with_environment_adds_the_blocked_fractions_and_the_environment_block():
+    acc = _acc()
+    per_ut = [{"outage_fraction_by_reason": {"no_satellite": 0.1}} for _ in range(4)]
+    out = {"overall": {"outage_fraction_by_reason": {"no_satellite": 0.1}}, "per_ut": per_ut}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the 0 / 0 of the unrecorded UT is NaN, silently
+        got = with_environment(acc, out, COUNTS)
+    assert got is out
+    assert out["overall"]["outage_fraction_by_reason"] == {"no_satellite": 0.1, "blocked": 2 / 20}
+    blocked = [row["outage_fraction_by_reason"]["blocked"] for row in per_ut]
+    assert blocked[:3] == [1 / 10, 0.0, 1 / 6] and np.isnan(blocked[3])  # 0 / 0 epochs
+    assert out["overall"]["by_environment"] == by_environment(acc.environment, acc, COUNTS)
+    assert list(out["overall"]["by_environment"]) == ["urban", "rural", "sea"]
+
+
+def test_with_environment_without_per_ut_rows_or_epochs():
+    """Beyond 1,000 UTs there are no per-UT rows; a run with no recorded epoch has no
+    blocked fraction."""
+    acc = _acc(("urban",) * 4)
+    acc.n_epochs = np.zeros(4, np.int64)
+    out = with_environment(acc, {"overall": {"outage_fraction_by_reason": {}}}, COUNTS)
+    assert out["overall"]["outage_fraction_by_reason"] == {"blocked": None}
+    assert list(out["overall"]["by_environment"]) == ["urban"]
+
+
+def test_without_environments_the_summary_is_left_as_it_was():
+    out = {"overall": {"outage_fraction_by_reason": {"no_satellite": 0.5}}}
+    got = with_environment(_acc(()), out, COUNTS)
+    assert got is out and out == {"overall": {"outage_fraction_by_reason": {"no_satellite": 0.5}}}
+
+
+# -- records ----------------------------------------------------------------------------------
+def _dwells():
+    """UT 0: a censored start, then two complete dwells (7 s, 8 s); UT 1: one complete
+    (7 s), then a censored end; UT 2: none."""
+    rows = [  # ut, sat, beam, start, end, censored start, censored end
+        (0, 3, 1, 0.0, 5.0, True, False),
+        (0, 3, 2, 5.0, 12.0, False, False),
+        (0, 4, 0, 12.0, 20.0, False, False),
+        (1, 7, 5, 2.0, 9.0, False, False),
+        (1, 8, 1, 9.0, 20.0, False, True),
+    ]
+    cols = list(zip(*rows, strict=True))
+    names = ("ut_id", "sat_id", "beam_id", "start_s", "end_s", "censored_start", "censored_end")
+    d = {k: np.array(c) for k, c in zip(names, cols, strict=True)}
+    d["duration_s"] = d["end_s"] - d["start_s"]
+    return d, ~(d["censored_start"] | d["censored_end"])
+
+
+def _table():
+    """Three UTs' columns, each value distinct (UT i, column j: 100 j + i, or by hand)."""
+    names = [
+        "n_dwell_complete", "dwell_mean_s", "dwell_median_s", "outage_fraction",
+        "outage_fraction_no_satellite", "outage_fraction_below_threshold",
+        "handover_interruption_fraction", "outage_fraction_rlf", "mean_throughput_bps",
+        "max_abs_doppler_hz", "max_angular_speed_deg_s",
+        *(f"{s}_{k}_db" for s in ("snr", "sinr") for k in ("mean", "p5", "p50", "p95")),
+        *(f"n_{k}" for k in EVENT_KINDS),
+    ]  # fmt: skip
+    table = {"ut_id": np.arange(3), "n_epochs": np.array([20, 18, 0])}
+    table.update({k: 100.0 * j + np.arange(3) for j, k in enumerate(names, start=1)})
+    return table
+
+
+def test_per_ut_records_lay_out_each_uts_columns_and_dwells():
+    d, complete = _dwells()
+    table = _table()
+    link, kpi = [{"link": i} for i in range(3)], [{"kpi": i} for i in range(3)]
+    out = per_ut_records(table, d, complete, link, kpi)
+    assert len(out) == 3
+    t = {k: v[1] for k, v in table.items()}  # UT 1's row
+    # the complete dwells' durations stay an array (to_jsonable converts the summary)
+    complete_s = [r["dwell"].pop("complete_s").tolist() for r in out]
+    assert complete_s == [[7.0, 8.0], [7.0], []]
+    kinds = {k: int(t[f"n_{k}"]) for k in EVENT_KINDS}
+    assert out[1] == {
+        "ut_id": 1,
+        "n_epochs": 18,
+        "handovers": {**kinds, "handovers_total": kinds["beam_handover"] + kinds["sat_handover"]},
+        "dwell": {
+            "n_complete": t["n_dwell_complete"],
+            "mean_s": t["dwell_mean_s"],
+            "median_s": t["dwell_median_s"],
+            "censored": [
+                {
+                    "sat_id": 8,
+                    "beam_id": 1,
+                    "start_s": 9.0,
+                    "end_s": 20.0,
+                    "duration_s": 11.0,
+                    "censored_start": False,
+                    "censored_end": True,
+                },
+            ],  # fmt: skip
+        },
+        "outage_fraction": t["outage_fraction"],
+        "outage_fraction_by_reason": {
+            "no_satellite": t["outage_fraction_no_satellite"],
+            "below_threshold": t["outage_fraction_below_threshold"],
+            "handover": t["handover_interruption_fraction"],
+            "rlf": t["outage_fraction_rlf"],
+        },
+        "handover_interruption_fraction": t["handover_interruption_fraction"],
+        "snr_db": {k: t[f"snr_{k}_db"] for k in ("mean", "p5", "p50", "p95")},
+        "sinr_db": {k: t[f"sinr_{k}_db"] for k in ("mean", "p5", "p50", "p95")},
+        "mean_throughput_bps": t["mean_throughput_bps"],
+        "max_abs_doppler_hz": t["max_abs_doppler_hz"],
+        "max_angular_speed_deg_s": t["max_angular_speed_deg_s"],
+        "link": {"link": 1},
+        "kpi": {"kpi": 1},
+    }
+    assert out[0]["dwell"]["censored"] == [
+        {"sat_id": 3, "beam_id": 1, "start_s": 0.0, "end_s": 5.0, "duration_s": 5.0,
+         "censored_start": True, "censored_end": False},
+    ]  # fmt: skip
+    assert out[2]["dwell"]["censored"] == []
+    assert [r["ut_id"] for r in out] == [0, 1, 2] and out[2]["n_epochs"] == 0
+    # The values are Python's (JSON-ready), not numpy scalars.
+    assert type(out[1]["n_epochs"]) is int and type(out[1]["outage_fraction"]) is float
+
+
+def test_per_ut_records_without_link_or_kpi_blocks():
+    d, complete = _dwells()
+    out = per_ut_records(_table(), d, complete)
+    assert all("link" not in r and "kpi" not in r for r in out)
+
+
+def test_handover_counts_total_beam_and_satellite_handovers_only():
+    got = handover_counts({"beam_handover": np.int64(2), "sat_handover": 3, "rlf": 4.0})
+    assert got == {"beam_handover": 2, "sat_handover": 3, "rlf": 4, "handovers_total": 5}
+    assert all(type(v) is int for v in got.values())
+
+
+def test_nanmax_ignores_nan_and_is_none_without_a_finite_value():
+    assert nanmax(np.array([np.nan, 3.0, -5.0])) == 3.0
+    assert type(nanmax(np.array([np.nan, 3.0]))) is float
+    assert nanmax(np.array([np.nan, np.nan])) is None
+    assert nanmax(np.zeros(0)) is None
+
+
+# -- streamed statistics ----------------------------------------------------------------------
+def test_running_sum_adds_each_groups_values_one_by_one_in_order():
+    """1e16 + 1 rounds back to 1e16 (ties to even, spacing 2): added one by one, two 1s
+    leave 1e16; added together first they would make 1e16 + 2."""
+    got = running_sum(
+        np.array([1e16, 2.0, 3.0]), np.array([0, 2, 0, 2]), np.array([1.0, 10.0, 1.0, 30.0])
+    )
+    assert got.tolist() == [1e16, 2.0, 43.0]
+
+
+def test_db_stats_per_ut_and_overall_statistics():
+    """UT 0: 1, 2, 3 dB; UT 1: 10 dB (its NaN and inf skipped); UT 2: nothing. numpy's
+    linear percentiles of 1, 2, 3: p5 1.1, p50 2, p95 2.9; the histograms' within half a
+    bin (0.1 dB per UT, 0.01 dB pooled)."""
+    stats = DbStats(3)
+    stats.add(np.array([0, 1, 0]), np.array([1.0, np.nan, 2.0]))
+    stats.add(np.array([1, 0, 1]), np.array([10.0, 3.0, np.inf]))
+    assert stats.count.tolist() == [3, 1, 0]
+    per_ut = stats.per_ut_stats()
+    assert per_ut.shape == (3, 4)
+    np.testing.assert_allclose(per_ut[0], [2.0, 1.1, 2.0, 2.9], atol=0.05)
+    np.testing.assert_allclose(per_ut[1], [10.0] * 4, atol=0.05)
+    assert np.isnan(per_ut[2]).all()
+    overall = stats.overall()
+    assert list(overall) == ["mean", "p5", "p50", "p95"]
+    assert overall["mean"] == 16.0 / 4
+    pooled = np.percentile([1.0, 2.0, 3.0, 10.0], [5, 50, 95])
+    np.testing.assert_allclose([overall[k] for k in ("p5", "p50", "p95")], pooled, atol=0.005)
+
+
+def test_db_stats_without_values_have_no_overall_statistics():
+    stats = DbStats(2)
+    stats.add(np.array([0, 1]), np.array([np.nan, -np.inf]))
+    assert stats.overall() == {"mean": None, "p5": None, "p50": None, "p95": None}
+    assert np.isnan(stats.per_ut_stats()).all()
+
+
+def test_grouped_percentiles_of_no_values_are_nan():
+    out = grouped_percentiles(np.zeros(0, np.int64), np.zeros(0), 3, [50.0, 95.0])
+    assert out.shape == (3, 2) and np.isnan(out).all()
