@@ -8,6 +8,7 @@ import warnings
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from leolink.io.summary.environment import by_environment, with_environment
 from leolink.io.summary.records import handover_counts, nanmax, per_ut_records
@@ -258,3 +259,77 @@ def test_db_stats_without_values_have_no_overall_statistics():
 def test_grouped_percentiles_of_no_values_are_nan():
     out = grouped_percentiles(np.zeros(0, np.int64), np.zeros(0), 3, [50.0, 95.0])
     assert out.shape == (3, 2) and np.isnan(out).all()
+
+
+# -- latitude bands ---------------------------------------------------------------------------
+def test_band_of_puts_an_edge_in_the_band_above_and_90_deg_in_the_last():
+    from leolink.io.summary.bands import band_of
+
+    lat = [-95.0, -90.0, -80.0001, -80.0, -0.1, 0.0, 89.9, 90.0, 95.0]
+    assert band_of(lat).tolist() == [0, 0, 0, 1, 8, 9, 17, 17, 17]
+
+
+def _bands():
+    """Four UTs, 2 s epochs. Frame 1 (t = 0): UTs 0-2 at -85, 5, 5 deg (bands 0, 9, 9);
+    frame 2: UT 0 at -75 deg (band 1) at t = 2 s, UT 1 at 15 deg (band 10) at t = 2 s and
+    25 deg (band 11) at t = 3 s; UT 3 has no row."""
+    from leolink.io.summary.bands import LatitudeBands
+
+    bands = LatitudeBands(4, 2.0)
+    rows = bands.note_rows(np.zeros(3), np.array([0, 1, 2]), np.array([-85.0, 5.0, 5.0]))
+    assert rows.tolist() == [0, 9, 9]
+    bands.fold(rows, np.array([False, True, False]), np.array([np.nan, 3.0, 4.0]))
+    rows = bands.note_rows(np.array([2.0, 2.0, 3.0]), np.array([0, 1, 1]),
+                           np.array([-75.0, 15.0, 25.0]))  # fmt: skip
+    bands.fold(rows, np.array([False, True, False]), np.array([5.0, 7.0, -2.0]))
+    return bands
+
+
+def test_handovers_count_in_the_band_of_their_ut_at_their_epoch():
+    """Found in the latest frame (UT 0 at 2 s: band 1; UT 1 at 2 s, within 1 us: band 10);
+    else the UT's latest row (UT 0 at 3 s: band 1; UT 1 at 0 s and 5 s: band 11, its row
+    at 3 s; UT 2, not in the frame: band 9); UT 3, without rows, nowhere; not handovers
+    (outage_start) nowhere."""
+    bands = _bands()
+    bands.add_events(np.array([3.0]), np.array([1]), np.array(["outage_start"]))
+    assert bands.n_handover.sum() == 0
+    time_s = [2.0, 3.0, 2.0000005, 0.0, 5.0, 2.0, 2.0, 3.0]
+    ut = [0, 0, 1, 1, 1, 2, 3, 1]
+    kind = ["sat_handover", "beam_handover", "beam_handover", "sat_handover", "beam_handover",
+            "beam_handover", "sat_handover", "outage_start"]  # fmt: skip
+    bands.add_events(np.array(time_s), np.array(ut), np.array(kind))
+    assert {b: int(n) for b, n in enumerate(bands.n_handover) if n} == {1: 2, 9: 1, 10: 1, 11: 2}
+
+
+def test_handovers_before_any_row_count_nowhere():
+    from leolink.io.summary.bands import LatitudeBands
+
+    bands = LatitudeBands(2, 1.0)
+    bands.add_events(np.array([0.0]), np.array([1]), np.array(["sat_handover"]))
+    assert bands.n_handover.sum() == 0 and bands.summary() == []
+
+
+def test_the_bands_summary_by_hand():
+    """UT-minutes = UT-epochs x 2 s / 60; rate = handovers / UT-minutes; band 0 has no
+    finite SINR (None), band 9 the mean of 3 and 4 dB."""
+    bands = _bands()
+    time_s, ut = np.array([2.0, 3.0, 2.0, 0.0, 5.0, 2.0]), np.array([0, 0, 1, 1, 1, 2])
+    bands.add_events(time_s, ut, np.array(["beam_handover"] * 6))
+    got = bands.summary()
+    # band, UT-epochs, handovers, outage fraction, SINR mean
+    want = [(0, 1, 0, 0.0, None), (1, 1, 2, 0.0, 5.0), (9, 2, 1, 0.5, 3.5),
+            (10, 1, 1, 1.0, 7.0), (11, 1, 2, 0.0, -2.0)]  # fmt: skip
+    assert len(got) == len(want)
+    for row, (b, n, n_ho, outage, sinr) in zip(got, want, strict=True):
+        minutes = n * 2.0 / 60.0
+        assert row == {
+            "lat_min_deg": -90.0 + 10.0 * b,
+            "lat_max_deg": -80.0 + 10.0 * b,
+            "n_ut_epochs": n,
+            "ut_minutes": pytest.approx(minutes, rel=1e-15),
+            "n_handovers": n_ho,
+            "handover_rate_per_ut_min": pytest.approx(n_ho / minutes, rel=1e-15),
+            "outage_fraction": outage,
+            "sinr_mean_db": sinr,
+        }
+        assert type(row["n_ut_epochs"]) is int and type(row["ut_minutes"]) is float

@@ -27,6 +27,8 @@ __all__ = ["BAND_DEG", "LatitudeBands", "band_of"]
 #: Width of a latitude band [deg].
 BAND_DEG = 10.0
 _N_BAND = int(round(180.0 / BAND_DEG))
+#: An event's epoch matches a row's within this [s] (both from the same epoch times).
+_TIME_TOL_S = 1e-6
 
 
 def band_of(lat_deg):
@@ -85,8 +87,9 @@ class LatitudeBands:
         band = self._last[u]
         if self._frame is not None:
             times, at = self._frame
-            k = np.clip(np.searchsorted(times, t), 0, times.size - 1)
-            hit = np.isclose(times[k], t, rtol=0.0, atol=1e-6)
+            # the first frame time not below t - tol: a time just above t matches too
+            k = np.clip(np.searchsorted(times, t - _TIME_TOL_S), 0, times.size - 1)
+            hit = np.isclose(times[k], t, rtol=0.0, atol=_TIME_TOL_S)
             found = np.where(hit, at[k, u], -1)
             band = np.where(found >= 0, found, band)
         self.n_handover += np.bincount(band[band >= 0], minlength=_N_BAND)
