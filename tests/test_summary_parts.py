@@ -333,3 +333,83 @@ def test_the_bands_summary_by_hand():
             "sinr_mean_db": sinr,
         }
         assert type(row["n_ut_epochs"]) is int and type(row["ut_minutes"]) is float
+
+
+# -- link figures -----------------------------------------------------------------------------
+def _link_stats():
+    """Four UTs, 2 s epochs; UT 3 never fed. Rows (UT, service, MODCOD, margin dB, gap s,
+    Shannon b/s): (0, served, QPSK 1/4, 1, 0, 1e6), (0, handover, none, -2, 0.5, NaN),
+    (1, outage, code 3, NaN, NaN, 0), (2, served, QPSK 1/3, 3, NaN, 2e6); then by name,
+    no margin: (1, served, QPSK 1/3, 0.5, 4e6), (1, served, "bogus" = none, 0.5, 5e6)."""
+    from leolink.io.summary.link import LinkStats
+
+    stats = LinkStats(4, DbStats, epoch_s=2.0)
+    columns = {
+        "margin_db": np.array([1.0, -2.0, np.nan, 3.0]),
+        "modcod": np.array([0, -1, 3, 1]),
+        "throughput_shannon_bps": np.array([1e6, np.nan, 0.0, 2e6]),
+    }
+    gap = np.array([0.0, 0.5, np.nan, np.nan])
+    stats.add(columns, np.array([0, 0, 1, 2]), np.array([0, 1, 2, 0]), gap)
+    columns = {"modcod": np.array(["QPSK 1/3", "bogus"]),
+               "throughput_shannon_bps": np.array([4e6, 5e6])}  # fmt: skip
+    stats.add(columns, np.array([1, 1]), np.array([0, 0]), 0.5)
+    return stats
+
+
+def test_link_blocks_overall_by_hand():
+    """Margins 1, -2, 3 dB: mean 2/3, one of three negative. Served rows (not outage):
+    QPSK 1/4 once, QPSK 1/3 twice, none twice. Served time 2 + 1.5 + 2 + 1.5 + 1.5 =
+    8.5 UT-s, 3 of it without a MODCOD. Shannon 12 Mb/s over 7 UT-epochs."""
+    overall, per_ut = _link_stats().summary(np.array([2, 3, 1, 1]), per_ut=False)
+    assert per_ut is None
+    margin = overall["margin_db"]
+    assert margin["mean"] == pytest.approx(2.0 / 3.0, rel=1e-15)
+    assert margin["p50"] == pytest.approx(1.0, abs=0.005)
+    assert margin["fraction_negative"] == 1 / 3
+    usage = overall["modcod_usage"]
+    assert list(usage) == ["QPSK 1/4", "QPSK 1/3", "none"]  # the table's order
+    assert usage == {"QPSK 1/4": 0.2, "QPSK 1/3": 0.4, "none": 0.4}
+    assert overall["served_without_modcod"] == {"fraction": 3.0 / 8.5, "ut_s": 3.0}
+    assert overall["mean_throughput_bps"] == {"shannon": 12e6 / 7, "dvbs2x": None}
+
+
+def test_link_blocks_per_ut_by_hand():
+    _, per_ut = _link_stats().summary(np.array([2, 3, 1, 1]))
+    assert len(per_ut) == 4
+    ut0, ut1, ut2, ut3 = per_ut
+    assert ut0["margin_db"]["mean"] == -0.5 and ut0["margin_db"]["fraction_negative"] == 0.5
+    assert ut0["margin_db"]["p50"] == pytest.approx(-0.5, abs=0.05 + 1e-9)  # half a bin
+    assert ut0["modcod_usage"] == {"QPSK 1/4": 0.5, "none": 0.5}
+    assert ut0["served_without_modcod"] == {"fraction": 1.5 / 3.5, "ut_s": 1.5}
+    assert ut0["mean_throughput_bps"] == {"shannon": 1e6 / 2, "dvbs2x": None}
+    assert np.isnan(ut1["margin_db"]["mean"]) and np.isnan(ut1["margin_db"]["fraction_negative"])
+    assert ut1["modcod_usage"] == {"QPSK 1/3": 0.5, "none": 0.5}
+    assert ut1["served_without_modcod"] == {"fraction": 0.5, "ut_s": 1.5}
+    assert ut1["mean_throughput_bps"]["shannon"] == 9e6 / 3
+    assert ut2["margin_db"]["mean"] == 3.0 and ut2["margin_db"]["fraction_negative"] == 0.0
+    assert ut2["modcod_usage"] == {"QPSK 1/3": 1.0}
+    assert ut2["served_without_modcod"] == {"fraction": 0.0, "ut_s": 0.0}
+    assert ut2["mean_throughput_bps"]["shannon"] == 2e6
+    assert ut3["modcod_usage"] == {} and ut3["mean_throughput_bps"]["shannon"] == 0.0
+    assert ut3["served_without_modcod"] == {"fraction": None, "ut_s": 0.0}
+    assert set(ut3) == {"margin_db", "modcod_usage", "served_without_modcod",
+                        "mean_throughput_bps"}  # fmt: skip
+    assert list(ut3["margin_db"]) == ["mean", "p5", "p50", "p95", "fraction_negative"]
+
+
+def test_link_blocks_of_nothing():
+    """No rows: no fraction, no usage, no throughput (not seen); seen but no epoch: None."""
+    from leolink.io.summary.link import LinkStats
+
+    stats = LinkStats(2, DbStats)
+    overall, _ = stats.summary(np.zeros(2, np.int64))
+    assert overall["margin_db"]["fraction_negative"] is None and overall["modcod_usage"] == {}
+    assert overall["served_without_modcod"] == {"fraction": None, "ut_s": 0.0}
+    assert overall["mean_throughput_bps"] == {"shannon": None, "dvbs2x": None}
+    stats.add({"throughput_dvbs2x_bps": np.array([1e6])}, np.array([0]), np.array([0]))
+    overall, per_ut = stats.summary(np.zeros(2, np.int64))
+    assert overall["mean_throughput_bps"] == {"shannon": None, "dvbs2x": None}
+    overall, per_ut = stats.summary(np.array([4, 1]))
+    assert overall["mean_throughput_bps"] == {"shannon": None, "dvbs2x": 1e6 / 5}
+    assert per_ut[0]["mean_throughput_bps"] == {"shannon": None, "dvbs2x": 1e6 / 4}

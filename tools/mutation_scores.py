@@ -187,8 +187,8 @@ MODULES = {
         "tests/test_summary_of_a_run.py",
     ],
     "io/summary/environment": ["tests/test_summary_parts.py"],
-    "io/summary/bands": ["tests/test_geography_outputs.py"],
-    "io/summary/link": ["tests/test_block_frame_contracts.py", "tests/test_link_figures_in_run.py"],
+    "io/summary/bands": ["tests/test_summary_parts.py", "tests/test_geography_outputs.py"],
+    "io/summary/link": ["tests/test_summary_parts.py", "tests/test_block_frame_contracts.py"],
     "io/summary/kpi": ["tests/test_handover_wiring.py"],
     # Issue 45: the physics modules added or changed in the round before it.
     "geodesy": ["tests/test_geodesy.py", "tests/test_visibility.py"],
