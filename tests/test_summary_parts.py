@@ -413,3 +413,114 @@ def test_link_blocks_of_nothing():
     overall, per_ut = stats.summary(np.array([4, 1]))
     assert overall["mean_throughput_bps"] == {"shannon": None, "dvbs2x": 1e6 / 5}
     assert per_ut[0]["mean_throughput_bps"] == {"shannon": None, "dvbs2x": 1e6 / 4}
+
+
+# -- handover KPIs ----------------------------------------------------------------------------
+def _kpi(beam_switch_s=None):
+    """Three UTs. UT 0: beam 0 -> 1 at 10 s and back at 12 s (a ping-pong, within 5 s);
+    UT 1: a satellite handover at 20 s, two beam switches, an RLF at 40 s; UT 2: a
+    handover failure at 50 s. SINR samples 1 and 3 dB served, two unserved."""
+    from leolink.io.summary.kpi import KpiAccumulator
+
+    acc = KpiAccumulator(3, ping_pong_s=5.0, mro_window_s=2.0, beam_switch_s=beam_switch_s)
+    acc.add_trace({"sinr_db": [1.0, np.nan], "throughput_bps": [1e6, 0.0]})
+    acc.add_trace({"sinr_db": [3.0, np.nan], "throughput_bps": [2e6, np.nan]})
+    rows = [  # time, ut, kind, from (sat, beam), to (sat, beam)
+        (10.0, 0, "beam_handover", 1, 0, 1, 1),
+        (12.0, 0, "beam_handover", 1, 1, 1, 0),
+        (20.0, 1, "sat_handover", 2, 0, 3, 0),
+        (30.0, 1, "beam_switch", 3, 0, 3, 1),
+        (31.0, 1, "beam_switch", 3, 1, 3, 2),
+        (40.0, 1, "rlf", 3, 2, -1, -1),
+        (50.0, 2, "handover_failure", 4, 0, 5, 0),
+    ]
+    cols = list(zip(*rows, strict=True))
+    names = ("time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat", "to_beam")
+    events = {k: np.array(c) for k, c in zip(names, cols, strict=True)}
+    acc.add_events({k: v[:3] for k, v in events.items()})
+    acc.add_events({k: v[3:5] for k, v in events.items()})  # beam switches alone: none kept
+    acc.add_events({k: v[5:] for k, v in events.items()})
+    return acc
+
+
+def _dwells_none(n_ut):
+    from leolink.io.summary.accumulator import SummaryAccumulator
+
+    return SummaryAccumulator(n_ut).dwell_table()
+
+
+def test_kpi_accumulator_keeps_the_serving_changes_and_counts_beam_switches():
+    acc = _kpi()
+    ev = acc.events()
+    assert ev["kind"].tolist() == ["beam_handover", "beam_handover", "sat_handover", "rlf",
+                                   "handover_failure"]  # fmt: skip
+    assert ev["time_s"].tolist() == [10.0, 12.0, 20.0, 40.0, 50.0]
+    assert ev["to_beam"].tolist() == [1, 0, 0, -1, 0]
+    assert acc.n_beam_switch.tolist() == [0, 2, 0]
+    assert (acc.n_samples, acc.n_unserved) == (4, 2)
+
+
+def test_kpi_summary_by_hand():
+    """Observed 60, 120, 30 s = 1, 2, 0.5 UT-min: rates 2, 0.5, 0 per UT-min. Three
+    handovers share 3 s of interruption: 1 s each. Half the samples unserved; the served
+    SINRs' median 2 dB (within half a 0.01 dB bin)."""
+    acc = _kpi()
+    interruption = {"handover": 3.0, "rlf": 2.0, "outage": 1.0}
+    overall, per_ut = acc.summary(_dwells_none(3), np.array([60.0, 120.0, 30.0]), interruption)
+    assert overall["interruption_s"] == interruption
+    assert overall["interruption_per_handover_s"] == 1.0
+    assert overall["unserved_fraction"] == 0.5
+    assert overall["sinr_db_percentiles_served"]["p50"] == pytest.approx(2.0, abs=0.005 + 1e-9)
+    # All samples, unserved as -inf dB and 0 b/s: sorted -inf, -inf, 1, 3 dB and 0, 0, 1, 2
+    # Mb/s; linear p95 at position 2.85: 2.7 dB; p99 at 2.97: 1.97 Mb/s (half a bin).
+    assert overall["sinr_db_percentiles"]["p5"] == -np.inf
+    assert overall["sinr_db_percentiles"]["p95"] == pytest.approx(2.7, abs=0.005 + 1e-9)
+    assert overall["throughput_bps_percentiles"]["p99"] == pytest.approx(1.97e6, abs=5e4 + 1)
+    assert overall["rlf_count"] == 1 and overall["ping_pong_count"] == 1
+    assert "beam_switch_count" not in overall
+    zero = {"too_early_count": 0, "too_late_count": 0, "wrong_cell_count": 0}
+    assert per_ut == [
+        {"handover_rate_per_ut_min": 2.0, "ping_pong_count": 1, "rlf_count": 0,
+         "handover_failure_count": 0, **zero},
+        {"handover_rate_per_ut_min": 0.5, "ping_pong_count": 0, "rlf_count": 1,
+         "handover_failure_count": 0, **zero},
+        {"handover_rate_per_ut_min": 0.0, "ping_pong_count": 0, "rlf_count": 0,
+         "handover_failure_count": 1, **zero},
+    ]  # fmt: skip
+
+
+def test_kpi_summary_with_beam_switches_apart():
+    """Cells are satellites, 0.2 s a switch: 2 switches in 3.5 UT-min, 0.4 s taken out of
+    the handovers' 3 s (2.6 s over 3 handovers); never below 0."""
+    acc = _kpi(beam_switch_s=0.2)
+    interruption = {"handover": 3.0, "rlf": 2.0, "outage": 1.0}
+    overall, per_ut = acc.summary(_dwells_none(3), np.array([60.0, 120.0, 30.0]), interruption)
+    assert overall["beam_switch_count"] == 2
+    assert overall["beam_switch_rate_per_ut_min"] == 2 / 3.5
+    assert overall["interruption_per_beam_switch_s"] == 0.2
+    assert overall["interruption_s"] == {"handover": 3.0 - 0.4, "rlf": 2.0, "outage": 1.0,
+                                         "beam_switch": 0.4}  # fmt: skip
+    assert overall["interruption_per_handover_s"] == (3.0 - 0.4) / 3
+    assert [row["beam_switch_count"] for row in per_ut] == [0, 2, 0]
+    interruption = {"handover": 0.1, "rlf": 0.0, "outage": 0.0}
+    overall, _ = acc.summary(_dwells_none(3), np.array([60.0, 120.0, 30.0]), interruption)
+    assert overall["interruption_s"]["handover"] == 0.0
+    assert overall["interruption_s"]["beam_switch"] == 0.4
+
+
+def test_kpi_summary_of_nothing():
+    """An unobserved UT (or none): no KPI at all; no events and no samples: no mean
+    interruption, no unserved fraction, no beam switch interruption."""
+    from leolink.io.summary.kpi import KpiAccumulator
+
+    assert _kpi().summary(_dwells_none(3), np.array([60.0, 0.0, 30.0]), {}) == ({}, [{}] * 3)
+    assert KpiAccumulator(0).summary(_dwells_none(0), np.zeros(0), {}) == ({}, [])
+    acc = KpiAccumulator(2, beam_switch_s=0.2)
+    ev = acc.events()
+    assert all(ev[k].size == 0 for k in ev) and ev["time_s"].dtype == float
+    overall, per_ut = acc.summary(_dwells_none(2), np.array([60.0, 60.0]),
+                                  {"handover": 0.0, "rlf": 0.0, "outage": 0.0})  # fmt: skip
+    assert overall["interruption_per_handover_s"] is None
+    assert overall["unserved_fraction"] is None
+    assert overall["interruption_per_beam_switch_s"] is None and overall["beam_switch_count"] == 0
+    assert per_ut[1]["handover_rate_per_ut_min"] == 0.0

@@ -189,7 +189,7 @@ MODULES = {
     "io/summary/environment": ["tests/test_summary_parts.py"],
     "io/summary/bands": ["tests/test_summary_parts.py", "tests/test_geography_outputs.py"],
     "io/summary/link": ["tests/test_summary_parts.py", "tests/test_block_frame_contracts.py"],
-    "io/summary/kpi": ["tests/test_handover_wiring.py"],
+    "io/summary/kpi": ["tests/test_summary_parts.py"],
     # Issue 45: the physics modules added or changed in the round before it.
     "geodesy": ["tests/test_geodesy.py", "tests/test_visibility.py"],
     "ephemeris_error": ["tests/test_ephemeris_error.py", "tests/test_ephemeris_error_params.py"],
