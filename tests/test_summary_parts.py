@@ -524,3 +524,36 @@ def test_kpi_summary_of_nothing():
     assert overall["unserved_fraction"] is None
     assert overall["interruption_per_beam_switch_s"] is None and overall["beam_switch_count"] == 0
     assert per_ut[1]["handover_rate_per_ut_min"] == 0.0
+
+
+def test_a_frame_time_is_matched_within_1_us_only_and_band_0_counts():
+    """Rows, in row order: UT 0 at -85 deg (band 0) at t0 + 5 s, then -75 deg (band 1) at
+    t0 + 10 s; UT 1 at -55 deg (band 3) at t0 + 10 s, then -65 deg (band 2) at t0 + 5 s
+    (t0 = 1e6 s). An event at a row's time finds that row's band (0, 2; then 1, 3); one
+    5 s or more from every row (t0, t0 + 20 s), however large the times, the UT's last
+    row's (1; 2). Two calls add up."""
+    from leolink.io.summary.bands import LatitudeBands
+
+    bands = LatitudeBands(2, 1.0)
+    t0 = 1e6
+    bands.note_rows(np.array([t0 + 5, t0 + 10, t0 + 10, t0 + 5]), np.array([0, 0, 1, 1]),
+                    np.array([-85.0, -75.0, -55.0, -65.0]))  # fmt: skip
+    ho = np.array(["sat_handover"] * 3)
+    bands.add_events(np.array([t0 + 5, t0 + 5, t0]), np.array([0, 1, 0]), ho)
+    assert {b: int(n) for b, n in enumerate(bands.n_handover) if n} == {0: 1, 1: 1, 2: 1}
+    bands.add_events(np.array([t0 + 10, t0 + 10, t0 + 20]), np.array([0, 1, 1]), ho)
+    assert {b: int(n) for b, n in enumerate(bands.n_handover) if n} == {0: 1, 1: 2, 2: 2, 3: 1}
+
+
+def test_one_band_is_one_row_and_no_warning_for_a_band_without_sinr():
+    from leolink.io.summary.bands import LatitudeBands
+
+    bands = LatitudeBands(1, 1.0)
+    band = bands.note_rows(np.zeros(1), np.array([0]), np.array([45.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # 0 / 0 SINR values: None, silently
+        bands.fold(band, np.array([False]), np.array([np.nan]))
+        got = bands.summary()
+    assert [(r["lat_min_deg"], r["n_ut_epochs"], r["sinr_mean_db"]) for r in got] == [
+        (40.0, 1, None)
+    ]
