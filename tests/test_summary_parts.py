@@ -477,6 +477,8 @@ def test_kpi_summary_by_hand():
     assert overall["sinr_db_percentiles"]["p95"] == pytest.approx(2.7, abs=0.005 + 1e-9)
     assert overall["throughput_bps_percentiles"]["p99"] == pytest.approx(1.97e6, abs=5e4 + 1)
     assert overall["rlf_count"] == 1 and overall["ping_pong_count"] == 1
+    assert overall["handover_rate_per_ut_min"] == 3 / 3.5
+    assert overall["rlf_rate_per_ut_min"] == 1 / 3.5
     assert "beam_switch_count" not in overall
     zero = {"too_early_count": 0, "too_late_count": 0, "wrong_cell_count": 0}
     assert per_ut == [
@@ -517,7 +519,9 @@ def test_kpi_summary_of_nothing():
     assert KpiAccumulator(0).summary(_dwells_none(0), np.zeros(0), {}) == ({}, [])
     acc = KpiAccumulator(2, beam_switch_s=0.2)
     ev = acc.events()
+    assert list(ev) == ["time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat", "to_beam"]
     assert all(ev[k].size == 0 for k in ev) and ev["time_s"].dtype == float
+    assert ev["kind"].dtype.kind == "U"  # names, as the kept events'
     overall, per_ut = acc.summary(_dwells_none(2), np.array([60.0, 60.0]),
                                   {"handover": 0.0, "rlf": 0.0, "outage": 0.0})  # fmt: skip
     assert overall["interruption_per_handover_s"] is None
@@ -557,3 +561,74 @@ def test_one_band_is_one_row_and_no_warning_for_a_band_without_sinr():
     assert [(r["lat_min_deg"], r["n_ut_epochs"], r["sinr_mean_db"]) for r in got] == [
         (40.0, 1, None)
     ]
+
+
+def _mro_events(rlf_s):
+    """One UT: beam 0 -> 1 of satellite 1 at 10 s, an RLF in beam 1 at ``rlf_s``, service
+    back in beam 2 of satellite 1 at ``rlf_s + 0.5`` s."""
+    rows = [
+        (10.0, 0, "beam_handover", 1, 0, 1, 1),
+        (rlf_s, 0, "rlf", 1, 1, -1, -1),
+        (rlf_s + 0.5, 0, "outage_end", -1, -1, 1, 2),
+    ]
+    names = ("time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat", "to_beam")
+    return {k: np.array(c) for k, c in zip(names, zip(*rows, strict=True), strict=True)}
+
+
+def _mro_of(acc):
+    """The classes counted for the UT, the same in its ``kpi`` and the overall one."""
+    overall, per_ut = acc.summary(_dwells_none(1), np.array([60.0]), {"handover": 0.0})
+    got = {k.removesuffix("_count") for k, v in per_ut[0].items() if k.endswith("count") and v}
+    names = ("handover_failure", "too_early", "too_late", "wrong_cell", "rlf")
+    assert got == {k for k in names if overall[f"{k}_count"]}
+    return got
+
+
+@pytest.mark.parametrize(
+    "level,window_s,rlf_s,classes",
+    [
+        # TS 38.300 15.5.2.2.2: failure shortly after the handover, back in a third cell
+        ("cell", 2.0, 11.5, {"wrong_cell", "rlf"}),
+        # cells are satellites: back in the source satellite
+        ("satellite", 2.0, 11.5, {"too_early", "rlf"}),
+        # not shortly after (1.5 s > 1 s, the default window): too late
+        (None, None, 11.5, {"too_late", "rlf"}),
+        (None, None, 10.5, {"wrong_cell", "rlf"}),
+    ],
+)
+def test_kpi_mro_classes_at_the_configured_level_and_window(level, window_s, rlf_s, classes):
+    """``None``: the defaults, cells (sat, beam) and a 1 s window."""
+    from leolink.io.summary.kpi import KpiAccumulator
+
+    kwargs = {} if level is None else {"mro_level": level, "mro_window_s": window_s}
+    acc = KpiAccumulator(1, **kwargs)
+    acc.add_events(_mro_events(rlf_s))
+    assert _mro_of(acc) == classes
+
+
+def test_kpi_defaults_and_a_short_observation():
+    """Default ping-pong time and MRO window 1 s; a UT observed 0.5 s has KPIs."""
+    from leolink.io.summary.kpi import KpiAccumulator
+
+    acc = KpiAccumulator(1)
+    overall, per_ut = acc.summary(_dwells_none(1), np.array([0.5]), {"handover": 0.0})
+    assert (overall["ping_pong_s"], overall["mro_window_s"]) == (1.0, 1.0)
+    assert per_ut[0]["handover_rate_per_ut_min"] == 0.0
+
+
+def test_kpi_percentiles_beyond_their_ranges_are_infinite():
+    """SINR over -60 to 80 dB, throughput over 0 to 10 Gb/s (module docstring); an
+    unserved epoch's throughput is 0 b/s (p5 of zeros: within half a 100 kb/s bin)."""
+    from leolink.io.summary.kpi import KpiAccumulator
+
+    acc = KpiAccumulator(1)
+    acc.add_trace(
+        {"sinr_db": [-60.5] * 3 + [80.5] * 3, "throughput_bps": [np.nan] * 3 + [1e10] * 3}
+    )
+    acc.add_trace({"sinr_db": [-59.9, 79.9], "throughput_bps": [0.0, 0.0]})
+    overall, _ = acc.summary(_dwells_none(1), np.array([60.0]), {"handover": 0.0})
+    sinr, tput = overall["sinr_db_percentiles"], overall["throughput_bps_percentiles"]
+    assert (sinr["p5"], sinr["p95"]) == (-np.inf, np.inf)
+    assert tput["p5"] == pytest.approx(0.0, abs=5e4 + 1) and tput["p95"] == np.inf
+    served = overall["sinr_db_percentiles_served"]
+    assert (served["p5"], served["p95"]) == (-np.inf, np.inf)

@@ -11,7 +11,8 @@ ping-pong after TR 36.839, time of stay without censored stays); besides them:
   part of a handover epoch counts its throughput pro rata, as in the trace). A SINR
   percentile that falls among unserved epochs is -inf, written ``null``;
   ``unserved_fraction`` says how many there are. Resolution: 0.01 dB and 100 kb/s
-  (a percentile is within half a bin of numpy's on the same samples).
+  (a percentile is within half a bin of numpy's on the same samples), over -60 to 80
+  dB and 0 to 10 Gb/s: a percentile among samples beyond them is -inf or +inf.
   ``sinr_db_percentiles_served``: the same over the served UT-epochs only (the link
   quality a served UT sees, without the outage).
 - ``interruption_s``: UT-time without service by cause [s]: ``handover`` (execution
