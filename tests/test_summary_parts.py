@@ -375,7 +375,9 @@ def test_link_blocks_overall_by_hand():
 
 
 def test_link_blocks_per_ut_by_hand():
-    _, per_ut = _link_stats().summary(np.array([2, 3, 1, 1]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # UTs without margins: 0 / 0 is NaN, silently
+        _, per_ut = _link_stats().summary(np.array([2, 3, 1, 1]))
     assert len(per_ut) == 4
     ut0, ut1, ut2, ut3 = per_ut
     assert ut0["margin_db"]["mean"] == -0.5 and ut0["margin_db"]["fraction_negative"] == 0.5
@@ -396,6 +398,23 @@ def test_link_blocks_per_ut_by_hand():
     assert set(ut3) == {"margin_db", "modcod_usage", "served_without_modcod",
                         "mean_throughput_bps"}  # fmt: skip
     assert list(ut3["margin_db"]) == ["mean", "p5", "p50", "p95", "fraction_negative"]
+
+
+def test_link_defaults_and_margins_over_several_adds():
+    """1 s epochs and no gap by default: one served row without a MODCOD is 1 s of served
+    time, all of it without one. Margins -1; -3, 2, 0, 0.5 dB over two adds: two of five
+    below 0 (0 itself is not)."""
+    from leolink.io.summary.link import LinkStats
+
+    stats = LinkStats(1, DbStats)
+    stats.add({"margin_db": np.array([-1.0]), "modcod": np.array(["none"])}, np.array([0]),
+              np.array([0]))  # fmt: skip
+    stats.add({"margin_db": np.array([-3.0, 2.0, 0.0, 0.5])}, np.zeros(4, np.int64), np.zeros(4))
+    overall, per_ut = stats.summary(np.array([5]))
+    assert overall["served_without_modcod"] == {"fraction": 1.0, "ut_s": 1.0}
+    assert overall["modcod_usage"] == {"none": 1.0}
+    assert overall["margin_db"]["fraction_negative"] == 2 / 5
+    assert per_ut[0]["margin_db"]["fraction_negative"] == 2 / 5
 
 
 def test_link_blocks_of_nothing():
