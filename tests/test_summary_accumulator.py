@@ -210,7 +210,7 @@ def test_an_unobserved_ut_leaves_the_kpis_empty():
     t = acc.per_ut_table()
     assert "handover_rate_per_ut_min" not in t
     assert t["n_dwell_complete"].tolist() == [0, 0]  # no dwell: an empty table
-    assert np.isnan(t["lat_deg"]).all()  # no positions given
+    assert np.isnan(t["lat_deg"]).all() and np.isnan(t["lon_deg"]).all()  # no positions
     out = acc.summary()
     assert out["overall"]["kpi"] == {} and out["per_ut"][1]["kpi"] == {}
     assert out["overall"]["by_latitude"] == []
@@ -289,3 +289,18 @@ def test_nothing_recorded_has_no_fractions_and_given_dwells_are_used():
 def test_1000_uts_are_still_written_per_ut():
     assert len(SummaryAccumulator(1000).summary()["per_ut"]) == 1000
     assert "per_ut" not in SummaryAccumulator(1001).summary()
+
+
+def test_rlf_epochs_and_the_dwell_median():
+    """2 s epochs: an outage epoch re-establishing after an RLF, one with no satellite,
+    one served: 2 s of RLF interruption, 2 s of other outage. Complete dwells of 1 and
+    3 s: median 2 s."""
+    acc = SummaryAccumulator(1, epoch_s=2.0)
+    for k, (service, reason) in enumerate([("outage", "rlf"), ("outage", "no_satellite"),
+                                           ("served", "none")]):  # fmt: skip
+        acc.add_trace(_one_row(service=service, t=float(k), outage_reason=[reason]))
+    acc.add_dwells(_table([(0, 1, 0, 0.0, 1.0, False, False), (0, 1, 1, 1.0, 4.0, False, False)],
+                          DWELL_KEYS))  # fmt: skip
+    assert acc.summary()["overall"]["kpi"]["interruption_s"] == {
+        "handover": 0.0, "rlf": 2.0, "outage": 2.0}  # fmt: skip
+    assert acc.per_ut_table()["dwell_median_s"].tolist() == [2.0]
