@@ -320,12 +320,16 @@ class _Painter:
         from PIL import ImageDraw
 
         image = background.copy()
-        layers = [(self._cells, frame.footprints), (self._dots, frame)]
+        # The opaque dots go on the cells' layer (an opaque pixel covers the same whether
+        # drawn there or blended over it); the translucent label boxes need their own.
+        layer = self._layer()
+        draw = ImageDraw.Draw(layer)
+        self._cells(draw, frame.footprints)
+        self._dots(draw, frame)
+        image.alpha_composite(layer, dest=self.clip[:2])
         if frame.ut_labels is not None:
-            layers.append((self._labels, frame.ut_labels))
-        for paint, what in layers:  # one layer per kind: each blends over the one below
             layer = self._layer()
-            paint(ImageDraw.Draw(layer), what)
+            self._labels(ImageDraw.Draw(layer), frame.ut_labels)
             image.alpha_composite(layer, dest=self.clip[:2])
         ImageDraw.Draw(image).text(
             self.title_xy,

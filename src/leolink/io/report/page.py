@@ -62,10 +62,10 @@ background:#fff6ec}details{margin:1em 0}summary{cursor:pointer;font-weight:bold}
 
 
 def figure_data_uri(fig, dpi=100):
-    """PNG ``data:`` URI of a matplotlib figure (the figure is cleared afterwards)."""
+    """PNG ``data:`` URI of a matplotlib figure (left as it is: clearing it would rebuild
+    every axes' ticks, ~10 % of its drawing, for a figure that is dropped anyway)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
-    fig.clear()
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
