@@ -348,11 +348,11 @@ def _render(out, frames, extent, fps, dpi, width_in):
 
     fig, ax = new_figure(extent, width_in=width_in, dpi=dpi)
     ax.set_title(f"{TITLE}t = 0000.0 s", fontsize=10)
-    canvas = fig.canvas
-    canvas.draw()  # places the axes (equal aspect) and the title
+    ax.apply_aspect()  # places the axes (equal aspect) as drawing would, without a draw
     painter = _Painter(fig, ax, dpi)
     ax.title.set_visible(False)
-    canvas.draw()
+    canvas = fig.canvas
+    canvas.draw()  # once: the static map, without the title the frames write
     rgba = np.asarray(canvas.buffer_rgba())
     background = Image.fromarray(rgba.copy(), "RGBA")
     palette = _palette(rgba[..., :3], FILL_ALPHA)
