@@ -112,11 +112,20 @@ def test_run_map_draws_15_cells_and_colours_uts_by_their_trace_beam(paper_stats)
     now = trace[trace["time_s"] == 60.0].sort_values("ut_id")
     np.testing.assert_allclose(dots.get_facecolors(), beam_colour(now["beam_id"].to_numpy()))
     np.testing.assert_allclose(dots.get_offsets(), now[["lon_deg", "lat_deg"]].to_numpy())
-    # Track segments: coloured by the beam serving at the segment's start.
+    # Track segments: coloured by the beam serving at the segment's start (the collection
+    # joins a UT's consecutive segments of one colour into a polyline: split them again).
     (tracks,) = [c for c in ax.collections if isinstance(c, LineCollection)]
     rows = trace.sort_values(["ut_id", "time_s"])
     start = rows.groupby("ut_id").head(len(stats.keep_times_s) - 1)  # all but the last epoch
-    np.testing.assert_allclose(tracks.get_colors(), beam_colour(start["beam_id"].to_numpy()))
+    end = rows.groupby("ut_id").tail(len(stats.keep_times_s) - 1)  # all but the first
+    paths, colours = tracks.get_paths(), tracks.get_colors()
+    seg_colours = np.concatenate([np.repeat(c[None], len(p.vertices) - 1, axis=0)
+                                  for p, c in zip(paths, colours, strict=True)])  # fmt: skip
+    np.testing.assert_allclose(seg_colours, beam_colour(start["beam_id"].to_numpy()))
+    seg_starts = np.concatenate([p.vertices[:-1] for p in paths])
+    seg_ends = np.concatenate([p.vertices[1:] for p in paths])
+    np.testing.assert_allclose(seg_starts, start[["lon_deg", "lat_deg"]].to_numpy())
+    np.testing.assert_allclose(seg_ends, end[["lon_deg", "lat_deg"]].to_numpy())
     x0, x1 = ax.get_xlim()
     y0, y1 = ax.get_ylim()
     assert x0 < trace["lon_deg"].min() and trace["lon_deg"].max() < x1
@@ -147,8 +156,12 @@ def test_footprints_keep_order_skip_short_rings_and_stay_whole_across_180():
     for path, ring in zip(paths, rings, strict=True):
         np.testing.assert_allclose(path.vertices[: len(ring)], ring, atol=1e-12)
     np.testing.assert_array_equal(coll.get_edgecolors(), beam_colour([4, 7, 2]))
-    labels = [(t.get_text(), t.get_position()) for t in ax.texts]
-    assert labels == [("4", (180.0, 2.0)), ("7", (32 / 3, 17 / 3)), ("2", (-19.0, 0.0))]
+    # Each beam id written (as a text marker) at the mean of its drawn ring's points.
+    labels = [(line.get_marker().strip("$"), tuple(xy)) for line in ax.lines
+              if str(line.get_marker()).startswith("$")
+              for xy in line.get_xydata().tolist()]  # fmt: skip
+    assert sorted(labels) == sorted([("4", (180.0, 2.0)), ("7", (32 / 3, 17 / 3)),
+                                     ("2", (-19.0, 0.0))])  # fmt: skip
     assert draw_footprints(ax, {**fp, "beam_id": fp["beam_id"][:0], "lat_deg": lat[:0],
                                 "lon_deg": lon[:0]}) is None  # fmt: skip
 

@@ -22,6 +22,8 @@ References
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from leolink.antenna.array import upa_gain
@@ -102,10 +104,19 @@ def beam_contour_u(beam_u_xy, n_x, n_y, n_points=72):
         Points with ``u_x^2 + u_y^2 > 1`` (outside visible space) are kept; they map to NaN
         on the ground.
     """
+    offset = _contour_offset(int(n_x), int(n_y), int(n_points))
+    return np.asarray(beam_u_xy, float).reshape(-1, 1, 2) + offset[None, :, :]
+
+
+@lru_cache(maxsize=8)
+def _contour_offset(n_x, n_y, n_points):
+    """The contour about its boresight, ``(n_points, 2)`` [-]: the same for every beam of a
+    codebook, so an animation's frames bisect it once (read-only, shared by the calls)."""
     theta = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
     r = _bisect_radius(theta, np.asarray(n_x), np.asarray(n_y))  # (n_points,)
     offset = np.stack([r * np.cos(theta), r * np.sin(theta)], axis=-1)
-    return np.asarray(beam_u_xy, float).reshape(-1, 1, 2) + offset[None, :, :]
+    offset.flags.writeable = False
+    return offset
 
 
 def beam_footprints_ground(

@@ -32,6 +32,7 @@ from leolink.io.report.maps import (
 
 __all__ = [
     "Frame",
+    "animation_frames",
     "build_frames",
     "footprint_cells",
     "frames_from_stats",
@@ -76,6 +77,14 @@ def select_frames(n_available, max_frames):
     if n_available <= max_frames:
         return np.arange(n_available)
     return np.unique(np.round(np.linspace(0, n_available - 1, max(int(max_frames), 1))).astype(int))
+
+
+def animation_frames(n_kept):
+    """Frames of a run's ``footprint.gif`` from its ``n_kept`` kept epochs: every other one,
+    first and last included (:func:`select_frames`). Each frame costs ~15 ms of drawing
+    and encoding; half of them still show the cells gliding (a few km a frame where a
+    cell is tens of km across), and the map keeps every kept epoch."""
+    return max((int(n_kept) + 1) // 2, 1)
 
 
 def footprint_cells(sat_ids, sat_pos_m, sat_vel_m_s, serving, beam_u_xy, n_sub_xy):
@@ -320,12 +329,16 @@ class _Painter:
         from PIL import ImageDraw
 
         image = background.copy()
-        layers = [(self._cells, frame.footprints), (self._dots, frame)]
+        # The opaque dots go on the cells' layer (an opaque pixel covers the same whether
+        # drawn there or blended over it); the translucent label boxes need their own.
+        layer = self._layer()
+        draw = ImageDraw.Draw(layer)
+        self._cells(draw, frame.footprints)
+        self._dots(draw, frame)
+        image.alpha_composite(layer, dest=self.clip[:2])
         if frame.ut_labels is not None:
-            layers.append((self._labels, frame.ut_labels))
-        for paint, what in layers:  # one layer per kind: each blends over the one below
             layer = self._layer()
-            paint(ImageDraw.Draw(layer), what)
+            self._labels(ImageDraw.Draw(layer), frame.ut_labels)
             image.alpha_composite(layer, dest=self.clip[:2])
         ImageDraw.Draw(image).text(
             self.title_xy,
@@ -344,11 +357,11 @@ def _render(out, frames, extent, fps, dpi, width_in):
 
     fig, ax = new_figure(extent, width_in=width_in, dpi=dpi)
     ax.set_title(f"{TITLE}t = 0000.0 s", fontsize=10)
-    canvas = fig.canvas
-    canvas.draw()  # places the axes (equal aspect) and the title
+    ax.apply_aspect()  # places the axes (equal aspect) as drawing would, without a draw
     painter = _Painter(fig, ax, dpi)
     ax.title.set_visible(False)
-    canvas.draw()
+    canvas = fig.canvas
+    canvas.draw()  # once: the static map, without the title the frames write
     rgba = np.asarray(canvas.buffer_rgba())
     background = Image.fromarray(rgba.copy(), "RGBA")
     palette = _palette(rgba[..., :3], FILL_ALPHA)

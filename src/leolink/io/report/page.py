@@ -61,11 +61,14 @@ background:#fff6ec}details{margin:1em 0}summary{cursor:pointer;font-weight:bold}
 """
 
 
+PNG_COMPRESS_LEVEL = 3  # zlib level: 6 (Pillow's default) costs ~1.6x the time for 7 % less
+
+
 def figure_data_uri(fig, dpi=100):
-    """PNG ``data:`` URI of a matplotlib figure (the figure is cleared afterwards)."""
+    """PNG ``data:`` URI of a matplotlib figure (left as it is: clearing it would rebuild
+    every axes' ticks, ~10 % of its drawing, for a figure that is dropped anyway)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    fig.clear()
+    fig.savefig(buf, format="png", dpi=dpi, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 

@@ -128,9 +128,14 @@ def build_report_from_dir(out_dir, series_ut=None, animate=True, exports=False):
     stats = _stats_for(out_dir, series_ut)
     gif = None
     if animate and stats.sat_pos_m is not None and stats.beam_u_xy is not None:
-        from leolink.io.report.animation import frames_from_stats, write_footprint_gif
+        from leolink.io.report.animation import (
+            animation_frames,
+            frames_from_stats,
+            write_footprint_gif,
+        )
 
-        gif = write_footprint_gif(out_dir / "footprint.gif", frames_from_stats(stats))["path"]
+        frames = frames_from_stats(stats, animation_frames(stats.keep_times_s.size))
+        gif = write_footprint_gif(out_dir / "footprint.gif", frames)["path"]
     elif (out_dir / "footprint.gif").exists():
         gif = out_dir / "footprint.gif"  # the run's animation, kept as it is
     config = out_dir / "config.resolved.toml"

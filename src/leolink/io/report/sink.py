@@ -148,9 +148,13 @@ class ReportSink:
         stats, animation, written = self.stats, None, []
         drawable = stats.sat_pos_m is not None and stats.beam_u_xy is not None
         if self.params.animation and drawable:
-            from leolink.io.report.animation import frames_from_stats, write_footprint_gif
+            from leolink.io.report.animation import (
+                animation_frames,
+                frames_from_stats,
+                write_footprint_gif,
+            )
 
-            frames = frames_from_stats(stats, self.params.max_frames)
+            frames = frames_from_stats(stats, animation_frames(stats.keep_times_s.size))
             animation = write_footprint_gif(self.out_dir / "footprint.gif", frames)["path"]
             written.append(animation)
         if self.params.exports:
