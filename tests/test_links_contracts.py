@@ -304,6 +304,32 @@ def test_compiled_pair_geometry_agrees_with_numpy(wgs84_up, monkeypatch):
     _check_pairs_independently(eng, args, (got, want))
 
 
+def test_a_pair_exactly_at_the_mask_is_visible():
+    """``visible`` is ``elevation >= mask`` on both paths: with the mask set to the
+    elevation of one pair (as that path evaluates it: the two paths may differ by an ulp),
+    that pair is visible, and with the mask 1e-9 rad higher it is not."""
+    import dataclasses
+
+    import leolink.compiled
+
+    eng = _engine()
+    ut, sat = _sphere_points(40), 1.1 * _sphere_points(3)
+    vel = np.cross(sat, [0.3, -0.2, 1.0])
+    iu, js = np.meshgrid(np.arange(40), np.arange(3), indexing="ij")
+    args = (ut, sat, vel, iu.ravel(), js.ravel())
+    for loops in (True, False):
+        use = leolink.compiled.use if loops else (lambda n: False)
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(leolink.compiled, "use", use)
+            assert leolink.compiled.use(1) == loops
+            el = eng.evaluate_pairs(*args).elevation_rad
+            p = int(np.argmin(np.abs(el - 0.5)))  # a pair near 29 deg
+            for mask, want in ((el[p], True), (el[p] + 1e-9, False)):
+                params = dataclasses.replace(eng.params, min_elevation_rad=float(mask))
+                at = LinkEngine(eng.codebook, eng.terminal, params, eng.atmosphere)
+                assert at.evaluate_pairs(*args).visible[p] == want
+
+
 def _check_pairs_independently(eng, args, results):
     """Range, elevation and kernels of every pair from tests/independent.py's body frame
     and explicit steering-vector sums: both paths share ``body_frame`` and the kernels'

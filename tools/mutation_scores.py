@@ -284,6 +284,14 @@ COMPILED = {
             "each_pair",
         ],
     ),
+    "sim/candidates/search": (
+        ("_window_rows", "_link_window_rows"),
+        [
+            "tests/test_search.py::test_compiled_window_gives_the_numpy_windows_entries",
+            "tests/test_search.py::test_window_from_kernels_gives_the_window_of_the_snr_matrix",
+        ],
+    ),
+    "sim/candidates/table": (("_slot_rows", "_best_rows"), ["tests/test_candidate_table.py"]),
 }
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
 #: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
