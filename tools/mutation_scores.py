@@ -66,8 +66,8 @@ TRIGGER_RUN_DESELECT = [
 #: module -> the fast tests that exercise it (the whole suite would cost ~2 min per mutant
 #: batch; these run in seconds).
 MODULES = {
-    # The engine package, file by file; its compiled kernels (src/leolink/_kernels.c) are
-    # not mutated (mutmut edits Python): every run here sets LEOLINK_JIT=0, so the numpy
+    # The engine package, file by file; its compiled loops (numba) are scored by --compiled
+    # (COMPILED): every run here sets LEOLINK_JIT=0, so the numpy
     # reference path is what is measured.
     # serve_pairs' paths that the engine files above never take: active beams' lit
     # beams, tilted panels and a given ENU, fading, other satellites' interference.
