@@ -292,6 +292,11 @@ COMPILED = {
         ],
     ),
     "sim/candidates/table": (("_slot_rows", "_best_rows"), ["tests/test_candidate_table.py"]),
+    # The controller's hand-built sequences and its scalar reference, both paths.
+    "sim/handover/controller": (
+        ("_rules_rows",),
+        ["tests/test_controller.py", "tests/test_controller_contracts.py"],
+    ),
 }
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
 #: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
