@@ -297,6 +297,25 @@ COMPILED = {
         ("_rules_rows",),
         ["tests/test_controller.py", "tests/test_controller_contracts.py"],
     ),
+    # The binary search against a scan of each row, and the mapping both ways.
+    "sim/handover/local_axis": (
+        ("_slot_rows",),
+        [
+            "tests/test_trigger_run.py::test_local_axis_finds_each_satellites_slot_as_a_scan_"
+            "of_its_row",
+            "tests/test_trigger_run.py::test_local_axis_maps_cells_both_ways_and_carries_"
+            "values_by_satellite",
+        ],
+    ),
+    "sim/mobility/models": (("_great_circle_rows",), ["tests/test_mobility.py"]),
+    "sim/handover/service_time": (("_first_failures_loop",), ["tests/test_service_time.py"]),
+    "engine/__init__": (
+        ("_serve_rows",),
+        [
+            "tests/test_links_contracts.py::test_compiled_serving_columns_agree_with_numpy",
+            "tests/test_engine_contracts.py",
+        ],
+    ),
 }
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
 #: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
