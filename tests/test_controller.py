@@ -158,6 +158,16 @@ def test_outage_events_when_snr_crosses_min_snr():
     assert dwells["censored_end"].tolist() == [False, True]
 
 
+def test_an_snr_exactly_at_min_snr_is_usable():
+    """Usable means ``snr >= min_snr_db``: a UT whose only cell sits exactly at the minimum
+    stays served, with no outage event."""
+    snr = np.array([5.0, 0.0, 0.0, 5.0])[:, None, None]
+    results, events, _ = run(MaxSnr(), snr, min_snr_db=0.0, n_beam=1)
+    assert len(events["kind"]) == 0
+    assert [r.service[0] for r in results] == [SERVICE_SERVED] * 4
+    assert [r.sat_id[0] for r in results] == [0, 0, 0, 0]
+
+
 def test_outage_at_run_start_is_reported():
     snr = np.array([np.nan, 4.0, 4.0])[:, None, None]
     _, events, dwells = run(MaxSnr(), snr)

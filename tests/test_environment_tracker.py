@@ -164,3 +164,55 @@ def test_a_static_ut_under_a_static_satellite_keeps_its_urban_state():
     np.testing.assert_array_equal(second.shadow_db, first.shadow_db)
     np.testing.assert_array_equal(second.clutter_db, first.clutter_db)
     assert np.any(first.shadow_db != 0.0)
+
+
+def _edge_states(urban_model, use_loops, monkeypatch):
+    """The states of two co-located static UTs after epochs 0 and 1, cone 0 ..
+    4: satellites at 40 deg, exactly at the mask, 5e-10 rad below it, 5 deg and 60 deg; by
+    the compiled loop or the numpy code."""
+    import leolink.compiled
+    from leolink.sim.environment import look_angles_rad
+
+    if not use_loops:
+        monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
+    assert leolink.compiled.use(10) == use_loops
+    at_mask = _sat(10.0, 120.0)
+    mask = float(look_angles_rad(at_mask - [R_M, 0.0, 0.0], ENU)[0])
+    sliver = _sat(np.degrees(mask - 5e-10), 300.0)
+    sat_pos = np.array([_sat(40.0, 30.0), at_mask, sliver, _sat(5.0, 90.0), _sat(60.0, 210.0)])
+    el_sliver = float(look_angles_rad(sliver - [R_M, 0.0, 0.0], ENU)[0])
+    # the sliver passes the sine guard (1e-9) and is decided on the angle itself
+    assert mask - 1e-9 < el_sliver < mask and np.sin(el_sliver) > np.sin(mask) - 1e-9
+    tracker = ChannelTracker(urban_model, [2], np.array([5, 6], np.uint64), mask)
+    ut, enu, cone = np.array([[R_M, 0.0, 0.0]] * 2), np.array([ENU] * 2), np.arange(5)
+    out = [tracker.step(0, ut, enu, sat_pos, cone)]
+    out.append(tracker.states[0])
+    out.append(tracker.step(1, ut, enu, sat_pos, cone))
+    return out, tracker.states[0]
+
+
+def test_compiled_loop_keeps_the_numpy_states_at_the_mask_and_in_empty_slots(monkeypatch):
+    """A pair exactly at the mask holds a state (``el >= mask``), one 5e-10 rad below it
+    and one far below do not, nor do they stop the scan of the later satellites; the
+    compiled loop's state is the numpy code's slot by slot (-1 and zeros in empty slots,
+    three pairs carried over gaps), its angles where it computes them."""
+    models = environment_models(_pops(("urban", None)), FREQ_HZ)
+    (first, state0, second), state1 = _edge_states(models, True, monkeypatch)
+    for ch in (first, second):
+        np.testing.assert_array_equal(ch.has, [[True, True, False, False, True]] * 2)
+    monkeypatch.undo()
+    (_, want0, _), want1 = _edge_states(models, False, monkeypatch)
+    for got, want in ((state0, want0), (state1, want1)):
+        np.testing.assert_array_equal(got.sat_id, [[0, 1, -1, -1, 4]] * 2)
+        np.testing.assert_array_equal(want.sat_id, got.sat_id)
+        for name in ("z_los", "z_sf_los", "z_sf_nlos"):
+            np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-12,
+                                       atol=0.0, err_msg=name)  # fmt: skip
+        for name in ("elevation_rad", "azimuth_rad"):
+            g, w = getattr(got, name), getattr(want, name)
+            assert np.isfinite(g[:, [0, 1, 2, 4]]).all()
+            np.testing.assert_allclose(g[:, [0, 1, 2, 4]], w[:, [0, 1, 2, 4]], rtol=1e-12)
+    # nothing moved: the three carried pairs keep their state (a new pair would draw anew)
+    for name in ("z_los", "z_sf_los", "z_sf_nlos"):
+        np.testing.assert_array_equal(getattr(state1, name), getattr(state0, name))
+    assert np.all(state0.z_los[:, [0, 1, 4]] != 0.0)

@@ -204,11 +204,37 @@ def test_best_beam_is_the_largest_linear_snr_and_ties_go_to_the_first_beam():
     assert (beam[clear] == np.argmax(lin, axis=0)[clear]).all()
     assert np.abs(snr_db[:400] - 10.0 * np.log10(top[-1, :400])).max() < 1e-9
     assert (beam[400:] == 0).all() and np.isnan(snr_db[400:]).all()
-    assert links.best_beam(eng.beam_ix, eng.beam_iy)[1] is None
+    beam_only, none = links.best_beam(eng.beam_ix, eng.beam_iy)
+    assert none is None
+    np.testing.assert_array_equal(beam_only, beam)
     kx = np.repeat(links.kx.max(axis=0, keepdims=True), links.kx.shape[0], axis=0)
     tied = Links(*(getattr(links, f) for f in _PAIR_FIELDS), kx, links.ky, links.rx_db)
     first = np.argmax(np.where(eng.beam_ix == 0, 1, 0)[:, None] * links.ky[eng.beam_iy], axis=0)
     assert (tied.best_beam(eng.beam_ix, eng.beam_iy)[0][:400] == first[:400]).all()
+
+
+def test_best_beam_of_equal_linear_snrs_is_the_first_largest_db_sum():
+    """Beams 0 and 1 with kernels (1.5 x, 4 y) and (2 x, 3 y), where their products are
+    equal: equal linear SNRs, dB sums that round apart one way or the other. ``best_beam``
+    is then :meth:`Links.snr_db_bm`'s first largest sum, and its value that sum (a choice
+    by the linear SNRs alone would take beam 0 every time)."""
+    eng = _engine()
+    links, _ = _links(eng, n_ut=100, n_sat=2)
+    fields = {f: getattr(links, f) for f in _PAIR_FIELDS}
+    vis = np.arange(links.n_pair) % 5 > 0  # a fifth below the mask: beam 0 and NaN
+    fields["visible"], fields["path_lin"] = vis, RNG.uniform(1e-3, 1.0, links.n_pair)
+    x, y = RNG.uniform(0.02, 2.0, (2, 20 * links.n_pair))  # gains below and above 1
+    kx, ky = np.stack([1.5 * x, 2.0 * x]), np.stack([4.0 * y, 3.0 * y])
+    equal = kx[0] * ky[0] == kx[1] * ky[1]  # (1.5 x and 3 y may round)
+    kx, ky = kx[:, equal][:, : links.n_pair], ky[:, equal][:, : links.n_pair]
+    tied = Links(*fields.values(), kx, ky, links.rx_db)
+    beams = (np.array([0, 1]), np.array([0, 1]))
+    snr = tied.snr_db_bm(*beams)
+    want = np.argmax(snr, axis=0)
+    assert 0 < want[vis].sum() < vis.sum()  # both beams win somewhere
+    beam, best_db = tied.best_beam(*beams, with_snr_db=True)
+    np.testing.assert_array_equal(beam, want)
+    np.testing.assert_array_equal(best_db, snr.max(axis=0))
 
 
 @pytest.mark.parametrize("jit_on", [True, False])
@@ -258,7 +284,8 @@ def test_compiled_pair_geometry_agrees_with_numpy(wgs84_up, monkeypatch):
     up = _unit(ut + 2e5 * RNG.normal(size=ut.shape)) if wgs84_up else None
     sat = 1.1 * ut[:4]
     iu, js = np.meshgrid(np.arange(300), np.arange(4), indexing="ij")
-    args = (ut, sat, np.cross(sat, [0, 0, 1.0]), iu.ravel(), js.ravel(), up)
+    # velocities with a z component: every entry of the body axes counts
+    args = (ut, sat, np.cross(sat, [0.3, -0.2, 1.0]), iu.ravel(), js.ravel(), up)
     got = eng.evaluate_pairs(*args)
     monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
     want = eng.evaluate_pairs(*args)
@@ -275,6 +302,32 @@ def test_compiled_pair_geometry_agrees_with_numpy(wgs84_up, monkeypatch):
         got.elevation_rad[away], want.elevation_rad[away], 0, PATHS_ANGLE_RAD
     )
     _check_pairs_independently(eng, args, (got, want))
+
+
+def test_a_pair_exactly_at_the_mask_is_visible():
+    """``visible`` is ``elevation >= mask`` on both paths: with the mask set to the
+    elevation of one pair (as that path evaluates it: the two paths may differ by an ulp),
+    that pair is visible, and with the mask 1e-9 rad higher it is not."""
+    import dataclasses
+
+    import leolink.compiled
+
+    eng = _engine()
+    ut, sat = _sphere_points(40), 1.1 * _sphere_points(3)
+    vel = np.cross(sat, [0.3, -0.2, 1.0])
+    iu, js = np.meshgrid(np.arange(40), np.arange(3), indexing="ij")
+    args = (ut, sat, vel, iu.ravel(), js.ravel())
+    for loops in (True, False):
+        use = leolink.compiled.use if loops else (lambda n: False)
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(leolink.compiled, "use", use)
+            assert leolink.compiled.use(1) == loops
+            el = eng.evaluate_pairs(*args).elevation_rad
+            p = int(np.argmin(np.abs(el - 0.5)))  # a pair near 29 deg
+            for mask, want in ((el[p], True), (el[p] + 1e-9, False)):
+                params = dataclasses.replace(eng.params, min_elevation_rad=float(mask))
+                at = LinkEngine(eng.codebook, eng.terminal, params, eng.atmosphere)
+                assert at.evaluate_pairs(*args).visible[p] == want
 
 
 def _check_pairs_independently(eng, args, results):
@@ -324,6 +377,37 @@ def test_compiled_screening_agrees_with_numpy(wgs84_up, monkeypatch):
     np.testing.assert_array_equal(got[0], want[0])
     assert 50 < (want[0] > 0).sum() < want[0].size  # above and below the mask
     np.testing.assert_allclose(got[1], want[1], rtol=SCREEN_REL, atol=0)
+
+
+@pytest.mark.parametrize("loops", [True, False])
+def test_ragged_screening_is_the_dense_screening_of_each_pair(loops, monkeypatch):
+    """``screening.screen_ragged``: UT ``i`` against its group's satellites only (a group
+    without any among them), flat from ``start[i]``, by the compiled loop or by numpy per
+    group; each entry is the dense numpy screening's (every UT with every satellite) at
+    that UT and satellite."""
+    import leolink.compiled
+    from leolink.engine.screening import screen, screen_ragged
+    from leolink.geometry import body_frame
+    from leolink.sim.candidates.tiles import Caps
+
+    eng = _engine()
+    ut = _sphere_points(40)
+    sat = 1.1 * _sphere_points(12)
+    axes = body_frame(sat, np.cross(sat, [0, 0, 1.0]))
+    caps = Caps(np.array([0, 3, 5, 7, *range(12)]), np.array([0, 4, 4, 16]),
+                RNG.integers(0, 3, len(ut)))  # fmt: skip
+    assert set(caps.group) == {0, 1, 2}
+    if not loops:
+        monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
+    assert leolink.compiled.use(1) == loops
+    code, bound, start = screen_ragged(eng, ut, sat, axes, caps)
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: False)
+    want = screen(eng, ut, sat, axes)
+    np.testing.assert_array_equal(np.diff(start), np.array([4, 0, 12])[caps.group])
+    u, s = caps.pairs(start, np.arange(start[-1]))
+    np.testing.assert_array_equal(code, want[0][u, s])
+    assert 0 < (code > 0).sum() < code.size  # above and below the mask
+    np.testing.assert_allclose(bound, want[1][u, s], rtol=SCREEN_REL, atol=0)
 
 
 #: The compiled serving loop and the numpy columns round differently (sums of three

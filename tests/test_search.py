@@ -543,8 +543,9 @@ def test_compiled_window_gives_the_numpy_windows_entries(window_db, floor_db, mo
         assert want[0].size > (m if window_db > 0 else 900 // 2)
 
 
+@pytest.mark.parametrize("path_exp", [(8.0, 11.0), (-11.0, -8.0)])  # linear SNRs > 1 or < 1
 @pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
-def test_window_from_kernels_gives_the_window_of_the_snr_matrix(window_db):
+def test_window_from_kernels_gives_the_window_of_the_snr_matrix(window_db, path_exp):
     """``search.link_window_entries`` (the compiled loop: a linear pre-selection, then the
     dB sums of the few beams near the best) against ``window_entries`` of the full
     ``Links.snr_db_bm`` matrix (the path it replaces, the same dB sums): the same entries
@@ -560,7 +561,7 @@ def test_window_from_kernels_gives_the_window_of_the_snr_matrix(window_db):
     kx[1] = np.where(rng.random(m) < 0.3, kx[0], kx[1])  # exact ties between beams
     kx[2] = np.where(rng.random(m) < 0.1, kx[0] * (1.0 + 4e-16), kx[2])  # an ulp or two
     kx[rng.random((5, m)) < 0.02] = 0.0  # nulls
-    path = 10.0 ** rng.uniform(8.0, 11.0, m)
+    path = 10.0 ** rng.uniform(*path_exp, m)
     visible = rng.random(m) > 0.1
     rows = np.sort(rng.integers(0, n_rows, m))
     sat = rng.integers(0, 4000, m)

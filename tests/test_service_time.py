@@ -66,8 +66,10 @@ def _brute(snr, k, horizon):
 
 def test_end_of_service_equals_a_brute_force_scan_every_epoch():
     horizon = 12
-    for seed in range(3):
-        snr = _history(seed)
+    # the fourth in whole dB: SNRs exactly at the minimum, which serve (>=)
+    rounded = np.round(_history(3))
+    assert (rounded == MIN_SNR_DB).sum() > 10
+    for snr in [*(_history(seed) for seed in range(3)), rounded]:
         times = ServiceTimes(_Engine(snr), _future, MIN_SNR_DB, DT_S, horizon * DT_S)
         axis = LocalAxis.union(
             N_UT, N_BEAM, np.repeat(np.arange(N_UT), N_SAT), np.tile(np.arange(N_SAT), N_UT)

@@ -2,6 +2,7 @@
 
     python tools/mutation_scores.py [MODULE ...] [--keep DIR] [--children N] [--root TREE]
     python tools/mutation_scores.py MODULE ... --keep DIR --again   # survivors only
+    python tools/mutation_scores.py --compiled [MODULE ...] [--keep DIR]  # the numba loops
 
 For each module (default: all of :data:`MODULES`) the working tree is copied to a
 scratch folder, ``[tool.mutmut]`` there is set to mutate only that module and to select
@@ -11,11 +12,20 @@ Markdown table row per module (docs/testing.md keeps the table). Mutants that no
 selected test reaches count as survivors ("no tests"). Slow (minutes per module on two
 cores): not part of .ci/run. ``--keep DIR`` keeps the scratch folders, so that
 ``cd DIR/<module> && mutmut browse`` (or ``mutmut show NAME``) lists the survivors.
+
+``--compiled`` scores the compiled loops instead (:data:`COMPILED`: the functions decorated
+``@compiled.jit``, which the runs above never execute, as they set ``LEOLINK_JIT=0``). mutmut
+skips every decorated function, so the scratch copy of the module loses the loops'
+``@compiled.jit`` lines; the run sets ``LEOLINK_JIT=1`` (callers take the loops) and
+``NUMBA_DISABLE_JIT=1`` (numba's ``njit`` gives the Python function: what the decorator
+would give, so the loops' source runs as Python, through mutmut's trampolines), and only
+the loops' mutants are run and counted.
 """
 
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import json
 import os
 import shutil
@@ -56,8 +66,8 @@ TRIGGER_RUN_DESELECT = [
 #: module -> the fast tests that exercise it (the whole suite would cost ~2 min per mutant
 #: batch; these run in seconds).
 MODULES = {
-    # The engine package, file by file; its compiled kernels (src/leolink/_kernels.c) are
-    # not mutated (mutmut edits Python): every run here sets LEOLINK_JIT=0, so the numpy
+    # The engine package, file by file; its compiled loops (numba) are scored by --compiled
+    # (COMPILED): every run here sets LEOLINK_JIT=0, so the numpy
     # reference path is what is measured.
     # serve_pairs' paths that the engine files above never take: active beams' lit
     # beams, tilted panels and a given ENU, fading, other satellites' interference.
@@ -263,10 +273,124 @@ MODULES = {
     # reach them through whole runs, minutes per mutant).
     "link/environment": ["tests/test_environment.py"],
 }
+#: Issue 45: module -> (its compiled loops, the fast tests that run them with an
+#: independent expectation: the numpy path, hand-placed geometry or a brute-force scan).
+#: Every test runs the loops (LEOLINK_JIT=1), as plain Python (NUMBA_DISABLE_JIT=1): small
+#: runs only.
+COMPILED = {
+    "sim/environment": (
+        ("_advance_rows",),
+        [
+            "tests/test_environment_tracker.py",
+            "tests/test_environment_in_run.py",
+            # (60 s a mutant as Python: other satellites' paths, a path of its own)
+            "--deselect=tests/test_environment_in_run.py::test_interfering_satellites_paths_"
+            "keep_their_own_states",
+        ],
+    ),
+    "engine/links": (
+        ("_snr_rows", "_best_beam_rows", "_pair_rows"),
+        [
+            "tests/test_links_contracts.py",
+            # numba's loops divide by zero silently, Python's warn (the test's point)
+            "--deselect=tests/test_links_contracts.py::test_snr_in_db_of_a_null_kernel_is_"
+            "minus_inf_without_a_warning",
+        ],
+    ),
+    "engine/screening": (
+        ("_screen_rows", "_ragged_rows"),
+        [
+            "tests/test_links_contracts.py::test_compiled_screening_agrees_with_numpy",
+            "tests/test_links_contracts.py::test_ragged_screening_is_the_dense_screening_of_"
+            "each_pair",
+        ],
+    ),
+    "sim/candidates/search": (
+        ("_window_rows", "_link_window_rows"),
+        [
+            "tests/test_search.py::test_compiled_window_gives_the_numpy_windows_entries",
+            "tests/test_search.py::test_window_from_kernels_gives_the_window_of_the_snr_matrix",
+        ],
+    ),
+    "sim/candidates/table": (("_slot_rows", "_best_rows"), ["tests/test_candidate_table.py"]),
+    # The controller's hand-built sequences and its scalar reference, both paths.
+    "sim/handover/controller": (
+        ("_rules_rows",),
+        ["tests/test_controller.py", "tests/test_controller_contracts.py"],
+    ),
+    # The binary search against a scan of each row, and the mapping both ways.
+    "sim/handover/local_axis": (
+        ("_slot_rows",),
+        [
+            "tests/test_trigger_run.py::test_local_axis_finds_each_satellites_slot_as_a_scan_"
+            "of_its_row",
+            "tests/test_trigger_run.py::test_local_axis_maps_cells_both_ways_and_carries_"
+            "values_by_satellite",
+        ],
+    ),
+    "sim/mobility/models": (("_great_circle_rows",), ["tests/test_mobility.py"]),
+    "sim/handover/service_time": (("_first_failures_loop",), ["tests/test_service_time.py"]),
+    "engine/__init__": (
+        ("_serve_rows",),
+        [
+            "tests/test_links_contracts.py::test_compiled_serving_columns_agree_with_numpy",
+            "tests/test_engine_contracts.py",
+        ],
+    ),
+}
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
 #: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
 #: others cost 3x more; their columns are the same code paths, with the Earth rotating).
 FAST = ["-k", "not walker_rotating and not tle_rotating and not moving_rotating"]
+
+
+def _loop_patterns(module: str) -> list[str]:
+    """mutmut's names (fnmatch) of the mutants of ``module``'s compiled loops."""
+    dotted = "leolink." + module.removesuffix("/__init__").replace("/", ".")
+    return [f"{dotted}.*x_{loop}__mutmut_*" for loop in COMPILED[module][0]]
+
+
+def _unjit(path: Path, loops: tuple[str, ...]) -> None:
+    """Drop the ``@compiled.jit`` line above each of ``loops`` in ``path`` (mutmut leaves
+    decorated functions alone); under ``NUMBA_DISABLE_JIT=1`` the decorator gives the
+    Python function, so nothing else changes."""
+    lines = path.read_text().splitlines(keepends=True)
+    kept = [line for i, line in enumerate(lines)
+            if not (line.strip() == "@compiled.jit" and i + 1 < len(lines)
+                    and lines[i + 1].startswith(tuple(f"def {f}(" for f in loops)))]  # fmt: skip
+    if len(lines) - len(kept) != len(loops):
+        raise SystemExit(f"{path}: expected {len(loops)} @compiled.jit loops {loops}")
+    path.write_text("".join(kept))
+
+
+def _tests(module: str, root: Path, compiled: bool) -> list[str]:
+    """``module``'s tests that exist in ``root`` ("--..." items are pytest options)."""
+    listed = COMPILED[module][1] if compiled else MODULES[module]
+    return [t for t in listed
+            if t.startswith("-") or (root / t.split("::")[0]).exists()]  # fmt: skip
+
+
+def _env(compiled: bool) -> dict:
+    # One run per test, not per module: mutmut credits each check (tests/scopes.py).
+    env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function", LEOLINK_JIT="0")
+    if compiled:  # the loops, as Python: what @compiled.jit gives without numba's compiler
+        env.update(LEOLINK_JIT="1", NUMBA_DISABLE_JIT="1")
+    return env
+
+
+def _loop_stats(dest: Path, module: str, env: dict) -> dict:
+    """killed / survived / ... counts of the loops' mutants only (``mutmut results``)."""
+    listed = subprocess.run([*MUTMUT, "results", "--all", "true"], cwd=dest,
+                            capture_output=True, text=True, env=env, check=True).stdout  # fmt: skip
+    pats = _loop_patterns(module)
+    s = {"total": 0}
+    for line in listed.splitlines():
+        name, _, status = line.strip().rpartition(": ")
+        if any(fnmatch.fnmatch(name, p) for p in pats):
+            key = status.replace(" ", "_")
+            s[key] = s.get(key, 0) + 1
+            s["total"] += 1
+    return s
 
 
 def _config(module: str, tests: list[str]) -> str:
@@ -282,7 +406,7 @@ def _config(module: str, tests: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _prepare(dest: Path, module: str, root: Path = ROOT) -> None:
+def _prepare(dest: Path, module: str, root: Path = ROOT, compiled: bool = False) -> None:
     dest.mkdir(parents=True)
     for name in COPIED:
         src = root / name
@@ -295,27 +419,31 @@ def _prepare(dest: Path, module: str, root: Path = ROOT) -> None:
     if sep:  # drop the repository's own section (it mutates every listed module at once)
         rest = _.split("\n[", 1)
         head = head + ("[" + rest[1] if len(rest) > 1 else "")
-    # an older tree may lack some files; "--..." items are pytest options, "::" a test's id
-    tests = [t for t in MODULES[module]
-             if t.startswith("-") or (root / t.split("::")[0]).exists()]  # fmt: skip
+    # an older tree may lack some files
+    tests = _tests(module, root, compiled)
     (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
+    if compiled:
+        _unjit(dest / "src" / "leolink" / f"{module}.py", COMPILED[module][0])
 
 
-def score(module: str, workdir: Path, children: int, root: Path = ROOT) -> dict:
+def score(module: str, workdir: Path, children: int, root: Path = ROOT,
+          compiled: bool = False) -> dict:  # fmt: skip
     dest = workdir / module.replace("/", "_")
-    _prepare(dest, module, root)
-    # One run per test, not per module: mutmut credits each check (tests/scopes.py).
-    # The numpy path of the engine (LEOLINK_JIT=0): the compiled kernels are C, which
-    # mutmut does not edit, and they give the numpy path's bits (tests/test_jit.py).
-    env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function", LEOLINK_JIT="0")
-    subprocess.run([*MUTMUT, "run", "--max-children", str(children)], cwd=dest, check=False,
-                   stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    _prepare(dest, module, root, compiled)
+    # Without --compiled, the numpy path (LEOLINK_JIT=0); with it, the loops' mutants only.
+    env = _env(compiled)
+    names = _loop_patterns(module) if compiled else []
+    subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
+                   check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    if compiled:
+        return _loop_stats(dest, module, env)
     subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
                    stdout=subprocess.DEVNULL)  # fmt: skip
     return json.loads((dest / "mutants" / "mutmut-cicd-stats.json").read_text())
 
 
-def again(module: str, workdir: Path, children: int, root: Path = ROOT) -> dict:
+def again(module: str, workdir: Path, children: int, root: Path = ROOT,
+          compiled: bool = False) -> dict:  # fmt: skip
     """Re-run only the survivors of a kept folder (``--keep``) with ``root``'s tests now.
 
     Tests are only added between the runs, so a killed mutant stays killed; mutmut
@@ -326,37 +454,45 @@ def again(module: str, workdir: Path, children: int, root: Path = ROOT) -> dict:
         shutil.rmtree(tests, ignore_errors=True)
         shutil.copytree(root / "tests", tests, ignore=shutil.ignore_patterns("__pycache__"))
     head = (dest / "pyproject.toml").read_text().split("[tool.mutmut]")[0]
-    tests = [t for t in MODULES[module]
-             if t.startswith("-") or (root / t.split("::")[0]).exists()]  # fmt: skip
+    tests = _tests(module, root, compiled)
     (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
-    env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function", LEOLINK_JIT="0")
+    env = _env(compiled)
+    pats = _loop_patterns(module) if compiled else ["*"]
     listed = subprocess.run([*MUTMUT, "results"], cwd=dest, capture_output=True, text=True,
                             env=env, check=True).stdout  # fmt: skip
     names = [line.split(":")[0].strip() for line in listed.splitlines()
-             if line.strip().endswith(("survived", "no tests"))]  # fmt: skip
-    subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
-                   check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
-    subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
-                   stdout=subprocess.DEVNULL)  # fmt: skip
-    s = json.loads((dest / "mutants" / "mutmut-cicd-stats.json").read_text())
+             if line.strip().endswith(("survived", "no tests"))
+             and any(fnmatch.fnmatch(line.split(":")[0].strip(), p) for p in pats)]  # fmt: skip
+    if names:  # (no names: mutmut would run every mutant)
+        subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
+                       check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    if compiled:
+        s = _loop_stats(dest, module, env)
+    else:
+        subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
+                       stdout=subprocess.DEVNULL)  # fmt: skip
+        s = json.loads((dest / "mutants" / "mutmut-cicd-stats.json").read_text())
     left = sum(s.get(k, 0) for k in ("survived", "no_tests"))
     return {**s, "killed": s["total"] - left - s.get("timeout", 0) - s.get("segfault", 0)}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("modules", nargs="*", default=list(MODULES))
+    ap.add_argument("modules", nargs="*", default=None)
     ap.add_argument("--keep", type=Path, default=None, help="keep the scratch folders here")
     ap.add_argument("--children", type=int, default=1, help="parallel mutant runs")
     ap.add_argument("--root", type=Path, default=ROOT, help="tree to score (default: this one)")
     again_help = "re-run only the survivors of the --keep folders, with the tests now"
     ap.add_argument("--again", action="store_true", help=again_help)
+    compiled_help = "score the compiled loops (COMPILED) as Python, not the numpy path"
+    ap.add_argument("--compiled", action="store_true", help=compiled_help)
     args = ap.parse_args(argv)
+    args.modules = args.modules or list(COMPILED if args.compiled else MODULES)
     work = args.keep or Path(tempfile.mkdtemp(prefix="leolink-mutmut-"))
     print("| module | mutants | killed | survived | no tests | timeout | score |")
     print("|---|---|---|---|---|---|---|")
     for m in args.modules:
-        s = (again if args.again else score)(m, work, args.children, args.root)
+        s = (again if args.again else score)(m, work, args.children, args.root, args.compiled)
         total = s.get("total", 0)
         killed = s.get("killed", 0) + s.get("timeout", 0) + s.get("segfault", 0)
         pct = 100.0 * killed / total if total else float("nan")

@@ -318,7 +318,8 @@ def _screen_pair(frames, lattice, scale_u, u, s):
     rho2 = d0 * d0 + d1 * d1 + d2 * d2
     rho = np.sqrt(rho2)
     se = -(d0 * up[u, 0] + d1 * up[u, 1] + d2 * up[u, 2]) / rho
-    c = (se >= s_min - SIN_EL_BAND) + (se >= s_min + SIN_EL_BAND)
+    # int() of each test: numpy's bool + bool is their "or" (in Python, NUMBA_DISABLE_JIT=1)
+    c = int(se >= s_min - SIN_EL_BAND) + int(se >= s_min + SIN_EL_BAND)
     if c == 0:
         return c, -1.0, se
     ux = (d0 * axes[s, 0, 0] + d1 * axes[s, 0, 1] + d2 * axes[s, 0, 2]) / rho
