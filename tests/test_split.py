@@ -369,3 +369,26 @@ def test_the_parts_of_a_killed_split_run_are_removed_by_the_next_run(tmp_path):
     assert sorted(p.name for p in out.glob(".parts-*")) == [mine.name]
     assert (mine / "notes.txt").read_text(encoding="utf-8") == "mine"
     assert (out / "run.json").is_file()
+
+
+def _exit_at_once():
+    pass
+
+
+def test_stopping_a_worker_that_has_just_exited_is_not_an_error():
+    """Under load the pool's own shutdown can stop a worker between ``is_alive()`` and the
+    signal (seen at load 30: the run said "No such process" instead of its line)."""
+    import multiprocessing
+
+    from leolink.app.sweep_exec import _stop_workers
+
+    proc = multiprocessing.get_context("fork").Process(target=_exit_at_once)
+    proc.start()
+    proc.join()  # gone and reaped: its pid names no process
+    proc.is_alive = lambda: True  # as it was when asked, an instant before it exited
+
+    class Pool:
+        _processes = {0: proc}
+
+    _stop_workers(Pool())  # no ProcessLookupError
+    assert proc.exitcode == 0

@@ -11,7 +11,6 @@ its sinks (no ``.partial`` file is left), and waits for them.
 from __future__ import annotations
 
 import os
-import signal
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from leolink.errors import ConfigError, LeolinkError
@@ -45,7 +44,9 @@ def _stop_workers(pool):
     procs = list(getattr(pool, "_processes", {}).values())
     for proc in procs:
         if proc.is_alive():
-            os.kill(proc.pid, signal.SIGTERM)
+            # terminate(), not os.kill(): a worker that exits between the two calls (the
+            # pool's own shutdown of a broken pool stops them too) is not an error
+            proc.terminate()
     for proc in procs:
         proc.join(_WORKER_EXIT_S)
         if proc.is_alive():
