@@ -134,3 +134,17 @@ def test_t1_hands_over_lead_s_before_the_serving_satellite_stops_serving():
                 moved = k * DT_S
             serving = new
         assert moved == expected_s  # lead 0.5 s: Thresh1 = 9.5 s, t = 10 s, when it is lost anyway
+
+
+def test_a_pair_that_ends_early_does_not_stop_the_next_pairs():
+    """Pair 0 ends at step 0; its step 1 is skipped, and pair 1 (after it, pair-major) is
+    still scanned: beam 1 fails at step 0, every beam at step 1. Expected by hand (both
+    paths: the module's fixture)."""
+    from leolink.sim.handover.service_time import _first_failures
+
+    pair, step = np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1])
+    snr_bm = np.array([[-1.0, 9.0, 5.0, -1.0],  # beam 0 of the four (pair, step)s [dB]
+                       [-1.0, 9.0, -1.0, -1.0]])  # fmt: skip
+    first_sat, first_beam = _first_failures(snr_bm, np.ones(4, bool), pair, step, 0.0, 2, 2)
+    assert first_sat.tolist() == [0, 1]
+    assert first_beam.tolist() == [[0, 0], [1, 0]]
