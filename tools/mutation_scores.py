@@ -435,6 +435,11 @@ def score(module: str, workdir: Path, children: int, root: Path = ROOT,
     names = _loop_patterns(module) if compiled else []
     subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
                    check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    return _stats(dest, module, env, compiled)
+
+
+def _stats(dest: Path, module: str, env: dict, compiled: bool) -> dict:
+    """mutmut's counts of the folder ``dest``: the loops' mutants only with ``compiled``."""
     if compiled:
         return _loop_stats(dest, module, env)
     subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
@@ -466,12 +471,7 @@ def again(module: str, workdir: Path, children: int, root: Path = ROOT,
     if names:  # (no names: mutmut would run every mutant)
         subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
                        check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
-    if compiled:
-        s = _loop_stats(dest, module, env)
-    else:
-        subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
-                       stdout=subprocess.DEVNULL)  # fmt: skip
-        s = json.loads((dest / "mutants" / "mutmut-cicd-stats.json").read_text())
+    s = _stats(dest, module, env, compiled)
     left = sum(s.get(k, 0) for k in ("survived", "no_tests"))
     return {**s, "killed": s["total"] - left - s.get("timeout", 0) - s.get("segfault", 0)}
 
