@@ -386,9 +386,5 @@ def test_stopping_a_worker_that_has_just_exited_is_not_an_error():
     proc.start()
     proc.join()  # gone and reaped: its pid names no process
     proc.is_alive = lambda: True  # as it was when asked, an instant before it exited
-
-    class Pool:
-        _processes = {0: proc}
-
-    _stop_workers(Pool())  # no ProcessLookupError
+    _stop_workers([proc])  # no ProcessLookupError
     assert proc.exitcode == 0

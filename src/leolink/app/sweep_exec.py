@@ -39,9 +39,8 @@ def _serial(fn, jobs, done):
     return rows
 
 
-def _stop_workers(pool):
-    """SIGTERM every live worker of ``pool`` and wait for it (each aborts its point)."""
-    procs = list(getattr(pool, "_processes", {}).values())
+def _stop_workers(procs):
+    """SIGTERM every live process of ``procs`` and wait for it (each aborts its point)."""
     for proc in procs:
         if proc.is_alive():
             # terminate(), not os.kill(): a worker that exits between the two calls (the
@@ -55,9 +54,14 @@ def _stop_workers(pool):
 
 def _processes(fn, jobs, done, workers):
     """Run the jobs on ``workers`` processes; on any error or signal stop every worker."""
+    import multiprocessing
+
     from leolink.app.guard import in_worker, worker_init
 
     rows = {}
+    # the pool's workers are the children started after this point (the executor does not
+    # name them in its public interface before Python 3.14's terminate_workers)
+    before = set(multiprocessing.active_children())
     pool = ProcessPoolExecutor(
         max_workers=workers, initializer=worker_init, initargs=(os.getpid(),)
     )
@@ -70,7 +74,7 @@ def _processes(fn, jobs, done, workers):
                 rows[i] = fut.result()
                 done(i)
     except BaseException:
-        _stop_workers(pool)
+        _stop_workers([p for p in multiprocessing.active_children() if p not in before])
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     pool.shutdown(wait=True)
