@@ -217,7 +217,7 @@ def changing_candidates(n_ut, n_epoch, n_sat_total=40, n_slot=8, seed=2):
     return ids, els, azs, steps
 
 
-FIELDS = ("sat_id", "z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "azimuth_rad")
+FIELDS = ("sat_id", "z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "ray_east_m", "ray_north_m")
 
 
 def chunked_run(model, keys, data, epochs, bounds):

@@ -208,10 +208,14 @@ def test_compiled_loop_keeps_the_numpy_states_at_the_mask_and_in_empty_slots(mon
         for name in ("z_los", "z_sf_los", "z_sf_nlos"):
             np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-12,
                                        atol=0.0, err_msg=name)  # fmt: skip
-        for name in ("elevation_rad", "azimuth_rad"):
+        g, w = got.elevation_rad, want.elevation_rad
+        assert np.isfinite(g[:, [0, 1, 2, 4]]).all()
+        np.testing.assert_allclose(g[:, [0, 1, 2, 4]], w[:, [0, 1, 2, 4]], rtol=1e-12)
+        # the ray's offsets: of the link vector (compiled) and of the angles (numpy)
+        for name in ("ray_east_m", "ray_north_m"):
             g, w = getattr(got, name), getattr(want, name)
-            assert np.isfinite(g[:, [0, 1, 2, 4]]).all()
-            np.testing.assert_allclose(g[:, [0, 1, 2, 4]], w[:, [0, 1, 2, 4]], rtol=1e-12)
+            np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12, err_msg=name)
+            assert np.all(g[:, [2, 3]] == 0.0) and np.all(np.abs(g[:, [0, 1, 4]]) > 0.1)
     # nothing moved: the three carried pairs keep their state (a new pair would draw anew)
     for name in ("z_los", "z_sf_los", "z_sf_nlos"):
         np.testing.assert_array_equal(getattr(state1, name), getattr(state0, name))

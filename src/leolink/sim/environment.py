@@ -296,17 +296,31 @@ def look_angles_rad(los, enu):
     UT's frame ``enu[i, c]`` (row ``i`` east, north, up; component ``c``): ``asin(up /
     |los|)`` and ``atan2(east, north)``. Arrays that broadcast, or one link's scalars and
     its UT's (3, 3) rows in a compiled loop (:func:`_advance_rows`)."""
+    east, north, _ = link_enu(los, enu)
+    return elevation_rad(los, enu), np.arctan2(east, north)
+
+
+@compiled.jitable
+def elevation_rad(los, enu):
+    """The elevation of :func:`look_angles_rad` alone (no arctangent)."""
+    return np.arcsin(sine_of_elevation(los, enu))
+
+
+@compiled.jitable
+def link_enu(los, enu):
+    """Components (east, north, up) [m] of the link ``los`` in the UT's frame ``enu``, of
+    :func:`look_angles_rad`'s arguments."""
     x, y, z = los
-    east = x * enu[0, 0] + y * enu[0, 1] + z * enu[0, 2]
-    north = x * enu[1, 0] + y * enu[1, 1] + z * enu[1, 2]
-    return np.arcsin(sine_of_elevation(los, enu)), np.arctan2(east, north)
+    return (x * enu[0, 0] + y * enu[0, 1] + z * enu[0, 2],
+            x * enu[1, 0] + y * enu[1, 1] + z * enu[1, 2],
+            x * enu[2, 0] + y * enu[2, 1] + z * enu[2, 2])  # fmt: skip
 
 
 @compiled.jitable
 def sine_of_elevation(los, enu):
     """``up / |los|`` clipped to [-1, 1], of :func:`look_angles_rad`'s arguments."""
     x, y, z = los
-    up = x * enu[2, 0] + y * enu[2, 1] + z * enu[2, 2]
+    up = link_enu(los, enu)[2]
     return np.minimum(np.maximum(up / np.sqrt(x * x + y * y + z * z), -1.0), 1.0)
 
 
@@ -325,9 +339,9 @@ def _advance_compiled(state, model, keys, at, sky, k):
         raise ValueError(f"epoch = {k!r} must exceed the state's epoch {state.epoch}")
     n_ut, n_cone = at[0].shape[0], sky[1].size
     sat_id = np.empty((n_ut, n_cone), np.int64)
-    out = (sat_id, *(np.empty((n_ut, n_cone)) for _ in range(5)))
-    old = (state.sat_id, state.z_los, state.z_sf_los, state.z_sf_nlos, state.elevation_rad,
-           state.azimuth_rad)  # fmt: skip
+    out = (sat_id, *(np.empty((n_ut, n_cone)) for _ in range(6)))
+    old = (state.sat_id, state.z_los, state.z_sf_los, state.z_sf_nlos, state.ray_east_m,
+           state.ray_north_m)  # fmt: skip
     params = np.array([model.clutter_height_m, model.los_corr_distance_m,
                        model.sf_corr_distance_los_m, model.sf_corr_distance_nlos_m, sky[2],
                        np.sin(sky[2]) - _SINE_GUARD])  # fmt: skip
@@ -347,7 +361,7 @@ def _advance_rows(at, sky, old, keys, params, out, lo, hi):
     correlation distances [m], the mask [rad] and the sine below which a link is out."""
     ut_pos, ut_enu, step = at
     sat_pos, cone = sky
-    sat_id, z_los, z_sf_los, z_sf_nlos, el_out, az_out = out
+    sat_id, z_los, z_sf_los, z_sf_nlos, el_out, east_out, north_out = out
     for u in range(lo, hi):
         p = 0
         for j in range(cone.size):
@@ -356,14 +370,17 @@ def _advance_rows(at, sky, old, keys, params, out, lo, hi):
                    sat_pos[s, 2] - ut_pos[u, 2])  # fmt: skip
             sat_id[u, j] = -1
             z_los[u, j] = z_sf_los[u, j] = z_sf_nlos[u, j] = 0.0
-            el_out[u, j] = az_out[u, j] = np.nan
+            east_out[u, j] = north_out[u, j] = 0.0
+            el_out[u, j] = np.nan
             if sine_of_elevation(los, ut_enu[u]) < params[5]:  # far below: no arcsine
                 continue
-            el, az = look_angles_rad(los, ut_enu[u])
-            el_out[u, j], az_out[u, j] = el, az
+            el = elevation_rad(los, ut_enu[u])
+            el_out[u, j] = el
             if el < params[4]:
                 continue
             sat_id[u, j] = s
+            ray = cs.ray_offset_en_m(*link_enu(los, ut_enu[u]), params[0])
+            east_out[u, j], north_out[u, j] = ray
             while p < old[0].shape[1] and old[0][u, p] < s:  # (-1: an empty slot)
                 p += 1
             had = p < old[0].shape[1] and old[0][u, p] == s
@@ -371,7 +388,7 @@ def _advance_rows(at, sky, old, keys, params, out, lo, hi):
             z0 = (0.0, 0.0, 0.0)
             if had:
                 d_m = cs.ray_moved_m((step[u, 0], step[u, 1]), (old[4][u, p], old[5][u, p]),
-                                     (el, az), params[0])  # fmt: skip
+                                     ray)  # fmt: skip
                 z0 = (old[1][u, p], old[2][u, p], old[3][u, p])
             w = cs.pair_innovations(cs.pair_key(keys[0][u], np.uint64(s)), keys[1])
             z_los[u, j] = cs.ar1_step(z0[0], d_m, params[1], w[0])
