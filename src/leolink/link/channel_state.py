@@ -62,7 +62,9 @@ __all__ = [
     "EnvironmentModel",
     "LinkTerms",
     "advance",
+    "ar1_mix",
     "ar1_step",
+    "ar1_weights",
     "effective_displacement_m",
     "dense_terms",
     "direction_enu",
@@ -271,8 +273,21 @@ def ar1_step(z_prev, distance_m, corr_distance_m, w):
     corr_distance_m : float
         Correlation distance [m], > 0.
     """
+    return ar1_mix(z_prev, ar1_weights(distance_m, corr_distance_m), w)
+
+
+@compiled.jitable
+def ar1_weights(distance_m, corr_distance_m):
+    """The weights ``(rho, sqrt(1 - rho^2))`` of :func:`ar1_step` (a compiled loop
+    computes them once for two fields of the same correlation distance)."""
     rho = np.exp(-distance_m / corr_distance_m)
-    return rho * z_prev + np.sqrt(1.0 - rho * rho) * w
+    return rho, np.sqrt(1.0 - rho * rho)
+
+
+@compiled.jitable
+def ar1_mix(z_prev, weights, w):
+    """:func:`ar1_step` of its :func:`ar1_weights`."""
+    return weights[0] * z_prev + weights[1] * w
 
 
 def ray_clutter_offset_m(elevation_rad, azimuth_rad, clutter_height_m):
@@ -461,26 +476,30 @@ def link_terms(state, model):
         ``clutter_db = CL(el)`` if NLoS (Tables 6.6.2-1..3); ``open``: always LoS, 0 dB.
         Shape (n_ut, n_slot), NaN / False in empty slots.
     """
-    rows, slots = np.nonzero(state.sat_id >= 0)
-    return dense_terms(pair_terms(state, model, rows, slots), rows, slots, state.sat_id.shape)
+    pairs = np.flatnonzero(state.sat_id >= 0)
+    return dense_terms(pair_terms(state, model, pairs), pairs, state.sat_id.shape)
 
 
-def dense_terms(terms, rows, slots, shape):
-    """:class:`LinkTerms` of the pairs ``(rows, slots)`` (shape (n,)) spread on a grid of
-    ``shape``: NaN / False elsewhere."""
+def dense_terms(terms, pairs, shape):
+    """:class:`LinkTerms` of the pairs ``pairs`` (shape (n,): flat, row-major indices)
+    spread on a grid of ``shape``: NaN / False elsewhere."""
     out = []
     for name, values in zip(LinkTerms._fields, terms, strict=True):
         dense = np.zeros(shape, bool) if name == "los" else np.full(shape, np.nan)
-        dense[rows, slots] = values
+        dense.reshape(-1)[pairs] = values
         out.append(dense)
     return LinkTerms(*out)
 
 
-def pair_terms(state, model, rows, slots):
-    """:func:`link_terms` of the pairs ``(rows, slots)`` of ``state`` only (each with a
-    satellite): :class:`LinkTerms` of shape (n,), the same values."""
-    z_los, el_rad = state.z_los[rows, slots], state.elevation_rad[rows, slots]
-    el_deg = np.degrees(el_rad)
+def pair_terms(state, model, pairs):
+    """:func:`link_terms` of the pairs ``pairs`` of ``state`` only (flat, row-major
+    indices of slots with a satellite, e.g. :func:`numpy.flatnonzero` of ``sat_id >= 0``):
+    :class:`LinkTerms` of shape (n,), the same values."""
+
+    def take(field):  # (a flat index: ~3x faster than a (rows, slots) pair)
+        return np.take(field.reshape(-1), pairs)
+
+    z_los, el_deg = take(state.z_los), np.degrees(take(state.elevation_rad))
     name, band = model.environment, model.band
     if name == "open":
         los = np.ones(el_deg.shape, dtype=bool)
@@ -490,7 +509,7 @@ def pair_terms(state, model, rows, slots):
 
         # Compare in the Gaussian domain (exact, no erf): Phi(z) < p  <=>  z < Phi^-1(p).
         los = z_los < ndtri(env.los_probability(el_deg, name))
-        z_sf = np.where(los, state.z_sf_los[rows, slots], state.z_sf_nlos[rows, slots])
+        z_sf = np.where(los, take(state.z_sf_los), take(state.z_sf_nlos))
         shadow_db = env.shadow_sigma_db(el_deg, name, band, los) * z_sf
         clutter_db = np.where(los, 0.0, env.clutter_loss_db(el_deg, name, band))
     if model.scintillation:

@@ -30,6 +30,7 @@ states in any run that holds it, and any motion-block length gives the same stat
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Literal
 
 import numpy as np
@@ -123,7 +124,7 @@ class EpochChannel:
     clutter_db: np.ndarray
     scintillation_db: np.ndarray | None = None
 
-    @property
+    @functools.cached_property  # (read by every loss query of the epoch: summed once)
     def extra_loss_db(self):
         """Each pair's extra loss [dB], (n_pair,): shadowing + clutter + scintillation."""
         scint = 0.0 if self.scintillation_db is None else self.scintillation_db
@@ -145,8 +146,12 @@ class EpochChannel:
         slot = np.clip(np.searchsorted(self.cone, sat), 0, self.cone.size - 1)
         rows = np.arange(sat.shape[0]).reshape((-1,) + (1,) * (sat.ndim - 1))
         ok = self.has[rows, slot] & (self.cone[slot] == sat) & (sat >= 0)
-        index = np.cumsum(self.has.reshape(-1)) - 1  # row-major position of each state
-        return np.where(ok, index[rows * self.cone.size + slot], 0), ok
+        return np.where(ok, self._index[rows * self.cone.size + slot], 0), ok
+
+    @functools.cached_property
+    def _index(self):
+        """Row-major position of each state among the kept pairs, (n_ut * n_cone,)."""
+        return np.cumsum(self.has.reshape(-1)) - 1
 
     def loss_db(self, sat):
         """Extra loss [dB] of the paths to satellites ``sat (n_ut, m)``; 0 without a state."""
@@ -190,7 +195,7 @@ class EpochChannel:
         False without a state."""
         part = cs.LinkTerms(self.los, self.shadow_db, self.clutter_db, self._scintillation(),
                             self.extra_loss_db)  # fmt: skip
-        return cs.dense_terms(part, *np.nonzero(self.has), self.has.shape)
+        return cs.dense_terms(part, np.flatnonzero(self.has), self.has.shape)
 
 
 def _take(values, pair, ok, fill):
@@ -271,7 +276,7 @@ class ChannelTracker:
                 self.states[i] = cs.advance(self.states[i], model, self.keys[sl], sat_id, el, az,
                                             at[2], k)  # fmt: skip
             parts.append(cs.pair_terms(self.states[i], model,
-                                       *np.nonzero(self.states[i].sat_id >= 0)))  # fmt: skip
+                                       np.flatnonzero(self.states[i].sat_id >= 0)))  # fmt: skip
         has = np.concatenate([st.sat_id >= 0 for st in self.states])
         terms = cs.LinkTerms(*(np.concatenate(f) for f in zip(*parts, strict=True)))
         scint = terms.scintillation_db if self.scintillation else None
@@ -391,6 +396,9 @@ def _advance_rows(at, sky, old, keys, params, out, lo, hi):
                                      ray)  # fmt: skip
                 z0 = (old[1][u, p], old[2][u, p], old[3][u, p])
             w = cs.pair_innovations(cs.pair_key(keys[0][u], np.uint64(s)), keys[1])
-            z_los[u, j] = cs.ar1_step(z0[0], d_m, params[1], w[0])
+            a_los = cs.ar1_weights(d_m, params[1])
+            # the defaults share 50 m between the LoS state and NLoS shadowing: one exp
+            a_nlos = a_los if params[3] == params[1] else cs.ar1_weights(d_m, params[3])
+            z_los[u, j] = cs.ar1_mix(z0[0], a_los, w[0])
             z_sf_los[u, j] = cs.ar1_step(z0[1], d_m, params[2], w[1])
-            z_sf_nlos[u, j] = cs.ar1_step(z0[2], d_m, params[3], w[2])
+            z_sf_nlos[u, j] = cs.ar1_mix(z0[2], a_nlos, w[2])
