@@ -30,7 +30,6 @@ states in any run that holds it, and any motion-block length gives the same stat
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import Literal
 
 import numpy as np
@@ -124,7 +123,7 @@ class EpochChannel:
     clutter_db: np.ndarray
     scintillation_db: np.ndarray | None = None
 
-    @functools.cached_property  # (read by every loss query of the epoch: summed once)
+    @property
     def extra_loss_db(self):
         """Each pair's extra loss [dB], (n_pair,): shadowing + clutter + scintillation."""
         scint = 0.0 if self.scintillation_db is None else self.scintillation_db
@@ -146,12 +145,8 @@ class EpochChannel:
         slot = np.clip(np.searchsorted(self.cone, sat), 0, self.cone.size - 1)
         rows = np.arange(sat.shape[0]).reshape((-1,) + (1,) * (sat.ndim - 1))
         ok = self.has[rows, slot] & (self.cone[slot] == sat) & (sat >= 0)
-        return np.where(ok, self._index[rows * self.cone.size + slot], 0), ok
-
-    @functools.cached_property
-    def _index(self):
-        """Row-major position of each state among the kept pairs, (n_ut * n_cone,)."""
-        return np.cumsum(self.has.reshape(-1)) - 1
+        index = np.cumsum(self.has.reshape(-1)) - 1  # row-major position of each state
+        return np.where(ok, index[rows * self.cone.size + slot], 0), ok
 
     def loss_db(self, sat):
         """Extra loss [dB] of the paths to satellites ``sat (n_ut, m)``; 0 without a state."""
