@@ -317,8 +317,10 @@ def ray_offset_en_m(east, north, up, clutter_height_m):
     satellite given by its components (east, north, up) in the UT's frame, of any length
     (:func:`direction_enu`, or a link vector: no angle needed). ``h cot(max(el, 10 deg))
     (sin az, cos az)`` is ``h (east, north) / max(up, tan(10 deg) |(east, north)|)``
-    (arrays, or a compiled loop's scalars)."""
-    scale = clutter_height_m / np.maximum(up, _TAN_MIN_ELEVATION * np.hypot(east, north))
+    (arrays, or a compiled loop's scalars; a square root, not ``hypot``, which costs a
+    compiled loop ~4x: nothing here is near overflow)."""
+    horizontal = np.sqrt(east * east + north * north)
+    scale = clutter_height_m / np.maximum(up, _TAN_MIN_ELEVATION * horizontal)
     return scale * east, scale * north
 
 
@@ -330,7 +332,8 @@ def ray_moved_m(ut_step_en_m, previous_en_m, current_en_m):
     broadcast, or a compiled loop's scalars)."""
     e0, n0 = previous_en_m
     e1, n1 = current_en_m
-    return np.hypot(ut_step_en_m[0] + (e1 - e0), ut_step_en_m[1] + (n1 - n0))
+    east, north = ut_step_en_m[0] + (e1 - e0), ut_step_en_m[1] + (n1 - n0)
+    return np.sqrt(east * east + north * north)  # (not hypot: see ray_offset_en_m)
 
 
 def effective_displacement_m(ut_step_m, el_prev_rad, az_prev_rad, el_rad, az_rad, clutter_height_m):
