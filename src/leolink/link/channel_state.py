@@ -35,9 +35,11 @@ direction).
 Randomness: the innovations ``w_k`` of a pair at epoch ``k`` are a pure function of (UT
 key of :func:`leolink.rng.ut_keys`, satellite id, ``k``): no dependence on chunking,
 order of the candidates or workers. State lives in ``(n_ut, n_slot)`` arrays aligned with
-the current candidates' ids (48 bytes a pair, 1 MB for 1000 UTs x 20 candidates, whatever
-the constellation size); a pair absent from the previous state starts from the
-stationary N(0, 1). Time chunks must hand the state on; UT chunks need nothing.
+the current candidates' ids (56 bytes a pair, 1.1 MB for 1000 UTs x 20 candidates,
+whatever the constellation size: the three variables, the elevation and the ray's offset
+``P - x_UT``, carried so that an epoch computes only its own); a pair absent from the
+previous state starts from the stationary N(0, 1). Time chunks must hand the state on;
+UT chunks need nothing.
 
 References
 ----------

@@ -16,9 +16,11 @@ gives the environment's extra loss of each path (:class:`EpochChannel`). The los
   sharing the path's state and each interfering satellite's path having its own.
 
 Speed: with the compiled loops on (:mod:`leolink.compiled`) one numba loop per
-population (:func:`_advance_rows`) does an epoch's look angles, state carry, ray shift,
+population (:func:`_advance_rows`) does an epoch's elevations, state carry, ray shift,
 innovations and AR(1) step, calling the same physics functions as the numpy path
-(:func:`leolink.link.channel_state.advance`); the two agree to 1e-12 dB (tested).
+(:func:`leolink.link.channel_state.advance`); the two agree to 1e-9 dB (tested: the loop
+takes the ray's offset from the link's (east, north, up), with no azimuth and no
+trigonometry, the numpy path from the angles; they round differently).
 
 Which pairs have a state: at epoch ``k``, those of UT ``u`` and every satellite above
 the mask for ``u`` (0 degrees with other-satellite interference). That set is a function
@@ -333,8 +335,8 @@ def _advance_compiled(state, model, keys, at, sky, k):
     """:func:`leolink.link.channel_state.advance` of the UTs ``at`` = (positions, ENU
     rows, steps (east, north)) to the cone's satellites above the mask, ``sky`` =
     (satellite positions, cone, mask [rad]), by :func:`_advance_rows`: the same state,
-    but for the angles of the links far below the mask (NaN: an empty slot's angles are
-    never read)."""
+    but for the elevations of the links far below the mask (NaN: an empty slot's elevation
+    is never read)."""
     if not k > state.epoch:
         raise ValueError(f"epoch = {k!r} must exceed the state's epoch {state.epoch}")
     n_ut, n_cone = at[0].shape[0], sky[1].size
@@ -352,9 +354,10 @@ def _advance_compiled(state, model, keys, at, sky, k):
 
 @compiled.jit
 def _advance_rows(at, sky, old, keys, params, out, lo, hi):
-    """The UTs ``lo .. hi - 1`` of :func:`_advance_compiled`: each cone satellite's look
-    angles (:func:`look_angles_rad`); above the mask, the pair's state carried from
-    ``old`` (a UT's valid slots ascend in satellite id, as the cone does), moved by
+    """The UTs ``lo .. hi - 1`` of :func:`_advance_compiled`: each cone satellite's
+    elevation (:func:`elevation_rad`); above the mask, the ray's offset of the link's
+    components (:func:`link_enu`), the pair's state carried from ``old`` (a UT's valid
+    slots ascend in satellite id, as the cone does), moved by
     :func:`~leolink.link.channel_state.ray_moved_m` and stepped by
     :func:`~leolink.link.channel_state.ar1_step` with the pair's innovations.
     ``keys``: (UT keys, counter ``2 k``); ``params``: clutter height, the three
