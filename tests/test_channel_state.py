@@ -175,6 +175,21 @@ def test_effective_displacement_is_the_shift_of_the_rays_piercing_point():
     assert got == pytest.approx(expected, rel=1e-12, abs=1e-9)
 
 
+def test_ray_offset_of_a_link_vector_is_the_piercing_point_whatever_its_length():
+    """The compiled loop passes the link's (east, north, up) in metres, not a unit vector;
+    below 10 deg the point is held at its 10-degree place."""
+    g = np.random.default_rng(8)
+    el, az = np.radians(g.uniform(10, 90, 50)), g.uniform(0, 2 * np.pi, 50)
+    want = brute_force_piercing_point(el, az, 15.0)
+    for length_m in (1.0, 7.3e6):
+        link = [length_m * c for c in cs.direction_enu(el, az)]
+        got = np.stack(cs.ray_offset_en_m(*link, 15.0), axis=-1)
+        assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
+    low = [2.1e6 * c for c in cs.direction_enu(np.full(50, np.radians(3.0)), az)]
+    held = brute_force_piercing_point(np.full(50, np.radians(10.0)), az, 15.0)
+    assert np.stack(cs.ray_offset_en_m(*low, 15.0), axis=-1) == pytest.approx(held, rel=1e-12)
+
+
 def test_scalar_ut_step_is_the_mean_square_over_travel_directions():
     el0, el1 = np.radians([[20.0]]), np.radians([[24.0]])
     az0, az1 = np.radians([[100.0]]), np.radians([[93.0]])
@@ -217,7 +232,7 @@ def changing_candidates(n_ut, n_epoch, n_sat_total=40, n_slot=8, seed=2):
     return ids, els, azs, steps
 
 
-FIELDS = ("sat_id", "z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "azimuth_rad")
+FIELDS = ("sat_id", "z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "ray_east_m", "ray_north_m")
 
 
 def chunked_run(model, keys, data, epochs, bounds):

@@ -208,11 +208,52 @@ def test_compiled_loop_keeps_the_numpy_states_at_the_mask_and_in_empty_slots(mon
         for name in ("z_los", "z_sf_los", "z_sf_nlos"):
             np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-12,
                                        atol=0.0, err_msg=name)  # fmt: skip
-        for name in ("elevation_rad", "azimuth_rad"):
+        g, w = got.elevation_rad, want.elevation_rad
+        assert np.isfinite(g[:, [0, 1, 2, 4]]).all()
+        np.testing.assert_allclose(g[:, [0, 1, 2, 4]], w[:, [0, 1, 2, 4]], rtol=1e-12)
+        # the ray's offsets: of the link vector (compiled) and of the angles (numpy)
+        for name in ("ray_east_m", "ray_north_m"):
             g, w = getattr(got, name), getattr(want, name)
-            assert np.isfinite(g[:, [0, 1, 2, 4]]).all()
-            np.testing.assert_allclose(g[:, [0, 1, 2, 4]], w[:, [0, 1, 2, 4]], rtol=1e-12)
+            np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12, err_msg=name)
+            assert np.all(g[:, [2, 3]] == 0.0) and np.all(np.abs(g[:, [0, 1, 4]]) > 0.1)
     # nothing moved: the three carried pairs keep their state (a new pair would draw anew)
     for name in ("z_los", "z_sf_los", "z_sf_nlos"):
         np.testing.assert_array_equal(getattr(state1, name), getattr(state0, name))
     assert np.all(state0.z_los[:, [0, 1, 4]] != 0.0)
+
+
+def _moving_states(models, use_loops, monkeypatch):
+    """States after 4 epochs of 3 UTs per population moving 12 m east a second (positions
+    near (R, 0, 0), ENU kept), under satellites at 30..75 deg that drift 0.3 deg a second."""
+    import leolink.compiled
+
+    monkeypatch.setattr(leolink.compiled, "use", lambda n: use_loops and n >= 1)
+    n = 3 * len(models)
+    tracker = ChannelTracker(models, [3] * len(models), np.arange(11, 11 + n, dtype=np.uint64),
+                             np.radians(20.0))  # fmt: skip
+    enu = np.array([ENU] * n)
+    for k in range(4):
+        sat = np.array([_sat(el + 0.3 * k, az) for el, az in ((30, 10), (50, 140), (75, 260))])
+        ut = np.array([[R_M, 12.0 * k + 40.0 * i, 5.0 * i] for i in range(n)])
+        tracker.step(k, ut, enu, sat, np.arange(3))
+    monkeypatch.undo()
+    return tracker.states
+
+
+def test_compiled_loop_steps_each_field_with_its_own_correlation_distance(monkeypatch):
+    """Moving UTs: the compiled loop's three driving variables are the numpy code's, with
+    the defaults (urban: LoS state and NLoS shadowing share 50 m) and with three distinct
+    distances (rural's 60 / 37 / 120 m, and 20 / 45 / 300 m set), so each field is stepped
+    with its own distance (a swapped or shared one moves the values by ~1e-2, not 1e-12)."""
+    params = ChannelParams(los_corr_distance_m=20.0, sf_corr_distance_los_m=45.0,
+                           sf_corr_distance_nlos_m=300.0)  # fmt: skip
+    models = environment_models(_pops(("urban", None), ("rural", None), ("suburban", params)),
+                                FREQ_HZ)  # fmt: skip
+    got = _moving_states(models, True, monkeypatch)
+    want = _moving_states(models, False, monkeypatch)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g.sat_id, w.sat_id)
+        assert (g.sat_id >= 0).all()
+        for name in ("z_los", "z_sf_los", "z_sf_nlos"):
+            np.testing.assert_allclose(getattr(g, name), getattr(w, name), rtol=0, atol=1e-9,
+                                       err_msg=name)  # fmt: skip

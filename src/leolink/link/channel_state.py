@@ -35,9 +35,11 @@ direction).
 Randomness: the innovations ``w_k`` of a pair at epoch ``k`` are a pure function of (UT
 key of :func:`leolink.rng.ut_keys`, satellite id, ``k``): no dependence on chunking,
 order of the candidates or workers. State lives in ``(n_ut, n_slot)`` arrays aligned with
-the current candidates' ids (48 bytes a pair, 1 MB for 1000 UTs x 20 candidates, whatever
-the constellation size); a pair absent from the previous state starts from the
-stationary N(0, 1). Time chunks must hand the state on; UT chunks need nothing.
+the current candidates' ids (56 bytes a pair, 1.1 MB for 1000 UTs x 20 candidates,
+whatever the constellation size: the three variables, the elevation and the ray's offset
+``P - x_UT``, carried so that an epoch computes only its own); a pair absent from the
+previous state starts from the stationary N(0, 1). Time chunks must hand the state on;
+UT chunks need nothing.
 
 References
 ----------
@@ -62,9 +64,12 @@ __all__ = [
     "EnvironmentModel",
     "LinkTerms",
     "advance",
+    "ar1_mix",
     "ar1_step",
+    "ar1_weights",
     "effective_displacement_m",
     "dense_terms",
+    "direction_enu",
     "empty_state",
     "environment_model",
     "innovations",
@@ -83,6 +88,7 @@ _DEFAULTS = {
     "dense_urban": (50.0, 37.0, 50.0, 20.0),
 }
 _MIN_ELEVATION_RAD = np.radians(10.0)  # lowest tabulated angle of TR 38.811
+_TAN_MIN_ELEVATION = np.tan(_MIN_ELEVATION_RAD)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 # Separates the environment's streams from any other use of the same UT keys.
 _DOMAIN = np.uint64(0x6C62272E07BB0142)
@@ -180,9 +186,11 @@ class ChannelState:
     Attributes (all shape (n_ut, n_slot); slot ``j`` of UT ``i`` is satellite
     ``sat_id[i, j]``, ``-1`` an empty slot):
     ``sat_id`` (int64), ``z_los``, ``z_sf_los``, ``z_sf_nlos`` (float64, N(0, 1)),
-    ``elevation_rad``, ``azimuth_rad`` (float64, geometry of that epoch; kept exact so that
-    an unchanged geometry gives a zero displacement, not a rounding residue that
-    ``sqrt(1 - rho^2)`` would amplify);
+    ``elevation_rad`` (float64, of that epoch: the tables' argument);
+    ``ray_east_m``, ``ray_north_m`` (float64, the ray's piercing offset of that epoch,
+    :func:`ray_offset_en_m` [m], 0 in empty slots: the next epoch's displacement needs
+    only its own offset; kept exact so that an unchanged geometry gives a zero
+    displacement, not a rounding residue that ``sqrt(1 - rho^2)`` would amplify);
     ``epoch`` (int, -1 before the first :func:`advance`).
     """
 
@@ -191,14 +199,15 @@ class ChannelState:
     z_sf_los: np.ndarray
     z_sf_nlos: np.ndarray
     elevation_rad: np.ndarray
-    azimuth_rad: np.ndarray
+    ray_east_m: np.ndarray
+    ray_north_m: np.ndarray
     epoch: int = -1
 
 
 def empty_state(n_ut):
     """A state with no pair yet (every pair of the first epoch starts stationary)."""
     f = np.zeros((n_ut, 0))
-    return ChannelState(np.zeros((n_ut, 0), dtype=np.int64), f, f, f, f, f, -1)
+    return ChannelState(np.zeros((n_ut, 0), dtype=np.int64), f, f, f, f, f, f, -1)
 
 
 def pair_keys(ut_keys, sat_id):
@@ -266,8 +275,21 @@ def ar1_step(z_prev, distance_m, corr_distance_m, w):
     corr_distance_m : float
         Correlation distance [m], > 0.
     """
+    return ar1_mix(z_prev, ar1_weights(distance_m, corr_distance_m), w)
+
+
+@compiled.jitable
+def ar1_weights(distance_m, corr_distance_m):
+    """The weights ``(rho, sqrt(1 - rho^2))`` of :func:`ar1_step` (a compiled loop
+    computes them once for two fields of the same correlation distance)."""
     rho = np.exp(-distance_m / corr_distance_m)
-    return rho * z_prev + np.sqrt(1.0 - rho * rho) * w
+    return rho, np.sqrt(1.0 - rho * rho)
+
+
+@compiled.jitable
+def ar1_mix(z_prev, weights, w):
+    """:func:`ar1_step` of its :func:`ar1_weights`."""
+    return weights[0] * z_prev + weights[1] * w
 
 
 def ray_clutter_offset_m(elevation_rad, azimuth_rad, clutter_height_m):
@@ -280,26 +302,40 @@ def ray_clutter_offset_m(elevation_rad, azimuth_rad, clutter_height_m):
     -------
     ndarray, shape (..., 2)
     """
-    el = np.asarray(elevation_rad, dtype=float)
-    return np.stack(ray_offset_en_m(el, np.asarray(azimuth_rad, float), clutter_height_m), axis=-1)
+    direction = direction_enu(elevation_rad, azimuth_rad)
+    return np.stack(ray_offset_en_m(*direction, clutter_height_m), axis=-1)
+
+
+def direction_enu(elevation_rad, azimuth_rad):
+    """Unit vector (east, north, up) of the direction of elevation and azimuth [rad]
+    (azimuth from north towards east): a tuple of arrays."""
+    el, az = np.asarray(elevation_rad, dtype=float), np.asarray(azimuth_rad, dtype=float)
+    return np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)
 
 
 @compiled.jitable
-def ray_offset_en_m(elevation_rad, azimuth_rad, clutter_height_m):
-    """:func:`ray_clutter_offset_m` as the tuple (east, north) [m] (arrays, or a compiled
-    loop's scalars)."""
-    r_m = clutter_height_m / np.tan(np.maximum(elevation_rad, _MIN_ELEVATION_RAD))
-    return r_m * np.sin(azimuth_rad), r_m * np.cos(azimuth_rad)
+def ray_offset_en_m(east, north, up, clutter_height_m):
+    """:func:`ray_clutter_offset_m` as the tuple (east, north) [m], of the direction to the
+    satellite given by its components (east, north, up) in the UT's frame, of any length
+    (:func:`direction_enu`, or a link vector: no angle needed). ``h cot(max(el, 10 deg))
+    (sin az, cos az)`` is ``h (east, north) / max(up, tan(10 deg) |(east, north)|)``
+    (arrays, or a compiled loop's scalars; a square root, not ``hypot``, which costs a
+    compiled loop ~4x: nothing here is near overflow)."""
+    horizontal = np.sqrt(east * east + north * north)
+    scale = clutter_height_m / np.maximum(up, _TAN_MIN_ELEVATION * horizontal)
+    return scale * east, scale * north
 
 
 @compiled.jitable
-def ray_moved_m(ut_step_en_m, previous, current, clutter_height_m):
+def ray_moved_m(ut_step_en_m, previous_en_m, current_en_m):
     """Distance the ray's piercing point moved (:func:`effective_displacement_m` of a UT
-    step (east, north) [m]): ``previous`` and ``current`` the (elevation, azimuth) [rad]
-    of the two epochs (tuples of arrays that broadcast, or a compiled loop's scalars)."""
-    e1, n1 = ray_offset_en_m(current[0], current[1], clutter_height_m)
-    e0, n0 = ray_offset_en_m(previous[0], previous[1], clutter_height_m)
-    return np.hypot(ut_step_en_m[0] + (e1 - e0), ut_step_en_m[1] + (n1 - n0))
+    step (east, north) [m]): ``previous_en_m`` and ``current_en_m`` the ray's offsets
+    (east, north) [m] of the two epochs (:func:`ray_offset_en_m`; tuples of arrays that
+    broadcast, or a compiled loop's scalars)."""
+    e0, n0 = previous_en_m
+    e1, n1 = current_en_m
+    east, north = ut_step_en_m[0] + (e1 - e0), ut_step_en_m[1] + (n1 - n0)
+    return np.sqrt(east * east + north * north)  # (not hypot: see ray_offset_en_m)
 
 
 def effective_displacement_m(ut_step_m, el_prev_rad, az_prev_rad, el_rad, az_rad, clutter_height_m):
@@ -319,16 +355,19 @@ def effective_displacement_m(ut_step_m, el_prev_rad, az_prev_rad, el_rad, az_rad
     ndarray, shape (n_ut, n_slot)
         Distance [m], >= 0.
     """
-    el_prev, az_prev, el, az = (np.asarray(a, dtype=float) for a in
-                                (el_prev_rad, az_prev_rad, el_rad, az_rad))  # fmt: skip
+    previous = ray_offset_en_m(*direction_enu(el_prev_rad, az_prev_rad), clutter_height_m)
+    current = ray_offset_en_m(*direction_enu(el_rad, az_rad), clutter_height_m)
+    return _offset_displacement_m(ut_step_m, previous, current)
+
+
+def _offset_displacement_m(ut_step_m, previous_en_m, current_en_m):
+    """:func:`effective_displacement_m` of the ray's offsets (east, north) [m] of the two
+    epochs (tuples of arrays (n_ut, n_slot))."""
     step = np.asarray(ut_step_m, dtype=float)
     if step.ndim == 2:
-        return ray_moved_m((step[:, None, 0], step[:, None, 1]), (el_prev, az_prev), (el, az),
-                           clutter_height_m)  # fmt: skip
-    shift = ray_clutter_offset_m(el, az, clutter_height_m) - ray_clutter_offset_m(
-        el_prev, az_prev, clutter_height_m
-    )
-    return np.sqrt(step[:, None] ** 2 + np.sum(shift * shift, axis=-1))
+        return ray_moved_m((step[:, None, 0], step[:, None, 1]), previous_en_m, current_en_m)
+    shift = [c - p for c, p in zip(current_en_m, previous_en_m, strict=True)]
+    return np.sqrt(step[:, None] ** 2 + (shift[0] * shift[0] + shift[1] * shift[1]))
 
 
 def _carry(state, sat_id, rows, slots):
@@ -343,7 +382,7 @@ def _carry(state, sat_id, rows, slots):
     order = np.argsort(old_key, kind="stable")  # equal keys: the first slot, as before
     old_key = old_key[order]
     key = rows * n_key + sat
-    fields = ("z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "azimuth_rad")
+    fields = ("z_los", "z_sf_los", "z_sf_nlos", "ray_east_m", "ray_north_m")
     if old_key.size == 0:  # the first epoch: every pair new
         return np.zeros(key.size, bool), {name: np.zeros(key.size) for name in fields}
     idx = np.minimum(np.searchsorted(old_key, key), old_key.size - 1)
@@ -388,10 +427,11 @@ def advance(state, model, ut_keys, sat_id, elevation_rad, azimuth_rad, ut_step_m
     rows, slots = np.nonzero(sat_id >= 0)
     had, prev = _carry(state, sat_id, rows, slots)
     step = np.asarray(ut_step_m, dtype=float)[rows]  # each pair's UT step, (n, 2) or (n,)
-    el_p, az_p = el[rows, slots][:, None], az[rows, slots][:, None]  # (n, 1): one slot a row
-    moved_m = effective_displacement_m(
-        step, prev["elevation_rad"][:, None], prev["azimuth_rad"][:, None], el_p, az_p,
-        model.clutter_height_m,
+    ray_en = ray_offset_en_m(*direction_enu(el[rows, slots], az[rows, slots]),
+                             model.clutter_height_m)  # fmt: skip
+    moved_m = _offset_displacement_m(
+        step, (prev["ray_east_m"][:, None], prev["ray_north_m"][:, None]),
+        (ray_en[0][:, None], ray_en[1][:, None]),
     )[:, 0]  # fmt: skip
     distance_m = np.where(had, moved_m, np.inf)  # new pair: rho = 0, stationary start
     keys = np.asarray(ut_keys, dtype=np.uint64)[rows]
@@ -402,7 +442,12 @@ def advance(state, model, ut_keys, sat_id, elevation_rad, azimuth_rad, ut_step_m
         dense = np.zeros(sat_id.shape)
         dense[rows, slots] = ar1_step(prev[name], distance_m, d, w[i])
         z.append(dense)
-    return ChannelState(sat_id, *z, el, az, int(epoch))
+    ray = []
+    for values in ray_en:
+        dense = np.zeros(sat_id.shape)
+        dense[rows, slots] = values
+        ray.append(dense)
+    return ChannelState(sat_id, *z, el, *ray, int(epoch))
 
 
 class LinkTerms(NamedTuple):
@@ -436,26 +481,30 @@ def link_terms(state, model):
         ``clutter_db = CL(el)`` if NLoS (Tables 6.6.2-1..3); ``open``: always LoS, 0 dB.
         Shape (n_ut, n_slot), NaN / False in empty slots.
     """
-    rows, slots = np.nonzero(state.sat_id >= 0)
-    return dense_terms(pair_terms(state, model, rows, slots), rows, slots, state.sat_id.shape)
+    pairs = np.flatnonzero(state.sat_id >= 0)
+    return dense_terms(pair_terms(state, model, pairs), pairs, state.sat_id.shape)
 
 
-def dense_terms(terms, rows, slots, shape):
-    """:class:`LinkTerms` of the pairs ``(rows, slots)`` (shape (n,)) spread on a grid of
-    ``shape``: NaN / False elsewhere."""
+def dense_terms(terms, pairs, shape):
+    """:class:`LinkTerms` of the pairs ``pairs`` (shape (n,): flat, row-major indices)
+    spread on a grid of ``shape``: NaN / False elsewhere."""
     out = []
     for name, values in zip(LinkTerms._fields, terms, strict=True):
         dense = np.zeros(shape, bool) if name == "los" else np.full(shape, np.nan)
-        dense[rows, slots] = values
+        dense.reshape(-1)[pairs] = values
         out.append(dense)
     return LinkTerms(*out)
 
 
-def pair_terms(state, model, rows, slots):
-    """:func:`link_terms` of the pairs ``(rows, slots)`` of ``state`` only (each with a
-    satellite): :class:`LinkTerms` of shape (n,), the same values."""
-    z_los, el_rad = state.z_los[rows, slots], state.elevation_rad[rows, slots]
-    el_deg = np.degrees(el_rad)
+def pair_terms(state, model, pairs):
+    """:func:`link_terms` of the pairs ``pairs`` of ``state`` only (flat, row-major
+    indices of slots with a satellite, e.g. :func:`numpy.flatnonzero` of ``sat_id >= 0``):
+    :class:`LinkTerms` of shape (n,), the same values."""
+
+    def take(field):  # (a flat index: ~3x faster than a (rows, slots) pair)
+        return np.take(field.reshape(-1), pairs)
+
+    z_los, el_deg = take(state.z_los), np.degrees(take(state.elevation_rad))
     name, band = model.environment, model.band
     if name == "open":
         los = np.ones(el_deg.shape, dtype=bool)
@@ -465,7 +514,7 @@ def pair_terms(state, model, rows, slots):
 
         # Compare in the Gaussian domain (exact, no erf): Phi(z) < p  <=>  z < Phi^-1(p).
         los = z_los < ndtri(env.los_probability(el_deg, name))
-        z_sf = np.where(los, state.z_sf_los[rows, slots], state.z_sf_nlos[rows, slots])
+        z_sf = np.where(los, take(state.z_sf_los), take(state.z_sf_nlos))
         shadow_db = env.shadow_sigma_db(el_deg, name, band, los) * z_sf
         clutter_db = np.where(los, 0.0, env.clutter_loss_db(el_deg, name, band))
     if model.scintillation:

@@ -16,9 +16,11 @@ gives the environment's extra loss of each path (:class:`EpochChannel`). The los
   sharing the path's state and each interfering satellite's path having its own.
 
 Speed: with the compiled loops on (:mod:`leolink.compiled`) one numba loop per
-population (:func:`_advance_rows`) does an epoch's look angles, state carry, ray shift,
+population (:func:`_advance_rows`) does an epoch's elevations, state carry, ray shift,
 innovations and AR(1) step, calling the same physics functions as the numpy path
-(:func:`leolink.link.channel_state.advance`); the two agree to 1e-12 dB (tested).
+(:func:`leolink.link.channel_state.advance`); the two agree to 1e-9 dB (tested: the loop
+takes the ray's offset from the link's (east, north, up), with no azimuth and no
+trigonometry, the numpy path from the angles; they round differently).
 
 Which pairs have a state: at epoch ``k``, those of UT ``u`` and every satellite above
 the mask for ``u`` (0 degrees with other-satellite interference). That set is a function
@@ -190,7 +192,7 @@ class EpochChannel:
         False without a state."""
         part = cs.LinkTerms(self.los, self.shadow_db, self.clutter_db, self._scintillation(),
                             self.extra_loss_db)  # fmt: skip
-        return cs.dense_terms(part, *np.nonzero(self.has), self.has.shape)
+        return cs.dense_terms(part, np.flatnonzero(self.has), self.has.shape)
 
 
 def _take(values, pair, ok, fill):
@@ -271,7 +273,7 @@ class ChannelTracker:
                 self.states[i] = cs.advance(self.states[i], model, self.keys[sl], sat_id, el, az,
                                             at[2], k)  # fmt: skip
             parts.append(cs.pair_terms(self.states[i], model,
-                                       *np.nonzero(self.states[i].sat_id >= 0)))  # fmt: skip
+                                       np.flatnonzero(self.states[i].sat_id >= 0)))  # fmt: skip
         has = np.concatenate([st.sat_id >= 0 for st in self.states])
         terms = cs.LinkTerms(*(np.concatenate(f) for f in zip(*parts, strict=True)))
         scint = terms.scintillation_db if self.scintillation else None
@@ -296,17 +298,31 @@ def look_angles_rad(los, enu):
     UT's frame ``enu[i, c]`` (row ``i`` east, north, up; component ``c``): ``asin(up /
     |los|)`` and ``atan2(east, north)``. Arrays that broadcast, or one link's scalars and
     its UT's (3, 3) rows in a compiled loop (:func:`_advance_rows`)."""
+    east, north, _ = link_enu(los, enu)
+    return elevation_rad(los, enu), np.arctan2(east, north)
+
+
+@compiled.jitable
+def elevation_rad(los, enu):
+    """The elevation of :func:`look_angles_rad` alone (no arctangent)."""
+    return np.arcsin(sine_of_elevation(los, enu))
+
+
+@compiled.jitable
+def link_enu(los, enu):
+    """Components (east, north, up) [m] of the link ``los`` in the UT's frame ``enu``, of
+    :func:`look_angles_rad`'s arguments."""
     x, y, z = los
-    east = x * enu[0, 0] + y * enu[0, 1] + z * enu[0, 2]
-    north = x * enu[1, 0] + y * enu[1, 1] + z * enu[1, 2]
-    return np.arcsin(sine_of_elevation(los, enu)), np.arctan2(east, north)
+    return (x * enu[0, 0] + y * enu[0, 1] + z * enu[0, 2],
+            x * enu[1, 0] + y * enu[1, 1] + z * enu[1, 2],
+            x * enu[2, 0] + y * enu[2, 1] + z * enu[2, 2])  # fmt: skip
 
 
 @compiled.jitable
 def sine_of_elevation(los, enu):
     """``up / |los|`` clipped to [-1, 1], of :func:`look_angles_rad`'s arguments."""
     x, y, z = los
-    up = x * enu[2, 0] + y * enu[2, 1] + z * enu[2, 2]
+    up = link_enu(los, enu)[2]
     return np.minimum(np.maximum(up / np.sqrt(x * x + y * y + z * z), -1.0), 1.0)
 
 
@@ -319,15 +335,15 @@ def _advance_compiled(state, model, keys, at, sky, k):
     """:func:`leolink.link.channel_state.advance` of the UTs ``at`` = (positions, ENU
     rows, steps (east, north)) to the cone's satellites above the mask, ``sky`` =
     (satellite positions, cone, mask [rad]), by :func:`_advance_rows`: the same state,
-    but for the angles of the links far below the mask (NaN: an empty slot's angles are
-    never read)."""
+    but for the elevations of the links far below the mask (NaN: an empty slot's elevation
+    is never read)."""
     if not k > state.epoch:
         raise ValueError(f"epoch = {k!r} must exceed the state's epoch {state.epoch}")
     n_ut, n_cone = at[0].shape[0], sky[1].size
     sat_id = np.empty((n_ut, n_cone), np.int64)
-    out = (sat_id, *(np.empty((n_ut, n_cone)) for _ in range(5)))
-    old = (state.sat_id, state.z_los, state.z_sf_los, state.z_sf_nlos, state.elevation_rad,
-           state.azimuth_rad)  # fmt: skip
+    out = (sat_id, *(np.empty((n_ut, n_cone)) for _ in range(6)))
+    old = (state.sat_id, state.z_los, state.z_sf_los, state.z_sf_nlos, state.ray_east_m,
+           state.ray_north_m)  # fmt: skip
     params = np.array([model.clutter_height_m, model.los_corr_distance_m,
                        model.sf_corr_distance_los_m, model.sf_corr_distance_nlos_m, sky[2],
                        np.sin(sky[2]) - _SINE_GUARD])  # fmt: skip
@@ -338,16 +354,17 @@ def _advance_compiled(state, model, keys, at, sky, k):
 
 @compiled.jit
 def _advance_rows(at, sky, old, keys, params, out, lo, hi):
-    """The UTs ``lo .. hi - 1`` of :func:`_advance_compiled`: each cone satellite's look
-    angles (:func:`look_angles_rad`); above the mask, the pair's state carried from
-    ``old`` (a UT's valid slots ascend in satellite id, as the cone does), moved by
+    """The UTs ``lo .. hi - 1`` of :func:`_advance_compiled`: each cone satellite's
+    elevation (:func:`elevation_rad`); above the mask, the ray's offset of the link's
+    components (:func:`link_enu`), the pair's state carried from ``old`` (a UT's valid
+    slots ascend in satellite id, as the cone does), moved by
     :func:`~leolink.link.channel_state.ray_moved_m` and stepped by
     :func:`~leolink.link.channel_state.ar1_step` with the pair's innovations.
     ``keys``: (UT keys, counter ``2 k``); ``params``: clutter height, the three
     correlation distances [m], the mask [rad] and the sine below which a link is out."""
     ut_pos, ut_enu, step = at
     sat_pos, cone = sky
-    sat_id, z_los, z_sf_los, z_sf_nlos, el_out, az_out = out
+    sat_id, z_los, z_sf_los, z_sf_nlos, el_out, east_out, north_out = out
     for u in range(lo, hi):
         p = 0
         for j in range(cone.size):
@@ -356,14 +373,17 @@ def _advance_rows(at, sky, old, keys, params, out, lo, hi):
                    sat_pos[s, 2] - ut_pos[u, 2])  # fmt: skip
             sat_id[u, j] = -1
             z_los[u, j] = z_sf_los[u, j] = z_sf_nlos[u, j] = 0.0
-            el_out[u, j] = az_out[u, j] = np.nan
+            east_out[u, j] = north_out[u, j] = 0.0
+            el_out[u, j] = np.nan
             if sine_of_elevation(los, ut_enu[u]) < params[5]:  # far below: no arcsine
                 continue
-            el, az = look_angles_rad(los, ut_enu[u])
-            el_out[u, j], az_out[u, j] = el, az
+            el = elevation_rad(los, ut_enu[u])
+            el_out[u, j] = el
             if el < params[4]:
                 continue
             sat_id[u, j] = s
+            ray = cs.ray_offset_en_m(*link_enu(los, ut_enu[u]), params[0])
+            east_out[u, j], north_out[u, j] = ray
             while p < old[0].shape[1] and old[0][u, p] < s:  # (-1: an empty slot)
                 p += 1
             had = p < old[0].shape[1] and old[0][u, p] == s
@@ -371,9 +391,12 @@ def _advance_rows(at, sky, old, keys, params, out, lo, hi):
             z0 = (0.0, 0.0, 0.0)
             if had:
                 d_m = cs.ray_moved_m((step[u, 0], step[u, 1]), (old[4][u, p], old[5][u, p]),
-                                     (el, az), params[0])  # fmt: skip
+                                     ray)  # fmt: skip
                 z0 = (old[1][u, p], old[2][u, p], old[3][u, p])
             w = cs.pair_innovations(cs.pair_key(keys[0][u], np.uint64(s)), keys[1])
-            z_los[u, j] = cs.ar1_step(z0[0], d_m, params[1], w[0])
+            a_los = cs.ar1_weights(d_m, params[1])
+            # the defaults share 50 m between the LoS state and NLoS shadowing: one exp
+            a_nlos = a_los if params[3] == params[1] else cs.ar1_weights(d_m, params[3])
+            z_los[u, j] = cs.ar1_mix(z0[0], a_los, w[0])
             z_sf_los[u, j] = cs.ar1_step(z0[1], d_m, params[2], w[1])
-            z_sf_nlos[u, j] = cs.ar1_step(z0[2], d_m, params[3], w[2])
+            z_sf_nlos[u, j] = cs.ar1_mix(z0[2], a_nlos, w[2])
