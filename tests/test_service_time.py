@@ -7,6 +7,7 @@ import pytest
 
 from leolink.sim.handover.local_axis import LocalAxis
 from leolink.sim.handover.service_time import ServiceTimes
+from service_helpers import TableLinks
 
 # both paths of the first failures (compiled loop, numpy) against the brute-force scan
 pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
@@ -36,7 +37,7 @@ class _Engine:
         k = np.round(ut_pos_m[ut, 0]).astype(int)  # each pair's UT row: one step's time
         sats = sat_pos_m[sat, 0].astype(int)
         values = self.snr[k, ut if ut_id is None else ut_id[ut], sats]  # (m, n_beam)
-        return SimpleNamespace(visible=np.ones(len(ut), bool), snr_db_bm=lambda ix, iy: values.T)
+        return TableLinks(values)
 
 
 def _future(t_s):

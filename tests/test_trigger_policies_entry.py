@@ -21,6 +21,7 @@ from leolink.sim.handover.config import (
 )
 from leolink.sim.handover.policies import POLICIES
 from leolink.sim.handover.trigger_policies import horizon_s
+from service_helpers import TableLinks
 from test_trigger_run_geometry import MIN_SNR_DB, N_BEAM, R_M, _engine, _ground, _path
 
 
@@ -139,7 +140,7 @@ def _t1_handover_s(horizon):
     def evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, **_):
         k = np.round(ut_pos_m[ut, 0]).astype(int)
         values = snr[k, 0, sat_pos_m[sat, 0].astype(int)][:, None]  # (m, 1 beam)
-        return SimpleNamespace(visible=np.ones(len(ut), bool), snr_db_bm=lambda ix, iy: values.T)
+        return TableLinks(values)
 
     engine = SimpleNamespace(n_beam=1, codebook=SimpleNamespace(u_xy=np.zeros((1, 2))),
                              beam_ix=None, beam_iy=None, evaluate_pairs=evaluate_pairs)  # fmt: skip

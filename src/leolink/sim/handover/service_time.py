@@ -87,8 +87,10 @@ class ServiceTimes:
         serving_now : bool (n_ut, axis.n_cand), the cells that serve now.
         ut_up : (n_ut, 3) or None, the UTs' local up (WGS 84), kept over the look-ahead.
         per_cell : bool, keep ``end_cell`` exact (a cell that starts serving is looked
-            ahead); False looks ahead only when a satellite starts serving (its
-            ``end_cell`` entries may then be stale: for satellite-level policies).
+            ahead); False looks ahead only the satellites (when one starts serving, until
+            none of its beams serves: each step's best beam alone), ``end_cell`` is then
+            not looked ahead (``inf`` or stale where a cell serves): for satellite-level
+            policies.
 
         Returns
         -------
@@ -120,7 +122,7 @@ class ServiceTimes:
         if rows.size:
             got_cells, got_sat = self._scan(
                 t_s, rows, axis.sats[rows, slots], until[rows, slots],
-                cells[rows, slots], end_sat[rows, slots], ut_up,
+                cells[rows, slots], end_sat[rows, slots], ut_up, per_cell,
             )  # fmt: skip
             cells[rows, slots], end_sat[rows, slots] = got_cells, got_sat
             until[rows, slots] = t_s + self.n_step * self.epoch_s
@@ -129,9 +131,10 @@ class ServiceTimes:
         cell_out = np.where(now, cells, np.nan).reshape(end_cell.shape)
         return cell_out, np.where(sat_now, end_sat, np.nan)
 
-    def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up):
+    def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell=True):
         """Look ahead the pairs ``(rows[k], sats[k])`` over ``(start_s[k], t_s + horizon]``;
-        ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open).
+        ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open);
+        ``per_cell`` False: ``end_sat`` alone (``end_cell`` returned as given).
 
         The steps go in chunks of doubling length (:data:`FIRST_CHUNK` steps first), every
         open pair's steps of a chunk in one engine call: a pass is looked ahead in a few
@@ -143,13 +146,19 @@ class ServiceTimes:
             # (at most SCAN_PAIRS evaluations a call: bounded temporaries at a run's start)
             n = min(size, max(1, SCAN_PAIRS // int(np.isposinf(end_sat).sum())))
             steps = np.arange(j0, min(j0 + n, self.n_step + 1))
-            self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up)
+            self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell)
             j0, size = steps[-1] + 1, 2 * size
         return end_cell, end_sat
 
-    def _chunk(self, t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up):
+    def _chunk(self, t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell=True):
         """The look-ahead steps ``steps`` of the open pairs, in place: each pair's first
-        step at which a beam (all its beams) no longer serves is that beam's (its) end."""
+        step at which a beam (all its beams) no longer serves is that beam's (its) end.
+
+        ``per_cell`` False: the satellite's end alone, from each step's best beam
+        (:meth:`~leolink.engine.links.Links.best_beam`'s SNR, the largest of
+        ``snr_db_bm``): no beam serves exactly when that one does not, so
+        :func:`_first_failures` of that one row is the satellite's first failure, without
+        the SNR of every beam."""
         eng = self.engine
         t_j = t_s + steps * self.epoch_s
         open_ = np.flatnonzero(np.isposinf(end_sat))
@@ -167,16 +176,21 @@ class ServiceTimes:
             ut_ring[slot, ut], pos_ring[slot, sat], vel_ring[slot, sat], m, m,
             ut_up=None if ut_up is None else ut_up[ut], ut_id=ut, sat_id=sat,
         )  # fmt: skip
-        snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, combinations)
+        if per_cell:
+            snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, combinations)
+        else:
+            snr_bm = links.best_beam(eng.beam_ix, eng.beam_iy, with_snr_db=True)[1][None, :]
         first_sat, first_beam = _first_failures(
             snr_bm, links.visible, pair, step, self.min_snr_db, open_.size, steps.size
         )
+        ended = first_sat < steps.size
+        end_sat[open_[ended]] = t_j[first_sat[ended]]
+        if not per_cell:
+            return
         cells = end_cell[open_]
         hit = np.isposinf(cells) & (first_beam < steps.size)
         cells[hit] = t_j[first_beam[hit]]
         end_cell[open_] = cells
-        ended = first_sat < steps.size
-        end_sat[open_[ended]] = t_j[first_sat[ended]]
 
 
 def _first_failures(snr_bm, visible, pair, step, min_snr_db, n_pair, n_step):
