@@ -132,9 +132,10 @@ def _t1_handover_s(horizon):
     snr = np.full((60, 1, 2), 5.0)
     snr[:10, 0, 0], snr[10:, 0, 0] = 12.0, -30.0
 
-    def future(t_s):
-        ut, sats = np.full((1, 3), t_s), np.zeros((2, 3))  # the time in the UT's row
-        sats[:, 0] = [0.0, 1.0]  # the satellite's index in its row
+    def future(t_s):  # the times (n_t,): a leading time axis
+        ut = np.repeat(np.asarray(t_s, float)[:, None, None], 3, axis=2)  # the time in the UT's row
+        sats = np.zeros((len(t_s), 2, 3))
+        sats[..., 0] = [0.0, 1.0]  # the satellite's index in its row
         return ut, sats, sats.copy()
 
     def evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, **_):

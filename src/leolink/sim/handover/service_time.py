@@ -39,6 +39,9 @@ __all__ = ["ServiceTimes"]
 FIRST_CHUNK = 8
 #: (Pair, step) evaluations of one look-ahead engine call, at most (but one step a chunk).
 SCAN_PAIRS = 1 << 16
+#: Future times evaluated in one call of ``future_state``, at most (bounded temporaries:
+#: 32 times of 4,399 satellites are ~3 MB an array).
+STATE_BATCH = 32
 
 
 class ServiceTimes:
@@ -47,8 +50,8 @@ class ServiceTimes:
     Parameters
     ----------
     engine : leolink.engine.LinkEngine
-    future_state : callable ``t_s -> (ut_pos_m (n_ut, 3), sat_pos_m (n_sat, 3),
-        sat_vel_m_s (n_sat, 3))``, the run's known future.
+    future_state : callable ``t_s (n_t,) -> (ut_pos_m (n_t, n_ut, 3), sat_pos_m (n_t, n_sat,
+        3), sat_vel_m_s (n_t, n_sat, 3))``, the run's known future at the times ``t_s`` [s].
     min_snr_db : float [dB], service threshold.
     epoch_s, horizon_s : float [s], look-ahead step and horizon.
     """
@@ -61,20 +64,23 @@ class ServiceTimes:
         self._ring = None  # (keys, ut_pos, sat_pos, sat_vel): future states by time index
 
     def _slots(self, t_j):
-        """Ring slots of the future states at the times ``t_j`` [s] (evaluated when first
-        asked for; the ring holds every step of one look-ahead)."""
-        keys = np.round(np.asarray(t_j) / self.epoch_s).astype(np.int64)
-        if self._ring is None:
-            ut, pos, vel = self.future_state(float(t_j[0]))
-            n = self.n_step + 2
-            self._ring = (np.full(n, -1, np.int64), np.empty((n,) + ut.shape),
-                          np.empty((n,) + pos.shape), np.empty((n,) + vel.shape))  # fmt: skip
-        ring_keys, ut_ring, pos_ring, vel_ring = self._ring
-        slots = keys % ring_keys.size
-        for t, key, slot in zip(t_j, keys, slots, strict=True):
-            if ring_keys[slot] != key:
-                ut_ring[slot], pos_ring[slot], vel_ring[slot] = self.future_state(float(t))
-                ring_keys[slot] = key
+        """Ring slots of the future states at the distinct times ``t_j`` [s] (evaluated
+        when first asked for, :data:`STATE_BATCH` times a call; the ring holds every step of
+        one look-ahead)."""
+        t_j = np.asarray(t_j, float)
+        keys = np.round(t_j / self.epoch_s).astype(np.int64)
+        n = self.n_step + 2
+        slots = keys % n
+        missing = np.ones(keys.size, bool) if self._ring is None else self._ring[0][slots] != keys
+        for lo in range(0, int(missing.sum()), STATE_BATCH):
+            at = np.flatnonzero(missing)[lo : lo + STATE_BATCH]
+            ut, pos, vel = self.future_state(t_j[at])  # each with a leading time axis
+            if self._ring is None:
+                shapes = (a.shape[1:] for a in (ut, pos, vel))
+                self._ring = (np.full(n, -1, np.int64), *(np.empty((n, *sh)) for sh in shapes))
+            ring_keys, ut_ring, pos_ring, vel_ring = self._ring
+            ut_ring[slots[at]], pos_ring[slots[at]], vel_ring[slots[at]] = ut, pos, vel
+            ring_keys[slots[at]] = keys[at]
         return slots
 
     def update(self, t_s, axis, serving_now, ut_up=None, per_cell=True):
