@@ -94,59 +94,71 @@ class ServiceTimes:
         ut_up : (n_ut, 3) or None, the UTs' local up (WGS 84), kept over the look-ahead.
         per_cell : bool, keep ``end_cell`` exact (a cell that starts serving is looked
             ahead); False looks ahead only the satellites (when one starts serving, until
-            none of its beams serves: each step's best beam alone), ``end_cell`` is then
-            not looked ahead (``inf`` or stale where a cell serves): for satellite-level
-            policies.
+            none of its beams serves: each step's best beam alone) and keeps no cell's
+            end: for satellite-level policies.
 
         Returns
         -------
         end_cell (n_ut, n_cand), end_sat (n_ut, n_local) [s]: absolute times; NaN where
-        the cell (satellite) does not serve now.
+        the cell (satellite) does not serve now; ``end_cell`` None without ``per_cell``.
         """
         nb, shape = axis.n_beam, (axis.n_ut, axis.n_local)
+        cell_shape = (axis.n_ut, axis.n_cand)
         if self.axis is None:
-            end_cell = np.full((axis.n_ut, axis.n_cand), np.nan)
             end_sat, until = np.full(shape, np.nan), np.full(shape, np.nan)
         else:
-            end_cell = self.axis.remap(axis, self.end_cell, np.nan)
             end_sat = self.axis.remap(axis, self.end_sat, np.nan)
             until = self.axis.remap(axis, self.until, np.nan)
+        cells = None  # (n_ut, n_local, n_beam): kept only per cell
+        if per_cell:
+            kept = self.axis is not None and self.end_cell is not None
+            cells = (
+                self.axis.remap(axis, self.end_cell, np.nan)
+                if kept
+                else np.full(cell_shape, np.nan)
+            )
+            cells = cells.reshape(shape + (nb,))
         now = serving_now.reshape(shape + (nb,))
-        cells = end_cell.reshape(shape + (nb,)).copy()
         sat_now = now.any(axis=2)
         with np.errstate(invalid="ignore"):
             fresh = sat_now & ~(end_sat > t_s + TIME_TOL_S)
             if per_cell:
                 fresh |= (now & ~(cells > t_s + TIME_TOL_S)).any(axis=2)
-            # fresh look-ahead from now: every cell that serves now, until it stops
-            cells[fresh] = np.where(now[fresh], np.inf, np.nan)
+                # fresh look-ahead from now: every cell that serves now, until it stops
+                cells[fresh] = np.where(now[fresh], np.inf, np.nan)
             end_sat[fresh], until[fresh] = np.inf, t_s
             # an open end (beyond the last horizon) is looked ahead further
-            open_end = np.isposinf(end_sat) | (per_cell & np.isposinf(cells).any(axis=2))
+            open_end = np.isposinf(end_sat)
+            if per_cell:
+                open_end |= np.isposinf(cells).any(axis=2)
             extend = sat_now & open_end & (until < t_s + self.n_step * self.epoch_s - TIME_TOL_S)
         rows, slots = nonzero_2d(extend)
         if rows.size:
             got_cells, got_sat = self._scan(
                 t_s, rows, axis.sats[rows, slots], until[rows, slots],
-                cells[rows, slots], end_sat[rows, slots], ut_up, per_cell,
+                None if cells is None else cells[rows, slots], end_sat[rows, slots], ut_up,
+                per_cell,
             )  # fmt: skip
-            cells[rows, slots], end_sat[rows, slots] = got_cells, got_sat
+            end_sat[rows, slots] = got_sat
+            if per_cell:
+                cells[rows, slots] = got_cells
             until[rows, slots] = t_s + self.n_step * self.epoch_s
-        end_cell = cells.reshape(end_cell.shape)
-        self.axis, self.end_cell, self.end_sat, self.until = axis, end_cell, end_sat, until
-        cell_out = np.where(now, cells, np.nan).reshape(end_cell.shape)
+        self.axis, self.end_sat, self.until = axis, end_sat, until
+        self.end_cell = None if cells is None else cells.reshape(cell_shape)
+        cell_out = None if cells is None else np.where(now, cells, np.nan).reshape(cell_shape)
         return cell_out, np.where(sat_now, end_sat, np.nan)
 
     def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell=True):
         """Look ahead the pairs ``(rows[k], sats[k])`` over ``(start_s[k], t_s + horizon]``;
         ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open);
-        ``per_cell`` False: ``end_sat`` alone (``end_cell`` returned as given).
+        ``per_cell`` False: ``end_sat`` alone (``end_cell``, None, returned as given).
 
         The steps go in chunks of doubling length (:data:`FIRST_CHUNK` steps first), every
         open pair's steps of a chunk in one engine call: a pass is looked ahead in a few
         calls, whatever its length, and a pair costs at most twice the steps it needs; a
         chunk holds at most :data:`SCAN_PAIRS` evaluations (or one step)."""
-        end_cell, end_sat = end_cell.copy(), end_sat.copy()
+        end_cell = None if end_cell is None else end_cell.copy()
+        end_sat = end_sat.copy()
         j0, size = 1, FIRST_CHUNK
         while j0 <= self.n_step and np.isposinf(end_sat).any():
             # (at most SCAN_PAIRS evaluations a call: bounded temporaries at a run's start)
@@ -177,10 +189,14 @@ class ServiceTimes:
         slot = self._slots(t_j[used])[which.reshape(-1)]
         _, ut_ring, pos_ring, vel_ring = self._ring
         ut, sat = rows[open_[pair]], sats[open_[pair]]
-        m = np.arange(pair.size)  # every combination its own UT and satellite row
+        m = np.arange(pair.size)  # every combination its own UT row
+        # one satellite row per (time, satellite): its body frame is formed once, not per UT
+        at, sat_row = np.unique(slot * pos_ring.shape[1] + sat, return_inverse=True)
+        at_slot, at_sat = np.divmod(at, pos_ring.shape[1])
         links = eng.evaluate_pairs(
-            ut_ring[slot, ut], pos_ring[slot, sat], vel_ring[slot, sat], m, m,
-            ut_up=None if ut_up is None else ut_up[ut], ut_id=ut, sat_id=sat,
+            ut_ring[slot, ut], pos_ring[at_slot, at_sat], vel_ring[at_slot, at_sat],
+            m, sat_row.reshape(-1), ut_up=None if ut_up is None else ut_up[ut], ut_id=ut,
+            sat_id=at_sat,
         )  # fmt: skip
         if per_cell:
             snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, combinations)
