@@ -185,18 +185,24 @@ class ServiceTimes:
         pair, step = np.nonzero(todo)
         if pair.size == 0:
             return
-        used, which = np.unique(step, return_inverse=True)
-        slot = self._slots(t_j[used])[which.reshape(-1)]
+        step_slot = np.full(steps.size, -1, np.int64)
+        used = np.flatnonzero(todo.any(axis=0))  # the steps some pair takes
+        step_slot[used] = self._slots(t_j[used])
         _, ut_ring, pos_ring, vel_ring = self._ring
-        ut, sat = rows[open_[pair]], sats[open_[pair]]
+        ut = rows[open_[pair]]
         m = np.arange(pair.size)  # every combination its own UT row
-        # one satellite row per (time, satellite): its body frame is formed once, not per UT
-        at, sat_row = np.unique(slot * pos_ring.shape[1] + sat, return_inverse=True)
-        at_slot, at_sat = np.divmod(at, pos_ring.shape[1])
+        # one satellite row per (step, satellite): its body frame is formed once, not per
+        # UT (dense keys over the chunk's steps and satellites: no sort of the combinations)
+        u_sat, u_ix = np.unique(sats[open_], return_inverse=True)
+        key = step * u_sat.size + u_ix.reshape(-1)[pair]
+        taken = np.zeros(steps.size * u_sat.size, bool)
+        taken[key] = True
+        at_step, at_u = np.divmod(np.flatnonzero(taken), u_sat.size)
+        at_slot, at_sat = step_slot[at_step], u_sat[at_u]
         links = eng.evaluate_pairs(
-            ut_ring[slot, ut], pos_ring[at_slot, at_sat], vel_ring[at_slot, at_sat],
-            m, sat_row.reshape(-1), ut_up=None if ut_up is None else ut_up[ut], ut_id=ut,
-            sat_id=at_sat,
+            ut_ring[step_slot[step], ut], pos_ring[at_slot, at_sat], vel_ring[at_slot, at_sat],
+            m, (np.cumsum(taken) - 1)[key], ut_up=None if ut_up is None else ut_up[ut],
+            ut_id=ut, sat_id=at_sat,
         )  # fmt: skip
         if per_cell:
             snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, combinations)
