@@ -165,6 +165,17 @@ def test_to_satellites_reduces_cells_by_the_best_beam():
     np.testing.assert_array_equal(best_beam(np.array([1, 0]), meas, 2), [2, -1])
 
 
+def test_to_satellites_takes_the_best_of_every_beam_not_the_first():
+    """Three beams a satellite, the best in the last, middle and first beam, NaN ignored
+    (all NaN: NaN), on a (n_ut, n_cand) and a (n_cand,) array."""
+    meas = np.array(
+        [[np.nan, 1.0, 5.0, 2.0, 7.0, -4.0], [0.0, np.nan, -1.0, np.nan, np.nan, np.nan]]
+    )
+    ep = to_satellites(Epoch(0.0, np.array([0, 4]), meas=meas, offset_db=meas[0]), 3)
+    np.testing.assert_array_equal(ep.meas, [[5.0, 7.0], [0.0, np.nan]])
+    np.testing.assert_array_equal(ep.offset_db, [5.0, 7.0])
+
+
 def test_pick_ignores_nan_and_masked_cells():
     got = pick(np.array([[True, True, False], [False, False, False]]), [[np.nan, 1.0, 9.0]] * 2)
     np.testing.assert_array_equal(got, [1, -1])

@@ -7,6 +7,7 @@ import pytest
 
 from leolink.sim.handover.local_axis import LocalAxis
 from leolink.sim.handover.service_time import ServiceTimes
+from service_helpers import TableLinks
 
 # both paths of the first failures (compiled loop, numpy) against the brute-force scan
 pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
@@ -36,14 +37,17 @@ class _Engine:
         k = np.round(ut_pos_m[ut, 0]).astype(int)  # each pair's UT row: one step's time
         sats = sat_pos_m[sat, 0].astype(int)
         values = self.snr[k, ut if ut_id is None else ut_id[ut], sats]  # (m, n_beam)
-        return SimpleNamespace(visible=np.ones(len(ut), bool), snr_db_bm=lambda ix, iy: values.T)
+        return TableLinks(values)
 
 
 def _future(t_s):
-    ut = np.zeros((N_UT, 3))
-    ut[:, 0] = t_s / DT_S
-    sats = np.zeros((N_SAT, 3))
-    sats[:, 0] = np.arange(N_SAT)
+    """The states at the times ``t_s (n_t,)``: the time [epochs] in each UT's row, the
+    satellite's index in its row."""
+    n_t = len(t_s)
+    ut = np.zeros((n_t, N_UT, 3))
+    ut[..., 0] = np.asarray(t_s)[:, None] / DT_S
+    sats = np.zeros((n_t, N_SAT, 3))
+    sats[..., 0] = np.arange(N_SAT)
     return ut, sats, sats.copy()
 
 
@@ -119,7 +123,7 @@ def test_t1_hands_over_lead_s_before_the_serving_satellite_stops_serving():
 
     def future(t_s):
         ut, sats, vel = _future(t_s)
-        return ut[:1], sats[:2], vel[:2]
+        return ut[:, :1], sats[:, :2], vel[:, :2]
 
     for lead_s, expected_s in ((4.0, 7.0), (0.5, 10.0)):
         policy = TriggerPolicy(T1(duration_s=3.0, lead_s=lead_s), level="satellite")

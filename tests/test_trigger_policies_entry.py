@@ -21,6 +21,7 @@ from leolink.sim.handover.config import (
 )
 from leolink.sim.handover.policies import POLICIES
 from leolink.sim.handover.trigger_policies import horizon_s
+from service_helpers import TableLinks
 from test_trigger_run_geometry import MIN_SNR_DB, N_BEAM, R_M, _engine, _ground, _path
 
 
@@ -131,15 +132,16 @@ def _t1_handover_s(horizon):
     snr = np.full((60, 1, 2), 5.0)
     snr[:10, 0, 0], snr[10:, 0, 0] = 12.0, -30.0
 
-    def future(t_s):
-        ut, sats = np.full((1, 3), t_s), np.zeros((2, 3))  # the time in the UT's row
-        sats[:, 0] = [0.0, 1.0]  # the satellite's index in its row
+    def future(t_s):  # the times (n_t,): a leading time axis
+        ut = np.repeat(np.asarray(t_s, float)[:, None, None], 3, axis=2)  # the time in the UT's row
+        sats = np.zeros((len(t_s), 2, 3))
+        sats[..., 0] = [0.0, 1.0]  # the satellite's index in its row
         return ut, sats, sats.copy()
 
     def evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, **_):
         k = np.round(ut_pos_m[ut, 0]).astype(int)
         values = snr[k, 0, sat_pos_m[sat, 0].astype(int)][:, None]  # (m, 1 beam)
-        return SimpleNamespace(visible=np.ones(len(ut), bool), snr_db_bm=lambda ix, iy: values.T)
+        return TableLinks(values)
 
     engine = SimpleNamespace(n_beam=1, codebook=SimpleNamespace(u_xy=np.zeros((1, 2))),
                              beam_ix=None, beam_iy=None, evaluate_pairs=evaluate_pairs)  # fmt: skip

@@ -19,7 +19,7 @@ import numpy as np
 from leolink.sim.mobility.models import UTState
 
 __all__ = ["BLOCK_UT_EPOCHS", "MAX_BLOCK_EPOCHS", "MIN_BLOCK_EPOCHS", "MotionBlock"]
-__all__ += ["MotionBlocks"]
+__all__ += ["MotionBlocks", "states"]
 
 #: Longest block [epochs].
 MAX_BLOCK_EPOCHS = 1024
@@ -94,7 +94,7 @@ class MotionBlocks:
     def _compute(self, k0, k1):
         times = self.times_s[k0:k1]
         pos, vel, acc = self.ephemeris(times)
-        blocks = [_states(model, times) for _, model in self.populations]
+        blocks = [states(model, times) for _, model in self.populations]
         return MotionBlock(
             k0,
             k1,
@@ -112,7 +112,7 @@ def _joined(parts):
     return np.ascontiguousarray(np.concatenate(parts, axis=1))
 
 
-def _states(model, times_s):
+def states(model, times_s):
     """The model's states at ``times_s``, a :class:`UTState` whose arrays have a leading
     time axis: in one call where the model's class has ``states`` (static UTs, great
     circles), else time after time. (The class, not the instance: a wrapper such as

@@ -32,6 +32,7 @@ from leolink.sim.mobility.models import concat_states
 from leolink.sim.mobility.populations import MotionModel
 from leolink.sim.monitor import FadingDraws, Monitor
 from leolink.sim.motion import MotionBlocks
+from leolink.sim.motion import states as motion_states
 from leolink.sim.processes import (
     OUTAGE_REASONS,
     SimState,
@@ -233,9 +234,13 @@ def run_simulation(
     believed = scen.ephemeris if scen.estimated_ephemeris is None else scen.estimated_ephemeris
 
     def future_state(t):
-        ut = concat_states([p.state(t) for _, p in scen.populations])
-        pos, vel, _ = believed(t)
-        return ut.pos_m, pos[0], vel[0]
+        """UT positions, satellite positions and velocities at ``t`` [s], believed: a
+        scalar gives (n_ut, 3), (n_sat, 3), (n_sat, 3); 1-D times the same with a leading
+        time axis, in one call per population and one of the ephemeris."""
+        times = np.atleast_1d(np.asarray(t, float))
+        ut = np.concatenate([motion_states(p, times).pos_m for _, p in scen.populations], axis=1)
+        pos, vel, _ = believed(times)
+        return (ut[0], pos[0], vel[0]) if np.ndim(t) == 0 else (ut, pos, vel)
 
     times = scen.times_s
     rlf = None

@@ -83,11 +83,19 @@ class PolicyState:
 
 
 def _reduce_beams(x, n_beam):
-    """Max over the beams of each satellite on the last axis (NaN ignored)."""
+    """Max over the beams of each satellite on the last axis (NaN ignored).
+
+    One ``fmax`` per beam over the (..., n_sat) slices: the max is exact in any order, and
+    ``fmax.reduce`` along a short last axis costs ~5x more (a strided inner loop per
+    satellite)."""
     x = np.asarray(x, float)
     if x.ndim == 0:
         return x
-    return np.fmax.reduce(x.reshape(*x.shape[:-1], x.shape[-1] // n_beam, n_beam), axis=-1)
+    per_beam = x.reshape(*x.shape[:-1], x.shape[-1] // n_beam, n_beam)
+    out = per_beam[..., 0].copy()
+    for b in range(1, n_beam):
+        np.fmax(out, per_beam[..., b], out=out)
+    return out
 
 
 def to_satellites(epoch, n_beam):

@@ -39,6 +39,9 @@ __all__ = ["ServiceTimes"]
 FIRST_CHUNK = 8
 #: (Pair, step) evaluations of one look-ahead engine call, at most (but one step a chunk).
 SCAN_PAIRS = 1 << 16
+#: Future times evaluated in one call of ``future_state``, at most (bounded temporaries:
+#: 32 times of 4,399 satellites are ~3 MB an array).
+STATE_BATCH = 32
 
 
 class ServiceTimes:
@@ -47,8 +50,8 @@ class ServiceTimes:
     Parameters
     ----------
     engine : leolink.engine.LinkEngine
-    future_state : callable ``t_s -> (ut_pos_m (n_ut, 3), sat_pos_m (n_sat, 3),
-        sat_vel_m_s (n_sat, 3))``, the run's known future.
+    future_state : callable ``t_s (n_t,) -> (ut_pos_m (n_t, n_ut, 3), sat_pos_m (n_t, n_sat,
+        3), sat_vel_m_s (n_t, n_sat, 3))``, the run's known future at the times ``t_s`` [s].
     min_snr_db : float [dB], service threshold.
     epoch_s, horizon_s : float [s], look-ahead step and horizon.
     """
@@ -61,20 +64,23 @@ class ServiceTimes:
         self._ring = None  # (keys, ut_pos, sat_pos, sat_vel): future states by time index
 
     def _slots(self, t_j):
-        """Ring slots of the future states at the times ``t_j`` [s] (evaluated when first
-        asked for; the ring holds every step of one look-ahead)."""
-        keys = np.round(np.asarray(t_j) / self.epoch_s).astype(np.int64)
-        if self._ring is None:
-            ut, pos, vel = self.future_state(float(t_j[0]))
-            n = self.n_step + 2
-            self._ring = (np.full(n, -1, np.int64), np.empty((n,) + ut.shape),
-                          np.empty((n,) + pos.shape), np.empty((n,) + vel.shape))  # fmt: skip
-        ring_keys, ut_ring, pos_ring, vel_ring = self._ring
-        slots = keys % ring_keys.size
-        for t, key, slot in zip(t_j, keys, slots, strict=True):
-            if ring_keys[slot] != key:
-                ut_ring[slot], pos_ring[slot], vel_ring[slot] = self.future_state(float(t))
-                ring_keys[slot] = key
+        """Ring slots of the future states at the distinct times ``t_j`` [s] (evaluated
+        when first asked for, :data:`STATE_BATCH` times a call; the ring holds every step of
+        one look-ahead)."""
+        t_j = np.asarray(t_j, float)
+        keys = np.round(t_j / self.epoch_s).astype(np.int64)
+        n = self.n_step + 2
+        slots = keys % n
+        missing = np.ones(keys.size, bool) if self._ring is None else self._ring[0][slots] != keys
+        for lo in range(0, int(missing.sum()), STATE_BATCH):
+            at = np.flatnonzero(missing)[lo : lo + STATE_BATCH]
+            ut, pos, vel = self.future_state(t_j[at])  # each with a leading time axis
+            if self._ring is None:
+                shapes = (a.shape[1:] for a in (ut, pos, vel))
+                self._ring = (np.full(n, -1, np.int64), *(np.empty((n, *sh)) for sh in shapes))
+            ring_keys, ut_ring, pos_ring, vel_ring = self._ring
+            ut_ring[slots[at]], pos_ring[slots[at]], vel_ring[slots[at]] = ut, pos, vel
+            ring_keys[slots[at]] = keys[at]
         return slots
 
     def update(self, t_s, axis, serving_now, ut_up=None, per_cell=True):
@@ -87,69 +93,90 @@ class ServiceTimes:
         serving_now : bool (n_ut, axis.n_cand), the cells that serve now.
         ut_up : (n_ut, 3) or None, the UTs' local up (WGS 84), kept over the look-ahead.
         per_cell : bool, keep ``end_cell`` exact (a cell that starts serving is looked
-            ahead); False looks ahead only when a satellite starts serving (its
-            ``end_cell`` entries may then be stale: for satellite-level policies).
+            ahead); False looks ahead only the satellites (when one starts serving, until
+            none of its beams serves: each step's best beam alone) and keeps no cell's
+            end: for satellite-level policies.
 
         Returns
         -------
         end_cell (n_ut, n_cand), end_sat (n_ut, n_local) [s]: absolute times; NaN where
-        the cell (satellite) does not serve now.
+        the cell (satellite) does not serve now; ``end_cell`` None without ``per_cell``.
         """
         nb, shape = axis.n_beam, (axis.n_ut, axis.n_local)
+        cell_shape = (axis.n_ut, axis.n_cand)
         if self.axis is None:
-            end_cell = np.full((axis.n_ut, axis.n_cand), np.nan)
             end_sat, until = np.full(shape, np.nan), np.full(shape, np.nan)
         else:
-            end_cell = self.axis.remap(axis, self.end_cell, np.nan)
             end_sat = self.axis.remap(axis, self.end_sat, np.nan)
             until = self.axis.remap(axis, self.until, np.nan)
+        cells = None  # (n_ut, n_local, n_beam): kept only per cell
+        if per_cell:
+            kept = self.axis is not None and self.end_cell is not None
+            cells = (
+                self.axis.remap(axis, self.end_cell, np.nan)
+                if kept
+                else np.full(cell_shape, np.nan)
+            )
+            cells = cells.reshape(shape + (nb,))
         now = serving_now.reshape(shape + (nb,))
-        cells = end_cell.reshape(shape + (nb,)).copy()
         sat_now = now.any(axis=2)
         with np.errstate(invalid="ignore"):
             fresh = sat_now & ~(end_sat > t_s + TIME_TOL_S)
             if per_cell:
                 fresh |= (now & ~(cells > t_s + TIME_TOL_S)).any(axis=2)
-            # fresh look-ahead from now: every cell that serves now, until it stops
-            cells[fresh] = np.where(now[fresh], np.inf, np.nan)
+                # fresh look-ahead from now: every cell that serves now, until it stops
+                cells[fresh] = np.where(now[fresh], np.inf, np.nan)
             end_sat[fresh], until[fresh] = np.inf, t_s
             # an open end (beyond the last horizon) is looked ahead further
-            open_end = np.isposinf(end_sat) | (per_cell & np.isposinf(cells).any(axis=2))
+            open_end = np.isposinf(end_sat)
+            if per_cell:
+                open_end |= np.isposinf(cells).any(axis=2)
             extend = sat_now & open_end & (until < t_s + self.n_step * self.epoch_s - TIME_TOL_S)
         rows, slots = nonzero_2d(extend)
         if rows.size:
             got_cells, got_sat = self._scan(
                 t_s, rows, axis.sats[rows, slots], until[rows, slots],
-                cells[rows, slots], end_sat[rows, slots], ut_up,
+                None if cells is None else cells[rows, slots], end_sat[rows, slots], ut_up,
+                per_cell,
             )  # fmt: skip
-            cells[rows, slots], end_sat[rows, slots] = got_cells, got_sat
+            end_sat[rows, slots] = got_sat
+            if per_cell:
+                cells[rows, slots] = got_cells
             until[rows, slots] = t_s + self.n_step * self.epoch_s
-        end_cell = cells.reshape(end_cell.shape)
-        self.axis, self.end_cell, self.end_sat, self.until = axis, end_cell, end_sat, until
-        cell_out = np.where(now, cells, np.nan).reshape(end_cell.shape)
+        self.axis, self.end_sat, self.until = axis, end_sat, until
+        self.end_cell = None if cells is None else cells.reshape(cell_shape)
+        cell_out = None if cells is None else np.where(now, cells, np.nan).reshape(cell_shape)
         return cell_out, np.where(sat_now, end_sat, np.nan)
 
-    def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up):
+    def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell=True):
         """Look ahead the pairs ``(rows[k], sats[k])`` over ``(start_s[k], t_s + horizon]``;
-        ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open).
+        ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open);
+        ``per_cell`` False: ``end_sat`` alone (``end_cell``, None, returned as given).
 
         The steps go in chunks of doubling length (:data:`FIRST_CHUNK` steps first), every
         open pair's steps of a chunk in one engine call: a pass is looked ahead in a few
         calls, whatever its length, and a pair costs at most twice the steps it needs; a
         chunk holds at most :data:`SCAN_PAIRS` evaluations (or one step)."""
-        end_cell, end_sat = end_cell.copy(), end_sat.copy()
+        end_cell = None if end_cell is None else end_cell.copy()
+        end_sat = end_sat.copy()
         j0, size = 1, FIRST_CHUNK
         while j0 <= self.n_step and np.isposinf(end_sat).any():
             # (at most SCAN_PAIRS evaluations a call: bounded temporaries at a run's start)
             n = min(size, max(1, SCAN_PAIRS // int(np.isposinf(end_sat).sum())))
             steps = np.arange(j0, min(j0 + n, self.n_step + 1))
-            self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up)
+            self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell)
             j0, size = steps[-1] + 1, 2 * size
         return end_cell, end_sat
 
-    def _chunk(self, t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up):
+    def _chunk(self, t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell=True):
         """The look-ahead steps ``steps`` of the open pairs, in place: each pair's first
-        step at which a beam (all its beams) no longer serves is that beam's (its) end."""
+        step at which a beam (all its beams) no longer serves is that beam's (its) end.
+
+        ``per_cell`` False: the satellite's end alone, from each step's best beam
+        (:meth:`~leolink.engine.links.Links.best_beam`'s SNR, the largest of
+        ``snr_db_bm``): no beam serves exactly when that one does not, so
+        :func:`_first_failures` of that one row is the satellite's first failure, without
+        the SNR of every beam."""
         eng = self.engine
         t_j = t_s + steps * self.epoch_s
         open_ = np.flatnonzero(np.isposinf(end_sat))
@@ -158,25 +185,40 @@ class ServiceTimes:
         pair, step = np.nonzero(todo)
         if pair.size == 0:
             return
-        used, which = np.unique(step, return_inverse=True)
-        slot = self._slots(t_j[used])[which.reshape(-1)]
+        step_slot = np.full(steps.size, -1, np.int64)
+        used = np.flatnonzero(todo.any(axis=0))  # the steps some pair takes
+        step_slot[used] = self._slots(t_j[used])
         _, ut_ring, pos_ring, vel_ring = self._ring
-        ut, sat = rows[open_[pair]], sats[open_[pair]]
-        m = np.arange(pair.size)  # every combination its own UT and satellite row
+        ut = rows[open_[pair]]
+        m = np.arange(pair.size)  # every combination its own UT row
+        # one satellite row per (step, satellite): its body frame is formed once, not per
+        # UT (dense keys over the chunk's steps and satellites: no sort of the combinations)
+        u_sat, u_ix = np.unique(sats[open_], return_inverse=True)
+        key = step * u_sat.size + u_ix.reshape(-1)[pair]
+        taken = np.zeros(steps.size * u_sat.size, bool)
+        taken[key] = True
+        at_step, at_u = np.divmod(np.flatnonzero(taken), u_sat.size)
+        at_slot, at_sat = step_slot[at_step], u_sat[at_u]
         links = eng.evaluate_pairs(
-            ut_ring[slot, ut], pos_ring[slot, sat], vel_ring[slot, sat], m, m,
-            ut_up=None if ut_up is None else ut_up[ut], ut_id=ut, sat_id=sat,
+            ut_ring[step_slot[step], ut], pos_ring[at_slot, at_sat], vel_ring[at_slot, at_sat],
+            m, (np.cumsum(taken) - 1)[key], ut_up=None if ut_up is None else ut_up[ut],
+            ut_id=ut, sat_id=at_sat,
         )  # fmt: skip
-        snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, combinations)
+        if per_cell:
+            snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy)  # (n_beam, combinations)
+        else:
+            snr_bm = links.best_beam(eng.beam_ix, eng.beam_iy, with_snr_db=True)[1][None, :]
         first_sat, first_beam = _first_failures(
             snr_bm, links.visible, pair, step, self.min_snr_db, open_.size, steps.size
         )
+        ended = first_sat < steps.size
+        end_sat[open_[ended]] = t_j[first_sat[ended]]
+        if not per_cell:
+            return
         cells = end_cell[open_]
         hit = np.isposinf(cells) & (first_beam < steps.size)
         cells[hit] = t_j[first_beam[hit]]
         end_cell[open_] = cells
-        ended = first_sat < steps.size
-        end_sat[open_[ended]] = t_j[first_sat[ended]]
 
 
 def _first_failures(snr_bm, visible, pair, step, min_snr_db, n_pair, n_step):
