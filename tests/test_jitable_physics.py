@@ -1,0 +1,117 @@
+"""The ``@compiled.jitable`` physics functions that only the compiled loops call, called
+directly on a loop's scalars (as Python: the same source numba compiles).
+
+Written for issue 45's mutation scores of those functions (``tools/mutation_scores.py
+--jitable``): the numpy path never calls ``kernels_of_direction``, ``beam_snr_db``,
+``_pair_db`` or ``_screen_pair``, so no numpy test reaches them. References: the array
+factor as an explicit sum of steering phases, decibels of powers of ten, and a line of
+sight built on a 1-2-2 (rho = 3) triangle whose direction cosines are exact fractions.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from leolink.antenna.array import dirichlet_coefficients, kernels_of_direction
+from leolink.engine.links import _pair_db, beam_snr_db
+from leolink.engine.screening import SIN_EL_BAND, _screen_pair
+
+
+def _array_factor(du, n):
+    """``|sum_k exp(i pi k du)|^2 / n``: an n-element half-wavelength ULA off its beam by
+    ``du``, summed element by element."""
+    return abs(sum(np.exp(1j * np.pi * k * du) for k in range(n))) ** 2 / n
+
+
+def test_kernels_of_one_direction_are_the_array_factor_against_each_beam():
+    n, u = 8, 0.3
+    # On the beam (the cancelling case, n), on its grating lobe (u - 2), and three others.
+    beam_u = np.array([-0.5, u, 0.05, u - 2.0, 0.9])
+    out = np.full((beam_u.size, 3), np.nan)
+    kernels_of_direction(u, (beam_u, dirichlet_coefficients(beam_u, n), float(n)), out, 1)
+    expected = [_array_factor(u - b, n) for b in beam_u]
+    assert out[1, 1] == pytest.approx(n, rel=1e-12) and out[3, 1] == pytest.approx(n, rel=1e-12)
+    np.testing.assert_allclose(out[:, 1], expected, rtol=1e-9, atol=1e-12 * n)
+    assert np.isnan(out[:, [0, 2]]).all()  # only column p is written
+
+
+def _kernels():
+    """Kernel rows of 4 pairs, powers of ten (exact decibels), every entry different."""
+    kx = np.array([[1e1, 1e2, 1e3, 1e4], [1e5, 1e6, 1e7, 1e8], [1e-1, 1e-2, 1e-3, 1e-4]])
+    ky = np.array([[1e-5, 1e-6, 1e-7, 1e-8], [1e9, 1e10, 1e11, 1e12]])
+    path = np.array([1e13, 1e14, 1e15, 1e16])
+    return kx, ky, path
+
+
+def test_beam_snr_is_the_decibels_of_the_product_of_its_kernels_and_the_path():
+    kx, ky, path = _kernels()
+    # pair 2, kernel rows 1 (x) and 0 (y): 10 log10(1e7 * 1e-7 * 1e15) = 150 dB
+    assert beam_snr_db(kx, ky, path, 2, 1, 0) == pytest.approx(150.0, abs=1e-9)
+    # pair 1, rows 2 and 1: 10 log10(1e-2 * 1e10 * 1e14) = 220 dB
+    assert beam_snr_db(kx, ky, path, 1, 2, 1) == pytest.approx(220.0, abs=1e-9)
+
+
+def test_pair_decibels_are_each_kernel_row_and_the_path_in_db():
+    kx, ky, path = _kernels()
+    lx, ly = np.full(3, np.nan), np.full(2, np.nan)
+    path_db = _pair_db(kx, ky, path, 3, lx, ly)
+    assert path_db == pytest.approx(160.0, abs=1e-9)
+    np.testing.assert_allclose(lx, [40.0, 80.0, -40.0], atol=1e-9)
+    np.testing.assert_allclose(ly, [-80.0, 120.0], atol=1e-9)
+
+
+#: One UT and one satellite on a 1-2-2 triangle: UT -> satellite (2, 2, 1) * 100 km (rho
+#: = 300 km exactly), the UT's up (0.6, 0, 0.8) (sin el = (1.2 + 0.8) / 3 = 2/3) and the
+#: satellite's body axes x = (0.8, 0, -0.6), y = (0.36, 0.8, 0.48) (orthonormal), along
+#: which the direction satellite -> UT has cosines u_x = (-1.6 + 0.6) / 3 = -1/3 and u_y =
+#: (-0.72 - 1.6 - 0.48) / 3 = -14/15. Row 0 of each array is another UT / satellite.
+_UT = np.array([[7.0e6, -1.0e6, 2.0e5], [1.0e3, 2.0e3, 3.0e3]])
+_UP = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+_SAT = np.array([[0.0, 7.5e6, 0.0], [-7.5e6, 0.0, 1.0e5], _UT[1] + [2.0e5, 2.0e5, 1.0e5]])
+_AXES = np.array(
+    [np.eye(3), np.eye(3)[::-1], [[0.8, 0.0, -0.6], [0.36, 0.8, 0.48], [0.48, -0.6, 0.64]]]
+)
+_RHO2 = 9.0e10
+_SIN_EL, _UX, _UY = 2.0 / 3.0, -1.0 / 3.0, -14.0 / 15.0
+
+
+def _screen(beam_ux, beam_uy, s_min, n=(16.0, 12.0), scale=2.5):
+    lattice = (np.asarray(beam_ux), np.asarray(beam_uy), n[0], n[1], s_min)
+    with np.errstate(divide="ignore"):  # on a beam, 1 / 0 -> n: numpy scalars warn, numba not
+        return _screen_pair((_UT, _UP, _SAT, _AXES), lattice, scale, 1, 2)
+
+
+def test_screened_pair_on_its_beams_bounds_by_the_peak_gains_over_rho_squared():
+    code, bound, sin_el = _screen([-0.5, _UX, 0.5], [_UY, 0.0], s_min=0.5)
+    assert code == 2 and sin_el == pytest.approx(_SIN_EL, rel=1e-15)
+    assert bound == pytest.approx(16.0 * 12.0 * 2.5 / _RHO2, rel=1e-12)
+
+
+def test_screened_pair_off_its_beams_bounds_by_the_sidelobe_envelope():
+    # The nearest beams are 0.2 (x) and 0.1 (y) away (the others farther, on either side
+    # and through the grating lobe): the envelope 1 / (n sin^2(pi d / 2)) of each axis,
+    # which the bound exceeds only by its Taylor sine's error (x^9 / 9!, x <= pi / 10: < 1e-9).
+    code, bound, _ = _screen([-0.9, _UX + 0.2, 0.6], [_UY - 0.1, 0.4], s_min=0.5)
+    env = [1.0 / (n * math.sin(math.pi * d / 2) ** 2) for n, d in ((16, 0.2), (12, 0.1))]
+    expected = env[0] * env[1] * 2.5 / _RHO2
+    assert code == 2 and expected <= bound <= expected * (1 + 1e-9)
+    # and it bounds the true best beam (the array factors of every beam pair)
+    best = max(_array_factor(_UX - bx, 16) for bx in (-0.9, _UX + 0.2, 0.6)) * max(
+        _array_factor(_UY - by, 12) for by in (_UY - 0.1, 0.4)
+    )
+    assert best * 2.5 / _RHO2 <= bound
+
+
+@pytest.mark.parametrize(
+    ("s_min", "code"),
+    [(_SIN_EL - 1e-6, 2), (_SIN_EL - 0.5 * SIN_EL_BAND, 1), (_SIN_EL, 1),
+     (_SIN_EL + 0.5 * SIN_EL_BAND, 1), (_SIN_EL + 1e-6, 0)],
+)  # fmt: skip
+def test_screened_pair_is_uncertain_within_the_band_of_the_mask(s_min, code):
+    got, bound, sin_el = _screen([_UX], [_UY], s_min=s_min)
+    assert got == code and sin_el == pytest.approx(_SIN_EL, rel=1e-15)
+    if code == 0:
+        assert bound == -1.0  # below the mask: no bound
+    else:
+        assert bound == pytest.approx(16.0 * 12.0 * 2.5 / _RHO2, rel=1e-12)
