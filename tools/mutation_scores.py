@@ -394,7 +394,11 @@ NAMED = {
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
 #: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
 #: others cost 3x more; their columns are the same code paths, with the Earth rotating).
-FAST = ["-k", "not walker_rotating and not tle_rotating and not moving_rotating"]
+FAST = "not walker_rotating and not tle_rotating and not moving_rotating"
+#: The ``compiled`` case of the ``compiled_and_numpy`` fixture (tests/conftest.py) asserts that
+#: the loops run: under ``LEOLINK_JIT=0`` (every mode but ``--compiled``) it is left out, as
+#: its ``numpy`` case is that path ("[compiled]", "[compiled-...]", "[...-compiled]").
+NOT_COMPILED_CASE = " and not [compiled and not compiled]"
 
 
 def _patterns(module: str, mode: str) -> list[str]:
@@ -455,12 +459,13 @@ def _named_stats(dest: Path, module: str, mode: str, env: dict) -> dict:
     return s
 
 
-def _config(module: str, tests: list[str]) -> str:
+def _config(module: str, tests: list[str], mode: str) -> str:
+    k = FAST if mode == "compiled" else FAST + NOT_COMPILED_CASE
     lines = [
         "[tool.mutmut]",
         'source_paths = ["src"]',
         f'only_mutate = ["src/leolink/{module}.py"]',
-        f"pytest_add_cli_args_test_selection = {json.dumps(tests + FAST)}",
+        f"pytest_add_cli_args_test_selection = {json.dumps([*tests, '-k', k])}",
         'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
         f"also_copy = {json.dumps([c for c in COPIED if c != 'src'])}",
         "mutate_only_covered_lines = false",
@@ -485,7 +490,7 @@ def _prepare(dest: Path, module: str, root: Path = ROOT, mode: str = "numpy") ->
     tests = _tests(module, root, mode)
     if all(t.startswith("-") for t in tests):  # (no file: pytest would run the whole suite)
         raise SystemExit(f"{module}: none of its tests is in {root}")
-    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
+    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests, mode))
     if mode in NAMED:
         table, decorators = NAMED[mode]
         _undecorate(dest / "src" / "leolink" / f"{module}.py", decorators, table[module][0])
@@ -527,7 +532,7 @@ def again(module: str, workdir: Path, children: int, root: Path = ROOT,
         shutil.copytree(root / "tests", tests, ignore=shutil.ignore_patterns("__pycache__"))
     head = (dest / "pyproject.toml").read_text().split("[tool.mutmut]")[0]
     tests = _tests(module, root, mode)
-    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
+    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests, mode))
     env = _env(mode)
     pats = _patterns(module, mode) if mode in NAMED else ["*"]
     listed = subprocess.run([*MUTMUT, "results"], cwd=dest, capture_output=True, text=True,
