@@ -1,11 +1,14 @@
-"""The ``@compiled.jitable`` physics functions that only the compiled loops call, called
-directly on a loop's scalars (as Python: the same source numba compiles).
+"""The ``@compiled.jitable`` physics functions, called directly (as Python: the same source
+numba compiles), where their callers' tests left mutants alive.
 
 Written for issue 45's mutation scores of those functions (``tools/mutation_scores.py
---jitable``): the numpy path never calls ``kernels_of_direction``, ``beam_snr_db``,
-``_pair_db`` or ``_screen_pair``, so no numpy test reaches them. References: the array
-factor as an explicit sum of steering phases, decibels of powers of ten, and a line of
-sight built on a 1-2-2 (rho = 3) triangle whose direction cosines are exact fractions.
+--jitable``). The numpy path never calls ``kernels_of_direction``, ``beam_snr_db``,
+``_pair_db`` or ``_screen_pair``, so no numpy test reaches them; the look angles and
+azimuths were reached only in frames with zero components. References: the array factor
+as an explicit sum of steering phases, decibels of powers of ten, a line of sight built on
+a 1-2-2 (rho = 3) triangle whose direction cosines are exact fractions, and lines of sight
+built at a known elevation and azimuth in the textbook local frame of a sphere (turned
+about its up for a frame with no zero component).
 """
 
 import math
@@ -16,6 +19,8 @@ import pytest
 from leolink.antenna.array import dirichlet_coefficients, kernels_of_direction
 from leolink.engine.links import _pair_db, beam_snr_db
 from leolink.engine.screening import SIN_EL_BAND, _screen_pair
+from leolink.geometry import azimuth_in_frame_deg, azimuth_on_sphere_deg
+from leolink.sim.environment import look_angles_rad
 
 
 def _array_factor(du, n):
@@ -115,3 +120,74 @@ def test_screened_pair_is_uncertain_within_the_band_of_the_mask(s_min, code):
         assert bound == -1.0  # below the mask: no bound
     else:
         assert bound == pytest.approx(16.0 * 12.0 * 2.5 / _RHO2, rel=1e-12)
+
+
+def _sphere_frame(lat_deg, lon_deg):
+    """Rows east, north, up of a sphere's local frame at (lat, lon): the textbook ENU."""
+    la, lo = np.radians(lat_deg), np.radians(lon_deg)
+    return np.array([
+        [-np.sin(lo), np.cos(lo), 0.0],
+        [-np.sin(la) * np.cos(lo), -np.sin(la) * np.sin(lo), np.cos(la)],
+        [np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)],
+    ])  # fmt: skip
+
+
+def _turned(enu, deg):
+    """``enu`` turned by ``deg`` about its up (east towards north): rows with no zero
+    component, as a tilted or rotated local frame has."""
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([c * enu[0] + s * enu[1], -s * enu[0] + c * enu[1], enu[2]])
+
+
+#: (elevation, azimuth) [deg] of the lines of sight: every quadrant, north itself, just
+#: west of north, the horizon and below it.
+_LOOKS = np.array([(40.0, 0.0), (10.0, 30.0), (75.0, 135.0), (25.0, 200.0), (5.0, 290.0),
+                   (60.0, 359.5), (0.0, 90.0), (-20.0, 250.0)])  # fmt: skip
+
+
+def _los(enu, rho_m=1.2e6):
+    """Lines of sight (m, 3) at :data:`_LOOKS` in the frame ``enu``."""
+    el, az = np.radians(_LOOKS[:, 0]), np.radians(_LOOKS[:, 1])
+    local = np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], axis=-1)
+    return rho_m * local @ enu
+
+
+def test_look_angles_are_the_elevation_and_azimuth_the_line_of_sight_was_built_at():
+    enu = _turned(_sphere_frame(35.0, 20.0), 25.0)
+    assert np.all(enu != 0.0)
+    el, az = look_angles_rad(tuple(_los(enu).T), enu[:, :, None])
+    np.testing.assert_allclose(np.degrees(el), _LOOKS[:, 0], atol=1e-9)
+    # atan2's range (-180, 180]: 200 deg is -160 deg
+    np.testing.assert_allclose(np.degrees(az), (_LOOKS[:, 1] + 180.0) % 360.0 - 180.0, atol=1e-9)
+
+
+def test_a_satellite_at_the_zenith_or_nadir_is_at_plus_or_minus_90_deg_never_nan():
+    """|up . los| / |los| rounds above 1 for some frames and ranges: clipped, not NaN (and
+    1 - 1 ulp is an arcsine 2.1e-8 rad from 90 deg)."""
+    rng = np.random.default_rng(45)
+    lat, lon = rng.uniform(-90.0, 90.0, 500), rng.uniform(-180.0, 180.0, 500)
+    enu = np.stack([_sphere_frame(a, b) for a, b in zip(lat, lon, strict=True)], axis=-1)
+    for sign in (1.0, -1.0):
+        los = sign * rng.uniform(5e5, 3e6, 500) * enu[2]
+        el, _ = look_angles_rad(tuple(los), enu)
+        assert np.all(np.abs(el - sign * np.pi / 2) < 3e-8)  # (NaN fails it)
+
+
+def _assert_same_azimuth_deg(got, want):
+    """Equal azimuths [deg] to 1e-9 deg, on the circle (due north may round to 360)."""
+    assert np.all((got >= 0.0) & (got <= 360.0))
+    np.testing.assert_allclose((got - want + 180.0) % 360.0 - 180.0, 0.0, atol=1e-9)
+
+
+def test_azimuth_in_a_frame_is_the_azimuth_the_line_of_sight_was_built_at():
+    enu = _turned(_sphere_frame(-50.0, 130.0), -70.0)
+    got = azimuth_in_frame_deg(_los(enu), np.broadcast_to(enu, (len(_LOOKS), 3, 3)))
+    _assert_same_azimuth_deg(got, _LOOKS[:, 1])
+
+
+@pytest.mark.parametrize(("lat", "lon"), [(35.0, 20.0), (-50.0, 130.0), (80.0, -100.0)])
+def test_azimuth_on_the_sphere_is_the_one_in_its_local_frame(lat, lon):
+    enu = _sphere_frame(lat, lon)
+    pos = 6.371e6 * enu[2]
+    got = azimuth_on_sphere_deg(_los(enu), np.broadcast_to(pos, (len(_LOOKS), 3)))
+    _assert_same_azimuth_deg(got, _LOOKS[:, 1])
