@@ -1,7 +1,8 @@
-"""tools/mutation_scores.py's named modes stay complete: ``--jitable`` lists every
-``@compiled.jitable`` function of the package (a new one would otherwise be mutated by no
-run: mutmut skips decorated functions), and the scratch copy loses exactly the decorator
-lines of the listed functions."""
+"""tools/mutation_scores.py's named modes stay complete: ``--compiled`` lists every
+``@compiled.jit`` loop and ``--jitable`` every ``@compiled.jitable`` function of the
+package (a new one would otherwise be mutated by no run: mutmut skips decorated
+functions), and the scratch copy loses exactly the decorator lines of the listed
+functions."""
 
 import importlib.util
 import re
@@ -33,6 +34,12 @@ def _decorated(decorators):
 
 def test_jitable_mode_lists_every_jitable_function_of_the_package():
     table, decorators = ms.NAMED["jitable"]
+    listed = {module: set(functions) for module, (functions, _) in table.items()}
+    assert listed == _decorated(decorators)
+
+
+def test_compiled_mode_lists_every_compiled_loop_of_the_package():
+    table, decorators = ms.NAMED["compiled"]
     listed = {module: set(functions) for module, (functions, _) in table.items()}
     assert listed == _decorated(decorators)
 

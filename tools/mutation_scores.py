@@ -337,6 +337,8 @@ COMPILED = {
     ),
     "sim/mobility/models": (("_great_circle_rows",), ["tests/test_mobility.py"]),
     "sim/handover/service_time": (("_first_failures_loop",), ["tests/test_service_time.py"]),
+    # The Dirichlet rows against the numpy product and the array factor's own properties.
+    "antenna/array": (("_dirichlet_rows",), ["tests/test_array_kernels.py"]),
     "engine/__init__": (
         ("_serve_rows",),
         [
