@@ -456,20 +456,30 @@ def _env(mode: str) -> dict:
     return env
 
 
-def _named_stats(dest: Path, module: str, mode: str, env: dict) -> dict:
-    """killed / survived / ... counts of the named functions' mutants only (``mutmut
+def _statuses(dest: Path, env: dict, pats: list[str]) -> dict[str, str]:
+    """mutant name -> status (``killed``, ``survived``, ``no_tests``, ``not_checked``,
+    ...) of the mutants of ``dest`` whose names match one of ``pats`` (``mutmut
     results``)."""
     listed = subprocess.run([*MUTMUT, "results", "--all", "true"], cwd=dest,
                             capture_output=True, text=True, env=env, check=True).stdout  # fmt: skip
-    pats = _patterns(module, mode)
-    s = {"total": 0}
+    out = {}
     for line in listed.splitlines():
         name, _, status = line.strip().rpartition(": ")
         if any(fnmatch.fnmatch(name, p) for p in pats):
-            key = status.replace(" ", "_")
-            s[key] = s.get(key, 0) + 1
-            s["total"] += 1
+            out[name] = status.replace(" ", "_")
+    return out
+
+
+def _count(statuses: dict[str, str]) -> dict:
+    s = {"total": len(statuses)}
+    for status in statuses.values():
+        s[status] = s.get(status, 0) + 1
     return s
+
+
+def _named_stats(dest: Path, module: str, mode: str, env: dict) -> dict:
+    """killed / survived / ... counts of the named functions' mutants only."""
+    return _count(_statuses(dest, env, _patterns(module, mode)))
 
 
 def _config(module: str, tests: list[str], mode: str) -> str:
@@ -534,11 +544,14 @@ def _stats(dest: Path, module: str, env: dict, mode: str) -> dict:
 
 def again(module: str, workdir: Path, children: int, root: Path = ROOT,
           mode: str = "numpy") -> dict:  # fmt: skip
-    """Re-run only the survivors of a kept folder (``--keep``) with ``root``'s tests now.
+    """Re-run the mutants of a kept folder (``--keep``) that its run did not kill
+    (survived, no tests, not checked) with ``root``'s tests now.
 
     Tests are only added between the runs, so a killed mutant stays killed; mutmut
-    re-collects which tests reach each function, so the new tests take part. The stats
-    then count the re-run mutants only: the others are counted as killed."""
+    re-collects which tests reach each function, so the new tests take part. The counts
+    are the statuses read before the re-run, those of the re-run mutants replaced (mutmut
+    resets every verdict when the test selection changes, so the statuses after it would
+    show the mutants killed before as not checked)."""
     dest = workdir / module.replace("/", "_")
     for tests in (dest / "tests", dest / "mutants" / "tests"):
         shutil.rmtree(tests, ignore_errors=True)
@@ -548,17 +561,15 @@ def again(module: str, workdir: Path, children: int, root: Path = ROOT,
     (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests, mode))
     env = _env(mode)
     pats = _patterns(module, mode) if mode in NAMED else ["*"]
-    listed = subprocess.run([*MUTMUT, "results"], cwd=dest, capture_output=True, text=True,
-                            env=env, check=True).stdout  # fmt: skip
-    names = [line.split(":")[0].strip() for line in listed.splitlines()
-             if line.strip().endswith(("survived", "no tests"))
-             and any(fnmatch.fnmatch(line.split(":")[0].strip(), p) for p in pats)]  # fmt: skip
-    if names:  # (no names: mutmut would run every mutant)
-        subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
-                       check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
-    s = _stats(dest, module, env, mode)
-    left = sum(s.get(k, 0) for k in ("survived", "no_tests"))
-    return {**s, "killed": s["total"] - left - s.get("timeout", 0) - s.get("segfault", 0)}
+    before = _statuses(dest, env, pats)
+    names = [n for n, status in before.items()
+             if status in ("survived", "no_tests", "not_checked")]  # fmt: skip
+    if not names:  # (no names: mutmut would run every mutant)
+        return _count(before)
+    subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
+                   check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    after = _statuses(dest, env, pats)
+    return _count({**before, **{n: after[n] for n in names}})
 
 
 def main(argv=None) -> int:
