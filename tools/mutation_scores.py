@@ -578,7 +578,7 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", type=Path, default=None, help="keep the scratch folders here")
     ap.add_argument("--children", type=int, default=1, help="parallel mutant runs")
     ap.add_argument("--root", type=Path, default=ROOT, help="tree to score (default: this one)")
-    again_help = "re-run only the survivors of the --keep folders, with the tests now"
+    again_help = "re-run the mutants the --keep folders' runs did not kill, with the tests now"
     ap.add_argument("--again", action="store_true", help=again_help)
     modes = ap.add_mutually_exclusive_group()
     compiled_help = "score the compiled loops (COMPILED) as Python, not the numpy path"
@@ -590,14 +590,15 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     args.modules = args.modules or list(NAMED[args.mode][0] if args.mode in NAMED else MODULES)
     work = args.keep or Path(tempfile.mkdtemp(prefix="leolink-mutmut-"))
-    print("| module | mutants | killed | survived | no tests | timeout | score |")
-    print("|---|---|---|---|---|---|---|")
+    print("| module | mutants | killed | survived | no tests | timeout | not checked | score |")
+    print("|---|---|---|---|---|---|---|---|")
     for m in args.modules:
         s = (again if args.again else score)(m, work, args.children, args.root, args.mode)
         total = s.get("total", 0)
         killed = s.get("killed", 0) + s.get("timeout", 0) + s.get("segfault", 0)
         pct = 100.0 * killed / total if total else float("nan")
-        cells = [m, total, *(s.get(k, 0) for k in ("killed", "survived", "no_tests", "timeout"))]
+        kinds = ("killed", "survived", "no_tests", "timeout", "not_checked")
+        cells = [m, total, *(s.get(k, 0) for k in kinds)]
         print("| " + " | ".join(map(str, cells)) + f" | {pct:.1f} % |", flush=True)
     if args.keep is None:
         shutil.rmtree(work, ignore_errors=True)
