@@ -69,16 +69,16 @@ def test_pair_decibels_are_each_kernel_row_and_the_path_in_db():
 
 #: One UT and one satellite on a 1-2-2 triangle: UT -> satellite (2, 2, 1) * 100 km (rho
 #: = 300 km exactly), the UT's up (2, 1, 2) / 3 (sin el = (4 + 2 + 2) / 9 = 8/9) and the
-#: satellite's body axes x = (2, -2, 1) / 3, y = (2, 1, -2) / 3 (orthonormal, every
-#: component non-zero), along which the direction satellite -> UT has cosines u_x = -(4 -
-#: 4 + 1) / 9 = -1/9 and u_y = -(4 + 2 - 2) / 9 = -4/9. Row 0 of each array is another UT
-#: / satellite.
+#: satellite's body axes x = (2, -2, 1) / 3, y = (1, 2, 2) / 3 (orthonormal, every
+#: component non-zero and none shared by x and y at one index), along which the direction
+#: satellite -> UT has cosines u_x = -(4 - 4 + 1) / 9 = -1/9 and u_y = -(2 + 4 + 2) / 9 =
+#: -8/9. Row 0 of each array is another UT / satellite.
 _UT = np.array([[7.0e6, -1.0e6, 2.0e5], [1.0e3, 2.0e3, 3.0e3]])
 _UP = np.array([[0.0, 0.0, 1.0], [2.0 / 3.0, 1.0 / 3.0, 2.0 / 3.0]])
 _SAT = np.array([[0.0, 7.5e6, 0.0], [-7.5e6, 0.0, 1.0e5], _UT[1] + [2.0e5, 2.0e5, 1.0e5]])
-_AXES = np.array([np.eye(3), np.eye(3)[::-1], np.array([[2, -2, 1], [2, 1, -2], [1, 2, 2]]) / 3])
+_AXES = np.array([np.eye(3), np.eye(3)[::-1], np.array([[2, -2, 1], [1, 2, 2], [-2, -1, 2]]) / 3])
 _RHO2 = 9.0e10
-_SIN_EL, _UX, _UY = 8.0 / 9.0, -1.0 / 9.0, -4.0 / 9.0
+_SIN_EL, _UX, _UY = 8.0 / 9.0, -1.0 / 9.0, -8.0 / 9.0
 
 
 def _screen(beam_ux, beam_uy, s_min, n=(16.0, 12.0), scale=2.5):
