@@ -69,16 +69,17 @@ def test_pair_decibels_are_each_kernel_row_and_the_path_in_db():
 
 #: One UT and one satellite on a 1-2-2 triangle: UT -> satellite (2, 2, 1) * 100 km (rho
 #: = 300 km exactly), the UT's up (2, 1, 2) / 3 (sin el = (4 + 2 + 2) / 9 = 8/9) and the
-#: satellite's body axes x = (2, -2, 1) / 3, y = (1, 2, 2) / 3 (orthonormal, every
-#: component non-zero and none shared by x and y at one index), along which the direction
-#: satellite -> UT has cosines u_x = -(4 - 4 + 1) / 9 = -1/9 and u_y = -(2 + 4 + 2) / 9 =
-#: -8/9. Row 0 of each array is another UT / satellite.
+#: satellite's body axes, rows x = (1, -4, 8) / 9, y = (8, 4, 1) / 9, z = x * y = (-4, 7,
+#: 4) / 9 (orthonormal; no zero, no entry repeated within a row or between neighbouring
+#: rows at one index, so that any other index changes the result), along which the
+#: direction satellite -> UT has cosines u_x = -(2 - 8 + 8) / 27 = -2/27 and u_y = -(16 +
+#: 8 + 1) / 27 = -25/27. Row 0 of each array is another UT / satellite.
 _UT = np.array([[7.0e6, -1.0e6, 2.0e5], [1.0e3, 2.0e3, 3.0e3]])
 _UP = np.array([[0.0, 0.0, 1.0], [2.0 / 3.0, 1.0 / 3.0, 2.0 / 3.0]])
 _SAT = np.array([[0.0, 7.5e6, 0.0], [-7.5e6, 0.0, 1.0e5], _UT[1] + [2.0e5, 2.0e5, 1.0e5]])
-_AXES = np.array([np.eye(3), np.eye(3)[::-1], np.array([[2, -2, 1], [1, 2, 2], [-2, -1, 2]]) / 3])
+_AXES = np.array([np.eye(3), np.eye(3)[::-1], np.array([[1, -4, 8], [8, 4, 1], [-4, 7, 4]]) / 9])
 _RHO2 = 9.0e10
-_SIN_EL, _UX, _UY = 8.0 / 9.0, -1.0 / 9.0, -8.0 / 9.0
+_SIN_EL, _UX, _UY = 8.0 / 9.0, -2.0 / 27.0, -25.0 / 27.0
 
 
 def _screen(beam_ux, beam_uy, s_min, n=(16.0, 12.0), scale=2.5):
@@ -97,13 +98,13 @@ def test_screened_pair_off_its_beams_bounds_by_the_sidelobe_envelope():
     # The nearest beams are 0.2 (x) and 0.1 (y) away (the others farther, on either side
     # and through the grating lobe): the envelope 1 / (n sin^2(pi d / 2)) of each axis,
     # which the bound exceeds only by its Taylor sine's error (x^9 / 9!, x <= pi / 10: < 1e-9).
-    code, bound, _ = _screen([-0.9, _UX + 0.2, 0.8], [_UY - 0.1, 0.4], s_min=0.5)
+    code, bound, _ = _screen([-0.9, _UX + 0.2, 0.8], [_UY + 0.1, 0.4], s_min=0.5)
     env = [1.0 / (n * math.sin(math.pi * d / 2) ** 2) for n, d in ((16, 0.2), (12, 0.1))]
     expected = env[0] * env[1] * 2.5 / _RHO2
     assert code == 2 and expected <= bound <= expected * (1 + 1e-9)
     # and it bounds the true best beam (the array factors of every beam pair)
     best = max(_array_factor(_UX - bx, 16) for bx in (-0.9, _UX + 0.2, 0.8)) * max(
-        _array_factor(_UY - by, 12) for by in (_UY - 0.1, 0.4)
+        _array_factor(_UY - by, 12) for by in (_UY + 0.1, 0.4)
     )
     assert best * 2.5 / _RHO2 <= bound
 
