@@ -372,3 +372,27 @@ def test_compiled_tracker_equals_the_numpy_path(monkeypatch):
         np.testing.assert_array_equal(a.los, b.los)
         for name in ("shadow_db", "clutter_db"):
             np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("z_prev", "distance_m", "w", "expected"),
+    [
+        (1.0, 37.0 * np.log(2.0), 2.0, 0.5 + np.sqrt(3.0)),  # rho = 1/2: 1/2 + sqrt(3/4) 2
+        (-0.8, 37.0 * np.log(2.0), -1.0, -0.4 - np.sqrt(0.75)),
+        (1.3, 0.0, 2.0, 1.3),  # no move: rho = 1, the same value
+        (1.3, np.inf, -0.6, -0.6),  # a new pair: rho = 0, the innovation alone
+    ],
+)
+def test_ar1_step_is_eq_7_4_5_of_tr_38_901_at_hand_values(z_prev, distance_m, w, expected):
+    """``z = rho z_prev + sqrt(1 - rho^2) w``, ``rho = exp(-d / d_corr)``, d_corr = 37 m
+    (TR 38.901 Eq. (7.4-5)), at distances where rho is 1/2, 1 and 0."""
+    assert cs.ar1_step(z_prev, distance_m, 37.0, w) == pytest.approx(expected, rel=1e-12)
+
+
+def test_pair_keys_of_one_ut_differ_by_satellite_whatever_its_key():
+    """Every UT key is allowed, 0 and all ones included: the pair keys of one UT are
+    distinct for its satellites (else two satellites would share their shadowing)."""
+    sats = np.arange(64)[None, :]
+    for key in (0, 2**64 - 1, 0x00000000FFFFFFFF):
+        keys = cs.pair_keys(np.array([key], dtype=np.uint64), sats)
+        assert len(np.unique(keys)) == 64

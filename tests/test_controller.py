@@ -168,6 +168,17 @@ def test_an_snr_exactly_at_min_snr_is_usable():
     assert [r.sat_id[0] for r in results] == [0, 0, 0, 0]
 
 
+def test_a_serving_snr_exactly_at_min_snr_still_waits_the_time_to_trigger():
+    """The serving cell at exactly the minimum is usable, so a better target does not
+    switch at once: it pends for its time to trigger (100 s, beyond the run)."""
+    snr = np.zeros((5, 1, 2))
+    snr[:, 0, 0] = [5.0, 0.0, 0.0, 0.0, 0.0]
+    snr[:, 0, 1] = [1.0, 8.0, 8.0, 8.0, 8.0]
+    results, events, _ = run(Hysteresis(3.0, time_to_trigger_s=100.0), snr, n_beam=2)
+    assert len(events["kind"]) == 0
+    assert [r.beam_id[0] for r in results] == [0] * 5
+
+
 def test_outage_at_run_start_is_reported():
     snr = np.array([np.nan, 4.0, 4.0])[:, None, None]
     _, events, dwells = run(MaxSnr(), snr)

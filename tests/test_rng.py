@@ -8,11 +8,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from leolink.rng import complex_normal, uniform, ut_keys
+from leolink.rng import complex_normal, mix64, uniform, ut_keys
 
 N = 100_000
 N_SIGMA = 5.0
 P_MIN = 1e-4
+#: SplitMix64's increment, the golden ratio's 64-bit fraction (Steele, Lea and Flood 2014).
+GOLDEN = 0x9E3779B97F4A7C15
 
 
 @pytest.fixture(scope="module")
@@ -84,3 +86,39 @@ def test_draw_is_a_pure_function_of_key_and_counter(keys):
     assert np.array_equal(whole, parts)
     assert np.array_equal(complex_normal(keys[::-1][:5], 42), complex_normal(keys[-5:], 42)[::-1])
     assert not np.array_equal(uniform(keys[:5], 1, stream=0), uniform(keys[:5], 1, stream=1))
+
+
+def test_the_finalizer_gives_splitmix64s_published_outputs():
+    """``mix64`` of the states ``seed + k GOLDEN`` (k = 1, 2, ...) is SplitMix64's output
+    sequence: from seed 0 as Vigna's splitmix64.c gives it (prng.di.unimi.it), and from seed
+    1234567 as Rosetta Code's task "Pseudo-random numbers/Splitmix64" lists it."""
+    published = {
+        0: [0xE220A8397B1DCDAF, 0x6E789E6AA1B965F4, 0x06C45D188009454F],
+        1234567: [6457827717110365317, 3203168211198807973, 9817491932198370423,
+                  4593380528125082431, 16408922859458223821],
+    }  # fmt: skip
+    for seed, outputs in published.items():
+        states = [(seed + k * GOLDEN) % 2**64 for k in range(1, len(outputs) + 1)]
+        assert mix64(np.array(states, dtype=np.uint64)).tolist() == outputs
+
+
+@pytest.mark.parametrize(("counter", "stream"), [(0, 0), (0, 1), (3, 0), (3, 1), (1000, 1)])
+def test_counter_and_stream_step_the_key_by_splitmix64s_increment(counter, stream):
+    """Draw (key, counter c, stream s) finalizes the SplitMix64 state ``key + (2 c + s)
+    GOLDEN``, and 0 is the finalizer's fixed point (its xor-shifts and products keep 0): the
+    key ``-(2 c + s) GOLDEN`` draws the smallest value, 53 zero bits, which is 2^-54 (half a
+    step of 2^-53 above 0: the open interval), and its neighbours' counters do not."""
+    key = np.array([-(2 * counter + stream) * GOLDEN % 2**64], dtype=np.uint64)
+    assert uniform(key, counter, stream)[0] == 2.0**-54
+    assert uniform(key, counter + 1, stream)[0] > 2.0**-53
+    assert uniform(key, counter, 1 - stream)[0] > 2.0**-53
+
+
+def test_a_draws_phase_is_independent_of_the_next_counters_modulus(keys):
+    """Modulus and phase have streams of their own: neither is the other's at the next
+    counter (Spearman's rank correlation of the phase of counter k with the modulus of k + 1
+    and the other way round, within N_SIGMA of its standard error 1 / sqrt(N - 1))."""
+    a, b = complex_normal(keys, 4), complex_normal(keys, 5)
+    for phase, modulus in ((np.angle(a), np.abs(b)), (np.angle(b), np.abs(a))):
+        r = stats.spearmanr(np.mod(phase, 2 * np.pi), modulus).statistic
+        assert abs(r) < N_SIGMA / np.sqrt(N - 1)

@@ -3,6 +3,7 @@
     python tools/mutation_scores.py [MODULE ...] [--keep DIR] [--children N] [--root TREE]
     python tools/mutation_scores.py MODULE ... --keep DIR --again   # survivors only
     python tools/mutation_scores.py --compiled [MODULE ...] [--keep DIR]  # the numba loops
+    python tools/mutation_scores.py --jitable [MODULE ...] [--keep DIR]   # their physics
 
 For each module (default: all of :data:`MODULES`) the working tree is copied to a
 scratch folder, ``[tool.mutmut]`` there is set to mutate only that module and to select
@@ -20,6 +21,12 @@ skips every decorated function, so the scratch copy of the module loses the loop
 ``NUMBA_DISABLE_JIT=1`` (numba's ``njit`` gives the Python function: what the decorator
 would give, so the loops' source runs as Python, through mutmut's trampolines), and only
 the loops' mutants are run and counted.
+
+``--jitable`` scores the physics functions the loops call (:data:`JITABLE`: those decorated
+``@compiled.jitable``, which no run above mutates, being decorated). ``jitable`` returns the
+function itself, so the scratch copy loses those decorator lines and nothing else changes;
+the run is the numpy path (``LEOLINK_JIT=0``: the numpy callers call the same functions on
+arrays), and only those functions' mutants are run and counted.
 """
 
 from __future__ import annotations
@@ -330,6 +337,8 @@ COMPILED = {
     ),
     "sim/mobility/models": (("_great_circle_rows",), ["tests/test_mobility.py"]),
     "sim/handover/service_time": (("_first_failures_loop",), ["tests/test_service_time.py"]),
+    # The Dirichlet rows against the numpy product and the array factor's own properties.
+    "antenna/array": (("_dirichlet_rows",), ["tests/test_array_kernels.py"]),
     "engine/__init__": (
         ("_serve_rows",),
         [
@@ -338,67 +347,148 @@ COMPILED = {
         ],
     ),
 }
+#: Issue 45: module -> (its ``@compiled.jitable`` physics functions, the fast tests that reach
+#: them on the numpy path with an independent expectation). The functions that only the
+#: compiled loops call (beam_snr_db, _pair_db, kernels_of_direction, _screen_pair) are
+#: called directly, on scalars, by tests/test_jitable_physics.py.
+JITABLE_TESTS = "tests/test_jitable_physics.py"
+JITABLE = {
+    "antenna/array": (
+        ("ula_gain", "dirichlet_trig", "subtracted_gain", "kernels_of_direction"),
+        [*MODULES["antenna/array"], JITABLE_TESTS],
+    ),
+    "link/budget": (
+        ("sinr_lin", "spectral_efficiency_bps_hz"),
+        [*MODULES["link/budget"], JITABLE_TESTS],
+    ),
+    "kinematics": (("_dot", "_norm2_of_difference", "kinematics_terms"), MODULES["kinematics"]),
+    # (the engine's azimuth column: test_links_contracts.py builds lines of sight at known
+    # azimuths)
+    "geometry": (
+        ("azimuth_in_frame_deg", "azimuth_on_sphere_deg"),
+        [*MODULES["geometry"], "tests/test_links_contracts.py", JITABLE_TESTS],
+    ),
+    "link/channel_state": (
+        ("pair_key", "pair_innovations", "ar1_step", "ray_offset_en_m", "ray_moved_m"),
+        ["tests/test_channel_state.py", "tests/test_environment_tracker.py", JITABLE_TESTS],
+    ),
+    "sim/environment": (
+        ("look_angles_rad", "sine_of_elevation"),
+        [*MODULES["sim/environment"], JITABLE_TESTS],
+    ),
+    "rng": (("mix64", "uniform_of", "complex_normal_of"), [*MODULES["rng"], JITABLE_TESTS]),
+    "engine/screening": (
+        ("_envelope", "_screen_pair"),
+        [*MODULES["engine/screening"], JITABLE_TESTS],
+    ),
+    "engine/links": (("beam_snr_db", "_pair_db"), [JITABLE_TESTS]),
+    "sim/handover/controller": (
+        ("_rules",),
+        ["tests/test_controller.py", "tests/test_controller_contracts.py"],
+    ),
+    "sim/mobility/models": (("great_circle_state",), ["tests/test_mobility.py", JITABLE_TESTS]),
+}
+#: Tests that assert the compiled loops run (``compiled.use``): left out of every mode but
+#: ``--compiled`` (``LEOLINK_JIT=0``), where they fail whatever the mutant.
+NEEDS_LOOPS = [
+    "--deselect=tests/test_environment_tracker.py::test_compiled_loop_keeps_the_numpy_states_at_"
+    "the_mask_and_in_empty_slots",
+    "--deselect=tests/test_links_contracts.py::test_a_pair_exactly_at_the_mask_is_visible",
+    "--deselect=tests/test_links_contracts.py::test_ragged_screening_is_the_dense_screening_of_"
+    "each_pair[True]",
+]
+#: Per mode: the table of module -> (functions, tests) whose functions alone are mutated,
+#: and the decorator lines the scratch copy loses above them (mutmut skips a decorated
+#: function). The default mode (the numpy path, :data:`MODULES`) mutates the whole file.
+NAMED = {
+    "compiled": (COMPILED, ("@compiled.jit", "@leolink.compiled.jit")),
+    "jitable": (JITABLE, ("@compiled.jitable", "@leolink.compiled.jitable")),
+}
 COPIED = ("src", "tests", "configs", "examples", "docs", "tools", "analysis", "README.md")
 #: Only the paper-pass scenario of tests/test_trace_independent.py per mutant (the three
 #: others cost 3x more; their columns are the same code paths, with the Earth rotating).
-FAST = ["-k", "not walker_rotating and not tle_rotating and not moving_rotating"]
+FAST = "not walker_rotating and not tle_rotating and not moving_rotating"
+#: The ``compiled`` case of the ``compiled_and_numpy`` fixture (tests/conftest.py) asserts that
+#: the loops run: under ``LEOLINK_JIT=0`` (every mode but ``--compiled``) it is left out, as
+#: its ``numpy`` case is that path ("[compiled]", "[compiled-...]", "[...-compiled]").
+NOT_COMPILED_CASE = " and not [compiled and not compiled]"
 
 
-def _loop_patterns(module: str) -> list[str]:
-    """mutmut's names (fnmatch) of the mutants of ``module``'s compiled loops."""
+def _patterns(module: str, mode: str) -> list[str]:
+    """mutmut's names (fnmatch) of the mutants of ``module``'s functions named by ``mode``'s
+    table (:data:`NAMED`)."""
     dotted = "leolink." + module.removesuffix("/__init__").replace("/", ".")
-    return [f"{dotted}.*x_{loop}__mutmut_*" for loop in COMPILED[module][0]]
+    return [f"{dotted}.*x_{fn}__mutmut_*" for fn in NAMED[mode][0][module][0]]
 
 
-def _unjit(path: Path, loops: tuple[str, ...]) -> None:
-    """Drop the ``@compiled.jit`` line above each of ``loops`` in ``path`` (mutmut leaves
-    decorated functions alone); under ``NUMBA_DISABLE_JIT=1`` the decorator gives the
-    Python function, so nothing else changes."""
+def _undecorate(path: Path, decorators: tuple[str, ...], functions: tuple[str, ...]) -> None:
+    """Drop the decorator line (one of ``decorators``) above each of ``functions`` in
+    ``path`` (mutmut leaves decorated functions alone). ``jitable`` returns the function,
+    and under ``NUMBA_DISABLE_JIT=1`` so does ``jit``: nothing else changes."""
     lines = path.read_text().splitlines(keepends=True)
-    kept = [line for i, line in enumerate(lines)
-            if not (line.strip() == "@compiled.jit" and i + 1 < len(lines)
-                    and lines[i + 1].startswith(tuple(f"def {f}(" for f in loops)))]  # fmt: skip
-    if len(lines) - len(kept) != len(loops):
-        raise SystemExit(f"{path}: expected {len(loops)} @compiled.jit loops {loops}")
+    kept = [
+        line
+        for i, line in enumerate(lines)
+        if not (
+            line.strip() in decorators
+            and i + 1 < len(lines)
+            and lines[i + 1].startswith(tuple(f"def {f}(" for f in functions))
+        )
+    ]
+    if len(lines) - len(kept) != len(functions):
+        raise SystemExit(f"{path}: expected {len(functions)} functions {functions} under "
+                         f"{' or '.join(decorators)}")  # fmt: skip
     path.write_text("".join(kept))
 
 
-def _tests(module: str, root: Path, compiled: bool) -> list[str]:
+def _tests(module: str, root: Path, mode: str) -> list[str]:
     """``module``'s tests that exist in ``root`` ("--..." items are pytest options)."""
-    listed = COMPILED[module][1] if compiled else MODULES[module]
+    listed = NAMED[mode][0][module][1] if mode in NAMED else MODULES[module]
     return [t for t in listed
             if t.startswith("-") or (root / t.split("::")[0]).exists()]  # fmt: skip
 
 
-def _env(compiled: bool) -> dict:
+def _env(mode: str) -> dict:
     # One run per test, not per module: mutmut credits each check (tests/scopes.py).
     env = dict(os.environ, LEOLINK_FIXTURE_SCOPE="function", LEOLINK_JIT="0")
-    if compiled:  # the loops, as Python: what @compiled.jit gives without numba's compiler
+    if mode == "compiled":  # the loops, as Python: what @compiled.jit gives without numba
         env.update(LEOLINK_JIT="1", NUMBA_DISABLE_JIT="1")
     return env
 
 
-def _loop_stats(dest: Path, module: str, env: dict) -> dict:
-    """killed / survived / ... counts of the loops' mutants only (``mutmut results``)."""
+def _statuses(dest: Path, env: dict, pats: list[str]) -> dict[str, str]:
+    """mutant name -> status (``killed``, ``survived``, ``no_tests``, ``not_checked``,
+    ...) of the mutants of ``dest`` whose names match one of ``pats`` (``mutmut
+    results``)."""
     listed = subprocess.run([*MUTMUT, "results", "--all", "true"], cwd=dest,
                             capture_output=True, text=True, env=env, check=True).stdout  # fmt: skip
-    pats = _loop_patterns(module)
-    s = {"total": 0}
+    out = {}
     for line in listed.splitlines():
         name, _, status = line.strip().rpartition(": ")
         if any(fnmatch.fnmatch(name, p) for p in pats):
-            key = status.replace(" ", "_")
-            s[key] = s.get(key, 0) + 1
-            s["total"] += 1
+            out[name] = status.replace(" ", "_")
+    return out
+
+
+def _count(statuses: dict[str, str]) -> dict:
+    s = {"total": len(statuses)}
+    for status in statuses.values():
+        s[status] = s.get(status, 0) + 1
     return s
 
 
-def _config(module: str, tests: list[str]) -> str:
+def _named_stats(dest: Path, module: str, mode: str, env: dict) -> dict:
+    """killed / survived / ... counts of the named functions' mutants only."""
+    return _count(_statuses(dest, env, _patterns(module, mode)))
+
+
+def _config(module: str, tests: list[str], mode: str) -> str:
+    k, deselect = (FAST, []) if mode == "compiled" else (FAST + NOT_COMPILED_CASE, NEEDS_LOOPS)
     lines = [
         "[tool.mutmut]",
         'source_paths = ["src"]',
         f'only_mutate = ["src/leolink/{module}.py"]',
-        f"pytest_add_cli_args_test_selection = {json.dumps(tests + FAST)}",
+        f"pytest_add_cli_args_test_selection = {json.dumps([*tests, '-k', k, *deselect])}",
         'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
         f"also_copy = {json.dumps([c for c in COPIED if c != 'src'])}",
         "mutate_only_covered_lines = false",
@@ -406,7 +496,7 @@ def _config(module: str, tests: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _prepare(dest: Path, module: str, root: Path = ROOT, compiled: bool = False) -> None:
+def _prepare(dest: Path, module: str, root: Path = ROOT, mode: str = "numpy") -> None:
     dest.mkdir(parents=True)
     for name in COPIED:
         src = root / name
@@ -420,60 +510,66 @@ def _prepare(dest: Path, module: str, root: Path = ROOT, compiled: bool = False)
         rest = _.split("\n[", 1)
         head = head + ("[" + rest[1] if len(rest) > 1 else "")
     # an older tree may lack some files
-    tests = _tests(module, root, compiled)
-    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
-    if compiled:
-        _unjit(dest / "src" / "leolink" / f"{module}.py", COMPILED[module][0])
+    tests = _tests(module, root, mode)
+    if all(t.startswith("-") for t in tests):  # (no file: pytest would run the whole suite)
+        raise SystemExit(f"{module}: none of its tests is in {root}")
+    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests, mode))
+    if mode in NAMED:
+        table, decorators = NAMED[mode]
+        _undecorate(dest / "src" / "leolink" / f"{module}.py", decorators, table[module][0])
 
 
 def score(module: str, workdir: Path, children: int, root: Path = ROOT,
-          compiled: bool = False) -> dict:  # fmt: skip
+          mode: str = "numpy") -> dict:  # fmt: skip
     dest = workdir / module.replace("/", "_")
-    _prepare(dest, module, root, compiled)
-    # Without --compiled, the numpy path (LEOLINK_JIT=0); with it, the loops' mutants only.
-    env = _env(compiled)
-    names = _loop_patterns(module) if compiled else []
+    _prepare(dest, module, root, mode)
+    # The whole file, on the numpy path (LEOLINK_JIT=0); --compiled and --jitable: only the
+    # mutants of their functions.
+    env = _env(mode)
+    names = _patterns(module, mode) if mode in NAMED else []
     subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
                    check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
-    return _stats(dest, module, env, compiled)
+    return _stats(dest, module, env, mode)
 
 
-def _stats(dest: Path, module: str, env: dict, compiled: bool) -> dict:
-    """mutmut's counts of the folder ``dest``: the loops' mutants only with ``compiled``."""
-    if compiled:
-        return _loop_stats(dest, module, env)
+def _stats(dest: Path, module: str, env: dict, mode: str) -> dict:
+    """mutmut's counts of the folder ``dest``: the named functions' mutants only in the
+    modes of :data:`NAMED`."""
+    if mode in NAMED:
+        return _named_stats(dest, module, mode, env)
     subprocess.run([*MUTMUT, "export-cicd-stats"], cwd=dest, check=True,
                    stdout=subprocess.DEVNULL)  # fmt: skip
     return json.loads((dest / "mutants" / "mutmut-cicd-stats.json").read_text())
 
 
 def again(module: str, workdir: Path, children: int, root: Path = ROOT,
-          compiled: bool = False) -> dict:  # fmt: skip
-    """Re-run only the survivors of a kept folder (``--keep``) with ``root``'s tests now.
+          mode: str = "numpy") -> dict:  # fmt: skip
+    """Re-run the mutants of a kept folder (``--keep``) that its run did not kill
+    (survived, no tests, not checked) with ``root``'s tests now.
 
     Tests are only added between the runs, so a killed mutant stays killed; mutmut
-    re-collects which tests reach each function, so the new tests take part. The stats
-    then count the re-run mutants only: the others are counted as killed."""
+    re-collects which tests reach each function, so the new tests take part. The counts
+    are the statuses read before the re-run, those of the re-run mutants replaced (mutmut
+    resets every verdict when the test selection changes, so the statuses after it would
+    show the mutants killed before as not checked)."""
     dest = workdir / module.replace("/", "_")
     for tests in (dest / "tests", dest / "mutants" / "tests"):
         shutil.rmtree(tests, ignore_errors=True)
         shutil.copytree(root / "tests", tests, ignore=shutil.ignore_patterns("__pycache__"))
     head = (dest / "pyproject.toml").read_text().split("[tool.mutmut]")[0]
-    tests = _tests(module, root, compiled)
-    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests))
-    env = _env(compiled)
-    pats = _loop_patterns(module) if compiled else ["*"]
-    listed = subprocess.run([*MUTMUT, "results"], cwd=dest, capture_output=True, text=True,
-                            env=env, check=True).stdout  # fmt: skip
-    names = [line.split(":")[0].strip() for line in listed.splitlines()
-             if line.strip().endswith(("survived", "no tests"))
-             and any(fnmatch.fnmatch(line.split(":")[0].strip(), p) for p in pats)]  # fmt: skip
-    if names:  # (no names: mutmut would run every mutant)
-        subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
-                       check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
-    s = _stats(dest, module, env, compiled)
-    left = sum(s.get(k, 0) for k in ("survived", "no_tests"))
-    return {**s, "killed": s["total"] - left - s.get("timeout", 0) - s.get("segfault", 0)}
+    tests = _tests(module, root, mode)
+    (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests, mode))
+    env = _env(mode)
+    pats = _patterns(module, mode) if mode in NAMED else ["*"]
+    before = _statuses(dest, env, pats)
+    names = [n for n, status in before.items()
+             if status in ("survived", "no_tests", "not_checked")]  # fmt: skip
+    if not names:  # (no names: mutmut would run every mutant)
+        return _count(before)
+    subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
+                   check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    after = _statuses(dest, env, pats)
+    return _count({**before, **{n: after[n] for n in names}})
 
 
 def main(argv=None) -> int:
@@ -482,21 +578,27 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", type=Path, default=None, help="keep the scratch folders here")
     ap.add_argument("--children", type=int, default=1, help="parallel mutant runs")
     ap.add_argument("--root", type=Path, default=ROOT, help="tree to score (default: this one)")
-    again_help = "re-run only the survivors of the --keep folders, with the tests now"
+    again_help = "re-run the mutants the --keep folders' runs did not kill, with the tests now"
     ap.add_argument("--again", action="store_true", help=again_help)
+    modes = ap.add_mutually_exclusive_group()
     compiled_help = "score the compiled loops (COMPILED) as Python, not the numpy path"
-    ap.add_argument("--compiled", action="store_true", help=compiled_help)
+    modes.add_argument("--compiled", dest="mode", action="store_const", const="compiled",
+                       default="numpy", help=compiled_help)  # fmt: skip
+    jitable_help = "score only the @compiled.jitable physics functions (JITABLE), numpy path"
+    modes.add_argument("--jitable", dest="mode", action="store_const", const="jitable",
+                       help=jitable_help)  # fmt: skip
     args = ap.parse_args(argv)
-    args.modules = args.modules or list(COMPILED if args.compiled else MODULES)
+    args.modules = args.modules or list(NAMED[args.mode][0] if args.mode in NAMED else MODULES)
     work = args.keep or Path(tempfile.mkdtemp(prefix="leolink-mutmut-"))
-    print("| module | mutants | killed | survived | no tests | timeout | score |")
-    print("|---|---|---|---|---|---|---|")
+    print("| module | mutants | killed | survived | no tests | timeout | not checked | score |")
+    print("|---|---|---|---|---|---|---|---|")
     for m in args.modules:
-        s = (again if args.again else score)(m, work, args.children, args.root, args.compiled)
+        s = (again if args.again else score)(m, work, args.children, args.root, args.mode)
         total = s.get("total", 0)
         killed = s.get("killed", 0) + s.get("timeout", 0) + s.get("segfault", 0)
         pct = 100.0 * killed / total if total else float("nan")
-        cells = [m, total, *(s.get(k, 0) for k in ("killed", "survived", "no_tests", "timeout"))]
+        kinds = ("killed", "survived", "no_tests", "timeout", "not_checked")
+        cells = [m, total, *(s.get(k, 0) for k in kinds)]
         print("| " + " | ".join(map(str, cells)) + f" | {pct:.1f} % |", flush=True)
     if args.keep is None:
         shutil.rmtree(work, ignore_errors=True)
