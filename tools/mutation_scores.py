@@ -369,11 +369,19 @@ JITABLE = {
         [*MODULES["geometry"], "tests/test_links_contracts.py", JITABLE_TESTS],
     ),
     "link/channel_state": (
-        ("pair_key", "pair_innovations", "ar1_step", "ray_offset_en_m", "ray_moved_m"),
+        (
+            "pair_key",
+            "pair_innovations",
+            "ar1_step",
+            "ar1_weights",
+            "ar1_mix",
+            "ray_offset_en_m",
+            "ray_moved_m",
+        ),
         ["tests/test_channel_state.py", "tests/test_environment_tracker.py", JITABLE_TESTS],
     ),
     "sim/environment": (
-        ("look_angles_rad", "sine_of_elevation"),
+        ("look_angles_rad", "sine_of_elevation", "elevation_rad", "link_enu"),
         [*MODULES["sim/environment"], JITABLE_TESTS],
     ),
     "rng": (("mix64", "uniform_of", "complex_normal_of"), [*MODULES["rng"], JITABLE_TESTS]),
