@@ -169,17 +169,49 @@ def write_text_atomic(path, text):
 _PLAIN = frozenset((str, int, bool, type(None)))  # returned as they are
 
 
+#: orjson's options of :func:`to_jsonable`'s copy: every datetime, dataclass and subclass
+#: of a JSON type goes to :func:`_plain_number`, which refuses it (the recursive copy then
+#: keeps it as it is).
+_COPY_OPTIONS = (orjson.OPT_PASSTHROUGH_DATETIME | orjson.OPT_PASSTHROUGH_DATACLASS
+                 | orjson.OPT_PASSTHROUGH_SUBCLASS)  # fmt: skip
+
+
 def to_jsonable(obj):
-    """Recursively convert numpy scalars/arrays to Python; NaN and +-inf -> None."""
+    """Recursively convert numpy scalars/arrays to Python; NaN and +-inf -> None.
+
+    A tree of dicts with string keys, lists, tuples, strings, numbers, numpy numbers and
+    numeric arrays is copied by orjson (its text read back: floats round-trip exactly,
+    NaN and +-inf are null): a summary's ~10^5 leaves without a Python call each. Any
+    other tree (keys that are not strings, other objects) is copied recursively.
+    """
+    try:
+        return orjson.loads(orjson.dumps(obj, default=_plain_number, option=_COPY_OPTIONS))
+    except orjson.JSONEncodeError:
+        return _jsonable(obj)
+
+
+def _plain_number(obj):
+    """orjson's ``default``: a numpy number as its Python value, a numeric array (not
+    0-d) as its nested list; anything else refused (``TypeError``)."""
+    if isinstance(obj, np.generic | np.ndarray) and obj.dtype.kind in "biuf":
+        if isinstance(obj, np.generic):
+            return obj.item()
+        if obj.ndim:
+            return obj.tolist()
+    raise TypeError(f"{type(obj).__name__} is copied recursively")
+
+
+def _jsonable(obj):
+    """:func:`to_jsonable` by recursion, for any tree."""
     kind = type(obj)
     if kind is float:  # the common leaves first, by exact type (a summary has ~10^5)
         return obj if math.isfinite(obj) else None
     if kind in _PLAIN:
         return obj
     if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
+        return {str(k): _jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple | np.ndarray):
-        return [to_jsonable(v) for v in (obj.tolist() if isinstance(obj, np.ndarray) else obj)]
+        return [_jsonable(v) for v in (obj.tolist() if isinstance(obj, np.ndarray) else obj)]
     if isinstance(obj, np.generic):
         obj = obj.item()
     if isinstance(obj, float) and not math.isfinite(obj):
