@@ -101,6 +101,10 @@ class BlockCandidates:
     def __post_init__(self):
         self.n_key = int(self.links.sat.max(initial=0)) + 1
         self.pair_key = self.links.ut * self.n_key + self.links.sat  # sorted
+        # Each row's first pair and its number of pairs: a row of one pair is found
+        # without a search (one satellite: every row).
+        count = np.bincount(self.links.ut, minlength=self.n_visible.size)
+        self.row_pairs = (np.cumsum(count) - count, count)
 
     def rows(self, k):
         """Rows of epoch ``k``."""
@@ -114,7 +118,11 @@ class BlockCandidates:
             return np.full(np.shape(rows), -1, np.int64)
         ok = (sats >= 0) & (sats < self.n_key)
         key = rows * self.n_key + np.where(ok, sats, 0)
-        i = np.minimum(np.searchsorted(self.pair_key, key), n - 1)
+        first, count = self.row_pairs
+        i = np.minimum(first[rows], n - 1)  # (a row without pairs: the next row's, no match)
+        several = np.flatnonzero(count[rows] > 1)
+        if several.size:
+            i[several] = np.minimum(np.searchsorted(self.pair_key, key[several]), n - 1)
         ok &= self.pair_key[i] == key
         return np.where(ok, i, -1)
 
