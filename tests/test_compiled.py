@@ -50,3 +50,19 @@ def test_a_stop_in_this_threads_piece_cancels_the_pieces_not_begun(monkeypatch):
     release.set()
     compiled._pool().submit(lambda: None).result()  # queued after every piece
     assert 1 <= len(begun) < 32  # those in hand (one per pool thread); the rest cancelled
+
+
+@pytest.mark.parametrize(("n_calls", "threads"), [(0, 2), (1, 2), (5, 1), (7, 2), (9, 3)])
+def test_calls_return_in_order_each_in_one_thread(monkeypatch, n_calls, threads):
+    monkeypatch.setattr(compiled, "n_threads", lambda: threads)
+    where = {}
+
+    def fn(i, j):
+        where[i] = threading.current_thread() is threading.main_thread()
+        return i * 10 + j
+
+    out = compiled.run_calls(fn, [(i, 1) for i in range(n_calls)])
+    assert out == [i * 10 + 1 for i in range(n_calls)]
+    k = min(threads, n_calls)
+    # every k-th call here, the others in the pool's threads (all here without a split)
+    assert where == {i: k <= 1 or i % k == 0 for i in range(n_calls)}

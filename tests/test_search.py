@@ -9,6 +9,8 @@ against ``prune=False``, which evaluates every pair of the cone.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import example, given, settings
@@ -188,6 +190,24 @@ def test_pruned_tables_are_the_exhaustive_tables(block, window_db):
     assert (blk.n_visible > 20).mean() > 0.9
     if window_db > 0.0:  # some UTs have neighbours within 3 dB
         assert (np.bincount(cells[0], minlength=2 * n_ut) > 1).mean() > 0.3
+
+
+def test_find_pairs_finds_each_evaluated_pair_and_no_other(block):
+    eng, n_ut, mb, cones = block
+    _, _, full = _tables(eng, n_ut, mb, cones, 3.0, prune=True)
+    rng = np.random.default_rng(3)
+    # a random part of the pairs (in their order): rows of none, one and several
+    keep = np.flatnonzero(rng.random(full.links.n_pair) < 0.3)
+    blk = dataclasses.replace(full, links=full.links.take(keep))
+    links = blk.links
+    index = {(int(u), int(s)): i for i, (u, s) in enumerate(zip(links.ut, links.sat, strict=True))}
+    count = np.bincount(links.ut, minlength=blk.n_visible.size)
+    assert min((count == c).sum() for c in (0, 1, 2)) > 100  # rows of none, one, several
+    rows = np.concatenate([links.ut, rng.integers(0, blk.n_visible.size, 5000)])
+    sats = np.concatenate([links.sat, rng.integers(-1, mb.sat_pos_m.shape[1] + 2, 5000)])
+    want = [index.get((int(r), int(s)), -1) for r, s in zip(rows, sats, strict=True)]
+    assert np.array_equal(blk.find_pairs(rows, sats), want)
+    assert (np.asarray(want[links.n_pair :]) == -1).mean() > 0.5  # most random pairs absent
 
 
 @pytest.mark.parametrize("floor_db", [-10.0, 5.0])

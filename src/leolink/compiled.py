@@ -36,7 +36,7 @@ __all__ = [
     "jitable",
     "n_threads",
 ]
-__all__ += ["run_rows", "select", "single_threaded_blas", "use"]
+__all__ += ["run_calls", "run_rows", "select", "single_threaded_blas", "use"]
 
 #: The variables BLAS libraries take their thread count from (OpenBLAS, numpy's own, reads
 #: the first three in this order; MKL its own).
@@ -233,19 +233,30 @@ def run_rows(kernel, n, *args, row_size=1):
     m = max(1, min(n, max(k, -(-n * row_size // PIECE_ROWS))))  # (no rows: one empty call)
     edges = [n * i // m for i in range(m + 1)]
     pieces = list(zip(edges[:-1], edges[1:], strict=True))
+    _split_calls(kernel, [(*args, lo, hi) for lo, hi in pieces], k)
+
+
+def run_calls(fn, calls):
+    """``[fn(*args) for args in calls]``, the calls split over :func:`n_threads` threads
+    (every ``k``-th in this thread, the others in the pool's): for calls that spend their
+    time in compiled loops (they release the GIL), each of which writes only its own part
+    of any shared array. Each call runs whole in one thread: the bits of a serial run."""
+    return _split_calls(fn, list(calls), min(n_threads(), len(calls)))
+
+
+def _split_calls(fn, calls, k):
+    """``fn(*args)`` of each of ``calls`` (their results in order), every ``k``-th in this
+    thread and the others in the pool's; on a stop the calls not yet begun are
+    cancelled."""
     if k <= 1:
-        for lo, hi in pieces:
-            kernel(*args, lo, hi)
-        return
+        return [fn(*args) for args in calls]
     pool = _pool()
-    tasks = [pool.submit(kernel, *args, *piece) for i, piece in enumerate(pieces) if i % k]
+    tasks = {i: pool.submit(fn, *args) for i, args in enumerate(calls) if i % k}
     try:
-        for lo, hi in pieces[::k]:  # this thread's share
-            kernel(*args, lo, hi)
-        for task in tasks:
-            task.result()
+        mine = {i: fn(*args) for i, args in enumerate(calls) if i % k == 0}  # this thread's
+        return [mine[i] if i % k == 0 else tasks[i].result() for i in range(len(calls))]
     except BaseException:
-        for task in tasks:
+        for task in tasks.values():
             task.cancel()
         raise
 

@@ -101,6 +101,10 @@ class BlockCandidates:
     def __post_init__(self):
         self.n_key = int(self.links.sat.max(initial=0)) + 1
         self.pair_key = self.links.ut * self.n_key + self.links.sat  # sorted
+        # Each row's first pair and its number of pairs: a row of one pair is found
+        # without a search (one satellite: every row).
+        count = np.bincount(self.links.ut, minlength=self.n_visible.size)
+        self.row_pairs = (np.cumsum(count) - count, count)
 
     def rows(self, k):
         """Rows of epoch ``k``."""
@@ -114,7 +118,11 @@ class BlockCandidates:
             return np.full(np.shape(rows), -1, np.int64)
         ok = (sats >= 0) & (sats < self.n_key)
         key = rows * self.n_key + np.where(ok, sats, 0)
-        i = np.minimum(np.searchsorted(self.pair_key, key), n - 1)
+        first, count = self.row_pairs
+        i = np.minimum(first[rows], n - 1)  # (a row without pairs: the next row's, no match)
+        several = np.flatnonzero(count[rows] > 1)
+        if several.size:
+            i[several] = np.minimum(np.searchsorted(self.pair_key, key[several]), n - 1)
         ok &= self.pair_key[i] == key
         return np.where(ok, i, -1)
 
@@ -409,28 +417,40 @@ class CandidateSearch:
         best_cell = np.full(n_rows, -1, np.int64)
         every = vis.size == links.n_pair  # every pair visible: slices, not gathers
         open_db = None if pair_loss is None else np.full(n_rows, np.nan)
-        entries = []
-        for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS):
-            pairs = slice(lo, hi) if every else vis[lo:hi]
-            rows, sat = rows_vis[lo:hi], links.sat[pairs]
-            if pair_loss is None and self.floor_db == -np.inf and compiled.use(rows.size):
-                beams = (eng.beam_ix, eng.beam_iy)  # no (nb, m) matrix: the window's beams
-                entries.append(link_window_entries(links, pairs, beams, rows, sat,
-                                                   self.window_db, best_db))  # fmt: skip
-                continue
-            snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
-            if pair_loss is not None:  # the open best, then every SNR after the environment
-                _row_best(rows, snr_bm.T, open_db)
-                snr_bm = snr_bm - pair_loss[pairs][None, :]
+        chunks = [slice(lo, hi) for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS)]
+        pairs = [chunk if every else vis[chunk] for chunk in chunks]
+        if pair_loss is None and self.floor_db == -np.inf:
+            # No (nb, m) matrix: the window's beams only; the chunks (whole rows, each
+            # writing its own rows' best) split over threads.
+            _ = links.path_snr_lin  # (cached here, not raced for by the threads)
+            beams = (eng.beam_ix, eng.beam_iy)
+            calls = [(links, p, beams, rows_vis[c], links.sat[p], self.window_db, best_db)
+                     for c, p in zip(chunks, pairs, strict=True)]  # fmt: skip
+            entries = compiled.run_calls(link_window_entries, calls)
+        else:
             # (the diagnostics' best cell does not see the floor: kept here when it has one)
             best = (best_db, None if self.floor_db == -np.inf else best_cell)
-            entries.append(window_entries(snr_bm, rows, sat, (self.window_db, self.floor_db), best))
+            entries = [self._matrix_entries(links, p, rows_vis[c], pair_loss, best, open_db)
+                       for c, p in zip(chunks, pairs, strict=True)]  # fmt: skip
         ut, cell, snr = (np.concatenate(e) for e in zip(*entries, strict=True))
         table = Candidates.from_entries(n_rows, ut, cell, snr)
         if self.floor_db == -np.inf:
             best_cell, _ = table.best()
         return BlockCandidates(k0, n_ut, nb, table, n_visible, best_cell, best_db, links,
                                eng.beam_ix, eng.beam_iy, open_db)  # fmt: skip
+
+    def _matrix_entries(self, links, pairs, rows, pair_loss, best, open_db):
+        """:func:`window_entries` of the evaluated ``pairs`` (their sorted ``rows``) from
+        their (n_beam, m) SNR matrix, each lowered by its pair's environment loss
+        ``pair_loss`` [dB] (None: no environment; else each row's best before it is
+        written into ``open_db``). ``best``: as :func:`window_entries` takes it."""
+        eng = self.engine
+        snr_bm = links.snr_db_bm(eng.beam_ix, eng.beam_iy, pairs)  # (nb, m)
+        if pair_loss is not None:  # the open best, then every SNR after the environment
+            _row_best(rows, snr_bm.T, open_db)
+            snr_bm = snr_bm - pair_loss[pairs][None, :]
+        limits = (self.window_db, self.floor_db)
+        return window_entries(snr_bm, rows, links.sat[pairs], limits, best)
 
 
 def _first_pairs(code, bound, top):
