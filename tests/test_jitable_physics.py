@@ -19,7 +19,7 @@ import pytest
 from leolink.antenna.array import dirichlet_coefficients, kernels_of_direction
 from leolink.engine.links import _pair_db, beam_snr_db
 from leolink.engine.screening import SIN_EL_BAND, _screen_pair
-from leolink.geometry import azimuth_in_frame_deg, azimuth_on_sphere_deg
+from leolink.geometry import azimuth_in_frame_deg, azimuth_of_deg, azimuth_on_sphere_deg
 from leolink.sim.environment import look_angles_rad
 from leolink.sim.mobility.models import great_circle_state
 
@@ -175,8 +175,9 @@ def test_a_satellite_at_the_zenith_or_nadir_is_at_plus_or_minus_90_deg_never_nan
 
 
 def _assert_same_azimuth_deg(got, want):
-    """Equal azimuths [deg] to 1e-9 deg, on the circle (due north may round to 360)."""
-    assert np.all((got >= 0.0) & (got <= 360.0))
+    """Equal azimuths [deg] to 1e-9 deg, on the circle (due north is 0, or a little less
+    than 360)."""
+    assert np.all((got >= 0.0) & (got < 360.0))
     np.testing.assert_allclose((got - want + 180.0) % 360.0 - 180.0, 0.0, atol=1e-9)
 
 
@@ -192,6 +193,20 @@ def test_azimuth_on_the_sphere_is_the_one_in_its_local_frame(lat, lon):
     pos = 6.371e6 * enu[2]
     got = azimuth_on_sphere_deg(_los(enu), np.broadcast_to(pos, (len(_LOOKS), 3)))
     _assert_same_azimuth_deg(got, _LOOKS[:, 1])
+
+
+def test_due_north_a_rounding_west_is_0_not_360():
+    """``np.mod(-5.7e-16, 360.0)`` is 360.0: the azimuth stays in [0, 360) (with a
+    frame whose east row is a rounding off, and on the sphere on the prime meridian)."""
+    east = np.array([-1e-17, 0.0, -0.0, 1e-17, -1.0, 0.0])
+    north = np.array([1.0, 1.0, 1.0, 1.0, 0.0, -1.0])
+    np.testing.assert_array_equal(azimuth_of_deg(east, north),
+                                  [0.0, 0.0, 0.0, np.degrees(1e-17), 270.0, 180.0])  # fmt: skip
+    enu = np.array([[1.0, -1e-17, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    assert azimuth_in_frame_deg(np.array([0.0, 1.0, 0.0]), enu) == 0.0  # east . los = -1e-17
+    north_of_prime_meridian = azimuth_on_sphere_deg(np.array([-1.0, -1e-17, 1.0]),
+                                                    np.array([6.371e6, 0.0, 0.0]))  # fmt: skip
+    assert 0.0 <= north_of_prime_meridian < 360.0
 
 
 def test_a_mover_through_a_pole_is_at_plus_or_minus_90_deg_never_nan():

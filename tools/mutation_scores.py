@@ -365,7 +365,7 @@ JITABLE = {
     # (the engine's azimuth column: test_links_contracts.py builds lines of sight at known
     # azimuths)
     "geometry": (
-        ("azimuth_in_frame_deg", "azimuth_on_sphere_deg"),
+        ("azimuth_in_frame_deg", "azimuth_on_sphere_deg", "azimuth_of_deg"),
         [*MODULES["geometry"], "tests/test_links_contracts.py", JITABLE_TESTS],
     ),
     "link/channel_state": (

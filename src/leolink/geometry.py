@@ -18,6 +18,7 @@ __all__ = [
     "azimuth_deg",
     "azimuth_in_frame_deg",
     "azimuth_on_sphere_deg",
+    "azimuth_of_deg",
     "body_frame",
     "direction_cosines",
     "earth_central_angle_rad",
@@ -196,7 +197,7 @@ def azimuth_in_frame_deg(los, enu):
     e, n = enu[..., 0, :], enu[..., 1, :]
     east = los[..., 0] * e[..., 0] + los[..., 1] * e[..., 1] + los[..., 2] * e[..., 2]
     north = los[..., 0] * n[..., 0] + los[..., 1] * n[..., 1] + los[..., 2] * n[..., 2]
-    return np.mod(np.degrees(np.arctan2(east, north)), 360.0)
+    return azimuth_of_deg(east, north)
 
 
 @leolink.compiled.jitable
@@ -211,7 +212,16 @@ def azimuth_on_sphere_deg(los, pos_m):
     h2 = x * x + y * y
     east = np.sqrt(h2 + z * z) * (x * ly - y * lx)
     north = h2 * lz - z * (x * lx + y * ly)
-    return np.mod(np.degrees(np.arctan2(east, north)), 360.0)
+    return azimuth_of_deg(east, north)
+
+
+@leolink.compiled.jitable
+def azimuth_of_deg(east, north):
+    """Azimuth [deg] in [0, 360) of the horizontal components (east, north) (any common
+    positive scale): ``atan2(east, north)`` wrapped. A direction a rounding west of north
+    (``atan2`` ~ -1e-15 deg) is 0, not ``np.mod``'s 360.0."""
+    az = np.mod(np.degrees(np.arctan2(east, north)), 360.0)
+    return leolink.compiled.select(az < 360.0, az, 0.0)
 
 
 def slant_range_from_elevation_m(elevation_rad, altitude_m, radius_m=EARTH_RADIUS_M):
