@@ -401,6 +401,8 @@ JITABLE = {
 NEEDS_LOOPS = [
     "--deselect=tests/test_environment_tracker.py::test_compiled_loop_keeps_the_numpy_states_at_"
     "the_mask_and_in_empty_slots",
+    "--deselect=tests/test_environment_tracker.py::test_compiled_loop_steps_each_field_with_its_"
+    "own_correlation_distance",
     "--deselect=tests/test_links_contracts.py::test_a_pair_exactly_at_the_mask_is_visible",
     "--deselect=tests/test_links_contracts.py::test_ragged_screening_is_the_dense_screening_of_"
     "each_pair[True]",
