@@ -242,13 +242,18 @@ def _moving_states(models, use_loops, monkeypatch):
 
 def test_compiled_loop_steps_each_field_with_its_own_correlation_distance(monkeypatch):
     """Moving UTs: the compiled loop's three driving variables are the numpy code's, with
-    the defaults (urban: LoS state and NLoS shadowing share 50 m) and with three distinct
-    distances (rural's 60 / 37 / 120 m, and 20 / 45 / 300 m set), so each field is stepped
-    with its own distance (a swapped or shared one moves the values by ~1e-2, not 1e-12)."""
+    the defaults (urban: LoS state and NLoS shadowing share 50 m), with three distinct
+    distances (rural's 60 / 37 / 120 m, and 20 / 45 / 300 m set) and with the shadowings'
+    alike (20 / 45 / 45 m), so each field is stepped with its own distance (a swapped or
+    shared one moves the values by ~1e-2, not 1e-12)."""
     params = ChannelParams(los_corr_distance_m=20.0, sf_corr_distance_los_m=45.0,
                            sf_corr_distance_nlos_m=300.0)  # fmt: skip
-    models = environment_models(_pops(("urban", None), ("rural", None), ("suburban", params)),
-                                FREQ_HZ)  # fmt: skip
+    # both shadowings' distances equal, the LoS state's not: the NLoS shadowing keeps its own
+    shadowing_alike = ChannelParams(los_corr_distance_m=20.0, sf_corr_distance_los_m=45.0,
+                                    sf_corr_distance_nlos_m=45.0)  # fmt: skip
+    pops = _pops(("urban", None), ("rural", None), ("suburban", params),
+                 ("dense_urban", shadowing_alike))  # fmt: skip
+    models = environment_models(pops, FREQ_HZ)
     got = _moving_states(models, True, monkeypatch)
     want = _moving_states(models, False, monkeypatch)
     for g, w in zip(got, want, strict=True):
