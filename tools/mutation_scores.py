@@ -135,6 +135,9 @@ MODULES = {
     ],
     "link/budget": ["tests/test_budget.py", "tests/test_trace_independent.py"],
     "link/fading": ["tests/test_fading.py", "tests/test_fading_in_run.py"],
+    # the environments' channel state (issue 45: environments) and the trigger run's look-ahead
+    "link/channel_state": ["tests/test_channel_state.py", "tests/test_environment_tracker.py"],
+    "sim/handover/service_time": ["tests/test_service_time.py", "tests/test_trigger_run.py"],
     "rng": ["tests/test_rng.py", "tests/test_fading_in_run.py"],
     # The controller's own tests (hand-built sequences, the scalar reference of
     # test_controller_contracts.py) and the run tests (resumed events, interruptions, the
