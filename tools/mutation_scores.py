@@ -282,6 +282,14 @@ MODULES = {
     # The TR 38.811 tables and formulas, by hand and against the tables (the in-run tests
     # reach them through whole runs, minutes per mutant).
     "link/environment": ["tests/test_environment.py"],
+    # The numba switch itself: the splits by hand (test_compiled.py), the environment's
+    # words and refusals (test_bad_inputs.py's, refused before any run).
+    "compiled": [
+        "tests/test_compiled.py",
+        "tests/test_bad_inputs.py::test_validate_and_run_refuse_a_bad_environment_alike",
+        "tests/test_bad_inputs.py::test_threads_are_capped_at_the_cpus",
+        "tests/test_bad_inputs.py::test_jit_words",
+    ],
 }
 #: Issue 45: module -> (its compiled loops, the fast tests that run them with an
 #: independent expectation: the numpy path, hand-placed geometry or a brute-force scan).

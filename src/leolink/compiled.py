@@ -195,11 +195,13 @@ def _threads_asked():
         cpus = os.cpu_count() or 1
     if not env:
         return cpus
-    if not env.isdigit() or int(env[:19]) < 1:  # no 5,000-digit int(): its length says
+    digits = env.lstrip("0")  # (leading zeros: the value, however many)
+    if not env.isdigit() or not digits:
         from leolink.errors import ConfigError
 
         raise ConfigError(f"LEOLINK_THREADS = {env!r} is not allowed: a whole number >= 1")
-    return min(int(env[:19]) if len(env) <= 19 else cpus, cpus)  # more would only queue
+    # no 5,000-digit int(): past 19 digits the length says it is more than the CPUs
+    return min(int(digits) if len(digits) <= 19 else cpus, cpus)  # more would only queue
 
 
 #: Rows per thread below which a kernel call is not split (a task costs ~50 us).
