@@ -396,3 +396,157 @@ def test_pair_keys_of_one_ut_differ_by_satellite_whatever_its_key():
     for key in (0, 2**64 - 1, 0x00000000FFFFFFFF):
         keys = cs.pair_keys(np.array([key], dtype=np.uint64), sats)
         assert len(np.unique(keys)) == 64
+
+
+def test_empty_state_has_no_pair_and_the_epoch_before_the_first():
+    """(n_ut, 0) arrays of the documented dtypes, epoch -1: any first epoch is allowed."""
+    state = cs.empty_state(3)
+    assert state.sat_id.shape == (3, 0) and state.sat_id.dtype == np.int64
+    for name in ("z_los", "z_sf_los", "z_sf_nlos", "elevation_rad", "ray_east_m", "ray_north_m"):
+        value = getattr(state, name)
+        assert isinstance(value, np.ndarray), name
+        assert value.shape == (3, 0) and value.dtype == np.float64, name
+    assert state.epoch == -1
+
+
+@pytest.mark.parametrize(
+    ("environment", "expected"),
+    [  # (LoS, SF LoS, SF NLoS correlation distance [m], clutter height [m]): module docstring
+        ("dense_urban", (50.0, 37.0, 50.0, 20.0)),
+        ("urban", (50.0, 37.0, 50.0, 15.0)),
+        ("suburban", (50.0, 37.0, 50.0, 8.0)),
+        ("rural", (60.0, 37.0, 120.0, 3.5)),  # TR 38.901 Table 7.6.3.1-2 RMa; 38.811 6.7.2
+    ],
+)
+def test_environment_model_defaults_are_the_trs_correlation_distances(environment, expected):
+    m = cs.environment_model(environment, 20e9)
+    got = (m.los_corr_distance_m, m.sf_corr_distance_los_m, m.sf_corr_distance_nlos_m,
+           m.clutter_height_m)  # fmt: skip
+    assert got == expected
+    assert (m.band, m.scintillation, m.geomagnetic_latitude_deg) == ("ka", False, None)
+
+
+def test_environment_model_takes_every_option_given():
+    """Values below 1 m are allowed (> 0 only); an explicit band wins over the rule; the
+    latitude is kept (S-band scintillation needs it)."""
+    options = cs.ChannelOptions(band="ka", scintillation=True, geomagnetic_latitude_deg=30.0,
+                                los_corr_distance_m=0.5, sf_corr_distance_los_m=0.25,
+                                sf_corr_distance_nlos_m=0.75, clutter_height_m=7.0)  # fmt: skip
+    m = cs.environment_model("urban", 2e9, options)
+    assert (m.los_corr_distance_m, m.sf_corr_distance_los_m, m.sf_corr_distance_nlos_m) == (
+        0.5, 0.25, 0.75)  # fmt: skip
+    assert (m.clutter_height_m, m.band, m.freq_hz) == (7.0, "ka", 2e9)
+    assert (m.scintillation, m.geomagnetic_latitude_deg) == (True, 30.0)
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        ({"sf_corr_distance_los_m": -1.0}, r"^sf_corr_distance_los_m = -1.0 is not allowed"),
+        ({"sf_corr_distance_nlos_m": 0.0}, r"^sf_corr_distance_nlos_m = 0.0 is not allowed"),
+        ({"clutter_height_m": -2.0}, r"^clutter_height_m = -2.0 is not allowed; use a value >= 0"),
+    ],
+)
+def test_environment_model_names_the_bad_option(option, message):
+    with pytest.raises(cs.ConfigError, match=message):
+        cs.environment_model("urban", 11.45e9, cs.ChannelOptions(**option))
+
+
+def test_s_band_scintillation_uses_the_models_latitude():
+    """Below 6 GHz the margin is ionospheric and needs the latitude the model was given:
+    10 deg (within 20 of the geomagnetic equator) at 2 GHz, 1.1 dB (2 / 4)^-1.5 / sqrt(2)
+    = 2.2 dB (clause 6.6.6.1.4)."""
+    options = cs.ChannelOptions(scintillation=True, geomagnetic_latitude_deg=10.0)
+    model = cs.environment_model("suburban", 2e9, options)
+    sat_id, el, az = fixed_geometry(4, 2, 30.0)
+    (state,) = run(model, lrng.ut_keys(1, 4), sat_id, el, az, np.zeros(4), [0])
+    t = cs.link_terms(state, model)
+    np.testing.assert_allclose(t.scintillation_db, 2.2, rtol=1e-12)
+    np.testing.assert_allclose(t.extra_loss_db, t.shadow_db + t.clutter_db + t.scintillation_db)
+
+
+def _one_pair_state(z_los, elevation_deg):
+    one = np.array([[z_los]])
+    return cs.ChannelState(np.array([[4]]), one, np.array([[1.0]]), np.array([[-1.0]]),
+                           np.radians(np.array([[elevation_deg]])), np.zeros((1, 1)),
+                           np.zeros((1, 1)), 0)  # fmt: skip
+
+
+def test_los_is_strictly_below_the_table_probability():
+    """``Phi(z_los) < P_LoS``: at dense urban zenith (98.1 %, Table 6.6.1-1; the 90-degree
+    row, which no rounding of the angle leaves) the threshold itself is NLoS and the next
+    float below it LoS."""
+    from scipy.special import ndtri
+
+    model = cs.environment_model("dense_urban", 20e9)
+    threshold = ndtri(98.1 / 100.0)
+    at = cs.pair_terms(_one_pair_state(threshold, 90.0), model, np.array([0]))
+    below = cs.pair_terms(_one_pair_state(np.nextafter(threshold, -np.inf), 90.0), model,
+                          np.array([0]))  # fmt: skip
+    assert not at.los[0] and below.los[0]
+
+
+def test_open_pair_terms_are_boolean_los_whatever_z():
+    model = cs.environment_model("open", 20e9)
+    t = cs.pair_terms(_one_pair_state(50.0, 30.0), model, np.array([0]))
+    assert t.los.dtype == bool and t.los[0]
+    assert (t.shadow_db[0], t.clutter_db[0], t.extra_loss_db[0]) == (0.0, 0.0, 0.0)
+
+
+def test_advance_to_no_candidate_and_back():
+    """A UT may lose every candidate (all slots -1) and later see a satellite again, which
+    then starts afresh; the state keeps the documented dtypes from int32 ids and float32
+    angles (its elevations the float64 of the given ones)."""
+    model = cs.environment_model("urban", 20e9)
+    keys = lrng.ut_keys(2, 2)
+    el = np.full((2, 2), 0.5, dtype=np.float32)
+    ids = np.array([[3, 9], [3, -1]], dtype=np.int32)
+    s0 = cs.advance(cs.empty_state(2), model, keys, ids, el, el, np.zeros(2), 0)
+    assert s0.sat_id.dtype == np.int64 and s0.elevation_rad.dtype == np.float64
+    assert np.all(s0.elevation_rad == np.float64(np.float32(0.5)))
+    s1 = cs.advance(s0, model, keys, np.full((2, 2), -1), el, el, np.zeros(2), 1)
+    assert np.all(s1.sat_id == -1) and np.all(s1.z_los == 0.0) and np.all(s1.ray_east_m == 0.0)
+
+
+@pytest.mark.parametrize(
+    ("el_deg", "az_deg", "expected"),
+    [
+        (0.0, 90.0, (1.0, 0.0, 0.0)),  # horizon, east
+        (0.0, 180.0, (0.0, -1.0, 0.0)),  # horizon, south
+        (90.0, 37.0, (0.0, 0.0, 1.0)),  # zenith, any azimuth
+        (30.0, 0.0, (0.0, np.sqrt(3.0) / 2.0, 0.5)),  # north, sin 30 = 1/2 up
+        (60.0, 270.0, (-0.5, 0.0, np.sqrt(3.0) / 2.0)),  # west, cos 60 = 1/2 horizontal
+    ],
+)
+def test_direction_enu_at_known_angles(el_deg, az_deg, expected):
+    got = cs.direction_enu(np.radians(el_deg), np.radians(az_deg))
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-15)
+
+
+def test_direction_enu_is_a_unit_vector_in_double_precision_from_float32_angles():
+    el = np.array([0.1, 0.7, 1.3], dtype=np.float32)
+    az = np.array([0.3, 2.9, 5.1], dtype=np.float32)
+    e, n, u = cs.direction_enu(el, az)
+    assert e.dtype == n.dtype == u.dtype == np.float64
+    np.testing.assert_allclose(e * e + n * n + u * u, 1.0, rtol=0, atol=4e-16)
+
+
+def test_innovations_are_sqrt2_times_the_complex_normals_at_counters_2k_and_2k_plus_1():
+    """Module docstring: epoch k draws at counters 2k and 2k + 1 (no counter shared between
+    epochs), real and imaginary parts scaled to unit variance."""
+    keys = lrng.ut_keys(9, 5)
+    w = cs.innovations(keys, 3)
+    g6, g7 = lrng.complex_normal(keys, 6), lrng.complex_normal(keys, 7)
+    np.testing.assert_allclose(w, np.sqrt(2.0) * np.stack([g6.real, g6.imag, g7.real]),
+                               rtol=1e-14)  # fmt: skip
+
+
+def test_pair_keys_view_signed_ids_as_their_uint64_bits():
+    """pair_keys of int ids is pair_key of the same 64 bits (-1: all ones): the compiled
+    tracker, which hands pair_key uint64 ids, keys the same streams."""
+    keys = lrng.ut_keys(1, 2)
+    ids = np.array([[5, -1], [123456789, 0]])
+    as_uint = np.array([[5, 2**64 - 1], [123456789, 0]], dtype=np.uint64)
+    np.testing.assert_array_equal(cs.pair_keys(keys, ids), cs.pair_key(keys[:, None], as_uint))
+    np.testing.assert_array_equal(cs.pair_keys(list(map(int, keys)), ids.astype(np.int32)),
+                                  cs.pair_keys(keys, ids))  # fmt: skip

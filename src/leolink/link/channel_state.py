@@ -76,7 +76,6 @@ __all__ = [
     "link_terms",
     "pair_keys",
     "pair_terms",
-    "ray_clutter_offset_m",
 ]
 
 # (LoS-state, SF LoS, SF NLoS correlation distance [m], clutter height above the UT [m]).
@@ -292,20 +291,6 @@ def ar1_mix(z_prev, weights, w):
     return weights[0] * z_prev + weights[1] * w
 
 
-def ray_clutter_offset_m(elevation_rad, azimuth_rad, clutter_height_m):
-    """Horizontal offset (east, north) [m] from the UT of the ray's piercing point at ``h``.
-
-    ``h cot(max(el, 10 deg)) (sin az, cos az)``; azimuth from north towards east, as
-    :func:`leolink.geometry.look_angles`.
-
-    Returns
-    -------
-    ndarray, shape (..., 2)
-    """
-    direction = direction_enu(elevation_rad, azimuth_rad)
-    return np.stack(ray_offset_en_m(*direction, clutter_height_m), axis=-1)
-
-
 def direction_enu(elevation_rad, azimuth_rad):
     """Unit vector (east, north, up) of the direction of elevation and azimuth [rad]
     (azimuth from north towards east): a tuple of arrays."""
@@ -315,9 +300,10 @@ def direction_enu(elevation_rad, azimuth_rad):
 
 @compiled.jitable
 def ray_offset_en_m(east, north, up, clutter_height_m):
-    """:func:`ray_clutter_offset_m` as the tuple (east, north) [m], of the direction to the
-    satellite given by its components (east, north, up) in the UT's frame, of any length
-    (:func:`direction_enu`, or a link vector: no angle needed). ``h cot(max(el, 10 deg))
+    """Horizontal offset (east, north) [m] from the UT of the ray's piercing point at the
+    clutter height ``h`` (module docstring), of the direction to the satellite given by its
+    components (east, north, up) in the UT's frame, of any length (:func:`direction_enu`,
+    or a link vector: no angle needed). ``h cot(max(el, 10 deg))
     (sin az, cos az)`` is ``h (east, north) / max(up, tan(10 deg) |(east, north)|)``
     (arrays, or a compiled loop's scalars; a square root, not ``hypot``, which costs a
     compiled loop ~4x: nothing here is near overflow)."""
