@@ -228,6 +228,7 @@ def _checked_run(snr, epoch_s, horizon_s, n_step, per_cell):
             assert cell is None
         new = engine.seen[before:]
         assert all(j > k for j, _, _ in new)
+        assert len(set(new)) == len(new)
         starts = serves[k] & ~serves[k - 1] if k and per_cell else np.zeros_like(serves[k])
         again = {(u, s) for j, u, s in new if (j, u, s) in set(engine.seen[:before])}
         assert all(starts[u, s].any() for u, s in again)
