@@ -152,3 +152,113 @@ def test_a_pair_that_ends_early_does_not_stop_the_next_pairs():
     first_sat, first_beam = _first_failures(snr_bm, np.ones(4, bool), pair, step, 0.0, 2, 2)
     assert first_sat.tolist() == [0, 1]
     assert first_beam.tolist() == [[0, 0], [1, 0]]
+
+
+class _CheckedLinks(TableLinks):
+    """TableLinks that refuse a beam grid other than the engine's."""
+
+    def __init__(self, values, engine):
+        super().__init__(values)
+        self.engine = engine
+
+    def snr_db_bm(self, beam_ix, beam_iy):
+        assert beam_ix is self.engine.beam_ix and beam_iy is self.engine.beam_iy
+        return super().snr_db_bm(beam_ix, beam_iy)
+
+    def best_beam(self, beam_ix, beam_iy, with_snr_db=False):
+        assert beam_ix is self.engine.beam_ix and beam_iy is self.engine.beam_iy
+        return super().best_beam(beam_ix, beam_iy, with_snr_db)
+
+
+class _CheckedEngine:
+    """Reads each combination's time [s] from its UT position, its UT from its local up
+    and its satellite from its velocity (10 m/s per index), checks them against the
+    position and the ids, and records every (epoch, UT, satellite) it evaluates."""
+
+    n_beam = N_BEAM
+
+    def __init__(self, snr, epoch_s):
+        self.snr, self.epoch_s, self.seen = snr, epoch_s, []
+        self.beam_ix, self.beam_iy = np.arange(N_BEAM), np.arange(N_BEAM) + 10
+
+    def evaluate_pairs(self, ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, ut_id=None,
+                       sat_id=None):  # fmt: skip
+        k = np.round(ut_pos_m[ut, 0] / self.epoch_s).astype(int)
+        u = ut_up[ut, 0].astype(int)
+        s = np.round(sat_vel_m_s[sat, 0] / 10.0).astype(int)
+        assert np.array_equal(sat_pos_m[sat, 0], s) and np.array_equal(sat_id[sat], s)
+        assert np.array_equal(ut_id[ut], u)
+        self.seen += list(zip(k.tolist(), u.tolist(), s.tolist(), strict=True))
+        return _CheckedLinks(self.snr[k, u, s], self)
+
+
+def _checked_run(snr, epoch_s, horizon_s, n_step, per_cell):
+    """Every epoch's ends against the brute-force scan of ``n_step`` steps; each
+    (epoch, UT, satellite) evaluated once, later than now, but a pair re-scanned when one
+    of its cells starts serving; each future time asked of ``future_state`` once, at most
+    32 a call. Returns the engine."""
+    asked = []
+
+    def future(t_s):
+        t_s = np.asarray(t_s)
+        assert 1 <= t_s.size <= 32
+        asked.extend(np.round(t_s / epoch_s).astype(int).tolist())
+        ut = np.zeros((t_s.size, N_UT, 3))
+        ut[..., 0] = t_s[:, None]
+        pos = np.zeros((t_s.size, N_SAT, 3))
+        pos[..., 0] = np.arange(N_SAT)
+        return ut, pos, 10.0 * pos
+
+    engine = _CheckedEngine(snr, epoch_s)
+    times = ServiceTimes(engine, future, MIN_SNR_DB, epoch_s, horizon_s)
+    axis = LocalAxis.union(
+        N_UT, N_BEAM, np.repeat(np.arange(N_UT), N_SAT), np.tile(np.arange(N_SAT), N_UT)
+    )
+    up = np.zeros((N_UT, 3))
+    up[:, 0], up[:, 2] = np.arange(N_UT), 1.0
+    serves = snr >= MIN_SNR_DB
+    for k in range(N_T):
+        before = len(engine.seen)
+        cell, sat = times.update(k * epoch_s, axis, serves[k].reshape(N_UT, -1), up, per_cell)
+        ref_cell, ref_sat = _brute(snr, k, n_step)
+        np.testing.assert_array_equal(sat, ref_sat * epoch_s)
+        if per_cell:
+            np.testing.assert_array_equal(cell, ref_cell * epoch_s)
+        else:
+            assert cell is None
+        new = engine.seen[before:]
+        assert all(j > k for j, _, _ in new)
+        assert len(set(new)) == len(new)
+        starts = serves[k] & ~serves[k - 1] if k and per_cell else np.zeros_like(serves[k])
+        again = {(u, s) for j, u, s in new if (j, u, s) in set(engine.seen[:before])}
+        assert all(starts[u, s].any() for u, s in again)
+    assert len(asked) == len(set(asked))
+    return engine
+
+
+@pytest.mark.parametrize("per_cell", [True, False])
+def test_ends_with_another_epoch_a_horizon_off_the_grid_and_the_engines_inputs(per_cell):
+    """Epoch 2.5 s, horizon 21 s: 9 steps (the 9th, 22.5 s, beyond it: a horizon is
+    rounded up to whole epochs), so the first chunk of 8 steps leaves one; the UTs' local
+    up, the satellites' velocities and ids reach the engine; a one-epoch dip in UT 2's
+    service by satellite 2 at epoch 20 (it serves at 19 and 21) is that epoch."""
+    snr = _history(5)
+    serves = snr[:, 2, 2] >= MIN_SNR_DB
+    assert serves[19].all() and serves[21].all()
+    snr[20, 2, 2] = -10.0
+    engine = _checked_run(snr, 2.5, 21.0, 9, per_cell)
+    assert len(engine.seen) > 100
+
+
+def test_a_one_epoch_horizon_looks_one_step_ahead():
+    """A horizon of one epoch or less: one step, every epoch (the ends are seen one
+    epoch ahead, the dip at epoch 20 too)."""
+    snr = _history(5)
+    snr[20, 2, 2] = -10.0
+    _checked_run(snr, 1.0, 1.0, 1, True)
+    _checked_run(snr, 2.0, 0.5, 1, False)
+
+
+def test_a_long_horizon_evaluates_each_future_time_once():
+    """Horizon 36 steps: more than one batch of 32 future times at the first epoch."""
+    _checked_run(_history(6), 1.0, 36.0, 36, True)
