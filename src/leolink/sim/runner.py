@@ -8,6 +8,7 @@ a config or writes a file.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Sequence
 
@@ -205,6 +206,16 @@ def _monitor(scen, sink, decide, keys, names):
     return TrueLinkMonitor(*args, **kw, true_ephemeris=scen.ephemeris)
 
 
+def _future_state(populations, believed, t):
+    """UT positions, satellite positions and velocities at ``t`` [s], by the ``believed``
+    ephemeris: a scalar gives (n_ut, 3), (n_sat, 3), (n_sat, 3); 1-D times the same with a
+    leading time axis, in one call per population and one of the ephemeris."""
+    times = np.atleast_1d(np.asarray(t, float))
+    ut = np.concatenate([motion_states(p, times).pos_m for _, p in populations], axis=1)
+    pos, vel, _ = believed(times)
+    return (ut[0], pos[0], vel[0]) if np.ndim(t) == 0 else (ut, pos, vel)
+
+
 def run_simulation(
     scen: Scenario,
     sinks: Sequence,
@@ -233,15 +244,7 @@ def run_simulation(
 
     believed = scen.ephemeris if scen.estimated_ephemeris is None else scen.estimated_ephemeris
 
-    def future_state(t):
-        """UT positions, satellite positions and velocities at ``t`` [s], believed: a
-        scalar gives (n_ut, 3), (n_sat, 3), (n_sat, 3); 1-D times the same with a leading
-        time axis, in one call per population and one of the ephemeris."""
-        times = np.atleast_1d(np.asarray(t, float))
-        ut = np.concatenate([motion_states(p, times).pos_m for _, p in scen.populations], axis=1)
-        pos, vel, _ = believed(times)
-        return (ut[0], pos[0], vel[0]) if np.ndim(t) == 0 else (ut, pos, vel)
-
+    future_state = functools.partial(_future_state, scen.populations, believed)
     times = scen.times_s
     rlf = None
     if scen.rlf is not None:

@@ -164,20 +164,21 @@ class ServiceTimes:
             # (at most SCAN_PAIRS evaluations a call: bounded temporaries at a run's start)
             n = min(size, max(1, SCAN_PAIRS // int(np.isposinf(end_sat).sum())))
             steps = np.arange(j0, min(j0 + n, self.n_step + 1))
-            self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell)
+            self._chunk(t_s, steps, (rows, sats), start_s, end_cell, end_sat, ut_up, per_cell)
             j0, size = steps[-1] + 1, 2 * size
         return end_cell, end_sat
 
-    def _chunk(self, t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell=True):
-        """The look-ahead steps ``steps`` of the open pairs, in place: each pair's first
-        step at which a beam (all its beams) no longer serves is that beam's (its) end.
+    def _chunk(self, t_s, steps, pairs, start_s, end_cell, end_sat, ut_up, per_cell=True):
+        """The look-ahead steps ``steps`` of the open pairs among ``pairs = (rows, sats)``,
+        in place: each pair's first step at which a beam (all its beams) no longer serves is
+        that beam's (its) end.
 
         ``per_cell`` False: the satellite's end alone, from each step's best beam
         (:meth:`~leolink.engine.links.Links.best_beam`'s SNR, the largest of
         ``snr_db_bm``): no beam serves exactly when that one does not, so
         :func:`_first_failures` of that one row is the satellite's first failure, without
         the SNR of every beam."""
-        eng = self.engine
+        eng, (rows, sats) = self.engine, pairs
         t_j = t_s + steps * self.epoch_s
         open_ = np.flatnonzero(np.isposinf(end_sat))
         # (pair, step) combinations, pair-major: each pair's steps ascending
