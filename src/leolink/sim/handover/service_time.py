@@ -72,8 +72,9 @@ class ServiceTimes:
         n = self.n_step + 2
         slots = keys % n
         missing = np.ones(keys.size, bool) if self._ring is None else self._ring[0][slots] != keys
-        for lo in range(0, int(missing.sum()), STATE_BATCH):
-            at = np.flatnonzero(missing)[lo : lo + STATE_BATCH]
+        missing = np.flatnonzero(missing)
+        for lo in range(0, missing.size, STATE_BATCH):
+            at = missing[lo : lo + STATE_BATCH]
             ut, pos, vel = self.future_state(t_j[at])  # each with a leading time axis
             if self._ring is None:
                 shapes = (a.shape[1:] for a in (ut, pos, vel))
@@ -137,7 +138,6 @@ class ServiceTimes:
             got_cells, got_sat = self._scan(
                 t_s, rows, axis.sats[rows, slots], until[rows, slots],
                 None if cells is None else cells[rows, slots], end_sat[rows, slots], ut_up,
-                per_cell,
             )  # fmt: skip
             end_sat[rows, slots] = got_sat
             if per_cell:
@@ -148,10 +148,10 @@ class ServiceTimes:
         cell_out = None if cells is None else np.where(now, cells, np.nan).reshape(cell_shape)
         return cell_out, np.where(sat_now, end_sat, np.nan)
 
-    def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up, per_cell=True):
+    def _scan(self, t_s, rows, sats, start_s, end_cell, end_sat, ut_up):
         """Look ahead the pairs ``(rows[k], sats[k])`` over ``(start_s[k], t_s + horizon]``;
         ``end_cell (m, n_beam)``, ``end_sat (m,)``: the ends found so far (inf: open);
-        ``per_cell`` False: ``end_sat`` alone (``end_cell``, None, returned as given).
+        ``end_cell`` None: ``end_sat`` alone (satellite-level policies).
 
         The steps go in chunks of doubling length (:data:`FIRST_CHUNK` steps first), every
         open pair's steps of a chunk in one engine call: a pass is looked ahead in a few
@@ -164,21 +164,20 @@ class ServiceTimes:
             # (at most SCAN_PAIRS evaluations a call: bounded temporaries at a run's start)
             n = min(size, max(1, SCAN_PAIRS // int(np.isposinf(end_sat).sum())))
             steps = np.arange(j0, min(j0 + n, self.n_step + 1))
-            self._chunk(t_s, steps, (rows, sats), start_s, end_cell, end_sat, ut_up, per_cell)
+            self._chunk(t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up)
             j0, size = steps[-1] + 1, 2 * size
         return end_cell, end_sat
 
-    def _chunk(self, t_s, steps, pairs, start_s, end_cell, end_sat, ut_up, per_cell=True):
-        """The look-ahead steps ``steps`` of the open pairs among ``pairs = (rows, sats)``,
-        in place: each pair's first step at which a beam (all its beams) no longer serves is
-        that beam's (its) end.
+    def _chunk(self, t_s, steps, rows, sats, start_s, end_cell, end_sat, ut_up):
+        """The look-ahead steps ``steps`` of the open pairs, in place: each pair's first
+        step at which a beam (all its beams) no longer serves is that beam's (its) end.
 
-        ``per_cell`` False: the satellite's end alone, from each step's best beam
+        ``end_cell`` None: the satellite's end alone, from each step's best beam
         (:meth:`~leolink.engine.links.Links.best_beam`'s SNR, the largest of
         ``snr_db_bm``): no beam serves exactly when that one does not, so
         :func:`_first_failures` of that one row is the satellite's first failure, without
         the SNR of every beam."""
-        eng, (rows, sats) = self.engine, pairs
+        eng, per_cell = self.engine, end_cell is not None
         t_j = t_s + steps * self.epoch_s
         open_ = np.flatnonzero(np.isposinf(end_sat))
         # (pair, step) combinations, pair-major: each pair's steps ascending
