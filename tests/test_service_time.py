@@ -15,10 +15,10 @@ pytestmark = pytest.mark.usefixtures("compiled_and_numpy")
 N_UT, N_SAT, N_BEAM, N_T, DT_S, MIN_SNR_DB = 3, 4, 2, 60, 1.0, 0.0
 
 
-def _history(seed):
-    """SNR (n_t + horizon, n_ut, n_sat, n_beam): smooth bumps, so cells serve in runs."""
+def _history(seed, n_ahead=40):
+    """SNR (n_t + n_ahead, n_ut, n_sat, n_beam): smooth bumps, so cells serve in runs."""
     rng = np.random.default_rng(seed)
-    t = np.arange(N_T + 40)[:, None, None, None]
+    t = np.arange(N_T + n_ahead)[:, None, None, None]
     centre = rng.uniform(0, N_T, (1, N_UT, N_SAT, N_BEAM))
     width = rng.uniform(3, 25, (1, N_UT, N_SAT, N_BEAM))
     return 10.0 - 20.0 * ((t - centre) / width) ** 2 + rng.normal(0, 0.5, (1, N_UT, N_SAT, 1))
@@ -260,5 +260,16 @@ def test_a_one_epoch_horizon_looks_one_step_ahead():
 
 
 def test_a_long_horizon_evaluates_each_future_time_once():
-    """Horizon 36 steps: more than one batch of 32 future times at the first epoch."""
+    """Horizon 36 steps: chunks of 8, 16 and 12 steps; each future time asked once."""
     _checked_run(_history(6), 1.0, 36.0, 36, True)
+
+
+def test_a_pass_longer_than_the_chunks_asks_every_future_time_in_batches():
+    """One cell that serves throughout, horizon 90 steps: its look-ahead at the first epoch
+    goes in chunks of 8, 16, 32 and 34 steps, the last two needing every one of their
+    future times (a batch of 32, then 32 and 2): a time left out of a batch would hand the
+    engine an unfilled state."""
+    snr = _history(7, n_ahead=100)
+    snr[:, 0, 0, 0] = 10.0
+    engine = _checked_run(snr, 1.0, 90.0, 90, True)
+    assert {j for j, u, s in engine.seen if (u, s) == (0, 0)} >= set(range(1, 91))
