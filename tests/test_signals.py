@@ -286,3 +286,36 @@ def test_a_caught_stop_is_raised_before_a_run_commits_its_folder(tmp_path, monke
     assert f"{out} has no run.json" in err[0]
     assert not (out / "run.json").exists()
     assert not [f for f in files_in(out) if ".partial" in f]
+
+
+def _in_llvm_callback():
+    """A function that calls a signal handler as if from llvmlite's ctypes callback (its
+    code's file is under an ``llvmlite`` folder), and returns if the handler returns."""
+    path = os.path.join(os.sep, "venv", "llvmlite", "binding", "ffi.py")
+    text = "import sys\ndef callback(handler, signum):\n    handler(signum, sys._getframe())\n"
+    scope: dict = {}
+    exec(compile(text + "    return 'returned'\n", path, "exec"), scope)
+    return scope["callback"]
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="POSIX signals")
+@pytest.mark.parametrize("where", ["command", "sweep worker"])
+def test_a_stop_inside_llvm_is_sent_again_outside_it(monkeypatch, where):
+    """A signal that lands while LLVM calls back into Python (numba compiling or loading a
+    kernel: an exception raised there is dropped by ctypes and LLVM then crashed the run
+    with SIGSEGV, seen in CI under load) is not raised there: the handler returns, the
+    signal comes again and stops the command outside LLVM."""
+    from leolink.app import guard
+
+    callback, stages = _in_llvm_callback(), []
+    if where == "sweep worker":
+        monkeypatch.setattr(guard, "_busy", True)  # running a point: SIGTERM raises
+    with pytest.raises(guard.Stopped, match="SIGTERM"):
+        with guard.interruptible():  # (restores the handlers it found when it ends)
+            if where == "sweep worker":
+                signal.signal(signal.SIGTERM, guard._worker_term)
+            stages.append(callback(signal.getsignal(signal.SIGTERM), signal.SIGTERM))
+            for _ in range(6000):  # wait for the signal sent again (at most 60 s)
+                time.sleep(0.01)
+            stages.append("not sent again")
+    assert stages == ["returned"]

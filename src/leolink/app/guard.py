@@ -6,7 +6,9 @@ environment's errors turned into one line.
   the stream's sinks abort (:func:`leolink.sim.runner.run_simulation`), the atomic writer
   removes its temporary files, the command adds a note saying where it stopped and exits
   with 128 + the signal's number; a second signal (a second Ctrl-C) during that cleanup
-  is ignored so that the cleanup finishes.
+  is ignored so that the cleanup finishes. A signal that lands while LLVM calls back into
+  Python (numba compiling or loading a cached kernel) is sent again a moment later: an
+  exception cannot unwind through C, ctypes drops it and LLVM goes on with a broken buffer.
 - Sweep workers (:func:`worker_init`) die with their parent: ``prctl(PR_SET_PDEATHSIG)``
   on Linux (also after SIGKILL of the parent), and a watchdog thread on the parent's pid
   elsewhere; they ignore SIGINT and SIGHUP (the parent stops them with SIGTERM, so a Ctrl-C
@@ -44,6 +46,8 @@ _SIGNALS = {
     if hasattr(signal, name)  # (Windows has SIGINT and SIGTERM only)
 }
 _WATCHDOG_S = 0.5
+_AGAIN_S = 0.05  # a signal that landed in LLVM's callback is sent again after this [s]
+_LLVMLITE = f"{os.sep}llvmlite{os.sep}"
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 #: (message regex, category, module regex, why it is silenced).
@@ -87,7 +91,30 @@ class Stopped(KeyboardInterrupt):
 _pending: list[Stopped] = []
 
 
+def _in_llvm(frame) -> bool:
+    """Whether the main thread runs inside llvmlite (numba's compiler or its cache): LLVM
+    calls back into Python through ctypes there, where an exception raised by a signal
+    handler is printed and dropped, and LLVM then crashes (SIGSEGV, seen under load)."""
+    while frame is not None:
+        if _LLVMLITE in frame.f_code.co_filename:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _later(signum, frame) -> bool:
+    """Send ``signum`` to the main thread again in :data:`_AGAIN_S` if it landed in LLVM
+    (:func:`_in_llvm`): True if so, and the handler must return without raising."""
+    if not _in_llvm(frame):
+        return False
+    main = threading.main_thread().ident
+    threading.Timer(_AGAIN_S, signal.pthread_kill, (main, signum)).start()
+    return True
+
+
 def _raise_stopped(signum, frame):
+    if _later(signum, frame):
+        return
     for sig in _SIGNALS:  # a second signal must not interrupt the cleanup
         signal.signal(sig, signal.SIG_IGN)
     stop = Stopped(_SIGNALS.get(signum, str(signum)))
@@ -194,6 +221,8 @@ _WORKER_STOPS = [s for s in _SIGNALS if _SIGNALS[s] in ("SIGTERM", "SIGXCPU")]
 
 
 def _worker_term(signum, frame):
+    if _busy and _later(signum, frame):
+        return
     for sig in _WORKER_STOPS:
         signal.signal(sig, signal.SIG_IGN)
     if not _busy:
