@@ -78,6 +78,15 @@ def test_what_the_sink_kept_equals_what_the_files_say(paper):
     pd.testing.assert_frame_equal(kept.events(), files.events(), check_dtype=False)
 
 
+def test_outage_reasons_are_counted_by_name(tmp_path):
+    # The stream carries outage_reason as a code (int8): the report counts the trace's
+    # names. A 5 dB threshold puts the paper's pass edges in outage (below_threshold).
+    out, kept, trace = _run(tmp_path / "run", PAPER, "--set", "controller.min_snr_db=5.0")
+    outage = trace[trace["service"] == "outage"]
+    assert len(outage) > 0
+    assert kept.outage_reason_counts == outage["outage_reason"].value_counts().to_dict()
+
+
 def test_dwell_histograms_count_the_summary_dwells(paper):
     out, kept, _ = paper
     dwell = json.loads((out / "summary.json").read_text())["overall"]["dwell"]
