@@ -156,9 +156,9 @@ def test_footprints_keep_order_skip_short_rings_and_stay_whole_across_180():
     for path, ring in zip(paths, rings, strict=True):
         np.testing.assert_allclose(path.vertices[: len(ring)], ring, atol=1e-12)
     np.testing.assert_array_equal(coll.get_edgecolors(), beam_colour([4, 7, 2]))
-    # Each beam id written (as a text marker) at the mean of its drawn ring's points.
-    labels = [(line.get_marker().strip("$"), tuple(xy)) for line in ax.lines
-              if str(line.get_marker()).startswith("$")
+    # Each beam id written (a marker of its digits) at the mean of its drawn ring's points.
+    labels = [(line.get_gid().removeprefix("beam "), tuple(xy)) for line in ax.lines
+              if (line.get_gid() or "").startswith("beam ")
               for xy in line.get_xydata().tolist()]  # fmt: skip
     assert sorted(labels) == sorted([("4", (180.0, 2.0)), ("7", (32 / 3, 17 / 3)),
                                      ("2", (-19.0, 0.0))])  # fmt: skip

@@ -5,6 +5,8 @@ own report.html opens in headless Chromium."""
 
 import json
 import math
+import subprocess
+import sys
 import tomllib
 
 import numpy as np
@@ -76,6 +78,33 @@ def test_what_the_sink_kept_equals_what_the_files_say(paper):
     cols = ["time_s", "ut_id", "sat_id", "beam_id", "snr_db", "sinr_db", "service"]
     pd.testing.assert_frame_equal(kept.series()[cols], files.series()[cols], check_dtype=False)
     pd.testing.assert_frame_equal(kept.events(), files.events(), check_dtype=False)
+
+
+def test_outage_reasons_are_counted_by_name(tmp_path):
+    # The stream carries outage_reason as a code (int8): the report counts the trace's
+    # names. A 5 dB threshold puts the paper's pass edges in outage (below_threshold).
+    out, kept, trace = _run(tmp_path / "run", PAPER, "--set", "controller.min_snr_db=5.0")
+    outage = trace[trace["service"] == "outage"]
+    assert len(outage) > 0
+    assert kept.outage_reason_counts == outage["outage_reason"].value_counts().to_dict()
+
+
+def test_a_run_with_the_report_leaves_pandas_unimported(tmp_path):
+    # pandas costs ~0.5 s CPU to import and the run itself does not need it (issue 44):
+    # the report's statistics, figures and page work on numpy arrays (the plots sink,
+    # off here, still reads its rows with pandas).
+    code = (
+        "import runpy, sys\n"
+        f"sys.argv = ['leolink', 'run', {str(PAPER)!r}, '--out', {str(tmp_path / 'run')!r},"
+        " '--quiet', '--set', 'output.plots.enabled=false']\n"
+        "try:\n    runpy.run_module('leolink.cli', run_name='__main__')\n"
+        "except SystemExit as exc:\n    assert not exc.code, exc.code\n"
+        "print('pandas' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=REPO, check=True)  # fmt: skip
+    assert (tmp_path / "run" / "report.html").is_file()
+    assert done.stdout.split()[-1] == "False"
 
 
 def test_dwell_histograms_count_the_summary_dwells(paper):

@@ -2,14 +2,15 @@
 
 Every function returns a :class:`matplotlib.figure.Figure` on the Agg canvas (no pyplot
 state). Inputs are bounded whatever the run size: per-UT series only for a few chosen
-UTs (``series``: DataFrame with the trace columns of those UTs), histograms or CDF points
+UTs (``series``: the trace columns of those UTs, a dict of 1-D arrays as
+:meth:`~leolink.io.report.stats.ReportStats.series_columns` gives or a DataFrame; ``events``
+likewise), histograms or CDF points
 for all UT-epochs (:class:`leolink.io.report.stats.ReportStats`), dwell histograms.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 from leolink.io.report.headline import fmt_si
 from leolink.io.report.maps import beam_colour
@@ -69,13 +70,28 @@ def new_figure(n_rows=1, n_cols=1, *, figsize=(9.0, 4.0), dpi=100, margins_in=No
 
 
 def _uts(series, ut_ids, limit=MAX_PANELS):
-    present = pd.unique(series["ut_id"]).astype(int).tolist() if len(series) else []
+    """The UTs to draw: ``ut_ids`` present in ``series`` (default: all, in order of first
+    appearance), at most ``limit``."""
+    ut, first = np.unique(np.asarray(series["ut_id"], int), return_index=True)
+    present = ut[np.argsort(first)].tolist()
     wanted = present if ut_ids is None else [int(u) for u in ut_ids if int(u) in set(present)]
     return wanted[:limit]
 
 
 def _rows(series, ut_id):
-    return series[series["ut_id"] == ut_id].sort_values("time_s")
+    """The columns of ``series`` (mapping or DataFrame) at the rows of ``ut_id``, in time
+    order: dict of arrays."""
+    rows = np.flatnonzero(np.asarray(series["ut_id"]) == ut_id)
+    rows = rows[np.argsort(np.asarray(series["time_s"], float)[rows], kind="stable")]
+    return {k: np.asarray(series[k])[rows] for k in series}
+
+
+def _event_times(events, ut_id, kind):
+    """Times [s] of the events of ``kind`` of UT ``ut_id`` (``events``: mapping or DataFrame)."""
+    if not len(events["ut_id"]):
+        return np.empty(0)
+    mask = (np.asarray(events["ut_id"]) == ut_id) & (np.asarray(events["kind"]) == kind)
+    return np.asarray(events["time_s"], float)[mask]
 
 
 def _empty(ax, text):
@@ -104,9 +120,9 @@ def fig_snr_time(series, events, ut_ids=None):
 
     Parameters
     ----------
-    series : pandas.DataFrame
+    series : mapping of str to array_like, or pandas.DataFrame
         Trace rows of the chosen UTs: ``time_s, ut_id, snr_db, sinr_db, service``.
-    events : pandas.DataFrame
+    events : mapping of str to array_like, or pandas.DataFrame
         ``time_s, ut_id, kind`` (beam/satellite handovers drawn; others ignored).
     ut_ids : sequence of int, optional
         UTs to show (default: all in ``series``, at most :data:`MAX_PANELS`).
@@ -117,16 +133,14 @@ def fig_snr_time(series, events, ut_ids=None):
     fig, axes = new_figure(n, 1, figsize=(10.0, 2.3 * n + 0.8), margins_in=margins, sharex=True)
     for ax, ut in zip(axes[:, 0], uts, strict=False):
         r = _rows(series, ut)
-        t = r["time_s"].to_numpy(float)
-        service = r["service"].astype(str).to_numpy()
+        t = r["time_s"].astype(float)
+        service = r["service"].astype(str)
         ax.plot(t, r["snr_db"], color="tab:blue", label="SNR", linewidth=1.2)
         ax.plot(t, r["sinr_db"], color="tab:orange", label="SINR", linewidth=1.2)
         _outage_spans(ax, t, service == "outage", "grey", "outage")
         _outage_spans(ax, t, service == "handover", "gold", "handover execution")
-        ev = events[events["ut_id"] == ut] if len(events) else events
         for kind, (colour, style) in _KIND_STYLE.items():
-            times = ev.loc[ev["kind"] == kind, "time_s"].to_numpy(float) if len(ev) else []
-            for i, te in enumerate(times):
+            for i, te in enumerate(_event_times(events, ut, kind).tolist()):
                 ax.axvline(
                     te,
                     color=colour,
@@ -148,7 +162,7 @@ def fig_snr_time(series, events, ut_ids=None):
 def _lines(ax, series, uts, column, scale, ylabel):
     for i, ut in enumerate(uts):  # one line per chosen UT
         r = _rows(series, ut)
-        ax.plot(r["time_s"], r[column].to_numpy(float) * scale, label=f"UT {ut}", **ut_line(i))
+        ax.plot(r["time_s"], r[column].astype(float) * scale, label=f"UT {ut}", **ut_line(i))
     ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
     if uts:
@@ -246,17 +260,16 @@ def fig_handover_timeline(series, events, ut_ids=None, max_rows=30):
     ax = axes[0, 0]
     for row, ut in enumerate(uts):  # one bar per chosen UT
         r = _rows(series, ut)
-        t = r["time_s"].to_numpy(float)
-        beam = r["beam_id"].to_numpy(int)
+        t = r["time_s"].astype(float)
+        beam = r["beam_id"].astype(int)
         dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 1.0))
         starts = np.flatnonzero(np.r_[True, beam[1:] != beam[:-1]])
         ends = np.r_[starts[1:], beam.size]
         spans = [(t[a], t[b - 1] + dt[b - 1] - t[a]) for a, b in zip(starts, ends, strict=True)]
         ax.broken_barh(spans, (row - 0.4, 0.8), facecolors=beam_colour(beam[starts]))
-        _label_spans(ax, spans, beam[starts], r["sat_id"].to_numpy(int)[starts], row)
-        ev = events[events["ut_id"] == ut] if len(events) else events
+        _label_spans(ax, spans, beam[starts], r["sat_id"].astype(int)[starts], row)
         for kind, marker in (("beam_handover", "|"), ("sat_handover", "x")):
-            te = ev.loc[ev["kind"] == kind, "time_s"].to_numpy(float) if len(ev) else []
+            te = _event_times(events, ut, kind)
             ax.plot(
                 te,
                 np.full(len(te), row),

@@ -23,7 +23,6 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from leolink.io.atomic import write_text_atomic
 from leolink.io.report import figures as F
@@ -264,7 +263,7 @@ def _ut_tracks(stats, max_uts=200):
 
 def run_figures(stats, summary=None):
     """The report's figures: list of ``(caption, Figure)``."""
-    series, events = stats.series(), stats.events()
+    series, events = stats.series_columns(), stats.events_columns()
     n_ut_epochs = sum(stats.service_counts.values())
     cdfs = {k: stats.cdf(k) for k in ("snr_db", "sinr_db", "throughput_bps")}
     return [
@@ -451,6 +450,8 @@ def build_table_report(path, title, table, figures=(), config_text="", notes="")
     notes : str
         A sentence above the table.
     """
+    import pandas as pd  # here only: a run's report page needs no pandas
+
     frame = pd.DataFrame(table)
     sections = [
         (

@@ -23,6 +23,7 @@ import numpy as np
 from leolink.errors import ConfigError
 from leolink.io.report.stats import SERIES_COLUMNS, ReportStats
 from leolink.sim.handover.controller import SERVICE_NAMES
+from leolink.sim.processes import OUTAGE_REASONS
 
 __all__ = ["ReportSink", "default_series_uts"]
 
@@ -30,7 +31,7 @@ CHUNK_ROWS = 100_000  # rows handed to ReportStats at once: one call per ~100 k 
 MAX_DEFAULT_UTS = 6  # default time-plot UTs: the first of each population, at most this
 EPHEMERIS_BLOCK = 16  # kept epochs evaluated per ephemeris call (bounded temporaries)
 #: Trace columns sent as integer codes, and their names (decoded before counting).
-CODED_COLUMNS = {"service": SERVICE_NAMES}
+CODED_COLUMNS = {"service": SERVICE_NAMES, "outage_reason": OUTAGE_REASONS}
 _WANTED = (*SERIES_COLUMNS, "outage_reason", "alt_m")
 
 

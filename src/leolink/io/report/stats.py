@@ -24,7 +24,6 @@ beside the run, so ``leolink report DIR`` rebuilds the page in seconds.
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 __all__ = ["SERIES_COLUMNS", "ReportStats"]
 
@@ -67,15 +66,32 @@ def _hist(values, edges):
 
 
 def _count_into(store, values):
-    """Add the counts of each distinct value (strings) to the dict ``store``."""
-    for name, c in pd.Series(values).value_counts(sort=False).items():
+    """Add the counts of each distinct value (strings) to the dict ``store``; a missing
+    value (None, NaN: a CSV column read back) is not counted."""
+    values = np.asarray(values)
+    if values.dtype.kind not in "US":  # object or float columns read from files
+        from pandas import notna  # only there: a run's columns are names already
+
+        values = values[notna(values)].astype(str)
+    names, counts = np.unique(values, return_counts=True)
+    for name, c in zip(names.tolist(), counts.tolist(), strict=True):
         store[str(name)] = store.get(str(name), 0) + int(c)
 
 
-def _plain(column):
-    """A DataFrame column as a non-object numpy array (strings as unicode)."""
-    values = column.to_numpy()
+def _plain(values):
+    """A column as a non-object numpy array (strings as unicode)."""
+    values = np.asarray(values)
     return values.astype(str) if values.dtype == object else values
+
+
+def _columns(parts, names, order):
+    """The chunks ``parts`` (dicts of arrays) joined, rows in the order ``order(columns)``
+    gives; empty columns ``names`` when there is none."""
+    if not parts:
+        return {k: np.empty(0) for k in names}
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    rows = order(cols)
+    return {k: v[rows] for k, v in cols.items()}
 
 
 class ReportStats:
@@ -234,21 +250,30 @@ class ReportStats:
         self.n_sub_xy = (int(n_sub_x), int(n_sub_y))
 
     # ------------------------------------------------------------------ reading
+    def series_columns(self):
+        """Rows of the chosen UTs sorted by (ut_id, time_s): dict of 1-D arrays (the
+        figures read these; no pandas in a run)."""
+        return _columns(
+            self._series, SERIES_COLUMNS, lambda c: np.lexsort((c["time_s"], c["ut_id"]))
+        )
+
+    def events_columns(self):
+        """Events of the chosen UTs sorted by time: dict of 1-D arrays."""
+        return _columns(
+            self._events, EVENT_COLUMNS, lambda c: np.argsort(c["time_s"], kind="stable")
+        )
+
     def series(self):
         """Rows of the chosen UTs, a DataFrame sorted by (ut_id, time_s)."""
-        if not self._series:
-            return pd.DataFrame({k: [] for k in SERIES_COLUMNS})
-        df = pd.DataFrame(
-            {k: np.concatenate([p[k] for p in self._series]) for k in self._series[0]}
-        )
-        return df.sort_values(["ut_id", "time_s"], kind="stable").reset_index(drop=True)
+        import pandas as pd
+
+        return pd.DataFrame(self.series_columns())
 
     def events(self):
         """Events of the chosen UTs, a DataFrame sorted by time."""
-        if not self._events:
-            return pd.DataFrame({k: [] for k in EVENT_COLUMNS})
-        df = pd.DataFrame({k: np.concatenate([p[k] for p in self._events]) for k in EVENT_COLUMNS})
-        return df.sort_values("time_s", kind="stable").reset_index(drop=True)
+        import pandas as pd
+
+        return pd.DataFrame(self.events_columns())
 
     def cdf(self, key):
         """``(x, F)``: the empirical CDF at the upper bin edges (``F`` in [0, 1]).
@@ -272,8 +297,8 @@ class ReportStats:
 
         arrays = {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
         arrays.update({f"hist__{k}": v for k, v in self.hist.items()})
-        for name, parts in (("series", self.series()), ("events", self.events())):
-            arrays.update({f"{name}__{c}": _plain(parts[c]) for c in parts.columns})
+        for name, parts in (("series", self.series_columns()), ("events", self.events_columns())):
+            arrays.update({f"{name}__{c}": _plain(v) for c, v in parts.items()})
         for name, d in (("service", self.service_counts), ("reason", self.outage_reason_counts)):
             arrays[f"{name}__names"] = np.asarray(list(d), str)
             arrays[f"{name}__counts"] = np.asarray(list(d.values()), np.int64)
