@@ -373,44 +373,34 @@ class LinkEngine:
 
     def _serve_compiled(self, links, rows):
         """:meth:`serve_pairs` of a full-reuse lattice by the compiled :func:`_serve_rows`:
-        each row's gains, SINR, spectral efficiency, kinematics and azimuth in one pass
-        (the same physics functions), the columns of gathered values by numpy."""
+        each row's gathers, gains, SINR, spectral efficiency, kinematics, azimuth and their
+        dB and degree columns in one pass (the same physics functions); the receive gain
+        and the atmosphere by numpy."""
         n, pr = rows.pair.shape[0], rows.pair
-        path = links.path_snr_lin[pr]
-        if rows.fading is not None:
-            path = path * rows.fading
+        # (the loop is typed for all cases: an empty array stands for an absent one)
+        fading = np.zeros(0) if rows.fading is None else rows.fading
         i_other = np.zeros(n) if rows.i_other is None else np.broadcast_to(rows.i_other, (n,))
-        los = -links.rel_m[pr]  # UT -> satellite
-        # (the loop is typed for both: an empty frame array where the other one is used)
         pos = rows.ut_pos_m if rows.ut_enu is None else np.zeros((0, 3))
         enu = np.zeros((0, 3, 3)) if rows.ut_enu is None else rows.ut_enu
-        out = np.empty((10, n))
+        out = np.empty((len(_SERVE_ROWS), n))
         args = ((links.kx, links.ky, self.beam_ix, self.beam_iy),
-                (rows.served, pr, rows.beam, path, i_other),
-                (los, rows.sat_vel, rows.ut_vel, rows.rel_acc, pos, enu),
-                float(self.params.freq_hz))  # fmt: skip
+                (links.path_snr_lin, links.rel_m, links.slant_range_m, links.elevation_rad),
+                (rows.served, pr, rows.beam, fading, i_other),
+                (rows.sat_vel, rows.ut_vel, rows.rel_acc, pos, enu),
+                (float(self.params.freq_hz), float(self.bandwidth_hz)))  # fmt: skip
         compiled.run_rows(_serve_rows, n, *args, out)
-        g_sig, snr, sinr, se, *kin, azimuth = out
-        rho, elevation = links.slant_range_m[pr], links.elevation_rad[pr]
-        rx_db = np.full(n, self._rx_const) if self._rx_const is not None else links.rx_db[pr]
-        if self._atm_const is not None:
-            atm_db = np.full(n, self._atm_const)
+        cols = dict(zip(_SERVE_ROWS, out, strict=True))
+        if self._rx_const is not None:
+            cols["gain_rx_db"] = np.full(n, self._rx_const)
         else:
-            atm_db = self.atmosphere(np.maximum(elevation, 0.0))
-        gathered = [np.degrees(elevation), rho, rx_db, fspl_db(rho, self.params.freq_hz), atm_db]
+            cols["gain_rx_db"] = links.rx_db[pr]
+        if self._atm_const is not None:
+            cols["atm_db"] = np.full(n, self._atm_const)
+        else:
+            cols["atm_db"] = self.atmosphere(np.maximum(links.elevation_rad[pr], 0.0))
         if not rows.served.all():
-            for col in gathered:
-                col[~rows.served] = np.nan
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cols = dict(zip(("elevation_deg", "slant_range_m", "gain_rx_db", "fspl_db", "atm_db"),
-                            gathered, strict=True))  # fmt: skip
-            cols.update(gain_tx_db=10.0 * np.log10(g_sig), snr_db=10.0 * np.log10(snr),
-                        sinr_db=10.0 * np.log10(sinr), se_bps_hz=se,
-                        throughput_bps=se * self.bandwidth_hz)  # fmt: skip
-        cols.update(zip(("doppler_hz", "doppler_sat_hz", "doppler_ut_hz", "doppler_rate_hz_s"),
-                        (kin[2], kin[0], kin[1], kin[3]), strict=True))  # fmt: skip
-        cols["angular_speed_deg_s"] = np.degrees(kin[4])
-        cols["azimuth_deg"] = azimuth
+            for name in ("gain_rx_db", "atm_db"):
+                cols[name][~rows.served] = np.nan
         return {name: cols[name] for name in SERVE_COLUMNS + SERVE_GEOMETRY_COLUMNS}
 
     @property
@@ -434,35 +424,55 @@ _ServeRows = collections.namedtuple("_ServeRows", "served pair beam ut_vel sat_v
                                     "fading i_other ut_pos_m ut_enu")  # fmt: skip
 
 
+#: The columns :func:`_serve_rows` writes, in the order of its ``out`` rows.
+_SERVE_ROWS = ("gain_tx_db", "snr_db", "sinr_db", "se_bps_hz", "doppler_sat_hz",
+               "doppler_ut_hz", "doppler_hz", "doppler_rate_hz_s", "angular_speed_deg_s",
+               "azimuth_deg", "elevation_deg", "slant_range_m", "fspl_db",
+               "throughput_bps")  # fmt: skip
+
+
 @compiled.jit
-def _serve_rows(kernels, rows, motion, freq_hz, out, lo, hi):
-    """Rows ``lo .. hi - 1`` of :meth:`LinkEngine._serve_compiled` into ``out`` (10, n):
-    TX gain, SNR, SINR (:func:`~leolink.link.budget.sinr_lin`, the other beams of the
-    full-reuse lattice ``(sum k_x)(sum k_y) - g`` and the other satellites as
-    interference), spectral efficiency, :func:`~leolink.kinematics.kinematics_terms` but
-    the range rate (Doppler of the satellite and the UT, total, rate; angular speed) and
-    the azimuth (in the ENU rows ``enu`` (n, 3, 3), or if empty the sphere's frame at the
-    positions ``pos`` (n, 3)); NaN where not served."""
+def _serve_rows(kernels, pairs, rows, motion, radio, out, lo, hi):
+    """Rows ``lo .. hi - 1`` of :meth:`LinkEngine._serve_compiled` into ``out``
+    (:data:`_SERVE_ROWS`, n): TX gain, SNR, SINR (:func:`~leolink.link.budget.sinr_lin`,
+    the other beams of the full-reuse lattice ``(sum k_x)(sum k_y) - g`` and the other
+    satellites as interference) in dB, spectral efficiency,
+    :func:`~leolink.kinematics.kinematics_terms` but the range rate (Doppler of the
+    satellite and the UT, total, rate; angular speed [deg/s]), the azimuth (in the ENU rows
+    ``enu`` (n, 3, 3), or if empty the sphere's frame at the positions ``pos`` (n, 3)),
+    the pair's elevation [deg], slant range, :func:`~leolink.link.budget.fspl_db` and the
+    throughput (``radio``: carrier frequency and bandwidth [Hz]); NaN where not served.
+    ``fading`` empty: none."""
     kx, ky, beam_ix, beam_iy = kernels
-    served, pair, beam, path, i_other = rows
-    los, sat_vel, ut_vel, rel_acc, pos, enu = motion
+    path_snr_lin, rel_m, slant_range_m, elevation_rad = pairs
+    served, pair, beam, fading, i_other = rows
+    sat_vel, ut_vel, rel_acc, pos, enu = motion
+    freq_hz, bandwidth_hz = radio
+    los = np.empty(3)  # UT -> satellite, one row at a time
     for i in range(lo, hi):
         if not served[i]:
             out[:, i] = np.nan
             continue
         p, b = pair[i], beam[i]
+        path = path_snr_lin[p] * fading[i] if fading.size else path_snr_lin[p]
+        for c in range(3):
+            los[c] = -rel_m[p, c]
         g_sig = kx[beam_ix[b], p] * ky[beam_iy[b], p]
         g_all = kx[:, p].sum() * ky[:, p].sum()
-        snr = g_sig * path[i]
-        sinr = sinr_lin(snr, (g_all - g_sig) * path[i] + i_other[i], 1.0)
+        snr = g_sig * path
+        sinr = sinr_lin(snr, (g_all - g_sig) * path + i_other[i], 1.0)
         d_sat, d_ut, d, rate, _, angular = kinematics_terms(
-            los[i], sat_vel[i], ut_vel[i], rel_acc[i], freq_hz
+            los, sat_vel[i], ut_vel[i], rel_acc[i], freq_hz
         )
         if enu.shape[0] == 0:
-            azimuth = azimuth_on_sphere_deg(los[i], pos[i])
+            azimuth = azimuth_on_sphere_deg(los, pos[i])
         else:
-            azimuth = azimuth_in_frame_deg(los[i], enu[i])
-        out[0, i], out[1, i], out[2, i] = g_sig, snr, sinr
-        out[3, i] = spectral_efficiency_bps_hz(sinr)
+            azimuth = azimuth_in_frame_deg(los, enu[i])
+        se = spectral_efficiency_bps_hz(sinr)
+        out[0, i], out[1, i] = 10.0 * np.log10(g_sig), 10.0 * np.log10(snr)
+        out[2, i], out[3, i] = 10.0 * np.log10(sinr), se
         out[4, i], out[5, i], out[6, i], out[7, i] = d_sat, d_ut, d, rate
-        out[8, i], out[9, i] = angular, azimuth
+        out[8, i], out[9, i] = np.degrees(angular), azimuth
+        out[10, i], out[11, i] = np.degrees(elevation_rad[p]), slant_range_m[p]
+        out[12, i] = fspl_db(slant_range_m[p], freq_hz)
+        out[13, i] = se * bandwidth_hz

@@ -48,8 +48,10 @@ def lin(x_db):
     return 10.0 ** (np.asarray(x_db, dtype=float) / 10.0)
 
 
+@leolink.compiled.jitable
 def fspl_db(distance_m, freq_hz):
-    """Free-space path loss, Eq. (5) of [1], ``20 log10(4 pi d f / c)``.
+    """Free-space path loss, Eq. (5) of [1], ``20 log10(4 pi d f / c)`` (also in the
+    compiled loops, on one link's floats).
 
     Parameters
     ----------
@@ -60,10 +62,10 @@ def fspl_db(distance_m, freq_hz):
 
     Returns
     -------
-    ndarray, broadcast shape of the inputs
+    float or ndarray, broadcast shape of the inputs
         Loss [dB], positive.
     """
-    d = np.asarray(distance_m, dtype=float)
+    d = np.float64(distance_m)  # (float64 whatever the input's type, as sinr_lin)
     return 20.0 * np.log10(4.0 * np.pi * d * freq_hz / SPEED_OF_LIGHT_M_S)
 
 

@@ -186,10 +186,11 @@ class Monitor:
         cols = self._columns(recs, self._links(recs))
         start_s = state.times_s[state.n_warmup]
         events = [r.decision.events for r in recs]
-        dwells = [_warmup_censored(r.decision.dwells, start_s) for r in recs]
+        dwells = [r.decision.dwells for r in recs]
         frame = BlockFrame(recs[0].k - state.n_warmup, np.array([r.t_s for r in recs], float),
-                           len(recs[0].geo_sat), cols, _joined(events), _joined(dwells),
-                           _ends(events), _ends(dwells))  # fmt: skip
+                           len(recs[0].geo_sat), cols, _joined(events),
+                           _warmup_censored(_joined(dwells), start_s), _ends(events),
+                           _ends(dwells))  # fmt: skip
         deliver(self.sink, frame)
 
     def _links(self, recs):
@@ -410,13 +411,17 @@ class _Joined:
 
     def __init__(self, items, names):
         for name in names:
-            parts = [getattr(item, name) for item in items]
-            setattr(self, name, None if parts[0] is None else np.concatenate(parts))
+            if getattr(items[0], name) is None:
+                setattr(self, name, None)
+                continue
+            setattr(self, name, np.concatenate([getattr(item, name) for item in items]))
 
 
 def _joined(tables):
-    """Dicts of 1-D arrays with the same keys, joined in order."""
-    return {k: np.concatenate([np.asarray(t[k]) for t in tables]) for k in tables[0]}
+    """Dicts of 1-D arrays with the same keys, joined in order (the empty ones left out:
+    most epochs have no event; the empty tables have the dtypes of full ones)."""
+    full = [t for t in tables if len(next(iter(t.values())))] or tables[:1]
+    return {k: np.concatenate([np.asarray(t[k]) for t in full]) for k in tables[0]}
 
 
 def _ends(tables):

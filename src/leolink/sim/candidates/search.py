@@ -185,7 +185,9 @@ class CandidateSearch:
         nrm = None if normal is None else normal.reshape(-1, 3)
         widest = max((len(c) for c in cones), default=0)
         step = int(np.clip(SCREEN_PAIRS // max(n_ut * widest, 1), 1, n_k))
-        groups = self._groups(ut_pos_m[0], sat_pos_m[0]) if self.prune else None
+        # (no groups where every epoch's pairs are evaluated whole: a cone of a few)
+        dense = not self.prune or all(len(c) <= DENSE_CONE for c in cones)
+        groups = None if dense else self._groups(ut_pos_m[0], sat_pos_m[0])
         geo = (pos, up, sat_pos_m, sat_vel_m_s)
         parts = []
         for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
