@@ -183,14 +183,15 @@ def advance(state, t_s, entering, leaving, time_to_trigger_s, applicable):
     running = ~np.isnan(state.since_s)
     cond = np.where(was, leaving, entering)
     cond &= applicable
+    # (np.copyto where a mask says: a masked write, not a boolean index's gather)
     since = np.where(running, state.since_s, t_s)  # a run continues, or starts now
-    since[~cond] = np.nan  # ... unless its condition lapsed
+    np.copyto(since, np.nan, where=~cond)  # ... unless its condition lapsed
     done = t_s - since >= time_to_trigger_s - TIME_TOL_S  # NaN (no run) compares False
     now_in = done & ~was
     now_out = done & was
     triggered_at = np.where(now_in, t_s, state.triggered_at_s)
-    triggered_at[now_out | ~applicable] = np.nan
-    since[done] = np.nan
+    np.copyto(triggered_at, np.nan, where=now_out | ~applicable)
+    np.copyto(since, np.nan, where=done)
     report = TriggerReport(
         entered=cond & ~running & ~was,
         lapsed=running & ~cond & ~was & applicable,
