@@ -59,6 +59,18 @@ def test_local_axis_maps_cells_both_ways_and_carries_values_by_satellite():
     np.testing.assert_array_equal(got[1, :3], [6, 7, 8])
 
 
+@pytest.mark.usefixtures("compiled_and_numpy")
+def test_local_axis_values_put_each_cell_at_its_local_cell_and_leave_out_the_others():
+    axis = LocalAxis.union(2, 2, [0, 0, 1], [3, 7, 5])  # sats [[3, 7], [5, -1]], 2 beams
+    # UT 0: sat 3 beam 0, sat 5 beam 1 (not on its axis), sat 7 beam 1; UT 1: sat 5 beam 0
+    table = Candidates(np.array([[6, 11, 15], [10, -1, -1]]),
+                       np.array([[1.0, 2.0, 3.0], [4.0, np.nan, np.nan]]))  # fmt: skip
+    np.testing.assert_array_equal(
+        axis.values(table), [[1.0, np.nan, np.nan, 3.0], [4.0, np.nan, np.nan, np.nan]]
+    )
+    assert axis.values(table, fill=0.0)[1].tolist() == [4.0, 0.0, 0.0, 0.0]
+
+
 def _walks(seed, n_t=80, n_ut=12):
     """Dense SNR (n_t, n_ut, n_sat * n_beam): random walks, whole satellites unseen (NaN)
     for stretches, so satellites leave and re-enter the tables."""

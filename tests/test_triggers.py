@@ -104,6 +104,18 @@ def test_a3_cell_offsets_enter_both_sides_of_the_inequality():
     assert times(run_trigger(A3(offset_db=4.0), steps), "triggered") == [0.0]
 
 
+def test_the_events_share_one_signal_per_epoch_and_a_replaced_epoch_its_own():
+    ep = Epoch(t_s=0.0, serving=np.array([1]), meas=np.array([[2.0, 5.0]]),
+               offset_db=np.array([1.0, -1.0]))  # fmt: skip
+    mn, meas, mp, ms = ep.signal
+    assert mn.tolist() == [[3.0, 4.0]] and mp.tolist() == [[4.0]] and ms.tolist() == [[5.0]]
+    assert A3().rank(ep) is mn and A4().rank(ep) is mn  # computed once, read by both
+    import dataclasses
+
+    other = dataclasses.replace(ep, meas=np.array([[0.0, 1.0]]))
+    assert A3().rank(other).tolist() == [[1.0, 0.0]]  # (not the first epoch's)
+
+
 def test_a3_never_triggers_the_serving_cell_itself():
     log = run_trigger(A3(offset_db=-10.0), meas_steps([0.0] * 3, [0.0] * 3))
     assert [c for _, _, c in log] == [1, 1]  # entered + triggered of cell 1 only

@@ -227,14 +227,21 @@ class GatedTriggerPolicy(TriggerPolicy):
 
 
 def _admit(admitted, ready, score, max_prepared):
-    """Keep admitted candidates still ready; admit the best new ones up to max_prepared."""
+    """Keep admitted candidates still ready; admit the best new ones up to max_prepared
+    (a NaN score never; -inf, as ``nan_to_num`` makes it, below every finite one)."""
     keep = admitted & ready
     room = max_prepared - keep.sum(axis=1)
-    s = np.where(ready & ~keep, np.nan_to_num(score, nan=-np.inf), -np.inf)
-    order = np.argsort(-s, axis=1, kind="stable")
-    rank = np.empty_like(order)
-    np.put_along_axis(rank, order, np.arange(s.shape[1])[None, :], axis=1)
-    return keep | ((s > -np.inf) & (rank < room[:, None]))
+    score = np.broadcast_to(np.asarray(score, float), keep.shape)
+    new = ready & ~keep & ~np.isnan(score)
+    # Only rows with more new candidates than room need an order (most have room for all).
+    full = np.flatnonzero(new.sum(axis=1) > room)
+    if full.size:
+        s = np.where(new[full], np.nan_to_num(score[full], nan=-np.inf), -np.inf)
+        order = np.argsort(-s, axis=1, kind="stable")
+        rank = np.empty_like(order)
+        np.put_along_axis(rank, order, np.arange(s.shape[1])[None, :], axis=1)
+        new[full] &= rank < room[full, None]
+    return keep | new
 
 
 class ConditionalHandover:

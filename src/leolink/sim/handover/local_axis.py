@@ -68,17 +68,22 @@ class LocalAxis:
         """The axis holding every satellite ``sat[k]`` of UT ``ut[k]`` (repeats allowed)."""
         ut, sat = np.asarray(ut, np.int64), np.asarray(sat, np.int64)
         keep = sat >= 0
-        ut, sat = ut[keep], sat[keep]
+        if not keep.all():
+            ut, sat = ut[keep], sat[keep]
         span = int(sat.max(initial=0)) + 1
-        key = np.sort(ut * span + sat)  # by UT, then satellite (a sort: np.unique's hash
+        # By UT, then satellite: a sort (np.unique's hash is slow on these wide keys), the
+        # stable one (a merge of the sorted runs the callers give: 5x faster than the
+        # default's on a table's ~50,000 keys, both sorted alike)
+        key = np.sort(ut * span + sat, kind="stable")
         if key.size:  # (no satellite at all: an empty axis)
-            key = key[np.r_[True, key[1:] != key[:-1]]]  # is slow on these wide keys)
+            key = key[np.r_[True, key[1:] != key[:-1]]]
         row, s = np.divmod(key, span)
         counts = np.bincount(row, minlength=n_ut)
         start = np.cumsum(counts) - counts
-        sats = np.full((n_ut, int(counts.max(initial=0))), -1, np.int64)
-        sats[row, np.arange(key.size) - start[row]] = s
-        return cls(sats, int(n_beam))
+        width = int(counts.max(initial=0))
+        sats = np.full(n_ut * width, -1, np.int64)
+        sats[row * width + np.arange(key.size) - np.repeat(start, counts)] = s  # (flat: a 1-D put)
+        return cls(sats.reshape(n_ut, width), int(n_beam))
 
     @property
     def n_ut(self) -> int:
@@ -134,13 +139,17 @@ class LocalAxis:
     def values(self, table, fill=np.nan):
         """A :class:`~leolink.sim.candidates.table.Candidates` table on this axis, ``(n_ut,
         n_cand)``: its values at their local cells, ``fill`` where the table has none."""
-        out = np.full((self.n_ut, self.n_cand), fill, float)
-        rows, slots = nonzero_2d(table.cell >= 0)
-        local = self._slot(rows, table.cell[rows, slots] // self.n_beam)
+        out = np.full(self.n_ut * self.n_cand, fill, float)
+        cells = table.cell.reshape(-1)  # flat indices: 1-D takes and puts, not 2-D ones
+        at = np.flatnonzero(cells >= 0)
+        rows = at // max(table.n_slot, 1)
+        sat, beam = np.divmod(cells[at], self.n_beam)
+        local = self._slot(rows, sat)
         ok = local >= 0
-        beam = table.cell[rows, slots] % self.n_beam
-        out[rows[ok], local[ok] * self.n_beam + beam[ok]] = table.snr_db[rows[ok], slots[ok]]
-        return out
+        if not ok.all():  # (the table's cells off this axis are left out)
+            at, rows, beam, local = at[ok], rows[ok], beam[ok], local[ok]
+        out[rows * self.n_cand + local * self.n_beam + beam] = table.snr_db.reshape(-1)[at]
+        return out.reshape(self.n_ut, self.n_cand)
 
     def _sources(self, new):
         """``(dst, src)``: flat slot ``src[k]`` (``row * n_local + slot``) of this axis holds

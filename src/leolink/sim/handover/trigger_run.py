@@ -102,9 +102,14 @@ class TriggerRun:
         ]
         if self.pstate.prepared is not None:
             arrays.append(self.pstate.prepared)
-        live = np.zeros(axis.sats.shape, bool)
-        for mask in arrays:  # per cell or per satellite: reduce to the satellite axis
-            live |= mask.reshape(axis.n_ut, axis.n_local, -1).any(axis=2)
+        live, per_cell = np.zeros(axis.sats.shape, bool), None
+        for mask in arrays:  # per satellite, or per cell: those reduced once, joined
+            if mask.shape == live.shape:
+                live |= mask
+            else:
+                per_cell = mask if per_cell is None else per_cell | mask
+        if per_cell is not None:
+            live |= per_cell.reshape(axis.n_ut, axis.n_local, -1).any(axis=2)
         rows, slots = nonzero_2d(live & (axis.sats >= 0))
         return rows, axis.sats[rows, slots]
 

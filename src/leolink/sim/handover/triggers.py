@@ -38,6 +38,7 @@ References
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any, ClassVar, Protocol
 
@@ -100,6 +101,16 @@ class Epoch:
         if value is None:
             raise ValueError(f"{who} needs Epoch.{name}; the controller did not provide it")
         return np.asarray(value, float)
+
+    @functools.cached_property
+    def signal(self):
+        """``(Mn + Ofn + Ocn, Mn, Mp + Ofp + Ocp, Mp)`` of the measurement events: ``meas``
+        plus ``offset_db`` and ``meas`` ``(n_ut, n_cand)``, and their serving columns
+        ``(n_ut, 1)``. Computed once per epoch: a policy's events read them several times
+        (CHO: its prepare and execute conditions and their ranks)."""
+        meas = np.asarray(self.meas, float)
+        mn = meas + np.broadcast_to(np.asarray(self.offset_db, float), meas.shape)
+        return mn, meas, self.at_serving(mn), self.at_serving(meas)
 
     def at_serving(self, values):
         """``values[i, serving[i]]`` per UT as a column ``(n_ut, 1)``; NaN without serving."""
@@ -172,14 +183,15 @@ def advance(state, t_s, entering, leaving, time_to_trigger_s, applicable):
     running = ~np.isnan(state.since_s)
     cond = np.where(was, leaving, entering)
     cond &= applicable
+    # (np.copyto where a mask says: a masked write, not a boolean index's gather)
     since = np.where(running, state.since_s, t_s)  # a run continues, or starts now
-    since[~cond] = np.nan  # ... unless its condition lapsed
+    np.copyto(since, np.nan, where=~cond)  # ... unless its condition lapsed
     done = t_s - since >= time_to_trigger_s - TIME_TOL_S  # NaN (no run) compares False
     now_in = done & ~was
     now_out = done & was
     triggered_at = np.where(now_in, t_s, state.triggered_at_s)
-    triggered_at[now_out | ~applicable] = np.nan
-    since[done] = np.nan
+    np.copyto(triggered_at, np.nan, where=now_out | ~applicable)
+    np.copyto(since, np.nan, where=done)
     report = TriggerReport(
         entered=cond & ~running & ~was,
         lapsed=running & ~cond & ~was & applicable,
@@ -242,9 +254,8 @@ class _Signal:
         return self._mn_mp(epoch)[0]
 
     def _mn_mp(self, epoch):
-        meas = epoch.need("meas", type(self).__name__)
-        offset = np.broadcast_to(np.asarray(epoch.offset_db, float), meas.shape)
-        return meas + offset, meas, epoch.at_serving(meas + offset), epoch.at_serving(meas)
+        epoch.need("meas", type(self).__name__)  # (a clear error without it)
+        return epoch.signal
 
 
 @dataclasses.dataclass(frozen=True)
