@@ -238,13 +238,14 @@ def test_cho_admission_orders_only_rows_without_room_for_every_new_candidate():
     rows without it their best, in one call (the two paths of _admit side by side)."""
     from leolink.sim.handover.decisions import _admit
 
-    admitted = np.array([[0, 0, 0, 0], [1, 0, 0, 0], [0, 0, 0, 0]], bool)
-    ready = np.array([[1, 1, 1, 1], [1, 1, 1, 1], [1, 1, 1, 0]], bool)
+    admitted = np.array([[0, 0, 0, 0], [1, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0]], bool)
+    ready = np.array([[1, 1, 1, 1], [1, 1, 1, 1], [1, 1, 1, 0], [1, 1, 0, 0]], bool)
     score = np.array(
-        [[1.0, np.nan, -np.inf, 3.0], [5.0, 4.0, 9.0, 1.0], [np.nan, 2.0, -np.inf, 7.0]]
-    )
+        [[1.0, np.nan, -np.inf, 3.0], [5.0, 4.0, 9.0, 1.0], [np.nan, 2.0, -np.inf, 7.0],
+         [np.nan, 2.0, 5.0, 5.0]]  # (the last row has room: its NaN is left out unordered)
+    )  # fmt: skip
     got = _admit(admitted, ready, score, max_prepared=2)
-    assert got.astype(int).tolist() == [[1, 0, 0, 1], [1, 0, 1, 0], [0, 1, 1, 0]]
+    assert got.astype(int).tolist() == [[1, 0, 0, 1], [1, 0, 1, 0], [0, 1, 1, 0], [0, 1, 0, 0]]
 
 
 def test_policies_declare_what_the_controller_must_provide():

@@ -299,15 +299,19 @@ def _in_llvm_callback():
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="POSIX signals")
+@pytest.mark.parametrize("sent", ["pthread_kill", "interrupt_main"])
 @pytest.mark.parametrize("where", ["command", "sweep worker"])
-def test_a_stop_inside_llvm_is_sent_again_outside_it(monkeypatch, where):
+def test_a_stop_inside_llvm_is_sent_again_outside_it(monkeypatch, where, sent):
     """A signal that lands while LLVM calls back into Python (numba compiling or loading a
     kernel: an exception raised there is dropped by ctypes and LLVM then crashed the run
     with SIGSEGV, seen in CI under load) is not raised there: the handler returns, the
-    signal comes again and stops the command outside LLVM."""
+    signal comes again (a real one, or Python's simulated one where there is no
+    ``pthread_kill``: Windows) and stops the command outside LLVM."""
     from leolink.app import guard
 
     callback, stages = _in_llvm_callback(), []
+    if sent == "interrupt_main":
+        monkeypatch.delattr(signal, "pthread_kill")
     if where == "sweep worker":
         monkeypatch.setattr(guard, "_busy", True)  # running a point: SIGTERM raises
     with pytest.raises(guard.Stopped, match="SIGTERM"):
@@ -319,3 +323,18 @@ def test_a_stop_inside_llvm_is_sent_again_outside_it(monkeypatch, where):
                 time.sleep(0.01)
             stages.append("not sent again")
     assert stages == ["returned"]
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="POSIX signals")
+def test_a_stop_put_off_in_llvm_stops_a_block_that_ends_first():
+    """The block ends before the signal comes again: its stop is raised at the end (not
+    lost: the command would have committed its run), and the signal is not sent again to
+    the handlers put back after the block (SIGTERM's default would kill the process)."""
+    from leolink.app import guard
+
+    callback, stages = _in_llvm_callback(), []
+    with pytest.raises(guard.Stopped, match="SIGTERM"):
+        with guard.interruptible():
+            stages.append(callback(signal.getsignal(signal.SIGTERM), signal.SIGTERM))
+    assert stages == ["returned"]
+    assert guard._again == [] and guard._pending == []  # the timer stopped; raised once

@@ -20,6 +20,7 @@ environment's errors turned into one line.
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import errno
 import math
@@ -102,14 +103,35 @@ def _in_llvm(frame) -> bool:
     return False
 
 
+#: Timers of the signals sent again (:func:`_later`): stopped when :func:`interruptible`'s
+#: block ends, so that none reaches the handlers it puts back.
+_again: list[threading.Timer] = []
+
+
 def _later(signum, frame) -> bool:
-    """Send ``signum`` to the main thread again in :data:`_AGAIN_S` if it landed in LLVM
-    (:func:`_in_llvm`): True if so, and the handler must return without raising."""
+    """If ``signum`` landed in LLVM (:func:`_in_llvm`): keep its stop in :data:`_pending`
+    (raised where the command commits, or at the block's end if that comes first) and send
+    the signal to the main thread again in :data:`_AGAIN_S`; True if so, and the handler
+    must return without raising."""
     if not _in_llvm(frame):
         return False
-    main = threading.main_thread().ident
-    threading.Timer(_AGAIN_S, signal.pthread_kill, (main, signum)).start()
+    _pending[:] = [Stopped(_SIGNALS.get(signum, str(signum)))]
+    if hasattr(signal, "pthread_kill"):  # a real signal: it also ends a blocking call
+        args = (threading.main_thread().ident, signum)
+        timer = threading.Timer(_AGAIN_S, signal.pthread_kill, args)
+    else:  # (Windows)
+        timer = threading.Timer(_AGAIN_S, _thread.interrupt_main, (signum,))
+    _again.append(timer)
+    timer.start()
     return True
+
+
+def _stop_again():
+    """Cancel the signals :func:`_later` would still send, and wait for one being sent."""
+    while _again:
+        timer = _again.pop()
+        timer.cancel()
+        timer.join()
 
 
 def _raise_stopped(signum, frame):
@@ -144,6 +166,7 @@ def interruptible():
         yield
         raise_pending()  # a stop caught on the way still stops the command
     finally:
+        _stop_again()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 
