@@ -369,7 +369,7 @@ JITABLE = {
         [*MODULES["antenna/array"], JITABLE_TESTS],
     ),
     "link/budget": (
-        ("sinr_lin", "spectral_efficiency_bps_hz"),
+        ("fspl_db", "sinr_lin", "spectral_efficiency_bps_hz", "throughput_bps"),
         [*MODULES["link/budget"], JITABLE_TESTS],
     ),
     "kinematics": (("_dot", "_norm2_of_difference", "kinematics_terms"), MODULES["kinematics"]),

@@ -41,7 +41,13 @@ from leolink.engine.links import (
 from leolink.engine.steered import kernel_rows, per_beam_steering
 from leolink.geometry import azimuth_deg, azimuth_in_frame_deg, azimuth_on_sphere_deg
 from leolink.kinematics import kinematics_terms, link_kinematics
-from leolink.link.budget import fspl_db, noise_power_dbw, sinr_lin, spectral_efficiency_bps_hz
+from leolink.link.budget import (
+    fspl_db,
+    noise_power_dbw,
+    sinr_lin,
+    spectral_efficiency_bps_hz,
+    throughput_bps,
+)
 
 __all__ = ["SERVE_COLUMNS", "SERVE_GEOMETRY_COLUMNS", "LinkEngine", "LinkParams", "Links"]
 __all__ += ["Snapshot", "reuse_colors"]
@@ -362,7 +368,7 @@ class LinkEngine:
                 "snr_db": 10.0 * np.log10(snr) * nan,
                 "sinr_db": 10.0 * np.log10(sinr) * nan,
                 "se_bps_hz": se * nan,
-                "throughput_bps": se * (self.bandwidth_hz * nan),
+                "throughput_bps": throughput_bps(se, self.bandwidth_hz) * nan,
                 "doppler_hz": kin["doppler_hz"] * nan,
                 "doppler_sat_hz": kin["doppler_sat_hz"] * nan,
                 "doppler_ut_hz": kin["doppler_ut_hz"] * nan,
@@ -475,4 +481,4 @@ def _serve_rows(kernels, pairs, rows, motion, radio, out, lo, hi):
         out[8, i], out[9, i] = np.degrees(angular), azimuth
         out[10, i], out[11, i] = np.degrees(elevation_rad[p]), slant_range_m[p]
         out[12, i] = fspl_db(slant_range_m[p], freq_hz)
-        out[13, i] = se * bandwidth_hz
+        out[13, i] = throughput_bps(se, bandwidth_hz)

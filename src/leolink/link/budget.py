@@ -207,9 +207,11 @@ def spectral_efficiency_bps_hz(sinr_lin):
     return np.log1p(np.float64(sinr_lin)) / np.log(2.0)
 
 
+@leolink.compiled.jitable
 def throughput_bps(se_bps_hz, bandwidth_hz):
-    """Throughput ``B log2(1 + SINR)`` [bit/s], Sec. 4.2 of [1] (unnumbered)."""
-    return np.asarray(se_bps_hz, dtype=float) * bandwidth_hz
+    """Throughput ``B log2(1 + SINR)`` [bit/s], Sec. 4.2 of [1] (unnumbered), from the
+    spectral efficiency [bit/s/Hz] and the bandwidth [Hz] (also in the compiled loops)."""
+    return np.float64(se_bps_hz) * bandwidth_hz
 
 
 @dataclass(frozen=True)
