@@ -274,3 +274,4 @@ def test_some_satellites_states_are_their_rows_of_every_satellites():
             assert b.shape == (t.size, ids.size, 3)
             np.testing.assert_array_equal(b, a[:, ids])
     assert not np.array_equal(est(t, sats)[0], circ(t, sats)[0])  # (the error is applied)
+    assert circ.propagates_some and not tle.propagates_some

@@ -294,3 +294,32 @@ def test_satellites_first_looked_ahead_later_are_evaluated_at_the_held_times():
     assert (snr[12:, :, 2] >= MIN_SNR_DB).any() and (snr[12:, :, 3] >= MIN_SNR_DB).any()
     engine = _checked_run(snr, 1.0, 20.0, 20, False)
     assert min(k for k, _, s in engine.seen if s >= 2) > 12
+
+
+def test_a_future_whose_subsets_cost_the_whole_set_is_asked_for_every_satellite():
+    """``future_state.n_sat_whole`` set (TLEs, an ephemeris error: the runner's): every
+    satellite is a column from the start, each new time asked once for all of them, never
+    a satellite alone at the held times; the ends still the brute-force scan's."""
+    import functools
+
+    snr = _history(8)
+    snr[:12, :, 2:] = -30.0  # (satellites 2 and 3 first looked ahead late)
+    calls = []
+
+    def future(t_s, sats, uts=True):
+        calls.append((np.round(np.asarray(t_s)).astype(int).tolist(), list(sats), uts))
+        return _future(t_s, sats, uts)
+
+    whole = functools.partial(future)
+    whole.n_sat_whole = N_SAT
+    times = ServiceTimes(_Engine(snr), whole, MIN_SNR_DB, DT_S, 20 * DT_S)
+    axis = LocalAxis.union(
+        N_UT, N_BEAM, np.repeat(np.arange(N_UT), N_SAT), np.tile(np.arange(N_SAT), N_UT)
+    )
+    serves = snr >= MIN_SNR_DB
+    for k in range(N_T):
+        _, sat = times.update(k * DT_S, axis, serves[k].reshape(N_UT, -1), None, False)
+        np.testing.assert_array_equal(sat, _brute(snr, k, 20)[1] * DT_S)
+    assert calls and all(sats == list(range(N_SAT)) and uts for _, sats, uts in calls)
+    asked = [t for ts, _, _ in calls for t in ts]
+    assert len(asked) == len(set(asked)) > 20

@@ -372,6 +372,12 @@ class Ephemeris:
         gmst0 = gstime(float(epoch_jd) + (float(epoch_fr) + ut1_minus_utc_s / SECONDS_PER_DAY))
         return cls(propagate, len(sats), earth_rotation, gmst0, names)
 
+    @property
+    def propagates_some(self):
+        """Whether ``eph(t, sats)`` propagates those satellites alone (circular orbits),
+        not the whole set (then taken)."""
+        return self._propagate_some is not None
+
     def state(self, t_s, sats=None):
         """Like ``__call__`` but also returns the sgp4 error codes, shape (n_time, n_sat)."""
         t = _as_1d(t_s)

@@ -223,6 +223,16 @@ def _future_state(populations, believed, t, sats=None, uts=True):
     return ut, pos, vel
 
 
+def _future(populations, believed):
+    """:func:`_future_state` bound to the run; its ``n_sat_whole``: the satellites' count
+    when ``believed`` cannot propagate some satellites alone (TLEs, an ephemeris error:
+    some cost the whole set, so the look-ahead asks for every one at once), else None."""
+    future = functools.partial(_future_state, populations, believed)
+    some = getattr(believed, "propagates_some", False)
+    future.n_sat_whole = None if some else believed.n_sat  # type: ignore[attr-defined]
+    return future
+
+
 def run_simulation(
     scen: Scenario,
     sinks: Sequence,
@@ -251,7 +261,7 @@ def run_simulation(
 
     believed = scen.ephemeris if scen.estimated_ephemeris is None else scen.estimated_ephemeris
 
-    future_state = functools.partial(_future_state, scen.populations, believed)
+    future_state = _future(scen.populations, believed)
     times = scen.times_s
     rlf = None
     if scen.rlf is not None:

@@ -53,7 +53,8 @@ class ServiceTimes:
     future_state : callable ``(t_s (n_t,), sats (n_s,), uts=True) -> (ut_pos_m (n_t, n_ut,
         3), sat_pos_m (n_t, n_s, 3), sat_vel_m_s (n_t, n_s, 3))``, the run's known future at
         the times ``t_s`` [s], of the satellites ``sats`` (global ids); ``uts=False``: no UT
-        positions (None).
+        positions (None). Its attribute ``n_sat_whole``, if not None: the run's satellites,
+        when some cost as much as all (every one is then a column from the start).
     min_snr_db : float [dB], service threshold.
     epoch_s, horizon_s : float [s], look-ahead step and horizon.
     """
@@ -81,6 +82,9 @@ class ServiceTimes:
         t_j = np.asarray(t_j, float)
         keys = np.round(t_j / self.epoch_s).astype(np.int64)
         slots = keys % self._keys.size
+        whole = getattr(self.future_state, "n_sat_whole", None)
+        if whole is not None and self._ids.size == 0:  # every satellite at each new time
+            self._add(np.arange(whole))
         known, inside = np.zeros(sats.size, bool), sats < self._column.size
         known[inside] = self._column[sats[inside]] >= 0
         if not known.all():
