@@ -2,7 +2,8 @@
 
 Walker patterns with phasing other than 1 and single planes, the fields of the element
 sets, the two-body acceleration of TLE states against sgp4's own positions, the defaults
-of the frame rotation and of the TLE ephemeris, the error-code shape and the names.
+of the frame rotation and of the TLE ephemeris, the error-code shape and the names, the
+states of some satellites (the look-ahead's).
 """
 
 from pathlib import Path
@@ -252,3 +253,25 @@ def test_float32_elements_and_times_are_computed_in_float64():
         assert g.dtype == np.float64
         np.testing.assert_allclose(g, w, rtol=1e-14, atol=1e-9)
     assert Elements(*values[1:]).raan_rad.dtype == np.float64
+
+
+def test_some_satellites_states_are_their_rows_of_every_satellites():
+    """``eph(t, sats)``: circular orbits propagated for those satellites alone (unordered
+    ids, one repeated), TLEs sliced, and the believed ephemeris of an error model (its
+    draws those of every satellite): each the whole set's rows, in the given order, exactly
+    (element-wise the same operations)."""
+    from leolink.ephemeris_error import EstimatedEphemeris, RtnError
+
+    t = np.array([0.0, 17.0, 600.5])
+    sats = np.array([40, 3, 3, 17])
+    circ = Ephemeris.from_elements(walker_delta(48, 6, 1, 0.9, 550e3), earth_rotation=True)
+    iss = Satrec.twoline2rv(*ISS)
+    tle = Ephemeris.from_tles([("a", *ISS), iss, iss], iss.jdsatepoch, iss.jdsatepochF)
+    est = EstimatedEphemeris(circ, RtnError((10.0, 5.0, 2.0), (0, 0, 0), 0.1, 60.0, 3.0, seed=2))
+    for eph, ids in ((circ, sats), (tle, np.array([2, 0])), (est, sats)):
+        every, some = eph(t), eph(t, ids)
+        for a, b in zip(every, some, strict=True):
+            assert b.shape == (t.size, ids.size, 3)
+            np.testing.assert_array_equal(b, a[:, ids])
+    assert not np.array_equal(est(t, sats)[0], circ(t, sats)[0])  # (the error is applied)
+    assert circ.propagates_some and not tle.propagates_some

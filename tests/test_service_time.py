@@ -40,15 +40,17 @@ class _Engine:
         return TableLinks(values)
 
 
-def _future(t_s):
-    """The states at the times ``t_s (n_t,)``: the time [epochs] in each UT's row, the
-    satellite's index in its row."""
+def _future(t_s, sats=None, uts=True):
+    """The states at the times ``t_s (n_t,)``: the time [epochs] in each UT's row (None
+    without ``uts``), the satellite's index in its row (of the satellites ``sats``; None:
+    all)."""
     n_t = len(t_s)
     ut = np.zeros((n_t, N_UT, 3))
     ut[..., 0] = np.asarray(t_s)[:, None] / DT_S
-    sats = np.zeros((n_t, N_SAT, 3))
-    sats[..., 0] = np.arange(N_SAT)
-    return ut, sats, sats.copy()
+    ids = np.arange(N_SAT) if sats is None else np.asarray(sats)
+    pos = np.zeros((n_t, ids.size, 3))
+    pos[..., 0] = ids
+    return (ut if uts else None), pos, pos.copy()
 
 
 def _brute(snr, k, horizon):
@@ -121,9 +123,9 @@ def test_t1_hands_over_lead_s_before_the_serving_satellite_stops_serving():
         n_beam = 1
         codebook = SimpleNamespace(u_xy=np.zeros((1, 2)))
 
-    def future(t_s):
-        ut, sats, vel = _future(t_s)
-        return ut[:, :1], sats[:, :2], vel[:, :2]
+    def future(t_s, sats, uts=True):
+        ut, pos, vel = _future(t_s, sats, uts)
+        return (ut[:, :1] if uts else None), pos, vel
 
     for lead_s, expected_s in ((4.0, 7.0), (0.5, 10.0)):
         policy = TriggerPolicy(T1(duration_s=3.0, lead_s=lead_s), level="satellite")
@@ -195,19 +197,24 @@ class _CheckedEngine:
 def _checked_run(snr, epoch_s, horizon_s, n_step, per_cell):
     """Every epoch's ends against the brute-force scan of ``n_step`` steps; each
     (epoch, UT, satellite) evaluated once, later than now, but a pair re-scanned when one
-    of its cells starts serving; each future time asked of ``future_state`` once, at most
-    32 a call. Returns the engine."""
-    asked = []
+    of its cells starts serving; each (future time, satellite) asked of ``future_state``
+    once (the UTs at most 32 times a call, each time once), and only satellites some pair
+    looks ahead. Returns the engine."""
+    asked, asked_uts = [], []
 
-    def future(t_s):
-        t_s = np.asarray(t_s)
-        assert 1 <= t_s.size <= 32
-        asked.extend(np.round(t_s / epoch_s).astype(int).tolist())
+    def future(t_s, sats, uts=True):
+        t_s, sats = np.asarray(t_s), np.asarray(sats)
+        assert t_s.size >= 1 and sats.size == np.unique(sats).size >= 1
+        keys = np.round(t_s / epoch_s).astype(int)
+        asked.extend((k, s) for k in keys.tolist() for s in sats.tolist())
         ut = np.zeros((t_s.size, N_UT, 3))
         ut[..., 0] = t_s[:, None]
-        pos = np.zeros((t_s.size, N_SAT, 3))
-        pos[..., 0] = np.arange(N_SAT)
-        return ut, pos, 10.0 * pos
+        if uts:
+            assert t_s.size <= 32
+            asked_uts.extend(keys.tolist())
+        pos = np.zeros((t_s.size, sats.size, 3))
+        pos[..., 0] = sats
+        return (ut if uts else None), pos, 10.0 * pos
 
     engine = _CheckedEngine(snr, epoch_s)
     times = ServiceTimes(engine, future, MIN_SNR_DB, epoch_s, horizon_s)
@@ -232,7 +239,8 @@ def _checked_run(snr, epoch_s, horizon_s, n_step, per_cell):
         starts = serves[k] & ~serves[k - 1] if k and per_cell else np.zeros_like(serves[k])
         again = {(u, s) for j, u, s in new if (j, u, s) in set(engine.seen[:before])}
         assert all(starts[u, s].any() for u, s in again)
-    assert len(asked) == len(set(asked))
+    assert len(asked) == len(set(asked)) and len(asked_uts) == len(set(asked_uts))
+    assert {s for _, s in asked} == {s for _, _, s in engine.seen}
     return engine
 
 
@@ -273,3 +281,45 @@ def test_a_pass_longer_than_the_chunks_asks_every_future_time_in_batches():
     snr[:, 0, 0, 0] = 10.0
     engine = _checked_run(snr, 1.0, 90.0, 90, True)
     assert {j for j, u, s in engine.seen if (u, s) == (0, 0)} >= set(range(1, 91))
+
+
+def test_satellites_first_looked_ahead_later_are_evaluated_at_the_held_times():
+    """Satellites 2 and 3 serve no UT before epoch 12: their first look-ahead comes when
+    the ring holds a horizon of times for the others; their states at every held time are
+    evaluated then (in one call, without the UTs) into their own columns, and the engine
+    reads each one's own position and velocity at each step (checked by
+    ``_CheckedEngine``), the ends still the brute-force scan's."""
+    snr = _history(8)
+    snr[:12, :, 2:] = -30.0
+    assert (snr[12:, :, 2] >= MIN_SNR_DB).any() and (snr[12:, :, 3] >= MIN_SNR_DB).any()
+    engine = _checked_run(snr, 1.0, 20.0, 20, False)
+    assert min(k for k, _, s in engine.seen if s >= 2) > 12
+
+
+def test_a_future_whose_subsets_cost_the_whole_set_is_asked_for_every_satellite():
+    """``future_state.n_sat_whole`` set (TLEs, an ephemeris error: the runner's): every
+    satellite is a column from the start, each new time asked once for all of them, never
+    a satellite alone at the held times; the ends still the brute-force scan's."""
+    import functools
+
+    snr = _history(8)
+    snr[:12, :, 2:] = -30.0  # (satellites 2 and 3 first looked ahead late)
+    calls = []
+
+    def future(t_s, sats, uts=True):
+        calls.append((np.round(np.asarray(t_s)).astype(int).tolist(), list(sats), uts))
+        return _future(t_s, sats, uts)
+
+    whole = functools.partial(future)
+    whole.n_sat_whole = N_SAT
+    times = ServiceTimes(_Engine(snr), whole, MIN_SNR_DB, DT_S, 20 * DT_S)
+    axis = LocalAxis.union(
+        N_UT, N_BEAM, np.repeat(np.arange(N_UT), N_SAT), np.tile(np.arange(N_SAT), N_UT)
+    )
+    serves = snr >= MIN_SNR_DB
+    for k in range(N_T):
+        _, sat = times.update(k * DT_S, axis, serves[k].reshape(N_UT, -1), None, False)
+        np.testing.assert_array_equal(sat, _brute(snr, k, 20)[1] * DT_S)
+    assert calls and all(sats == list(range(N_SAT)) and uts for _, sats, uts in calls)
+    asked = [t for ts, _, _ in calls for t in ts]
+    assert len(asked) == len(set(asked)) > 20

@@ -132,11 +132,11 @@ def _t1_handover_s(horizon):
     snr = np.full((60, 1, 2), 5.0)
     snr[:10, 0, 0], snr[10:, 0, 0] = 12.0, -30.0
 
-    def future(t_s):  # the times (n_t,): a leading time axis
+    def future(t_s, sats, uts=True):  # the times (n_t,): a leading time axis
         ut = np.repeat(np.asarray(t_s, float)[:, None, None], 3, axis=2)  # the time in the UT's row
-        sats = np.zeros((len(t_s), 2, 3))
-        sats[..., 0] = [0.0, 1.0]  # the satellite's index in its row
-        return ut, sats, sats.copy()
+        pos = np.zeros((len(t_s), len(sats), 3))
+        pos[..., 0] = sats  # the satellite's index in its row
+        return (ut if uts else None), pos, pos.copy()
 
     def evaluate_pairs(ut_pos_m, sat_pos_m, sat_vel_m_s, ut, sat, ut_up=None, **_):
         k = np.round(ut_pos_m[ut, 0]).astype(int)

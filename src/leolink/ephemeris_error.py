@@ -123,18 +123,20 @@ def rtn_to_frame(pos_m, vel_m_s, d_rtn):
 class EstimatedEphemeris:
     """The ephemeris the controller believes: ``true`` plus ``model``'s errors.
 
-    ``__call__(t_s) -> (pos, vel, acc)`` as :class:`leolink.orbit.Ephemeris` (the true
-    acceleration: the error model has no second derivative worth modelling).
+    ``__call__(t_s, sats=None) -> (pos, vel, acc)`` as :class:`leolink.orbit.Ephemeris`
+    (the true acceleration: the error model has no second derivative worth modelling).
     """
 
     def __init__(self, true, model):
         self.true, self.model = true, model
         self.n_sat = true.n_sat
 
-    def __call__(self, t_s):
+    def __call__(self, t_s, sats=None):
         t = np.atleast_1d(np.asarray(t_s, float))
-        pos, vel, acc = self.true(t)
-        dpos, dvel = self.model.offsets(t, self.n_sat)
+        pos, vel, acc = self.true(t) if sats is None else self.true(t, sats)
+        dpos, dvel = self.model.offsets(t, self.n_sat)  # (every satellite's draws)
+        if sats is not None:
+            dpos, dvel = dpos[:, sats], dvel[:, sats]
         return pos + rtn_to_frame(pos, vel, dpos), vel + rtn_to_frame(pos, vel, dvel), acc
 
 

@@ -306,8 +306,10 @@ class Ephemeris:
     ``earth_rotation`` is on, inertial otherwise.
     """
 
-    def __init__(self, propagate, n_sat, earth_rotation, gmst0_rad=0.0, names=None):
+    def __init__(self, propagate, n_sat, earth_rotation, gmst0_rad=0.0, names=None, some=None):
         self._propagate = propagate  # t_s (n_time,) -> (pos, vel, acc, err) inertial
+        # (t_s, sats) -> the same of the satellites ``sats`` alone; None: all, then taken
+        self._propagate_some = some
         self.n_sat = int(n_sat)
         self.earth_rotation = bool(earth_rotation)
         self.gmst0_rad = float(gmst0_rad)
@@ -325,13 +327,12 @@ class Ephemeris:
         """Circular orbits from :class:`Elements` (t = 0 at the element epoch)."""
         e = elements
 
-        def propagate(t):
-            state = circular_state(
-                t, e.altitude_m, e.inclination_rad, e.raan_rad, e.arg_lat0_rad, radius_m, gm_m3_s2
-            )
+        def propagate(t, sats=slice(None)):
+            elements = (e.altitude_m, e.inclination_rad, e.raan_rad, e.arg_lat0_rad)
+            state = circular_state(t, *(x[sats] for x in elements), radius_m, gm_m3_s2)
             return (*state, np.zeros(state[0].shape[:2], dtype=int))
 
-        return cls(propagate, e.n_sat, earth_rotation, gmst0_rad)
+        return cls(propagate, e.n_sat, earth_rotation, gmst0_rad, some=propagate)
 
     @classmethod
     def from_tles(
@@ -371,14 +372,28 @@ class Ephemeris:
         gmst0 = gstime(float(epoch_jd) + (float(epoch_fr) + ut1_minus_utc_s / SECONDS_PER_DAY))
         return cls(propagate, len(sats), earth_rotation, gmst0, names)
 
-    def state(self, t_s):
+    @property
+    def propagates_some(self):
+        """Whether ``eph(t, sats)`` propagates those satellites alone (circular orbits),
+        not the whole set (then taken)."""
+        return self._propagate_some is not None
+
+    def state(self, t_s, sats=None):
         """Like ``__call__`` but also returns the sgp4 error codes, shape (n_time, n_sat)."""
         t = _as_1d(t_s)
-        pos, vel, acc, err = self._propagate(t)
+        if sats is None:
+            pos, vel, acc, err = self._propagate(t)
+        elif self._propagate_some is not None:  # circular orbits: those satellites alone
+            pos, vel, acc, err = self._propagate_some(t, np.asarray(sats, np.int64))
+        else:
+            pos, vel, acc, err = (a[:, sats] for a in self._propagate(t))
         if self.earth_rotation:
             pos, vel, acc = eci_to_ecef(pos, vel, acc, t, self.gmst0_rad)
         return pos, vel, acc, err
 
-    def __call__(self, t_s):
-        """States at times ``t_s`` [s] (1-D or scalar), shapes (n_time, n_sat, 3)."""
-        return self.state(t_s)[:3]
+    def __call__(self, t_s, sats=None):
+        """States at times ``t_s`` [s] (1-D or scalar), shapes (n_time, n_sat, 3); with
+        ``sats`` (1-D ids), of those satellites alone, (n_time, len(sats), 3): each
+        satellite's numbers those of the whole set (element-wise: circular orbits are
+        propagated for those satellites only, others sliced)."""
+        return self.state(t_s, sats)[:3]

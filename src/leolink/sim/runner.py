@@ -96,7 +96,8 @@ class Scenario:
     service : BeamService or None, beam sharing and precoding
         (:mod:`leolink.sim.beams.service`; adds the ``n_sharing`` trace column); None: none.
     estimated_ephemeris : callable or None, the ephemeris the controller believes
-        (:mod:`leolink.ephemeris_error`); the links are evaluated on ``ephemeris``
+        (:mod:`leolink.ephemeris_error`; called as ``(t_s, sats=None)``, as
+        :class:`~leolink.orbit.Ephemeris`); the links are evaluated on ``ephemeris``
         (:mod:`leolink.sim.ephemeris_monitor`). None: no ephemeris error.
     roi_frame : leolink.app.orbits.RoiFrame or None, the ROI frame the populations were
         placed in (the run's notes say it); None: not known (a scenario built by hand).
@@ -206,14 +207,30 @@ def _monitor(scen, sink, decide, keys, names):
     return TrueLinkMonitor(*args, **kw, true_ephemeris=scen.ephemeris)
 
 
-def _future_state(populations, believed, t):
+def _future_state(populations, believed, t, sats=None, uts=True):
     """UT positions, satellite positions and velocities at ``t`` [s], by the ``believed``
     ephemeris: a scalar gives (n_ut, 3), (n_sat, 3), (n_sat, 3); 1-D times the same with a
-    leading time axis, in one call per population and one of the ephemeris."""
+    leading time axis, in one call per population and one of the ephemeris; ``sats``
+    (1-D ids): those satellites' alone, in that order (None: every satellite); ``uts``
+    False: no UT positions (None), the satellites' alone."""
     times = np.atleast_1d(np.asarray(t, float))
-    ut = np.concatenate([motion_states(p, times).pos_m for _, p in populations], axis=1)
-    pos, vel, _ = believed(times)
-    return (ut[0], pos[0], vel[0]) if np.ndim(t) == 0 else (ut, pos, vel)
+    ut = None
+    if uts:
+        ut = np.concatenate([motion_states(p, times).pos_m for _, p in populations], axis=1)
+    pos, vel, _ = believed(times) if sats is None else believed(times, sats)
+    if np.ndim(t) == 0:
+        return (None if ut is None else ut[0]), pos[0], vel[0]
+    return ut, pos, vel
+
+
+def _future(populations, believed):
+    """:func:`_future_state` bound to the run; its ``n_sat_whole``: the satellites' count
+    when ``believed`` cannot propagate some satellites alone (TLEs, an ephemeris error:
+    some cost the whole set, so the look-ahead asks for every one at once), else None."""
+    future = functools.partial(_future_state, populations, believed)
+    some = getattr(believed, "propagates_some", False)
+    future.n_sat_whole = None if some else believed.n_sat  # type: ignore[attr-defined]
+    return future
 
 
 def run_simulation(
@@ -244,7 +261,7 @@ def run_simulation(
 
     believed = scen.ephemeris if scen.estimated_ephemeris is None else scen.estimated_ephemeris
 
-    future_state = functools.partial(_future_state, scen.populations, believed)
+    future_state = _future(scen.populations, believed)
     times = scen.times_s
     rlf = None
     if scen.rlf is not None:
