@@ -180,6 +180,17 @@ def test_unserved_throughput_counts_as_zero():
     )
 
 
+def test_histogram_slots_at_the_edges():
+    """Slot 0 below lo (however little), 1..n_bins the bins (a value on an edge in the bin
+    above it), n_bins + 1 at or above hi; NaN in the slot of ``unserved_value``."""
+    tput = PercentileHistogram(0.0, 1e9, 1e8, unserved_value=0.0)  # 10 bins
+    x = [-1e-320, -np.inf, 0.0, 1e8, 2.5e8, np.nextafter(1e9, 0.0), 1e9, np.inf, np.nan]
+    np.testing.assert_array_equal(tput.slots(x), [0, 0, 1, 2, 3, 10, 11, 11, 1])
+    sinr = PercentileHistogram(-10.0, 10.0, 0.5)  # 40 bins, NaN as -inf
+    x = [np.nan, -10.0, -9.75, np.nextafter(-10.0, -20.0), 9.9, 10.0, 1e300]
+    np.testing.assert_array_equal(sinr.slots(np.array(x)), [0, 1, 1, 0, 40, 41, 41])
+
+
 def test_histogram_merge_equals_one_stream():
     rng = np.random.default_rng(2)
     x = rng.normal(0, 5, 2000)

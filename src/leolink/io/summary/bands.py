@@ -60,7 +60,12 @@ class LatitudeBands:
         """Remember the band of each UT at each of these rows' epochs (the events of the
         same frame are looked up there); returns the rows' bands."""
         band = band_of(lat_deg)
-        times, k = np.unique(np.asarray(time_s, float), return_inverse=True)
+        t = np.asarray(time_s, float).reshape(-1)
+        if t.size and np.all(t[1:] >= t[:-1]):  # a block's rows, epoch after epoch: no sort
+            first = np.r_[True, t[1:] != t[:-1]]
+            times, k = t[first], np.cumsum(first) - 1
+        else:
+            times, k = np.unique(t, return_inverse=True)
         at = np.full((times.size, self._last.size), -1, np.int8)  # bands < 127
         at[k.reshape(-1), ut] = band
         self._frame = (times, at)

@@ -35,6 +35,8 @@ __all__ = ["KpiAccumulator"]
 # (not beam_switch: a change inside one cell changes no cell of the KPIs)
 _KEPT = ("beam_handover", "sat_handover", "outage_start", "outage_end", "rlf", "handover_failure")
 _COLUMNS = ("time_s", "ut_id", "kind", "from_sat", "from_beam", "to_sat", "to_beam")
+# The SINR histograms' (lo, hi, resolution) [dB]: one grid, so both take the same slots.
+_SINR_BINS_DB = (-60.0, 80.0, 0.01)
 
 
 class KpiAccumulator:
@@ -47,19 +49,20 @@ class KpiAccumulator:
         self.beam_switch_s = beam_switch_s  # cells are satellites (None: beams)
         self.n_beam_switch = np.zeros(self.n_ut, np.int64)
         self._events = []
-        self.sinr = PercentileHistogram(-60.0, 80.0, 0.01)
-        self.sinr_served = PercentileHistogram(-60.0, 80.0, 0.01)  # served UT-epochs only
+        self.sinr = PercentileHistogram(*_SINR_BINS_DB)
+        self.sinr_served = PercentileHistogram(*_SINR_BINS_DB)  # served UT-epochs only
         self.throughput = PercentileHistogram(0.0, 1.0e10, 1.0e5, unserved_value=0.0)
         self.n_samples = 0
         self.n_unserved = 0
 
     def add_trace(self, columns):
         sinr = np.asarray(columns["sinr_db"], float)
-        self.sinr.add(sinr)
-        self.sinr_served.add(sinr[~np.isnan(sinr)])
+        slots, unserved = self.sinr.slots(sinr), np.isnan(sinr)
+        self.sinr.add_slots(slots)
+        self.sinr_served.add_slots(slots[~unserved])
         self.throughput.add(np.asarray(columns["throughput_bps"], float))
         self.n_samples += sinr.size
-        self.n_unserved += int(np.isnan(sinr).sum())
+        self.n_unserved += int(unserved.sum())
 
     def add_events(self, events):
         kind = np.asarray(events["kind"]).astype(str)

@@ -73,7 +73,9 @@ def running_sum(total, group, values):
     """``total`` plus the ``values`` of each group, added one by one in their order (the
     same float rounding as adding them one call at a time)."""
     n = total.size
-    return np.bincount(np.r_[np.arange(n), group], np.r_[total, values], minlength=n)
+    # (np.concatenate: np.r_ costs ~0.1 ms a call in Python, ~10 calls a block)
+    index = np.concatenate((np.arange(n), np.asarray(group, np.int64)))
+    return np.bincount(index, np.concatenate((total, np.asarray(values, float))), minlength=n)
 
 
 class DbStats:
@@ -88,7 +90,8 @@ class DbStats:
     def add(self, ut, values):
         """Add the finite ``values`` (1-D float) of UTs ``ut`` (1-D int)."""
         ok = np.isfinite(values)
-        ut, values = ut[ok], values[ok]
+        if not ok.all():
+            ut, values = ut[ok], values[ok]
         self.count += np.bincount(ut, minlength=self.count.size)
         self.sum[:] = running_sum(self.sum, ut, values)
         self.per_ut.add(ut, values)
