@@ -189,6 +189,8 @@ def test_histogram_slots_at_the_edges():
     sinr = PercentileHistogram(-10.0, 10.0, 0.5)  # 40 bins, NaN as -inf
     x = [np.nan, -10.0, -9.75, np.nextafter(-10.0, -20.0), 9.9, 10.0, 1e300]
     np.testing.assert_array_equal(sinr.slots(np.array(x)), [0, 1, 1, 0, 40, 41, 41])
+    with pytest.raises(ValueError, match="not NaN"):  # (its slot would be NaN's again)
+        PercentileHistogram(-10.0, 10.0, 0.5, unserved_value=np.nan)
 
 
 def test_histogram_merge_equals_one_stream():

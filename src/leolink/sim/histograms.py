@@ -37,6 +37,8 @@ class PercentileHistogram:
     def __init__(self, lo, hi, resolution, unserved_value=-math.inf):
         if not (hi > lo and resolution > 0):
             raise ValueError(f"need hi > lo and resolution > 0 (got {lo}, {hi}, {resolution})")
+        if math.isnan(unserved_value):  # NaN stands for it: it must have a slot
+            raise ValueError("unserved_value must be a number or +-inf, not NaN")
         self.lo, self.resolution = float(lo), float(resolution)
         self.n_bins = int(math.ceil((hi - lo) / resolution))
         self.hi = self.lo + self.n_bins * self.resolution
