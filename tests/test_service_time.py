@@ -1,5 +1,6 @@
 """End of service from the look-ahead against a brute-force scan of the same SNR history."""
 
+import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -323,3 +324,16 @@ def test_a_future_whose_subsets_cost_the_whole_set_is_asked_for_every_satellite(
     assert calls and all(sats == list(range(N_SAT)) and uts for _, sats, uts in calls)
     asked = [t for ts, _, _ in calls for t in ts]
     assert len(asked) == len(set(asked)) > 20
+
+
+def test_the_ring_grows_past_its_first_columns_keeping_the_held_states(monkeypatch):
+    """20 satellites, 17 of them first looked ahead once the ring holds a horizon of times
+    for the other 3: the ring grows past its first 16 columns, the held states of the first
+    3 carried into it (``_CheckedEngine`` checks each satellite's position and velocity at
+    each step), the ends still the brute-force scan's."""
+    monkeypatch.setattr(sys.modules[__name__], "N_SAT", 20)
+    snr = _history(9)
+    snr[:12, :, 3:] = -30.0
+    engine = _checked_run(snr, 1.0, 20.0, 20, True)
+    assert min(k for k, _, s in engine.seen if s >= 3) > 12
+    assert {s for _, _, s in engine.seen} >= set(range(17))  # more than 16 columns
