@@ -297,11 +297,15 @@ def test_satellites_first_looked_ahead_later_are_evaluated_at_the_held_times():
     assert min(k for k, _, s in engine.seen if s >= 2) > 12
 
 
-def test_a_future_whose_subsets_cost_the_whole_set_is_asked_for_every_satellite():
+@pytest.mark.parametrize("n_sat", [4, 20])
+def test_a_future_whose_subsets_cost_the_whole_set_is_asked_for_every_satellite(monkeypatch, n_sat):
     """``future_state.n_sat_whole`` set (TLEs, an ephemeris error: the runner's): every
-    satellite is a column from the start, each new time asked once for all of them, never
-    a satellite alone at the held times; the ends still the brute-force scan's."""
+    satellite is a column from the start (20: more at once than the ring's first 16
+    columns), each new time asked once for all of them, never a satellite alone at the
+    held times; the ends still the brute-force scan's."""
     import functools
+
+    monkeypatch.setattr(sys.modules[__name__], "N_SAT", n_sat)
 
     snr = _history(8)
     snr[:12, :, 2:] = -30.0  # (satellites 2 and 3 first looked ahead late)
