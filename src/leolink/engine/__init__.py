@@ -352,11 +352,7 @@ class LinkEngine:
             los, sat_vel_m_s, ut_vel_m_s, sat_acc_m_s2 - ut_acc_m_s2, self.params.freq_hz
         )
         nan = 1.0 if served.all() else np.where(served, 1.0, np.nan)
-        rx_db = np.full(n, self._rx_const) if self._rx_const is not None else links.rx_db[pr]
-        if self._atm_const is not None:
-            atm_db = np.full(n, self._atm_const)
-        else:
-            atm_db = self.atmosphere(np.maximum(elevation, 0.0))
+        rx_db, atm_db = self._rx_atm_db(links, pr)
         with np.errstate(divide="ignore", invalid="ignore"):
             return {
                 "elevation_deg": np.degrees(elevation) * nan,
@@ -377,6 +373,15 @@ class LinkEngine:
                 "azimuth_deg": azimuth_deg(los, ut_pos_m, ut_enu) * nan,
             }
 
+    def _rx_atm_db(self, links, pr):
+        """Receive gain and atmospheric loss [dB] of the pairs ``pr`` (n,): the run's
+        constants where they are constant; new arrays (the callers write NaN into them)."""
+        n = pr.shape[0]
+        rx_db = np.full(n, self._rx_const) if self._rx_const is not None else links.rx_db[pr]
+        if self._atm_const is not None:
+            return rx_db, np.full(n, self._atm_const)
+        return rx_db, self.atmosphere(np.maximum(links.elevation_rad[pr], 0.0))
+
     def _serve_compiled(self, links, rows):
         """:meth:`serve_pairs` of a full-reuse lattice by the compiled :func:`_serve_rows`:
         each row's gathers, gains, SINR, spectral efficiency, kinematics, azimuth and their
@@ -396,14 +401,7 @@ class LinkEngine:
                 (float(self.params.freq_hz), float(self.bandwidth_hz)))  # fmt: skip
         compiled.run_rows(_serve_rows, n, *args, out)
         cols = dict(zip(_SERVE_ROWS, out, strict=True))
-        if self._rx_const is not None:
-            cols["gain_rx_db"] = np.full(n, self._rx_const)
-        else:
-            cols["gain_rx_db"] = links.rx_db[pr]
-        if self._atm_const is not None:
-            cols["atm_db"] = np.full(n, self._atm_const)
-        else:
-            cols["atm_db"] = self.atmosphere(np.maximum(links.elevation_rad[pr], 0.0))
+        cols["gain_rx_db"], cols["atm_db"] = self._rx_atm_db(links, pr)
         if not rows.served.all():
             for name in ("gain_rx_db", "atm_db"):
                 cols[name][~rows.served] = np.nan
