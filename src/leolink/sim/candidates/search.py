@@ -193,7 +193,7 @@ class CandidateSearch:
         for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
             ks = range(lo, min(lo + step, n_k))
             parts.append(self._chunk(ks, n_ut, geo, cones, (nrm, groups), loss))
-        links = Links.concat([p[0] for p in parts])
+        links = Links.concat([part for p in parts for part in p[0]])  # (one copy of each)
         sure = np.concatenate([p[1] for p in parts])
         pair_loss = None if loss is None else np.concatenate([p[2] for p in parts])
         del parts  # (the parts' links are copied: not kept with the sorted ones)
@@ -214,8 +214,9 @@ class CandidateSearch:
         )
 
     def _chunk(self, ks, n_ut, geo, cones, screening, loss=None):
-        """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
-        global id), the rows' visible satellites that were not evaluated, and the pairs'
+        """Evaluated pairs of the epochs ``ks`` (a list of :class:`Links`, joined by the
+        caller once for the whole block: ``links.ut`` the row, ``links.sat`` the global
+        id), the rows' visible satellites that were not evaluated, and the pairs'
         environment loss [dB] (None without ``loss``). ``geo``: the block's UT rows, their
         up, the satellites' positions and velocities; ``screening``: the rows' panel
         normals (or None) and the UTs' screening groups
@@ -226,7 +227,7 @@ class CandidateSearch:
         if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
             rows, sats = _dense_pairs(ks, n_ut, cones)
             links = self.evaluate(*geo, n_ut, rows, sats, nrm)
-            return links, np.zeros(n_rows, np.int64), _pair_loss(grids, n_ut, cones, links)
+            return [links], np.zeros(n_rows, np.int64), _pair_loss(grids, n_ut, cones, links)
         if len(groups) == 1 or loss is not None:  # one region, or environments: by cones
             return self._chunk_one_cone(ks, n_ut, geo, cones, nrm, grids)
         row, sat, code, bound, top = self._screened(ks, n_ut, geo, nrm, groups)
@@ -236,7 +237,7 @@ class CandidateSearch:
         links2 = self.evaluate(*geo, n_ut, row[more], sat[more], nrm)
         unseen = row[_unseen_pairs(code, chosen, more)] - ks.start * n_ut
         sure = np.bincount(unseen, minlength=n_rows)
-        return Links.concat([links1, links2]), sure, None
+        return [links1, links2], sure, None
 
     def _chunk_one_cone(self, ks, n_ut, geo, cones, nrm, grids):
         """:meth:`_chunk` by each epoch's cone (every UT with every satellite of the cone,
@@ -272,7 +273,7 @@ class CandidateSearch:
             sure[i * n_ut : (i + 1) * n_ut] = _unseen_pairs(code, chosen, more).sum(axis=1)
         links2 = self.evaluate(*geo, n_ut, rows2, sats2, nrm)
         pair_loss = None if not grids else np.r_[loss1, _pair_loss(grids, n_ut, cones, links2)]
-        return Links.concat([links1, links2]), sure, pair_loss
+        return [links1, links2], sure, pair_loss
 
     def _reach(self, n_rows, links, pair_loss):
         """Per row, the largest linear SNR of its evaluated pairs' best beams: after the
