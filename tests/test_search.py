@@ -563,16 +563,18 @@ def test_compiled_window_gives_the_numpy_windows_entries(window_db, floor_db, mo
         assert want[0].size > (m if window_db > 0 else 900 // 2)
 
 
+@pytest.mark.parametrize("floor_db", [-np.inf, None])  # None: a floor among the SNRs
 @pytest.mark.parametrize("path_exp", [(8.0, 11.0), (-11.0, -8.0)])  # linear SNRs > 1 or < 1
 @pytest.mark.parametrize("window_db", [0.0, 3.0, np.inf])
-def test_window_from_kernels_gives_the_window_of_the_snr_matrix(window_db, path_exp):
+def test_window_from_kernels_gives_the_window_of_the_snr_matrix(window_db, path_exp, floor_db):
     """``search.link_window_entries`` (the compiled loop: a linear pre-selection, then the
-    dB sums of the few beams near the best) against ``window_entries`` of the full
-    ``Links.snr_db_bm`` matrix (the path it replaces, the same dB sums): the same entries
-    in the same order and the same row bests, bit for bit, with rows of one pair and of
-    many, pairs below the mask (NaN path), nulls (a zero kernel: -inf dB), exact ties
-    (equal kernels) and gaps of an ulp or two at the best (within the pre-selection's
-    margin, where a dB sum may tie or not)."""
+    dB sums of the few beams near the best or above the floor) against ``window_entries``
+    of the full ``Links.snr_db_bm`` matrix (the path it replaces, the same dB sums): the
+    same entries in the same order, the same row bests and best cells, bit for bit, with
+    rows of one pair and of many, pairs below the mask (NaN path), nulls (a zero kernel:
+    -inf dB), exact ties (equal kernels), gaps of an ulp or two at the best (within the
+    pre-selection's margin, where a dB sum may tie or not), and a floor (the trigger
+    policies': rows whose best is below it, beams an ulp or two from it)."""
     from leolink.engine.links import Links
 
     rng = np.random.default_rng(44)
@@ -588,14 +590,32 @@ def test_window_from_kernels_gives_the_window_of_the_snr_matrix(window_db, path_
     z = np.zeros(m)
     links = Links(rows, sat, np.zeros((m, 3)), z, z, visible, path, kx, ky, 0.0)
     beams = (np.repeat(np.arange(5), 3), np.tile(np.arange(3), 5))
+    if floor_db is None:  # the median SNR; some beams an ulp from it in linear terms
+        floor_db = float(np.nanmedian(links.snr_db_bm(*beams)))
+        floor_lin = 10.0 ** (floor_db / 10.0)
+        near = rng.random(m) < 0.05
+        kx[3, near] = (
+            floor_lin
+            * (1.0 + rng.choice([-4e-16, 0.0, 4e-16], near.sum()))
+            / (ky[0, near] * path[near])
+        )
+    limits = (window_db, floor_db)
     for pairs in (slice(0, m), np.flatnonzero(visible)):
         got_best, want_best = np.full(n_rows, 7.0), np.full(n_rows, 7.0)
+        got_cell, want_cell = np.full(n_rows, -2), np.full(n_rows, -2)
         r, s = rows[pairs], sat[pairs]
-        got = search.link_window_entries(links, pairs, beams, r, s, window_db, got_best)
+        got = search.link_window_entries(links, pairs, beams, r, s, limits,
+                                         (got_best, got_cell))  # fmt: skip
         snr_bm = links.snr_db_bm(*beams, pairs)
-        want = search.window_entries(snr_bm, r, s, window_db, want_best)
+        want = search.window_entries(snr_bm, r, s, limits, (want_best, want_cell))
         for g, w in zip(got, want, strict=True):
             np.testing.assert_array_equal(g, w)
         np.testing.assert_array_equal(got_best, want_best)
+        np.testing.assert_array_equal(got_cell, want_cell)
+        assert (want_cell >= 0).sum() > n_rows // 2
+        if floor_db > -np.inf:
+            assert want[2].min() >= floor_db and (want_best < floor_db).any()
+            assert 0 < want[0].size < m * 15 // 2
+            continue
         assert want[0].size > (m * 15 // 2 if window_db == np.inf else n_rows // 2)
         assert np.isneginf(want[2]).any() == (window_db == np.inf)

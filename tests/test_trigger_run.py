@@ -59,6 +59,43 @@ def test_local_axis_maps_cells_both_ways_and_carries_values_by_satellite():
     np.testing.assert_array_equal(got[1, :3], [6, 7, 8])
 
 
+@pytest.mark.parametrize("share", [0.03, 0.6])  # mostly the fill (carried value by value)
+def test_local_axis_carries_sparse_and_dense_arrays_as_a_lookup_by_satellite(share):
+    """``remap`` of per-cell, per-satellite and vector arrays (NaN or False fill, a few of
+    their values set or most of them) against a lookup of each new slot's satellite in
+    the old row: its values where it was there, the fill where not."""
+    from leolink.sim.handover import local_axis
+
+    rng = np.random.default_rng(45)
+    n_ut, nb = 30, 3
+    axis = LocalAxis.union(n_ut, nb, rng.integers(0, n_ut, 600), rng.integers(0, 40, 600))
+    new = LocalAxis.union(n_ut, nb, rng.integers(0, n_ut, 600), rng.integers(20, 60, 600))
+    set_ = rng.random((n_ut, axis.n_cand, 3)) < share
+    arrays = [
+        (np.where(set_[..., 0], rng.normal(size=set_.shape[:2]), np.nan), np.nan),
+        (set_[..., 1], False),
+        (np.where(set_[:, : axis.n_local, 2], 1.5, np.nan), np.nan),  # per satellite
+        (np.where(set_[..., :1], rng.normal(size=set_.shape), np.nan), np.nan),  # (x, y, z)
+    ]
+    assert (np.mean(set_) < local_axis.SPARSE_SHARE) == (share < 0.1)
+    n_kept = 0  # values carried, not the fill
+    for values, fill in arrays:
+        got = axis.remap(new, values, fill)
+        unit = nb if values.shape[1] == axis.n_cand else 1
+        want = np.full((n_ut, new.n_local * unit) + values.shape[2:], fill, values.dtype)
+        for u in range(n_ut):
+            for slot, sat in enumerate(new.sats[u]):
+                old = np.flatnonzero((axis.sats[u] == sat) & (sat >= 0))
+                if old.size:
+                    want[u, slot * unit : (slot + 1) * unit] = values[
+                        u, old[0] * unit : (old[0] + 1) * unit
+                    ]
+        np.testing.assert_array_equal(got, want)
+        assert got.dtype == values.dtype
+        n_kept += np.count_nonzero(want if fill is False else ~np.isnan(want))
+    assert n_kept > 30
+
+
 @pytest.mark.usefixtures("compiled_and_numpy")
 def test_local_axis_values_put_each_cell_at_its_local_cell_and_leave_out_the_others():
     axis = LocalAxis.union(2, 2, [0, 0, 1], [3, 7, 5])  # sats [[3, 7], [5, -1]], 2 beams

@@ -312,27 +312,45 @@ def test_time_to_exit_enters_when_serving_runs_out_sooner_than_the_threshold():
 # ----------------------------------------------------------------------------- state, vectorized
 
 
-def test_advance_is_independent_per_pair_and_matches_a_scalar_reference():
+@pytest.mark.parametrize("share", [1.0, 0.06])  # every pair applicable; a few (CHO's)
+def test_advance_is_independent_per_pair_and_matches_a_scalar_reference(share):
+    """The vectorized bookkeeping against 5.5.4.1 written for one pair, with every pair
+    applicable and with a few (below ``SPARSE_SHARE``: the rule then runs on those alone),
+    the applicable set changing every 10 epochs: the report, the runs and the list."""
+    from leolink.sim.handover import triggers
+
     rng = np.random.default_rng(3)
-    n_ut, n_cand, n_t, ttt = 7, 5, 60, 0.3
+    n_ut, n_cand, n_t, ttt = 20, 12, 60, 0.3
     enter = rng.random((n_t, n_ut, n_cand)) < 0.6
     leave = ~enter & (rng.random((n_t, n_ut, n_cand)) < 0.5)
+    applicable = rng.random((n_t // 10, n_ut, n_cand)) < share
+    assert (applicable.mean(axis=(1, 2)) < triggers.SPARSE_SHARE).all() == (share < 1.0)
     state = TriggerState.initial(n_ut, n_cand)
-    applicable = np.ones((n_ut, n_cand), bool)
     got = []
     for k, t in enumerate(epochs(n_t)):
-        state, rep = advance(state, t, enter[k], leave[k], ttt, applicable)
-        got.append(rep.triggered.copy())
+        state, rep = advance(state, t, enter[k], leave[k], ttt, applicable[k // 10])
+        got.append((rep.triggered.copy(), rep.left.copy(), state.since_s, state.triggered))
+    n_fired = 0
     for i in range(n_ut):  # scalar re-implementation of 5.5.4.1, one pair at a time
         for j in range(n_cand):
             trig, since = False, None
             for k, t in enumerate(epochs(n_t)):
+                if not applicable[k // 10, i, j]:  # no run, not in the list
+                    trig, since = False, None
+                    assert not got[k][0][i, j] and not got[k][1][i, j]
+                    assert np.isnan(got[k][2][i, j]) and not got[k][3][i, j]
+                    continue
                 cond = leave[k, i, j] if trig else enter[k, i, j]
                 since = (t if since is None else since) if cond else None
                 fired = cond and t - since >= ttt - 1e-9
-                assert got[k][i, j] == (fired and not trig)
+                assert got[k][0][i, j] == (fired and not trig)
+                assert got[k][1][i, j] == (fired and trig)
                 if fired:
                     trig, since = not trig, None
+                    n_fired += 1
+                assert got[k][3][i, j] == trig
+                assert np.isnan(got[k][2][i, j]) if since is None else got[k][2][i, j] == since
+    assert n_fired > 20
 
 
 def test_reset_clears_only_the_given_uts():

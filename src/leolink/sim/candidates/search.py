@@ -193,7 +193,7 @@ class CandidateSearch:
         for lo in range(0, n_k, step):  # chunks of epochs: bounded temporaries
             ks = range(lo, min(lo + step, n_k))
             parts.append(self._chunk(ks, n_ut, geo, cones, (nrm, groups), loss))
-        links = Links.concat([p[0] for p in parts])
+        links = Links.concat([part for p in parts for part in p[0]])  # (one copy of each)
         sure = np.concatenate([p[1] for p in parts])
         pair_loss = None if loss is None else np.concatenate([p[2] for p in parts])
         del parts  # (the parts' links are copied: not kept with the sorted ones)
@@ -214,8 +214,9 @@ class CandidateSearch:
         )
 
     def _chunk(self, ks, n_ut, geo, cones, screening, loss=None):
-        """Evaluated pairs of the epochs ``ks`` (``links.ut`` the row, ``links.sat`` the
-        global id), the rows' visible satellites that were not evaluated, and the pairs'
+        """Evaluated pairs of the epochs ``ks`` (a list of :class:`Links`, joined by the
+        caller once for the whole block: ``links.ut`` the row, ``links.sat`` the global
+        id), the rows' visible satellites that were not evaluated, and the pairs'
         environment loss [dB] (None without ``loss``). ``geo``: the block's UT rows, their
         up, the satellites' positions and velocities; ``screening``: the rows' panel
         normals (or None) and the UTs' screening groups
@@ -226,7 +227,7 @@ class CandidateSearch:
         if not self.prune or all(len(cones[k]) <= DENSE_CONE for k in ks):  # every pair
             rows, sats = _dense_pairs(ks, n_ut, cones)
             links = self.evaluate(*geo, n_ut, rows, sats, nrm)
-            return links, np.zeros(n_rows, np.int64), _pair_loss(grids, n_ut, cones, links)
+            return [links], np.zeros(n_rows, np.int64), _pair_loss(grids, n_ut, cones, links)
         if len(groups) == 1 or loss is not None:  # one region, or environments: by cones
             return self._chunk_one_cone(ks, n_ut, geo, cones, nrm, grids)
         row, sat, code, bound, top = self._screened(ks, n_ut, geo, nrm, groups)
@@ -236,7 +237,7 @@ class CandidateSearch:
         links2 = self.evaluate(*geo, n_ut, row[more], sat[more], nrm)
         unseen = row[_unseen_pairs(code, chosen, more)] - ks.start * n_ut
         sure = np.bincount(unseen, minlength=n_rows)
-        return Links.concat([links1, links2]), sure, None
+        return [links1, links2], sure, None
 
     def _chunk_one_cone(self, ks, n_ut, geo, cones, nrm, grids):
         """:meth:`_chunk` by each epoch's cone (every UT with every satellite of the cone,
@@ -272,7 +273,7 @@ class CandidateSearch:
             sure[i * n_ut : (i + 1) * n_ut] = _unseen_pairs(code, chosen, more).sum(axis=1)
         links2 = self.evaluate(*geo, n_ut, rows2, sats2, nrm)
         pair_loss = None if not grids else np.r_[loss1, _pair_loss(grids, n_ut, cones, links2)]
-        return Links.concat([links1, links2]), sure, pair_loss
+        return [links1, links2], sure, pair_loss
 
     def _reach(self, n_rows, links, pair_loss):
         """Per row, the largest linear SNR of its evaluated pairs' best beams: after the
@@ -421,17 +422,17 @@ class CandidateSearch:
         open_db = None if pair_loss is None else np.full(n_rows, np.nan)
         chunks = [slice(lo, hi) for lo, hi in _row_chunks(rows_vis, TABLE_PAIRS)]
         pairs = [chunk if every else vis[chunk] for chunk in chunks]
-        if pair_loss is None and self.floor_db == -np.inf:
-            # No (nb, m) matrix: the window's beams only; the chunks (whole rows, each
-            # writing its own rows' best) split over threads.
+        # (the diagnostics' best cell does not see the floor: kept here when it has one)
+        best = (best_db, None if self.floor_db == -np.inf else best_cell)
+        if pair_loss is None:
+            # No (nb, m) matrix: the window's and the floor's beams only; the chunks (whole
+            # rows, each writing its own rows' best) split over threads.
             _ = links.path_snr_lin  # (cached here, not raced for by the threads)
-            beams = (eng.beam_ix, eng.beam_iy)
-            calls = [(links, p, beams, rows_vis[c], links.sat[p], self.window_db, best_db)
+            beams, limits = (eng.beam_ix, eng.beam_iy), (self.window_db, self.floor_db)
+            calls = [(links, p, beams, rows_vis[c], links.sat[p], limits, best)
                      for c, p in zip(chunks, pairs, strict=True)]  # fmt: skip
             entries = compiled.run_calls(link_window_entries, calls)
         else:
-            # (the diagnostics' best cell does not see the floor: kept here when it has one)
-            best = (best_db, None if self.floor_db == -np.inf else best_cell)
             entries = [self._matrix_entries(links, p, rows_vis[c], pair_loss, best, open_db)
                        for c, p in zip(chunks, pairs, strict=True)]  # fmt: skip
         ut, cell, snr = (np.concatenate(e) for e in zip(*entries, strict=True))
@@ -569,37 +570,48 @@ def _window_rows(snr_bm, rows, sat, limits, best, out):
 WINDOW_GAP = 1e-9
 
 
-def link_window_entries(links, pairs, beams, rows, sat, window_db, best_db):
+def link_window_entries(links, pairs, beams, rows, sat, limits, best):
     """:func:`window_entries` of :meth:`Links.snr_db_bm <leolink.engine.links.Links.
     snr_db_bm>` ``(*beams, pairs)`` (``pairs``: a slice or indices of the sorted
-    ``rows``' pairs), without the (n_beam, m) matrix: by the compiled
-    :func:`_link_window_rows` where it runs (the same entries and row bests, each dB value
-    the same sum), else by numpy on the matrix."""
+    ``rows``' pairs; ``limits`` and ``best`` as :func:`window_entries` takes them), without
+    the (n_beam, m) matrix: by the compiled :func:`_link_window_rows` where it runs (the
+    same entries, row bests and best cells, each dB value the same sum), else by numpy on
+    the matrix."""
     beam_ix, beam_iy = beams
     if not compiled.use(len(rows)):
         snr_bm = links.snr_db_bm(beam_ix, beam_iy, pairs)
-        return window_entries(snr_bm, rows, sat, window_db, best_db)
+        return window_entries(snr_bm, rows, sat, limits, best)
+    window_db, floor_db = limits if isinstance(limits, tuple) else (limits, -np.inf)
+    best_db, best_cell = best if isinstance(best, tuple) else (best, None)
     idx = np.arange(links.n_pair)[pairs] if isinstance(pairs, slice) else pairs
     m, nb = len(rows), len(beam_ix)
     out = (np.empty(m * nb, np.int64), np.empty(m * nb, np.int64), np.empty(m * nb))
     beams = np.stack([beam_ix, beam_iy]).astype(np.int64)
     kernels = (links.kx, links.ky, links.path_snr_lin, beams)
+    cells_out = np.full(0, -1, np.int64) if best_cell is None else best_cell
     n = _link_window_rows(kernels, np.asarray(idx, np.int64), rows, np.asarray(sat, np.int64),
-                          float(window_db), best_db, out)  # fmt: skip
+                          (float(window_db), float(floor_db)), (best_db, cells_out),
+                          out)  # fmt: skip
     return out[0][:n].copy(), out[1][:n].copy(), out[2][:n].copy()
 
 
 @compiled.jit
-def _link_window_rows(kernels, idx, rows, sat, window_db, best_db, out):
+def _link_window_rows(kernels, idx, rows, sat, limits, best, out):
     """:func:`_window_rows` of the pairs ``idx`` from their kernels: each row's largest
     linear SNR ``k_x k_y p`` first; only the beams within :data:`WINDOW_GAP` of the window
-    below it get their dB value (:func:`~leolink.engine.links.beam_snr_db`), the row's
-    best among them (``numpy.fmax``'s rule), then the entries at or above best - window."""
+    below it, or of the floor where that is lower, and those within it of the largest
+    itself (the row's best in dB is among them) get their dB value
+    (:func:`~leolink.engine.links.beam_snr_db`); the row's best among them
+    (``numpy.fmax``'s rule) and its first cell (written as :func:`_window_rows` does),
+    then the entries at or above best - window and the floor."""
     kx, ky, path_snr_lin, beams = kernels
     beam_ix, beam_iy = beams[0], beams[1]
+    window_db, floor_db = limits
+    best_db, best_cell = best
     ut, cell, snr = out
     nb, m = beam_ix.size, idx.size
-    factor = 10.0 ** (-window_db / 10.0) * (1.0 - WINDOW_GAP)
+    factor = 10.0 ** (-window_db / 10.0)
+    floor_lin = 10.0 ** (floor_db / 10.0)  # 0 without a floor
     n, lo = 0, 0
     while lo < m:
         hi, top = lo, -1.0
@@ -610,20 +622,23 @@ def _link_window_rows(kernels, idx, rows, sat, window_db, best_db, out):
                 if g > top:  # (a NaN path, below the mask: never the largest)
                     top = g
             hi += 1
-        low, best, first = top * factor, np.nan, n
+        low = min(max(top * factor, floor_lin), top) * (1.0 - WINDOW_GAP)
+        best, top_cell, first = np.nan, -1, n
         for q in range(lo, hi):  # the candidates, kept for now
             p = idx[q]
             for b in range(nb):
                 if kx[beam_ix[b], p] * ky[beam_iy[b], p] * path_snr_lin[p] >= low:
                     v = beam_snr_db(kx, ky, path_snr_lin, p, beam_ix[b], beam_iy[b])
                     if v > best or (np.isnan(best) and not np.isnan(v)):
-                        best = v
+                        best, top_cell = v, sat[q] * nb + b
                     ut[n], cell[n], snr[n] = rows[q], sat[q] * nb + b, v
                     n += 1
         best_db[rows[lo]] = best
+        if best_cell.size and np.isfinite(best):
+            best_cell[rows[lo]] = top_cell
         last, n = n, first
-        for e in range(first, last):  # those in the window, in order
-            if snr[e] >= best - window_db:
+        for e in range(first, last):  # those in the window and at or above the floor, in order
+            if snr[e] >= best - window_db and snr[e] >= floor_db:
                 ut[n], cell[n], snr[n] = ut[e], cell[e], snr[e]
                 n += 1
         lo = hi

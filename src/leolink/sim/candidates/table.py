@@ -60,8 +60,9 @@ class Candidates:
         start = np.cumsum(counts) - counts
         slot = np.arange(ut.size) - start[ut]
         table = cls(np.full((n_ut, n_slot), -1, np.int64), np.full((n_ut, n_slot), np.nan))
-        table.cell[ut, slot] = cell
-        table.snr_db[ut, slot] = snr_db
+        at = ut * n_slot + slot  # (flat: 1-D puts, not 2-D ones)
+        table.cell.reshape(-1)[at] = cell
+        table.snr_db.reshape(-1)[at] = snr_db
         return table
 
     @property

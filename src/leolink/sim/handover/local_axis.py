@@ -39,6 +39,10 @@ from leolink.arrays import nonzero_2d
 
 __all__ = ["LocalAxis"]
 
+#: :meth:`LocalAxis.remap` carries an array value by value where fewer than this share of
+#: the carried slots' values differ from the fill, else slot by slot.
+SPARSE_SHARE = 0.25
+
 
 @dataclasses.dataclass(frozen=True)
 class LocalAxis:
@@ -152,19 +156,23 @@ class LocalAxis:
         return out.reshape(self.n_ut, self.n_cand)
 
     def _sources(self, new):
-        """``(dst, src)``: flat slot ``src[k]`` (``row * n_local + slot``) of this axis holds
-        the satellite of flat slot ``dst[k]`` of ``new`` (those on both axes); kept for the
-        last ``new`` (every array of an epoch is carried by the same map). Flat indices:
-        one 1-D take and put per array, a third of a 2-D fancy index's time."""
+        """``(dst, src, to)``: flat slot ``src[k]`` (``row * n_local + slot``) of this axis
+        holds the satellite of flat slot ``dst[k]`` of ``new`` (those on both axes), and
+        ``to``, the same map by this axis's flat slots (``to[src[k]] = dst[k]``, -1 for a
+        satellite not on ``new``); kept for the last ``new`` (every array of an epoch is
+        carried by the same map). Flat indices: one 1-D take and put per array, a third of
+        a 2-D fancy index's time."""
         if self._last_sources and self._last_sources[0][0] is new:
             return self._last_sources[0][1]
         rows, slots = nonzero_2d(new.sats >= 0)
         src = self._slot(rows, new.sats[rows, slots])
         ok = src >= 0
         rows = rows[ok]
-        got = rows * new.n_local + slots[ok], rows * self.n_local + src[ok]
-        self._last_sources[:] = [(new, got)]
-        return got
+        dst, src = rows * new.n_local + slots[ok], rows * self.n_local + src[ok]
+        to = np.full(self.n_ut * self.n_local, -1, np.int64)
+        to[src] = dst
+        self._last_sources[:] = [(new, (dst, src, to))]
+        return dst, src, to
 
     def remap(self, new, values, fill):
         """Carry ``values`` from this axis to axis ``new`` by global satellite id.
@@ -180,10 +188,30 @@ class LocalAxis:
         inner = (self.n_beam,) if per_cell else ()
         old = values.reshape((self.n_ut * self.n_local,) + inner + values.shape[2:])
         out = np.full((new.n_ut * new.n_local,) + inner + values.shape[2:], fill, values.dtype)
-        dst, src = self._sources(new)
-        out[dst] = old[src]
+        dst, src, to = self._sources(new)
+        unit = int(np.prod(old.shape[1:], dtype=np.int64))  # values per slot
+        blank = _blank(old, fill)
+        # Mostly the fill (a timer, a triggered or prepared cell: a few per UT): only the
+        # other values are carried, each by its slot's map (the same array).
+        if blank is None or blank.size - np.count_nonzero(blank) >= SPARSE_SHARE * dst.size * unit:
+            out[dst] = old[src]
+        else:
+            at = np.flatnonzero(~blank)
+            slot = to[at // unit]
+            kept = slot >= 0
+            out.reshape(-1)[slot[kept] * unit + at[kept] % unit] = old.reshape(-1)[at[kept]]
         width = new.n_cand if per_cell else new.n_local
         return out.reshape((new.n_ut, width) + values.shape[2:])
+
+
+def _blank(values, fill):
+    """bool, where ``values`` hold ``fill`` itself (a NaN fill: NaN; a boolean array: the
+    flag), or None where that is not told apart exactly (a float fill: -0.0 equals 0.0)."""
+    if values.dtype == bool:
+        return values == bool(fill)
+    if values.dtype.kind == "f" and isinstance(fill, float) and np.isnan(fill):
+        return np.isnan(values)
+    return None
 
 
 @compiled.jit

@@ -172,33 +172,57 @@ class TriggerReport:
     left: np.ndarray
 
 
+#: Below this share of applicable pairs :func:`advance` works on those alone (a CHO
+#: execution condition: the prepared candidates, ~1 % of the axis); the others' outcome is
+#: known (no run, not triggered, nothing to report).
+SPARSE_SHARE = 0.125
+
+
 def advance(state, t_s, entering, leaving, time_to_trigger_s, applicable):
     """One epoch of the TS 38.331 5.5.4.1 bookkeeping; returns ``(state, report)``.
 
     ``entering``, ``leaving``, ``applicable``: bool ``(n_ut, n_cand)``. A cell that is not
     applicable (the serving cell itself, no serving cell, a CHO candidate not prepared)
-    has no run and is not triggered.
+    has no run and is not triggered. Where few cells are applicable (less than
+    :data:`SPARSE_SHARE` of them) the rule runs on those alone.
     """
-    was = ~np.isnan(state.triggered_at_s)
-    running = ~np.isnan(state.since_s)
+    applicable = np.asarray(applicable, bool)
+    shape = state.since_s.shape
+    if applicable.shape != shape or np.count_nonzero(applicable) >= SPARSE_SHARE * applicable.size:
+        since, at, report = _advance_pairs(state.since_s, state.triggered_at_s, t_s, entering,
+                                           leaving, time_to_trigger_s, applicable)  # fmt: skip
+        return TriggerState(since, at), TriggerReport(*report)
+    rows, cols = np.nonzero(applicable)
+    since, at, report = _advance_pairs(
+        state.since_s[rows, cols], state.triggered_at_s[rows, cols], t_s,
+        np.broadcast_to(entering, shape)[rows, cols], np.broadcast_to(leaving, shape)[rows, cols],
+        time_to_trigger_s, np.ones(rows.size, bool),
+    )  # fmt: skip
+    out = [np.full(shape, np.nan), np.full(shape, np.nan)] + [np.zeros(shape, bool) for _ in report]
+    for full, values in zip(out, (since, at, *report), strict=True):
+        full[rows, cols] = values
+    return TriggerState(out[0], out[1]), TriggerReport(*out[2:])
+
+
+def _advance_pairs(since_s, triggered_at_s, t_s, entering, leaving, time_to_trigger_s, applicable):
+    """:func:`advance`'s rule on arrays of pairs (any shape, broadcast): the new
+    ``since_s`` and ``triggered_at_s`` [s] and the report's four arrays."""
+    was = ~np.isnan(triggered_at_s)
+    running = ~np.isnan(since_s)
     cond = np.where(was, leaving, entering)
     cond &= applicable
     # (np.copyto where a mask says: a masked write, not a boolean index's gather)
-    since = np.where(running, state.since_s, t_s)  # a run continues, or starts now
+    since = np.where(running, since_s, t_s)  # a run continues, or starts now
     np.copyto(since, np.nan, where=~cond)  # ... unless its condition lapsed
     done = t_s - since >= time_to_trigger_s - TIME_TOL_S  # NaN (no run) compares False
     now_in = done & ~was
     now_out = done & was
-    triggered_at = np.where(now_in, t_s, state.triggered_at_s)
+    triggered_at = np.where(now_in, t_s, triggered_at_s)
     np.copyto(triggered_at, np.nan, where=now_out | ~applicable)
     np.copyto(since, np.nan, where=done)
-    report = TriggerReport(
-        entered=cond & ~running & ~was,
-        lapsed=running & ~cond & ~was & applicable,
-        triggered=now_in,
-        left=now_out,
-    )
-    return TriggerState(since, triggered_at), report
+    entered = cond & ~running & ~was
+    lapsed = running & ~cond & ~was & applicable
+    return since, triggered_at, (entered, lapsed, now_in, now_out)
 
 
 class Trigger(Protocol):
