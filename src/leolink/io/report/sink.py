@@ -61,8 +61,8 @@ def run_heap_frozen():
     imported here first) left out of the cyclic collector's passes until the exit.
 
     Drawing the report makes ~10^5 objects, which starts two full collections; each walks
-    the whole heap of the run (~250,000 objects at 1,000 UTs, ~0.1 s of CPU apiece),
-    though none of it can become garbage while the report is drawn. :func:`gc.freeze`
+    the whole heap of the run (~190,000 objects with matplotlib's at 1,000 UTs, ~0.1 s of
+    CPU apiece), though none of it can become garbage while the report is drawn. :func:`gc.freeze`
     moves the objects alive now to the permanent generation, which the collector skips;
     :func:`gc.unfreeze` at the exit (an exception included) puts them back in the oldest
     generation, so cyclic garbage among them is collected later, as before: nothing is
