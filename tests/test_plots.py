@@ -314,3 +314,44 @@ def test_handover_bars_stay_clear_of_the_top_and_of_the_legend():
     bars = [p.get_window_extent() for p in ax.patches if p.get_height() > 0]
     assert max(p.get_y() + p.get_height() for p in ax.patches) < ax.get_ylim()[1]
     assert not any(legend.overlaps(b) for b in bars)
+
+
+def _titles_and_offset_texts(fig):
+    """Window boxes of each axes' titles (left, centre, right) and of its visible y offset
+    text, once the figure is drawn."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    out = []
+    for ax in fig.axes:
+        names = {ax.get_title(loc) for loc in ("left", "center", "right")} - {""}
+        titles = [a.get_window_extent(renderer) for a in ax.get_children()
+                  if type(a).__name__ == "Text" and a.get_text() in names]  # fmt: skip
+        offset = ax.yaxis.get_offset_text()
+        shown = offset.get_visible() and offset.get_text()
+        out.append((titles, offset.get_window_extent(renderer) if shown else None))
+    return out
+
+
+def test_no_report_title_sits_over_an_offset_text_above_its_axes():
+    # The report's titles stay at their fixed place (maps.FIXED_TITLE_RC) but the dwell
+    # histograms': matplotlib does not lift them. An SNR and SINR steady to 1e-4 dB (an offset
+    # above the y axis, which the time panels turn off: their title is on the left), an angular
+    # speed steady to 1e-6 deg/s (an offset) and dwell counts of 3e6 (a multiplier, which
+    # the censored panel's title would cover) must leave every title clear.
+    from leolink.io.report.figures import fig_angular_speed, fig_dwell, fig_snr_time
+
+    t = np.arange(10.0)
+    series = {"time_s": t, "ut_id": np.zeros(10, int), "snr_db": 20.0 + 1e-4 * t,
+              "sinr_db": 20.0 + 1e-4 * t, "service": np.full(10, "served"),
+              "angular_speed_deg_s": 1.0 + 1e-6 * t}  # fmt: skip
+    events = {"time_s": np.empty(0), "ut_id": np.empty(0, int), "kind": np.empty(0, str)}
+    counts = np.full(10, 3_000_000)
+    figures = (fig_snr_time(series, events), fig_angular_speed(series),
+               fig_dwell(np.linspace(0.0, 100.0, 11), counts, counts, 50.0))  # fmt: skip
+    n_offsets = 0
+    for fig in figures:
+        for titles, offset in _titles_and_offset_texts(fig):
+            assert titles
+            n_offsets += offset is not None
+            assert offset is None or not any(offset.overlaps(t) for t in titles)
+    assert n_offsets == 3  # angular speed's offset, each dwell panel's multiplier

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from leolink.io.report.headline import fmt_si
-from leolink.io.report.maps import beam_colour
+from leolink.io.report.maps import FIXED_TITLE_RC, beam_colour
 
 __all__ = [
     "fig_angular_speed",
@@ -51,9 +51,12 @@ LEGEND_RIGHT_IN = 1.45  # room on the right for a legend outside the axes
 
 
 def new_figure(n_rows=1, n_cols=1, *, figsize=(9.0, 4.0), dpi=100, margins_in=None,
-               **subplot_kw):  # fmt: skip
+               fixed_titles=True, **subplot_kw):  # fmt: skip
     """An Agg figure and a 2-D array of axes placed with fixed margins [in]
-    (:data:`MARGINS_IN`, updated by ``margins_in``)."""
+    (:data:`MARGINS_IN`, updated by ``margins_in``); their titles at the fixed place of
+    :data:`leolink.io.report.maps.FIXED_TITLE_RC` unless ``fixed_titles`` is false
+    (then matplotlib lifts each over whatever is drawn above its axes)."""
+    from matplotlib import rc_context
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -66,7 +69,9 @@ def new_figure(n_rows=1, n_cols=1, *, figsize=(9.0, 4.0), dpi=100, margins_in=No
     grid = {"left": m["left"] / w_in, "right": 1.0 - m["right"] / w_in,
             "bottom": m["bottom"] / h_in, "top": 1.0 - m["top"] / h_in,
             "wspace": m["wspace"] / axes_w, "hspace": m["hspace"] / axes_h}  # fmt: skip
-    return fig, fig.subplots(n_rows, n_cols, squeeze=False, gridspec_kw=grid, **subplot_kw)
+    with rc_context(FIXED_TITLE_RC if fixed_titles else {}):
+        axes = fig.subplots(n_rows, n_cols, squeeze=False, gridspec_kw=grid, **subplot_kw)
+    return fig, axes
 
 
 def _uts(series, ut_ids, limit=MAX_PANELS):
@@ -149,6 +154,7 @@ def fig_snr_time(series, events, ut_ids=None):
                     label=kind.replace("_", " ") if i == 0 else None,
                 )
         ax.set_ylabel("[dB]")
+        ax.ticklabel_format(axis="y", useOffset=False)  # no offset text under the title
         ax.set_title(f"UT {ut}", fontsize=10, loc="left")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
@@ -210,7 +216,9 @@ def fig_dwell(edges_s, complete, censored, mean_s=None):
     """
     edges, parts = np.asarray(edges_s, float), (np.asarray(complete), np.asarray(censored))
     top = {"top": MARGINS_IN["top"] + SUPTITLE_IN}
-    fig, axes = new_figure(1, 2, figsize=(10.0, 3.8), margins_in=top)
+    # Titles placed by matplotlib: counts from 10^6 put a multiplier above the y axis,
+    # which the censored panel's long title would cover.
+    fig, axes = new_figure(1, 2, figsize=(10.0, 3.8), margins_in=top, fixed_titles=False)
     titles = ("complete dwells", "censored dwells (cut by the run start or end)")
     means = (mean_s, None)  # a censored dwell is a lower bound: no mean of them
     for ax, counts, title, colour, mean in zip(
