@@ -69,6 +69,10 @@ def test_local_axis_values_put_each_cell_at_its_local_cell_and_leave_out_the_oth
         axis.values(table), [[1.0, np.nan, np.nan, 3.0], [4.0, np.nan, np.nan, np.nan]]
     )
     assert axis.values(table, fill=0.0)[1].tolist() == [4.0, 0.0, 0.0, 0.0]
+    # one slot a UT (the flat table's entries are then its rows), an integer fill: UT 0's
+    # sat 7 beam 1 at its local cell 3, UT 1's sat 5 beam 0 at 0, the values kept as floats
+    one = Candidates(np.array([[15], [10]]), np.array([[2.5], [4.5]]))
+    np.testing.assert_array_equal(axis.values(one, fill=0), [[0, 0, 0, 2.5], [4.5, 0, 0, 0]])
 
 
 def _walks(seed, n_t=80, n_ut=12):
