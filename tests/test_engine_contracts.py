@@ -399,7 +399,8 @@ def test_one_beam_one_pair_and_an_unserved_row_closed_form(cosecant):
     pair and beam must exist: there is one of each). Through ``serve`` with a second
     satellite below the horizon and every satellite interfering: the same. With the
     cosecant atmosphere (no constant loss: each pair's elevation is read), 0.3 dB at
-    nadir, taken off the SNR."""
+    nadir, taken off the SNR. The Doppler rate of a UT accelerating towards the
+    satellite, by hand."""
     from leolink.antenna.codebook import Codebook
     from leolink.antenna.terminal import Isotropic
     from leolink.engine import LinkParams
@@ -421,10 +422,14 @@ def test_one_beam_one_pair_and_an_unserved_row_closed_form(cosecant):
     atm_db = 0.3 if cosecant else 0.0  # 0.3 dB / sin(90 deg)
     snr = 15.0 - 1.5 - 0.7 + 10 * math.log10(n * n) - fspl - atm_db - noise
     two = np.repeat(ut, 2, 0)
-    by_pairs = eng.serve_pairs(links, np.array([0, -1]), np.array([0, -1]), zero, zero,
+    # The UT accelerates up at a = 9.81 m/s^2 under the satellite, which moves across at
+    # v: rho(t)^2 = (v t)^2 + (h - a t^2 / 2)^2, so rho'' = v^2 / h - a at t = 0.
+    up = np.array([[0.0, 0.0, 9.81]] * 2)
+    rate = -(11.45e9 / SPEED_OF_LIGHT_M_S) * (7000.0**2 / h_m - 9.81)  # -f / c rho''
+    by_pairs = eng.serve_pairs(links, np.array([0, -1]), np.array([0, -1]), zero, up,
                                vel[[0, 0]], zero, ut_pos_m=two)  # fmt: skip
     by_snap = eng.serve(eng.evaluate(two, sat, vel), np.array([0, -1]), np.array([0, -1]),
-                        zero, zero, vel, np.zeros((2, 3)))  # fmt: skip
+                        zero, up, vel, np.zeros((2, 3)))  # fmt: skip
     for cols in (by_pairs, by_snap):
         assert cols["gain_tx_db"][0] == pytest.approx(10 * math.log10(n * n), abs=1e-9)
         assert cols["snr_db"][0] == pytest.approx(snr, abs=1e-9)
@@ -432,5 +437,7 @@ def test_one_beam_one_pair_and_an_unserved_row_closed_form(cosecant):
         assert cols["elevation_deg"][0] == pytest.approx(90.0, abs=1e-9)
         assert cols["atm_db"][0] == pytest.approx(atm_db, abs=1e-9)
         assert cols["gain_rx_db"][0] == 0.0  # isotropic
+        assert cols["doppler_hz"][0] == pytest.approx(0.0, abs=1e-6)  # across the line
+        assert cols["doppler_rate_hz_s"][0] == pytest.approx(rate, rel=1e-9)
         for name in COLUMNS:
             assert np.isnan(cols[name][1]), name
