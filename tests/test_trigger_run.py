@@ -45,6 +45,9 @@ def test_local_axis_finds_each_satellites_slot_as_a_scan_of_its_row():
 def test_local_axis_maps_cells_both_ways_and_carries_values_by_satellite():
     axis = LocalAxis.union(2, N_BEAM, [0, 0, 1, 0], [4, 1, 2, 4])
     np.testing.assert_array_equal(axis.sats, [[1, 4], [2, -1]])
+    # no satellite (none given, or only -1): no slot at all
+    for ut, sat in (([], []), ([0, 2], [-1, -1])):
+        assert LocalAxis.union(3, N_BEAM, ut, sat).sats.shape == (3, 0)
     # global cell 4 * 3 + 2 = 14 is local cell 1 * 3 + 2 = 5 of UT 0; UT 1 has no sat 4
     np.testing.assert_array_equal(axis.local_cell([14, 14]), [5, -1])
     np.testing.assert_array_equal(axis.global_cell([5, 1]), [14, 7])
