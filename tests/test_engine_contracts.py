@@ -391,12 +391,16 @@ def _off_beam_serves_nothing_quietly(eng, snap, sv, sa):
     assert np.isfinite(cols["elevation_deg"][ok]).all()
 
 
-def test_one_beam_one_pair_and_an_unserved_row_closed_form():
+@pytest.mark.parametrize("cosecant", [False, True], ids=["fixed", "cosecant"])
+def test_one_beam_one_pair_and_an_unserved_row_closed_form(cosecant):
     """The smallest call: one beam at nadir, one (UT, satellite) pair and a row without a
     link. The served row is the closed form at the beam's peak, G_TX = n_x n_y, with a
     1.5 dB cable loss and 0.7 dB of other losses; the other row is NaN (its placeholder
     pair and beam must exist: there is one of each). Through ``serve`` with a second
-    satellite below the horizon and every satellite interfering: the same."""
+    satellite below the horizon and every satellite interfering: the same. With the
+    cosecant atmosphere (no constant loss: each pair's elevation is read), 0.3 dB at
+    nadir, taken off the SNR. The Doppler rate of a UT accelerating towards the
+    satellite, by hand."""
     from leolink.antenna.codebook import Codebook
     from leolink.antenna.terminal import Isotropic
     from leolink.engine import LinkParams
@@ -405,7 +409,8 @@ def test_one_beam_one_pair_and_an_unserved_row_closed_form():
     r_m, h_m, n = 6_371_000.0, 1_300_000.0, 12
     cb = Codebook(np.zeros((1, 2)), np.arange(1), 1.2, n, n)
     params = LinkParams(11.45e9, 250e6, 15.0, 1.5, 24.1, 0.0, other_loss_db=0.7)
-    eng = LinkEngine(cb, Isotropic(), params, FixedLoss(0.0), other_satellites=True)
+    atm = Cosecant() if cosecant else FixedLoss(0.0)
+    eng = LinkEngine(cb, Isotropic(), params, atm, other_satellites=True)
     sat = np.array([[0.0, 0.0, r_m + h_m], [0.0, 0.0, -(r_m + h_m)]])
     vel = np.array([[7000.0, 0.0, 0.0], [7000.0, 0.0, 0.0]])
     ut = np.array([[0.0, 0.0, r_m]])
@@ -414,16 +419,25 @@ def test_one_beam_one_pair_and_an_unserved_row_closed_form():
     zero = np.zeros((2, 3))
     fspl = 20 * math.log10(4 * math.pi * h_m * 11.45e9 / SPEED_OF_LIGHT_M_S)
     noise = 24.1 + 10 * math.log10(BOLTZMANN_J_K * 250e6)
-    snr = 15.0 - 1.5 - 0.7 + 10 * math.log10(n * n) - fspl - noise
+    atm_db = 0.3 if cosecant else 0.0  # 0.3 dB / sin(90 deg)
+    snr = 15.0 - 1.5 - 0.7 + 10 * math.log10(n * n) - fspl - atm_db - noise
     two = np.repeat(ut, 2, 0)
-    by_pairs = eng.serve_pairs(links, np.array([0, -1]), np.array([0, -1]), zero, zero,
+    # The UT accelerates up at a = 9.81 m/s^2 under the satellite, which moves across at
+    # v: rho(t)^2 = (v t)^2 + (h - a t^2 / 2)^2, so rho'' = v^2 / h - a at t = 0.
+    up = np.array([[0.0, 0.0, 9.81]] * 2)
+    rate = -(11.45e9 / SPEED_OF_LIGHT_M_S) * (7000.0**2 / h_m - 9.81)  # -f / c rho''
+    by_pairs = eng.serve_pairs(links, np.array([0, -1]), np.array([0, -1]), zero, up,
                                vel[[0, 0]], zero, ut_pos_m=two)  # fmt: skip
     by_snap = eng.serve(eng.evaluate(two, sat, vel), np.array([0, -1]), np.array([0, -1]),
-                        zero, zero, vel, np.zeros((2, 3)))  # fmt: skip
+                        zero, up, vel, np.zeros((2, 3)))  # fmt: skip
     for cols in (by_pairs, by_snap):
         assert cols["gain_tx_db"][0] == pytest.approx(10 * math.log10(n * n), abs=1e-9)
         assert cols["snr_db"][0] == pytest.approx(snr, abs=1e-9)
         assert cols["sinr_db"][0] == pytest.approx(snr, abs=1e-9)  # no other beam in view
         assert cols["elevation_deg"][0] == pytest.approx(90.0, abs=1e-9)
+        assert cols["atm_db"][0] == pytest.approx(atm_db, abs=1e-9)
+        assert cols["gain_rx_db"][0] == 0.0  # isotropic
+        assert cols["doppler_hz"][0] == pytest.approx(0.0, abs=1e-6)  # across the line
+        assert cols["doppler_rate_hz_s"][0] == pytest.approx(rate, rel=1e-9)
         for name in COLUMNS:
             assert np.isnan(cols[name][1]), name

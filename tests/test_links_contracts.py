@@ -415,11 +415,13 @@ def test_ragged_screening_is_the_dense_screening_of_each_pair(loops, monkeypatch
 SERVE_REL = 1e-12
 
 
-@pytest.mark.parametrize("enu", [False, True])
-def test_compiled_serving_columns_agree_with_numpy(enu, monkeypatch):
+@pytest.mark.parametrize(("enu", "lit"), [(False, False), (True, False), (False, True)])
+def test_compiled_serving_columns_agree_with_numpy(enu, lit, monkeypatch):
     """``LinkEngine.serve_pairs`` by the compiled loop (engine._serve_rows) and by numpy (as
     ``LEOLINK_JIT=0``): every column, moving and accelerating UTs, fading and other
-    satellites' interference, unserved rows (NaN), the sphere's frame and given ENU rows."""
+    satellites' interference, unserved rows (NaN), the sphere's frame and given ENU rows
+    (turned 20 deg about the up: not the sphere's). With lit beams (the loop sums every
+    beam): the numpy columns whatever the switch."""
     import leolink.compiled
     from leolink.geometry import ecef_to_geodetic, enu_basis
 
@@ -433,8 +435,14 @@ def test_compiled_serving_columns_agree_with_numpy(enu, monkeypatch):
     beam = RNG.integers(0, eng.n_beam, n)
     ut_pos = ut[links.ut[np.maximum(pair, 0)]]
     lat, lon, _ = ecef_to_geodetic(ut_pos)
+    frame = enu_basis(lat, lon)
+    c, s = np.cos(np.radians(20.0)), np.sin(np.radians(20.0))
+    frame[:, 0], frame[:, 1] = c * frame[:, 0] + s * frame[:, 1], c * frame[:, 1] - s * frame[:, 0]
     kw = dict(rx_fading_lin=RNG.uniform(0.5, 2.0, n), i_other=RNG.uniform(0.0, 0.1, n),
-              ut_pos_m=ut_pos, ut_enu=enu_basis(lat, lon) if enu else None)  # fmt: skip
+              ut_pos_m=ut_pos, ut_enu=frame if enu else None)  # fmt: skip
+    if lit:  # half the beams, the serving one among them
+        kw["lit"] = RNG.random((n, eng.n_beam)) < 0.5
+        kw["lit"][np.arange(n), beam] = True
     args = (links, pair, beam, RNG.normal(size=(n, 3)) * 30.0, RNG.normal(size=(n, 3)),
             RNG.normal(size=(n, 3)) * 7e3, RNG.normal(size=(n, 3)) * 8.0)  # fmt: skip
     got = eng.serve_pairs(*args, **kw)

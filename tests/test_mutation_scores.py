@@ -66,3 +66,24 @@ def test_undecorating_drops_only_the_listed_functions_decorators(tmp_path):
     )
     with pytest.raises(SystemExit, match="expected 1 functions"):  # d is not jitable
         ms._undecorate(src, ms.NAMED["jitable"][1], ("d",))
+
+
+def test_functions_select_the_mutants_of_those_functions_and_methods_alone():
+    import fnmatch
+
+    pats = ms._patterns("sim/handover/trigger_run", "numpy", ("_live_sats", "_on_cells"))
+    module = "leolink.sim.handover.trigger_run."
+    names = {
+        module + "xǁTriggerRunǁ_live_sats__mutmut_3": True,
+        module + "x__on_cells__mutmut_1": True,
+        module + "xǁTriggerRunǁ_axis__mutmut_1": False,
+        module + "xǁTriggerRunǁ_not_live_sats__mutmut_1": False,
+        "leolink.sim.handover.local_axis.xǁLocalAxisǁ_live_sats__mutmut_1": False,
+    }
+    for name, chosen in names.items():
+        assert any(fnmatch.fnmatch(name, p) for p in pats) == chosen, name
+    # the compiled mode's loops, and the functions added to them
+    pats = ms._patterns("engine/__init__", "compiled", ("_serve_compiled",))
+    assert fnmatch.fnmatch("leolink.engine.x__serve_rows__mutmut_8", pats[0])
+    assert any(fnmatch.fnmatch("leolink.engine.xǁLinkEngineǁ_serve_compiled__mutmut_5", p)
+               for p in pats)  # fmt: skip

@@ -45,6 +45,9 @@ def test_local_axis_finds_each_satellites_slot_as_a_scan_of_its_row():
 def test_local_axis_maps_cells_both_ways_and_carries_values_by_satellite():
     axis = LocalAxis.union(2, N_BEAM, [0, 0, 1, 0], [4, 1, 2, 4])
     np.testing.assert_array_equal(axis.sats, [[1, 4], [2, -1]])
+    # no satellite (none given, or only -1): no slot at all
+    for ut, sat in (([], []), ([0, 2], [-1, -1])):
+        assert LocalAxis.union(3, N_BEAM, ut, sat).sats.shape == (3, 0)
     # global cell 4 * 3 + 2 = 14 is local cell 1 * 3 + 2 = 5 of UT 0; UT 1 has no sat 4
     np.testing.assert_array_equal(axis.local_cell([14, 14]), [5, -1])
     np.testing.assert_array_equal(axis.global_cell([5, 1]), [14, 7])
@@ -106,6 +109,10 @@ def test_local_axis_values_put_each_cell_at_its_local_cell_and_leave_out_the_oth
         axis.values(table), [[1.0, np.nan, np.nan, 3.0], [4.0, np.nan, np.nan, np.nan]]
     )
     assert axis.values(table, fill=0.0)[1].tolist() == [4.0, 0.0, 0.0, 0.0]
+    # one slot a UT (the flat table's entries are then its rows), an integer fill: UT 0's
+    # sat 7 beam 1 at its local cell 3, UT 1's sat 5 beam 0 at 0, the values kept as floats
+    one = Candidates(np.array([[15], [10]]), np.array([[2.5], [4.5]]))
+    np.testing.assert_array_equal(axis.values(one, fill=0), [[0, 0, 0, 2.5], [4.5, 0, 0, 0]])
 
 
 def _walks(seed, n_t=80, n_ut=12):

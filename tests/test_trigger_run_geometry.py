@@ -271,8 +271,18 @@ def test_cell_offsets_by_satellite_and_by_beam_with_the_later_entry_winning():
 
 
 # -- state carried across a satellite's absence ---------------------------------------------
+# (the execution conditions; the elevation one holds for both satellites, overhead, and
+# makes the cell-level policy keep its state per cell of a satellite axis)
+GAP_UNITS = {
+    "satellite": ("satellite", False),
+    "cell": ("cell", False),
+    "cell-of-satellite-axis": ("cell", True),
+}
+
+
+@pytest.mark.parametrize("unit", sorted(GAP_UNITS))
 @pytest.mark.parametrize("serving_sat", [0, 1])
-def test_a_triggered_but_unprepared_satellite_keeps_its_state_through_a_gap(serving_sat):
+def test_a_triggered_but_unprepared_satellite_keeps_its_state_through_a_gap(serving_sat, unit):
     """CHO on satellites: prepare A3(-3 dB, TTT 2 s), preparation delay 2 s, execute
     A3(+2 dB, TTT 0). Serving satellite 0 at 5 dB; satellite 1 at 9 dB from t = 1 s, absent
     from the table at t = 4 s only. Its prepare condition enters at t = 1 s and triggers at
@@ -280,17 +290,42 @@ def test_a_triggered_but_unprepared_satellite_keeps_its_state_through_a_gap(serv
     the satellite is back and, triggered for 2 s, becomes prepared and executes at once.
     A satellite forgotten with its table at t = 4 s would restart at t = 5 s: triggered at
     7 s, prepared and executed at t = 9 s. The same with the roles of the satellites
-    swapped (satellite 0 the candidate)."""
-    policy = ConditionalHandover(A3(-3.0, 0.0, 2.0), [A3(2.0, 0.0, 0.0)], 8, 2.0,
-                                 level="satellite")  # fmt: skip
+    swapped (satellite 0 the candidate). The same by cells (the candidate's best beam,
+    cell ``c``): on an axis of cells (one a slot), and, with an elevation condition added
+    to the execution (both satellites overhead: it holds), on an axis of satellites with
+    the state per cell."""
+    level, gated = GAP_UNITS[unit]
+    execute = [A3(2.0, 0.0, 0.0)] + ([Elevation(np.pi / 2, 0.0)] if gated else [])
+    policy = ConditionalHandover(A3(-3.0, 0.0, 2.0), execute, 8, 2.0, level=level)
     s, c = 2 * serving_sat, 2 * (1 - serving_sat)  # the cells of the two satellites
     snr = np.full((10, 1, 2 * N_BEAM), np.nan)
     snr[:, 0, s : s + 2] = [5.0, 1.0]
     snr[1:, 0, c : c + 2] = [9.0, 8.0]
     snr[4, 0, c : c + 2] = np.nan
     sats = np.zeros((10, 2, 3))
+    sats[:, :, 0], sats[:, :, 1] = R_M + H_M, [1e5, -1e5]  # above (R, 0, 0), 100 km apart
     path = _path(_run(policy), snr, _ground(0.0)[None], sats)[:, 0]
     assert list(path) == [s] * 5 + [c] * 5
+
+
+@pytest.mark.parametrize("serving_sat", [0, 1])
+def test_a_satellite_triggered_before_a_two_epoch_gap_is_prepared_in_it(serving_sat):
+    """CHO on satellites: prepare A3(-3 dB, TTT 3 s), preparation delay 2 s, execute
+    A3(+2 dB). The candidate satellite (9 dB against 5 dB) from t = 1 s, absent at t = 5
+    and 6 s: triggered at t = 4 s, its leaving run starts at t = 5 s (3 s to go, it lapses
+    at t = 7 s, when the satellite is back), prepared at t = 6 s, executed at t = 7 s.
+    In the second epoch of the gap its filter has restarted: only the trigger's state
+    keeps the satellite. Forgotten there, it would trigger again at t = 10 s and be
+    prepared after the horizon (no handover)."""
+    policy = ConditionalHandover(A3(-3.0, 0.0, 3.0), [A3(2.0, 0.0, 0.0)], 8, 2.0,
+                                 level="satellite")  # fmt: skip
+    s, c = 2 * serving_sat, 2 * (1 - serving_sat)
+    snr = np.full((12, 1, 2 * N_BEAM), np.nan)
+    snr[:, 0, s : s + 2] = [5.0, 1.0]
+    snr[1:, 0, c : c + 2] = [9.0, 8.0]
+    snr[5:7, 0, c : c + 2] = np.nan
+    path = _path(_run(policy), snr, _ground(0.0)[None], np.zeros((12, 2, 3)))[:, 0]
+    assert list(path) == [s] * 7 + [c] * 5
 
 
 def test_the_filter_of_a_lone_satellites_beams_runs_on_across_epochs():

@@ -4,6 +4,7 @@
     python tools/mutation_scores.py MODULE ... --keep DIR --again   # survivors only
     python tools/mutation_scores.py --compiled [MODULE ...] [--keep DIR]  # the numba loops
     python tools/mutation_scores.py --jitable [MODULE ...] [--keep DIR]   # their physics
+    python tools/mutation_scores.py MODULE --functions F,G  # only these functions' mutants
 
 For each module (default: all of :data:`MODULES`) the working tree is copied to a
 scratch folder, ``[tool.mutmut]`` there is set to mutate only that module and to select
@@ -138,6 +139,14 @@ MODULES = {
     # the environments' channel state (issue 45: environments) and the trigger run's look-ahead
     "link/channel_state": ["tests/test_channel_state.py", "tests/test_environment_tracker.py"],
     "sim/handover/service_time": ["tests/test_service_time.py", "tests/test_trigger_run.py"],
+    # The percentile histograms (the summary's statistics and the KPIs' dwell percentiles):
+    # by hand (test_histograms.py, test_kpi.py) and through the summary's parts.
+    "sim/histograms": [
+        "tests/test_histograms.py",
+        "tests/test_kpi.py",
+        "tests/test_summary_stats.py",
+        "tests/test_summary_parts.py",
+    ],
     "rng": ["tests/test_rng.py", "tests/test_fading_in_run.py"],
     # The controller's own tests (hand-built sequences, the scalar reference of
     # test_controller_contracts.py) and the run tests (resumed events, interruptions, the
@@ -270,6 +279,13 @@ MODULES = {
         "tests/test_measurement_model.py",
         *TRIGGER_RUN_WIRING,
         *TRIGGER_RUN_DESELECT,
+    ],
+    # The local axes of the trigger run (union's keys and puts, values, remap): the
+    # axis by hand against scans (test_trigger_run.py) and the run state's geometries.
+    "sim/handover/local_axis": [
+        "tests/test_trigger_run.py",
+        "tests/test_trigger_run_geometry.py",
+        *TRIGGER_RUN_WIRING,
     ],
     "sim/handover/trigger_policies": [
         "tests/test_handover_config.py",
@@ -435,11 +451,15 @@ FAST = "not walker_rotating and not tle_rotating and not moving_rotating"
 NOT_COMPILED_CASE = " and not [compiled and not compiled]"
 
 
-def _patterns(module: str, mode: str) -> list[str]:
+def _patterns(module: str, mode: str, functions: tuple[str, ...] = ()) -> list[str]:
     """mutmut's names (fnmatch) of the mutants of ``module``'s functions named by ``mode``'s
-    table (:data:`NAMED`)."""
+    table (:data:`NAMED`), and of ``functions`` (functions or methods, by name: mutmut
+    writes ``x_f`` and ``xǁClassǁf``)."""
     dotted = "leolink." + module.removesuffix("/__init__").replace("/", ".")
-    return [f"{dotted}.*x_{fn}__mutmut_*" for fn in NAMED[mode][0][module][0]]
+    named = NAMED[mode][0][module][0] if mode in NAMED else ()
+    return [f"{dotted}.*x_{fn}__mutmut_*" for fn in named] + [
+        f"{dotted}.{key}__mutmut_*" for fn in functions for key in (f"x_{fn}", f"xǁ*ǁ{fn}")
+    ]
 
 
 def _undecorate(path: Path, decorators: tuple[str, ...], functions: tuple[str, ...]) -> None:
@@ -541,15 +561,17 @@ def _prepare(dest: Path, module: str, root: Path = ROOT, mode: str = "numpy") ->
 
 
 def score(module: str, workdir: Path, children: int, root: Path = ROOT,
-          mode: str = "numpy") -> dict:  # fmt: skip
+          mode: str = "numpy", functions: tuple[str, ...] = ()) -> dict:  # fmt: skip
     dest = workdir / module.replace("/", "_")
     _prepare(dest, module, root, mode)
     # The whole file, on the numpy path (LEOLINK_JIT=0); --compiled and --jitable: only the
-    # mutants of their functions.
+    # mutants of their functions; --functions: only (or also) those.
     env = _env(mode)
-    names = _patterns(module, mode) if mode in NAMED else []
+    names = _patterns(module, mode, functions) if mode in NAMED or functions else []
     subprocess.run([*MUTMUT, "run", "--max-children", str(children), *names], cwd=dest,
                    check=False, stdout=subprocess.DEVNULL, env=env)  # fmt: skip
+    if names:
+        return _count(_statuses(dest, env, names))
     return _stats(dest, module, env, mode)
 
 
@@ -564,7 +586,7 @@ def _stats(dest: Path, module: str, env: dict, mode: str) -> dict:
 
 
 def again(module: str, workdir: Path, children: int, root: Path = ROOT,
-          mode: str = "numpy") -> dict:  # fmt: skip
+          mode: str = "numpy", functions: tuple[str, ...] = ()) -> dict:  # fmt: skip
     """Re-run the mutants of a kept folder (``--keep``) that its run did not kill
     (survived, no tests, not checked) with ``root``'s tests now.
 
@@ -581,7 +603,7 @@ def again(module: str, workdir: Path, children: int, root: Path = ROOT,
     tests = _tests(module, root, mode)
     (dest / "pyproject.toml").write_text(head.rstrip() + "\n\n" + _config(module, tests, mode))
     env = _env(mode)
-    pats = _patterns(module, mode) if mode in NAMED else ["*"]
+    pats = _patterns(module, mode, functions) if mode in NAMED or functions else ["*"]
     before = _statuses(dest, env, pats)
     names = [n for n, status in before.items()
              if status in ("survived", "no_tests", "not_checked")]  # fmt: skip
@@ -608,13 +630,18 @@ def main(argv=None) -> int:
     jitable_help = "score only the @compiled.jitable physics functions (JITABLE), numpy path"
     modes.add_argument("--jitable", dest="mode", action="store_const", const="jitable",
                        help=jitable_help)  # fmt: skip
+    functions_help = ("only the mutants of these functions or methods (comma-separated "
+                      "names; with --compiled or --jitable: these too)")  # fmt: skip
+    ap.add_argument("--functions", default="", help=functions_help)
     args = ap.parse_args(argv)
+    functions = tuple(f for f in args.functions.split(",") if f)
     args.modules = args.modules or list(NAMED[args.mode][0] if args.mode in NAMED else MODULES)
     work = args.keep or Path(tempfile.mkdtemp(prefix="leolink-mutmut-"))
     print("| module | mutants | killed | survived | no tests | timeout | not checked | score |")
     print("|---|---|---|---|---|---|---|---|")
     for m in args.modules:
-        s = (again if args.again else score)(m, work, args.children, args.root, args.mode)
+        s = (again if args.again else score)(m, work, args.children, args.root, args.mode,
+                                             functions)  # fmt: skip
         total = s.get("total", 0)
         killed = s.get("killed", 0) + s.get("timeout", 0) + s.get("segfault", 0)
         pct = 100.0 * killed / total if total else float("nan")
