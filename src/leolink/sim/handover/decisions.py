@@ -99,13 +99,22 @@ def _reduce_beams(x, n_beam):
 
 
 def to_satellites(epoch, n_beam):
-    """The epoch on the satellite axis: serving satellite, per-cell arrays reduced by max."""
+    """The epoch on the satellite axis: serving satellite, per-cell arrays reduced by max.
+
+    An array already on the satellite axis (``n_cand // n_beam`` wide, ``n_cand`` the
+    width of ``meas``; with ``n_beam > 1`` a cell array is wider) is kept as it is: the
+    run gives a satellite-level policy its per-satellite fields so (``elevation_rad``,
+    ``service_end_s``), not repeated over the beams and reduced back."""
     serving = np.asarray(epoch.serving, np.int64)
     changes = {"serving": np.where(serving >= 0, serving // n_beam, -1)}
+    n_unit = None if epoch.meas is None else np.shape(epoch.meas)[-1] // n_beam
     for name in (*_PER_CELL, "offset_db"):
         value = getattr(epoch, name)
-        if value is not None and np.ndim(value) > 0:
-            changes[name] = _reduce_beams(value, n_beam)
+        if value is None or np.ndim(value) == 0:
+            continue
+        if n_beam > 1 and name != "meas" and np.shape(value)[-1] == n_unit:
+            continue  # (already per satellite)
+        changes[name] = _reduce_beams(value, n_beam)
     return dataclasses.replace(epoch, **changes)
 
 
