@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from leolink.arrays import FLAT_MIN_SIZE, nonzero_2d, take_rows, unique_inverse
+from leolink.arrays import FLAT_MIN_SIZE, any_per_group, nonzero_2d, take_rows, unique_inverse
 
 
 def _same_as_numpy(a):
@@ -89,3 +89,27 @@ def test_unique_inverse_is_numpys_unique(n, span, ordered, seed):
     np.testing.assert_array_equal(got_unique, want_unique)
     np.testing.assert_array_equal(got_inverse, want_inverse)
     np.testing.assert_array_equal(got_unique[got_inverse], keys)
+
+
+def test_any_per_group_of_a_satellites_beams():
+    """Three beams a satellite: set in the first, last, middle or none of its beams."""
+    mask = np.array([[1, 0, 0, 0, 0, 1, 0, 0, 0], [0, 1, 0, 0, 0, 0, 1, 1, 1]], bool)
+    np.testing.assert_array_equal(any_per_group(mask, 3), [[1, 1, 0], [1, 0, 1]])
+    np.testing.assert_array_equal(any_per_group(mask, 1), mask)
+    assert any_per_group(np.zeros((4, 0), bool), 15).shape == (4, 0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    lead=st.lists(st.integers(0, 5), min_size=0, max_size=2),
+    n_group=st.integers(0, 8),
+    size=st.integers(1, 16),
+    density=st.floats(0.0, 1.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_any_per_group_is_numpys_any(lead, n_group, size, density, seed):
+    mask = np.random.default_rng(seed).random((*lead, n_group * size)) < density
+    got = any_per_group(mask, size)
+    want = mask.reshape(*lead, n_group, size).any(axis=-1)
+    assert got.shape == want.shape and got.dtype == bool
+    np.testing.assert_array_equal(got, want)

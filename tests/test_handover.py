@@ -176,6 +176,39 @@ def test_to_satellites_takes_the_best_of_every_beam_not_the_first():
     np.testing.assert_array_equal(ep.offset_db, [5.0, 7.0])
 
 
+def test_to_satellites_keeps_the_fields_given_per_satellite():
+    """A satellite-level run gives ``service_end_s`` and ``elevation_rad`` per satellite
+    (2 of 4 cells, 2 beams): kept as they are; the same fields per cell are reduced."""
+    meas = np.array([[1.0, np.nan, 3.0, 2.0], [np.nan, np.nan, 0.0, -1.0]])
+    end_sat = np.array([[10.0, np.inf], [np.nan, 7.0]])
+    el_sat = np.array([[0.5, 0.25], [np.nan, 1.0]])
+    ep = to_satellites(
+        Epoch(0.0, np.array([3, -1]), meas=meas, service_end_s=end_sat, elevation_rad=el_sat),
+        2,
+    )
+    np.testing.assert_array_equal(ep.service_end_s, end_sat)
+    np.testing.assert_array_equal(ep.elevation_rad, el_sat)
+    np.testing.assert_array_equal(ep.meas, [[1.0, 3.0], [np.nan, 0.0]])
+    per_cell = np.array([[10.0, 4.0, np.nan, np.inf], [np.nan, np.nan, 7.0, 2.0]])
+    ep = to_satellites(Epoch(0.0, np.array([3, -1]), meas=meas, service_end_s=per_cell), 2)
+    np.testing.assert_array_equal(ep.service_end_s, end_sat)
+
+
+def test_to_satellites_reduces_only_the_fields_read():
+    """With the fields the events read (time-to-exit: the end of service), the others are
+    left out, not reduced; without, every one is reduced."""
+    meas = np.array([[1.0, np.nan, 3.0, 2.0], [np.nan, np.nan, 0.0, -1.0]])
+    end = np.array([[10.0, 4.0, np.nan, np.inf], [np.nan, np.nan, 7.0, 2.0]])
+    epoch = Epoch(0.0, np.array([3, -1]), meas=meas, service_end_s=end, elevation_rad=end)
+    ep = to_satellites(epoch, 2, ("service_end_s",))
+    np.testing.assert_array_equal(ep.service_end_s, [[10.0, np.inf], [np.nan, 7.0]])
+    assert ep.meas is None and ep.elevation_rad is None
+    np.testing.assert_array_equal(ep.serving, [1, -1])
+    ep = to_satellites(epoch, 2)
+    np.testing.assert_array_equal(ep.meas, [[1.0, 3.0], [np.nan, 0.0]])
+    np.testing.assert_array_equal(ep.elevation_rad, ep.service_end_s)
+
+
 def test_pick_ignores_nan_and_masked_cells():
     got = pick(np.array([[True, True, False], [False, False, False]]), [[np.nan, 1.0, 9.0]] * 2)
     np.testing.assert_array_equal(got, [1, -1])

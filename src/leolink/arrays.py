@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["KeyTable", "nonzero_2d", "take_rows", "unique_inverse"]
+__all__ = ["KeyTable", "any_per_group", "nonzero_2d", "take_rows", "unique_inverse"]
 
 #: From this many entries on, the flat path of :func:`nonzero_2d` is faster (measured on
 #: numpy 2.4: the two break even near 1,000 entries).
@@ -36,6 +36,31 @@ def nonzero_2d(mask):
         return np.nonzero(mask)
     rows, cols = np.divmod(np.flatnonzero(mask), mask.shape[1])
     return rows, cols
+
+
+def any_per_group(mask, size):
+    """Whether any entry of each group of ``size`` consecutive entries on the last axis is
+    set: ``mask (..., n * size)`` -> ``(..., n)`` (a satellite's beams on a local axis).
+
+    One ``|=`` per position in the group, over strided slices: numpy's ``any`` along a
+    short last axis runs an inner loop per group (numpy 2.4 here: 1.62 -> 0.54 ms for
+    (1000, 31 * 15), the trigger run's satellite axis).
+
+    Parameters
+    ----------
+    mask : array_like of bool, last axis a multiple of ``size``
+    size : int >= 1
+
+    Returns
+    -------
+    ndarray of bool, the last axis ``size`` times shorter
+    """
+    mask = np.asarray(mask, bool)
+    groups = mask.reshape(*mask.shape[:-1], mask.shape[-1] // size, size)
+    out = groups[..., 0].copy()
+    for k in range(1, size):
+        out |= groups[..., k]
+    return out
 
 
 def take_rows(a, *index):

@@ -98,14 +98,31 @@ def _reduce_beams(x, n_beam):
     return out
 
 
-def to_satellites(epoch, n_beam):
-    """The epoch on the satellite axis: serving satellite, per-cell arrays reduced by max."""
+def to_satellites(epoch, n_beam, needs=None):
+    """The epoch on the satellite axis: serving satellite, per-cell arrays reduced by max.
+
+    An array already on the satellite axis (``n_cand // n_beam`` wide, ``n_cand`` the
+    width of ``meas``; with ``n_beam > 1`` a cell array is wider) is kept as it is: the
+    run gives a satellite-level policy its per-satellite fields so (``elevation_rad``,
+    ``service_end_s``), not repeated over the beams and reduced back.
+
+    ``needs``: the fields the caller's triggers read (their ``needs``); the other fields
+    of ``meas``, ``elevation_rad``, ``service_end_s`` are left out (None, so that a read
+    of one fails in :meth:`Epoch.need <leolink.sim.handover.triggers.Epoch.need>`), not
+    reduced: time-to-exit reads no measurement. None: all of them."""
     serving = np.asarray(epoch.serving, np.int64)
     changes = {"serving": np.where(serving >= 0, serving // n_beam, -1)}
+    n_unit = None if epoch.meas is None else np.shape(epoch.meas)[-1] // n_beam
     for name in (*_PER_CELL, "offset_db"):
         value = getattr(epoch, name)
-        if value is not None and np.ndim(value) > 0:
-            changes[name] = _reduce_beams(value, n_beam)
+        if value is None or np.ndim(value) == 0:
+            continue
+        if needs is not None and name in _PER_CELL and name not in needs:
+            changes[name] = None
+            continue
+        if n_beam > 1 and name != "meas" and np.shape(value)[-1] == n_unit:
+            continue  # (already per satellite)
+        changes[name] = _reduce_beams(value, n_beam)
     return dataclasses.replace(epoch, **changes)
 
 
@@ -171,7 +188,14 @@ class TriggerPolicy:
         return PolicyState(np.full(n_ut, -1, np.int64), (TriggerState.initial(n_ut, n_unit),))
 
     def _axis(self, epoch, n_beam):
-        return epoch if self.level == "cell" else to_satellites(epoch, n_beam)
+        """The epoch on the policy's axis, with the fields its events read."""
+        if self.level == "cell":
+            return epoch
+        return to_satellites(epoch, n_beam, sum((t.needs for t in self._events()), ()))
+
+    def _events(self):
+        """The events whose conditions and rank read the epoch."""
+        return (self.trigger,)
 
     def decide(self, epoch, state, n_beam):
         (trig,) = state.triggers
@@ -200,6 +224,9 @@ class GatedTriggerPolicy(TriggerPolicy):
     def __init__(self, gate, trigger, level=None):
         super().__init__(trigger, level)
         self.gate = gate
+
+    def _events(self):
+        return (self.gate, self.trigger)
 
     def initial_state(self, n_ut, n_cand, n_beam):
         state = super().initial_state(n_ut, n_cand, n_beam)
@@ -276,7 +303,8 @@ class ConditionalHandover:
     def decide(self, epoch, state, n_beam):
         changed = _changed(epoch, state, self.level, n_beam)
         states = [s.reset(changed) for s in state.triggers]
-        ep = epoch if self.level == "cell" else to_satellites(epoch, n_beam)
+        needs = self.prepare.needs + sum((t.needs for t in self.execute), ())
+        ep = epoch if self.level == "cell" else to_satellites(epoch, n_beam, needs)
         states[0], _ = evaluate(self.prepare, states[0], ep)
         with np.errstate(invalid="ignore"):
             ready = ep.t_s - states[0].triggered_at_s >= self.preparation_delay_s - TIME_TOL_S

@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from leolink import compiled
-from leolink.arrays import nonzero_2d
+from leolink.arrays import any_per_group, nonzero_2d
 
 # Epoch times accumulate float rounding; 1 ns is far below any epoch length.
 TIME_TOL_S = 1e-9
@@ -158,7 +158,7 @@ class ServiceTimes:
             )
             cells = cells.reshape(shape + (nb,))
         now = serving_now.reshape(shape + (nb,))
-        sat_now = now.any(axis=2)
+        sat_now = any_per_group(serving_now, nb).reshape(shape)
         with np.errstate(invalid="ignore"):
             fresh = sat_now & ~(end_sat > t_s + TIME_TOL_S)
             if per_cell:

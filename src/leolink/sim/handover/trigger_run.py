@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leolink.arrays import KeyTable, nonzero_2d
+from leolink.arrays import KeyTable, any_per_group, nonzero_2d
 from leolink.geometry import ray_to_ground
 from leolink.sim.handover.decisions import PolicyState
 from leolink.sim.handover.local_axis import LocalAxis
@@ -109,7 +109,7 @@ class TriggerRun:
             else:
                 per_cell = mask if per_cell is None else per_cell | mask
         if per_cell is not None:
-            live |= per_cell.reshape(axis.n_ut, axis.n_local, -1).any(axis=2)
+            live |= any_per_group(per_cell, axis.n_beam)
         rows, slots = nonzero_2d(live & (axis.sats >= 0))
         return rows, axis.sats[rows, slots]
 
@@ -179,10 +179,10 @@ class TriggerRun:
         if set(needs) <= CELL_AXIS_NEEDS:  # (no satellite geometry: any axis)
             return fields
         n_ut, n_loc = axis.n_ut, axis.n_local
-        sat_ok = usable.reshape(n_ut, n_loc, nb).any(axis=2)
+        sat_ok = any_per_group(usable, nb)
         satellite = self.policy.level == "satellite"
-        uniq = np.unique(axis.sats[axis.sats >= 0])
         if "ref_pos_m" in needs or "moving_ref_pos_m" in needs:
+            uniq = np.unique(axis.sats[axis.sats >= 0])
             nadir = sat_pos_m[uniq] * (
                 self.radius_m / np.linalg.norm(sat_pos_m[uniq], axis=1, keepdims=True)
             )
@@ -210,14 +210,16 @@ class TriggerRun:
             fields.update(self._fixed_references(axis, usable, sat_ok))
         if "elevation_rad" in needs:
             el = self._elevation(axis, ut_pos_m, sat_pos_m, ut_up)
-            fields["elevation_rad"] = np.repeat(np.where(sat_ok, el, np.nan), nb, axis=1)
+            el = np.where(sat_ok, el, np.nan)
+            # per satellite for a satellite-level policy (decisions.to_satellites keeps it)
+            fields["elevation_rad"] = el if satellite else np.repeat(el, nb, axis=1)
         if "service_end_s" in needs:
             ahead = usable
             if self.serving_end_only and serving is not None:  # only the serving's is read (T1)
                 slot = np.where(serving >= 0, serving // nb, -1)
                 ahead = usable & np.repeat(np.arange(n_loc)[None, :] == slot[:, None], nb, axis=1)
             end_cell, end_sat = self.service.update(t_s, axis, ahead, ut_up, not satellite)
-            fields["service_end_s"] = np.repeat(end_sat, nb, axis=1) if satellite else end_cell
+            fields["service_end_s"] = end_sat if satellite else end_cell
         return fields
 
     def _fixed_references(self, axis, usable, sat_ok):
@@ -291,12 +293,16 @@ class TriggerRun:
         serving = np.asarray(serving, np.int64)
         axis = self._axis(table, serving)
         pstate, filt = self._carry(axis)
-        raw = axis.values(table)
-        with np.errstate(invalid="ignore"):
-            usable = raw >= self.min_snr_db  # False for NaN and -inf (a beam's null)
+        masked = table.masked(self.min_snr_db)  # NaN below it, and for -inf (a beam's null)
         if self.measurement is None:
-            filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)
+            # (the threshold applied once, on the table: ~4x narrower than the axis)
+            sample = axis.values(masked)
+            usable = ~np.isnan(sample)
+            filt, meas = l3_update(filt, t_s, sample, self.l3)
         else:
+            raw = axis.values(table)
+            with np.errstate(invalid="ignore"):
+                usable = raw >= self.min_snr_db  # False for NaN and -inf
             cells = self._cells(axis)
             filt, meas = self.measurement.step(t_s, filt, raw, usable, cells, self.l3)
         local_serving = axis.local_cell(serving)
@@ -309,7 +315,6 @@ class TriggerRun:
         decision, pstate = self.policy.decide(epoch, pstate, axis.n_beam)
         self.axis, self.pstate, self.filt = axis, pstate, filt
         chosen = np.where(decision.target >= 0, axis.global_cell(decision.target), serving)
-        masked = table.masked(self.min_snr_db)
         best, _ = masked.best()
         serving_ok = np.isfinite(masked.value_at(serving))
         return np.where(serving_ok, chosen, best)
