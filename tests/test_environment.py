@@ -223,3 +223,23 @@ def test_ionospheric_scintillation_includes_the_20_degree_edge_and_6_ghz_is_trop
     assert env.ionospheric_scintillation_db(2e9, math.nextafter(20.0, 90.0)) == 0.0
     np.testing.assert_allclose(env.scintillation_db(30.0, 6e9, 0.0),
                                env.tropospheric_scintillation_db(30.0, 6e9))  # fmt: skip
+
+
+@pytest.mark.usefixtures("compiled_and_numpy")
+@pytest.mark.parametrize("environment", ["rural", "suburban", "urban", "dense_urban"])
+@pytest.mark.parametrize("band", ["s", "ka"])
+def test_link_table_values_are_the_single_lookups_bit_for_bit(environment, band):
+    """The four values of each link, its grid segment found once (compiled: one loop), are
+    the bits of the four single functions (numpy.interp): between and at the tabulated
+    rows, below 10 and above 90 degrees."""
+    rng = np.random.default_rng(38811)
+    rows = np.arange(10.0, 91.0, 10.0)
+    el = np.concatenate([
+        rng.uniform(-5.0, 95.0, 20_000), rows, np.nextafter(rows, 0.0), np.nextafter(rows, 99.0),
+        [-90.0, 0.0, 90.0, 120.0],
+    ])  # fmt: skip
+    p_los, sigma_los, sigma_nlos, cl_db = env.link_table_values(el, environment, band)
+    np.testing.assert_array_equal(p_los, env.los_probability(el, environment))
+    np.testing.assert_array_equal(sigma_los, env.shadow_sigma_db(el, environment, band, True))
+    np.testing.assert_array_equal(sigma_nlos, env.shadow_sigma_db(el, environment, band, False))
+    np.testing.assert_array_equal(cl_db, env.clutter_loss_db(el, environment, band))

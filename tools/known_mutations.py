@@ -151,8 +151,8 @@ MUTATIONS = (
     Mutation(
         "kernel_screens_every_ut_against_its_caps_first_satellite",
         "src/leolink/engine/screening.py",
-        "sin_el[p] = _screen_pair(frames, lattice, scale[u], u, s)",
-        "sin_el[p] = _screen_pair(frames, lattice, scale[u], u, cap_start[group[u]])",
+        "d, rho2, _, se = _pair_link(frames, u, j)",
+        "d, rho2, _, se = _pair_link(frames, u, cap_start[group[u]])",
         ("tests/test_tiles.py",),
     ),
     Mutation(

@@ -331,6 +331,10 @@ COMPILED = {
             "minus_inf_without_a_warning",
         ],
     ),
+    "link/environment": (
+        ("_table_rows",),
+        ["tests/test_environment.py::test_link_table_values_are_the_single_lookups_bit_for_bit"],
+    ),
     "engine/screening": (
         ("_screen_rows", "_ragged_rows"),
         [
@@ -413,7 +417,7 @@ JITABLE = {
     ),
     "rng": (("mix64", "uniform_of", "complex_normal_of"), [*MODULES["rng"], JITABLE_TESTS]),
     "engine/screening": (
-        ("_envelope", "_screen_pair"),
+        ("_envelope", "_screen_pair", "_pair_link", "_pair_code", "_pair_bound"),
         [*MODULES["engine/screening"], JITABLE_TESTS],
     ),
     "engine/links": (("beam_snr_db", "_pair_db"), [JITABLE_TESTS]),

@@ -307,9 +307,18 @@ def _ragged_compiled(engine, ut_pos_m, sat_pos_m, sat_axes, ut_up, ut_factor, la
 @compiled.jitable
 def _screen_pair(frames, lattice, scale_u, u, s):
     """Code, bound (:func:`_envelope` of both axes, times ``scale_u / rho^2``) and
-    sin(elevation) of UT row ``u`` with satellite row ``s`` (scalars)."""
-    ut_pos, up, sat_pos, axes = frames
-    beam_ux, beam_uy, n_x, n_y, s_min = lattice
+    sin(elevation) of UT row ``u`` with satellite row ``s`` (scalars): :func:`_pair_link`,
+    :func:`_pair_code`, then :func:`_pair_bound` above the mask (-1 below)."""
+    d, rho2, rho, se = _pair_link(frames, u, s)
+    c = _pair_code(se, lattice[4])
+    return c, -1.0 if c == 0 else _pair_bound(frames, lattice, scale_u, s, d, rho2), se
+
+
+@compiled.jitable
+def _pair_link(frames, u, s):
+    """UT row ``u`` minus satellite row ``s`` (a tuple of 3 [m]), its squared length and
+    length ``rho`` [m^2, m] and the sine of the elevation ``-(d . up) / rho``."""
+    ut_pos, up, sat_pos, _ = frames
     d0, d1, d2 = (
         ut_pos[u, 0] - sat_pos[s, 0],
         ut_pos[u, 1] - sat_pos[s, 1],
@@ -317,15 +326,35 @@ def _screen_pair(frames, lattice, scale_u, u, s):
     )
     rho2 = d0 * d0 + d1 * d1 + d2 * d2
     rho = np.sqrt(rho2)
-    se = -(d0 * up[u, 0] + d1 * up[u, 1] + d2 * up[u, 2]) / rho
+    return (d0, d1, d2), rho2, rho, -(d0 * up[u, 0] + d1 * up[u, 1] + d2 * up[u, 2]) / rho
+
+
+@compiled.jitable
+def _pair_code(sin_el, s_min):
+    """0 below the mask's band, :data:`UNCERTAIN` within it, :data:`VISIBLE` above."""
     # int() of each test: numpy's bool + bool is their "or" (in Python, NUMBA_DISABLE_JIT=1)
-    c = int(se >= s_min - SIN_EL_BAND) + int(se >= s_min + SIN_EL_BAND)
-    if c == 0:
-        return c, -1.0, se
+    return int(sin_el >= s_min - SIN_EL_BAND) + int(sin_el >= s_min + SIN_EL_BAND)
+
+
+@compiled.jitable
+def _pair_bound(frames, lattice, scale_u, s, d, rho2):
+    """The bound of a pair of :func:`_pair_link`'s ``d`` and ``rho2`` with satellite row
+    ``s``: the two axes' :func:`_envelope` of the direction cosines, times ``scale_u /
+    rho^2``."""
+    axes = frames[3]
+    beam_ux, beam_uy, n_x, n_y, _ = lattice
+    d0, d1, d2 = d
+    rho = np.sqrt(rho2)
     ux = (d0 * axes[s, 0, 0] + d1 * axes[s, 0, 1] + d2 * axes[s, 0, 2]) / rho
     uy = (d0 * axes[s, 1, 0] + d1 * axes[s, 1, 1] + d2 * axes[s, 1, 2]) / rho
     g = _envelope(ux, beam_ux, n_x) * _envelope(uy, beam_uy, n_y)
-    return c, g * scale_u / rho2, se
+    return g * scale_u / rho2
+
+
+# The loops below spell out :func:`_screen_pair`'s three steps instead of calling it: numba
+# does not inline a call that returns the whole pair, and the call costs a pair ~30 ns,
+# ~3x the work of the pairs below the mask (most of a tile's cap); the bound is computed
+# for the pairs at or above the mask's band only.
 
 
 @compiled.jit
@@ -334,7 +363,10 @@ def _screen_rows(frames, lattice, scale, out, lo, hi):
     code, bound, sin_el = out
     for u in range(lo, hi):
         for s in range(frames[2].shape[0]):
-            code[u, s], bound[u, s], sin_el[u, s] = _screen_pair(frames, lattice, scale[u], u, s)
+            d, rho2, _, se = _pair_link(frames, u, s)
+            c = _pair_code(se, lattice[4])
+            code[u, s], sin_el[u, s] = c, se
+            bound[u, s] = -1.0 if c == 0 else _pair_bound(frames, lattice, scale[u], s, d, rho2)
 
 
 @compiled.jit
@@ -345,8 +377,11 @@ def _ragged_rows(frames, lattice, scale, layout, out, lo, hi):
     code, bound, sin_el = out
     for u in range(lo, hi):
         p = start[u]
-        for s in range(cap_start[group[u]], cap_start[group[u] + 1]):
-            code[p], bound[p], sin_el[p] = _screen_pair(frames, lattice, scale[u], u, s)
+        for j in range(cap_start[group[u]], cap_start[group[u] + 1]):
+            d, rho2, _, se = _pair_link(frames, u, j)
+            c = _pair_code(se, lattice[4])
+            code[p], sin_el[p] = c, se
+            bound[p] = -1.0 if c == 0 else _pair_bound(frames, lattice, scale[u], j, d, rho2)
             p += 1
 
 

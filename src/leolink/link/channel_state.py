@@ -499,10 +499,12 @@ def pair_terms(state, model, pairs):
         from scipy.special import ndtri  # here, not at import: scipy costs ~0.3 s of start-up
 
         # Compare in the Gaussian domain (exact, no erf): Phi(z) < p  <=>  z < Phi^-1(p).
-        los = z_los < ndtri(env.los_probability(el_deg, name))
+        # the four table values of each pair, its elevation looked up once
+        p_los, sigma_los, sigma_nlos, cl_db = env.link_table_values(el_deg, name, band)
+        los = z_los < ndtri(p_los)
         z_sf = np.where(los, take(state.z_sf_los), take(state.z_sf_nlos))
-        shadow_db = env.shadow_sigma_db(el_deg, name, band, los) * z_sf
-        clutter_db = np.where(los, 0.0, env.clutter_loss_db(el_deg, name, band))
+        shadow_db = np.where(los, sigma_los, sigma_nlos) * z_sf  # shadow_sigma_db's choice
+        clutter_db = np.where(los, 0.0, cl_db)
     if model.scintillation:
         scint_db = env.scintillation_db(el_deg, model.freq_hz, model.geomagnetic_latitude_deg)
     else:

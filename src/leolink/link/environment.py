@@ -53,6 +53,7 @@ from importlib import resources
 
 import numpy as np
 
+from leolink import compiled
 from leolink.errors import ConfigError
 
 __all__ = [
@@ -62,6 +63,7 @@ __all__ = [
     "band_for_frequency",
     "clutter_loss_db",
     "ionospheric_scintillation_db",
+    "link_table_values",
     "los_probability",
     "read_table",
     "scintillation_db",
@@ -225,6 +227,67 @@ def _sfcl(elevation_deg, environment, band, quantity):
     env = _TABLE_ENVIRONMENT[environment]
     grid = table[(env, "elevation_deg")]
     return np.interp(elevation_deg, grid, table[(env, f"{_validate_band(band)}_{quantity}")])
+
+
+#: The columns of Tables 6.6.2-1..3 a link reads, after Table 6.6.1-1's LoS probability.
+_LINK_COLUMNS = ("sigma_sf_los_db", "sigma_sf_nlos_db", "cl_nlos_db")
+
+
+def link_table_values(elevation_deg, environment, band):
+    """The table values of many links of one non-open environment: :func:`los_probability`,
+    :func:`shadow_sigma_db` in LoS and in NLoS and :func:`clutter_loss_db`, the same bits.
+
+    Where the compiled loops run and the tables share their elevation grid (TR 38.811's
+    10..90 degrees), one loop finds each elevation's segment once for the four columns
+    and interpolates as :func:`numpy.interp` does (``slope (x - x_j) + y_j``, the slopes of
+    adjacent rows, the end rows beyond the grid): ~4 lookups for the price of one.
+
+    Parameters
+    ----------
+    elevation_deg : ndarray, shape (n,)
+        Elevations [deg], not NaN.
+    environment : str
+        One of :data:`ENVIRONMENTS` but ``"open"``.
+    band : {"s", "ka"}
+
+    Returns
+    -------
+    tuple of 4 ndarray, shape (n,)
+        LoS probability [-], sigma_SF in LoS and in NLoS [dB], clutter loss CL [dB].
+    """
+    el = np.ascontiguousarray(elevation_deg, dtype=float).reshape(-1)
+    grid_deg, los_columns = _los_table()
+    table = _sfcl_table()
+    env = _TABLE_ENVIRONMENT[validate_environment(environment)]
+    band = _validate_band(band)
+    columns = [los_columns[env]] + [table[(env, f"{band}_{q}")] for q in _LINK_COLUMNS]
+    sfcl_grid = table[(env, "elevation_deg")]
+    if not (compiled.use(el.size) and np.array_equal(sfcl_grid, grid_deg)):
+        grids = (grid_deg, sfcl_grid, sfcl_grid, sfcl_grid)
+        return tuple(np.interp(el, g, c) for g, c in zip(grids, columns, strict=True))
+    values = np.array(columns)  # (4, n_grid)
+    slopes = np.diff(values, axis=1) / np.diff(grid_deg)  # numpy.interp's
+    out = np.empty((len(columns), el.size))
+    compiled.run_rows(_table_rows, el.size, el, grid_deg, (values, slopes), out)
+    return tuple(out)
+
+
+@compiled.jit
+def _table_rows(x, grid, table, out, lo, hi):
+    """:func:`numpy.interp` of each row of ``table = (values, slopes)`` (n_col, n_grid) at
+    ``x[lo:hi]`` (not NaN) on ``grid``, into ``out[:, lo:hi]``: each segment found once."""
+    values, slopes = table
+    last = grid.size - 1
+    for i in range(lo, hi):
+        xi = x[i]
+        j = 0
+        while j < last and grid[j + 1] <= xi:
+            j += 1
+        for c in range(values.shape[0]):
+            if xi <= grid[0] or j == last or grid[j] == xi:  # an end row, or a node
+                out[c, i] = values[c, j]
+            else:
+                out[c, i] = slopes[c, j] * (xi - grid[j]) + values[c, j]
 
 
 def shadow_sigma_db(elevation_deg, environment, band, los):
