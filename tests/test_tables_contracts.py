@@ -207,8 +207,8 @@ def test_parquet_columns_are_required_and_keep_their_nans(tmp_path):
     np.testing.assert_array_equal(got.to_numpy(), np.float32(cols["snr_db"]))
 
 
-def test_parquet_floats_are_lz4_of_split_bytes_with_statistics_of_the_keys_only(tmp_path):
-    """trace.parquet's encoding (tables.parquet_options): every column LZ4, the float
+def test_parquet_floats_are_snappy_of_split_bytes_with_statistics_of_the_keys_only(tmp_path):
+    """trace.parquet's encoding (tables.parquet_options): every column snappy, the float
     columns byte-stream-split, min/max statistics on the time and id columns alone; the
     values read back are those appended, NaN included."""
     cols = _rows(300)
@@ -221,7 +221,7 @@ def test_parquet_floats_are_lz4_of_split_bytes_with_statistics_of_the_keys_only(
     for i in range(group.num_columns):
         col = group.column(i)
         name = col.path_in_schema
-        assert col.compression == "LZ4", name  # (pyarrow's name of LZ4_RAW)
+        assert col.compression == "SNAPPY", name
         split = "BYTE_STREAM_SPLIT" in col.encodings
         assert split == (col.physical_type in ("FLOAT", "DOUBLE")), name
         n_split += split
