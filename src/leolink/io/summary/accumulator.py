@@ -31,7 +31,6 @@ from leolink.io.summary.stats import (
     OVERALL_RESOLUTION_DB,
     PER_UT_RESOLUTION_DB,
     DbStats,
-    group_fmax,
     grouped_percentiles,
     running_sum,
 )
@@ -237,8 +236,8 @@ class SummaryAccumulator:
         self.kpi.add_trace(c)  # histograms of sinr_db and throughput_bps: order-free
         tput = np.nan_to_num(np.asarray(c["throughput_bps"], float), nan=0.0)
         self.throughput_sum[:] = running_sum(self.throughput_sum, ut, tput)
-        group_fmax(self.max_abs_doppler_hz, ut, np.abs(np.asarray(c["doppler_hz"], float)))
-        group_fmax(self.max_angular_speed_deg_s, ut, c["angular_speed_deg_s"])
+        np.fmax.at(self.max_abs_doppler_hz, ut, np.abs(np.asarray(c["doppler_hz"], float)))
+        np.fmax.at(self.max_angular_speed_deg_s, ut, np.asarray(c["angular_speed_deg_s"], float))
         for key, stats in self._db.items():
             stats.add(ut, np.asarray(c[key], float))
         placed = c["band"] >= 0

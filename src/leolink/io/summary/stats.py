@@ -18,8 +18,6 @@ __all__ = [
     "PERCENTILES",
     "PER_UT_RESOLUTION_DB",
     "DbStats",
-    "epoch_major",
-    "group_fmax",
     "grouped_percentiles",
     "running_sum",
 ]
@@ -71,43 +69,13 @@ def grouped_percentiles(group, values, n_group, q_percent):
     return out
 
 
-def epoch_major(group, n_group):
-    """True when ``group`` is ``0 .. n_group - 1`` over and over (a trace's rows, epoch
-    after epoch, by UT): each group's rows are then a column of a ``(-1, n_group)`` view."""
-    group = np.asarray(group)
-    if n_group < 1 or group.size == 0 or group.size % n_group:
-        return False
-    return bool((group.reshape(-1, n_group) == np.arange(n_group)).all())
-
-
 def running_sum(total, group, values):
     """``total`` plus the ``values`` of each group, added one by one in their order (the
     same float rounding as adding them one call at a time)."""
     n = total.size
-    values = np.asarray(values, float)
-    if epoch_major(group, n):
-        # Down the columns of (rows, n): np.add.accumulate adds row after row, as
-        # bincount adds value after value to 0.0 + total (-0.0 + 0.0 is +0.0, as there);
-        # one pass instead of bincount's scattered adds (bench_sim: ~15 -> ~4 ns a row).
-        rows = np.empty((values.size // n + 1, n))
-        np.add(total, 0.0, out=rows[0])
-        rows[1:] = values.reshape(-1, n)
-        return np.add.accumulate(rows, axis=0, out=rows)[-1].copy()
     # (np.concatenate: np.r_ costs ~0.1 ms a call in Python, ~10 calls a block)
     index = np.concatenate((np.arange(n), np.asarray(group, np.int64)))
-    return np.bincount(index, np.concatenate((total, values)), minlength=n)
-
-
-def group_fmax(out, group, values):
-    """``np.fmax.at(out, group, values)``: each group's largest value, NaN ignored, in
-    place; rows epoch after epoch (:func:`epoch_major`) reduced down the columns of
-    their ``(-1, n)`` view instead (the same maxima, but which of a tie of -0.0 and 0.0 is
-    kept: ~70 -> ~3 ns a row)."""
-    values = np.asarray(values, float)
-    if epoch_major(group, out.size):
-        np.fmax(out, np.fmax.reduce(values.reshape(-1, out.size), axis=0), out=out)
-    else:
-        np.fmax.at(out, group, values)
+    return np.bincount(index, np.concatenate((total, np.asarray(values, float))), minlength=n)
 
 
 class DbStats:
@@ -122,18 +90,10 @@ class DbStats:
     def add(self, ut, values):
         """Add the finite ``values`` (1-D float) of UTs ``ut`` (1-D int)."""
         ok = np.isfinite(values)
-        if ok.all():
-            self.sum[:] = running_sum(self.sum, ut, values)
-        else:
-            if epoch_major(ut, self.sum.size):
-                # the others summed as -0.0 (x + -0.0 is x for every x: the finite
-                # values' rounding), the rows kept in running_sum's column layout
-                self.sum[:] = running_sum(self.sum, ut, np.where(ok, values, -0.0))
-                ut, values = ut[ok], values[ok]
-            else:
-                ut, values = ut[ok], values[ok]
-                self.sum[:] = running_sum(self.sum, ut, values)
+        if not ok.all():
+            ut, values = ut[ok], values[ok]
         self.count += np.bincount(ut, minlength=self.count.size)
+        self.sum[:] = running_sum(self.sum, ut, values)
         self.per_ut.add(ut, values)
         self.pooled.add(values)
 
