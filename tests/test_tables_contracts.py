@@ -205,3 +205,43 @@ def test_parquet_columns_are_required_and_keep_their_nans(tmp_path):
     got = pq.read_table(path, columns=["snr_db"]).column(0)
     assert got.null_count == 0
     np.testing.assert_array_equal(got.to_numpy(), np.float32(cols["snr_db"]))
+
+
+def test_parquet_floats_are_snappy_of_split_bytes_with_statistics_of_the_keys_only(tmp_path):
+    """trace.parquet's encoding (tables.parquet_options): every column snappy, the float
+    columns byte-stream-split, min/max statistics on the time and id columns alone; the
+    values read back are those appended, NaN included."""
+    cols = _rows(300)
+    cols["snr_db"][::7] = np.nan
+    with TraceWriter(tmp_path, formats=("parquet",)) as w:
+        w.append(cols)
+    meta = pq.ParquetFile(tmp_path / "trace.parquet").metadata
+    group = meta.row_group(0)
+    n_split = 0
+    for i in range(group.num_columns):
+        col = group.column(i)
+        name = col.path_in_schema
+        assert col.compression == "SNAPPY", name
+        split = "BYTE_STREAM_SPLIT" in col.encodings
+        assert split == (col.physical_type in ("FLOAT", "DOUBLE")), name
+        n_split += split
+        has_stats = col.is_stats_set and col.statistics.has_min_max
+        assert has_stats == (name in tables.PARQUET_STATISTICS_COLUMNS), name
+    assert n_split == sum(str(f.type) in ("float", "double") for f in tables.float32_schema(
+        TRACE_SCHEMA))  # fmt: skip
+    got = pq.read_table(tmp_path / "trace.parquet")
+    np.testing.assert_array_equal(got["snr_db"].to_numpy(), cols["snr_db"].astype(np.float32))
+    np.testing.assert_array_equal(got["time_s"].to_numpy(), cols["time_s"])
+    assert meta.row_group(0).column(1).statistics.max == 299  # ut_id 0 .. 299
+
+
+@pytest.mark.parametrize("formats", [("parquet",), ("csv", "parquet"), ("csv",)])
+def test_a_large_chunk_fills_the_byte_budget_in_the_buffered_types(tmp_path, formats):
+    """A writer asked for more rows than CHUNK_BYTES holds buffers as many rows as fit in
+    it, in the types it buffers (float32 for a Parquet-only trace, float64 with a CSV):
+    its chunk's arrays never exceed the budget and leave less than one row of it unused."""
+    with TraceWriter(tmp_path, formats=formats, chunk_rows=10**8) as w:
+        used = sum(a.nbytes for a in w._chunk.values())
+        row = used // w.chunk_rows
+        assert tables.CHUNK_BYTES - row < used <= tables.CHUNK_BYTES
+        assert all(len(a) == w.chunk_rows for a in w._chunk.values())
