@@ -173,9 +173,9 @@ MUTATIONS = (
     Mutation(
         "trigger_filter_on_undetected_cells",
         "src/leolink/sim/handover/trigger_run.py",
-        "filt, meas = l3_update(filt, t_s, np.where(usable, raw, np.nan), self.l3)",
-        "filt, meas = l3_update(filt, t_s, raw, self.l3)\n"
-        "        meas = np.where(usable, meas, np.nan)",
+        "filt, meas = l3_update(filt, t_s, sample, self.l3)",
+        "filt, meas = l3_update(filt, t_s, axis.values(table), self.l3)\n"
+        "            meas = np.where(usable, meas, np.nan)",
         ("tests/test_trigger_run.py",),
     ),
     Mutation(
