@@ -9,20 +9,24 @@ on; UTs spread over -60..60 deg of latitude (``global``, floor 1.5). Each is a
 variant), preceded by its own baseline process (max_snr, report off): the runs are
 interleaved, so a change of the machine's load reaches a variant and its baseline alike.
 CPU time is the child's (user + system, its own children included, as ``os.wait4`` gives
-it), peak RSS its maximum resident set. Figures: ``<variant>_cpu_ratio`` (variant over its
-baseline's CPU time), ``<variant>_rss_ratio`` and the absolute ``<variant>_cpu_s``,
+it), peak RSS its maximum resident set. One baseline run comes first and is not counted (it
+fills numba's cache after an edit: ~10 s of compilation). With ``--repeat N`` each variant
+runs in N such pairs and its figures are the medians of the pairs' (a ratio moves by +-0.4
+between single pairs on a loaded machine). Figures: ``<variant>_cpu_ratio`` (variant over
+its baseline's CPU time), ``<variant>_rss_ratio`` and the absolute ``<variant>_cpu_s``,
 ``<variant>_peak_rss_mib``, ``baseline_cpu_s`` (the smallest), ``baseline_peak_rss_mib``.
 
-Run: ``python benchmarks/bench_features.py [--quick] [--duration-s S] [--uts N]
-[--only a3,urban]`` (default 1,000 UTs x 120 s; quick: 200 UTs x 30 s). The issue's floors:
-every CPU ratio <= 2.0 (predictive <= 3.0), every RSS ratio <= 1.5. On a shared machine
-compare CPU, not wall time; the load average is printed with the table.
+Run: ``python benchmarks/bench_features.py [--quick] [--duration-s S] [--uts N] [--only
+a3,urban] [--repeat N]`` (default 1,000 UTs x 120 s; quick: 200 UTs x 30 s). The issue's
+floors: every CPU ratio <= 2.0 (predictive <= 3.0), every RSS ratio <= 1.5. On a shared
+machine compare CPU, not wall time; the load average is printed with the table.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import tempfile
 from pathlib import Path
 
@@ -95,19 +99,23 @@ def main(quick=False, argv=None):
     ap.add_argument("--duration-s", type=float, default=30.0 if quick else 120.0)
     ap.add_argument("--uts", type=int, default=200 if quick else 1000)
     ap.add_argument("--only", default="", help="comma-separated variants (default: all)")
+    ap.add_argument("--repeat", type=int, default=1, help="pairs per variant (medians)")
     args = ap.parse_args([] if argv is None else argv)
     names = [n for n in args.only.split(",") if n] or list(VARIANTS)
     print(f"features: {CONFIG.name}, {args.uts:,} UTs x {args.duration_s:g} s, "
           f"load average {os.getloadavg()[0]:.1f}")  # fmt: skip
+    _run(BASE, args.duration_s, args.uts)  # warm-up: numba's cache (not counted)
     figures, base_cpu, base_rss, rows = {}, [], [], []
     for name in names:
-        b_cpu, b_rss, _ = _run(BASE, args.duration_s, args.uts)
-        cpu, rss, wall = _run(BASE + VARIANTS[name], args.duration_s, args.uts)
+        pairs = [_pair(name, args) for _ in range(max(1, args.repeat))]
+        b_cpu, cpu, b_rss, rss = (statistics.median(p[i] for p in pairs) for i in range(4))
         base_cpu.append(b_cpu)
         base_rss.append(b_rss)
         figures[f"{name}_cpu_s"], figures[f"{name}_peak_rss_mib"] = cpu, rss
-        figures[f"{name}_cpu_ratio"], figures[f"{name}_rss_ratio"] = cpu / b_cpu, rss / b_rss
-        rows.append((name, b_cpu, cpu, b_rss, rss, wall))
+        figures[f"{name}_cpu_ratio"] = statistics.median(p[1] / p[0] for p in pairs)
+        figures[f"{name}_rss_ratio"] = statistics.median(p[3] / p[2] for p in pairs)
+        rows.append((name, b_cpu, cpu, b_rss, rss, figures[f"{name}_cpu_ratio"],
+                     figures[f"{name}_rss_ratio"]))  # fmt: skip
     figures["baseline_cpu_s"] = min(base_cpu)
     figures["baseline_peak_rss_mib"] = max(base_rss)
     _table(rows)
@@ -115,14 +123,22 @@ def main(quick=False, argv=None):
     return figures
 
 
+def _pair(name, args):
+    """(baseline CPU [s], variant CPU [s], baseline RSS [MiB], variant RSS [MiB]) of one
+    baseline process and then one of the variant."""
+    b_cpu, b_rss, _ = _run(BASE, args.duration_s, args.uts)
+    cpu, rss, _ = _run(BASE + VARIANTS[name], args.duration_s, args.uts)
+    return b_cpu, cpu, b_rss, rss
+
+
 def _table(rows):
     head = ("variant", "base CPU s", "CPU s", "CPU ratio", "floor", "base MiB", "MiB", "RSS ratio")
     print("  " + " ".join(f"{h:>12}" for h in head))
-    for name, b_cpu, cpu, b_rss, rss, _ in rows:
+    for name, b_cpu, cpu, b_rss, rss, cpu_ratio, rss_ratio in rows:
         floor = CPU_FLOOR.get(name, 2.0)
-        flag = "" if cpu / b_cpu <= floor and rss / b_rss <= 1.5 else "  NOT met"
-        cells = (name, f"{b_cpu:.2f}", f"{cpu:.2f}", f"{cpu / b_cpu:.2f}x", f"<= {floor:g}x",
-                 f"{b_rss:.0f}", f"{rss:.0f}", f"{rss / b_rss:.2f}x")  # fmt: skip
+        flag = "" if cpu_ratio <= floor and rss_ratio <= 1.5 else "  NOT met"
+        cells = (name, f"{b_cpu:.2f}", f"{cpu:.2f}", f"{cpu_ratio:.2f}x", f"<= {floor:g}x",
+                 f"{b_rss:.0f}", f"{rss:.0f}", f"{rss_ratio:.2f}x")  # fmt: skip
         print("  " + " ".join(f"{c:>12}" for c in cells) + flag)
 
 
