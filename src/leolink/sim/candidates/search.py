@@ -570,7 +570,8 @@ def _window_rows(snr_bm, rows, sat, limits, best, out):
 
 #: Relative margin of :func:`link_window_entries`' linear pre-selection: a beam whose
 #: linear SNR is below the row's largest times ``10^(-window/10) (1 - WINDOW_GAP)`` is
-#: out of the window in dB too (the dB sums err by < 1e-12 dB, 2.3e-13 relative).
+#: out of the window in dB too, and one below ``10^(floor/10) (1 - WINDOW_GAP)`` under the
+#: floor (the dB sums err by < 1e-12 dB, 2.3e-13 relative).
 WINDOW_GAP = 1e-9
 
 

@@ -57,7 +57,7 @@ class LocalAxis:
 
     sats: np.ndarray
     n_beam: int
-    #: The last map of :meth:`_sources`, ``[(new axis, (dst, src))]``: a mutable
+    #: The last map of :meth:`_sources`, ``[(new axis, (dst, src, to))]``: a mutable
     #: holder of this frozen axis (every array of an epoch is carried by the same map).
     _last_sources: list = dataclasses.field(
         default_factory=list, init=False, repr=False, compare=False

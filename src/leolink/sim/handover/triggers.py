@@ -72,8 +72,12 @@ class Epoch:
         of each cell (``[[controller.reference_points]]``), NaN for a cell without one.
     moving_ref_pos_m : (n_cand, 3) [m] or None, D2 moving reference locations at ``t_s``
         (one row per satellite when D2 runs on the satellite axis, its default).
-    elevation_rad : (n_ut, n_cand) [rad] or None, elevation of each candidate seen by the UT.
-    service_end_s : (n_ut, n_cand) or (n_cand,) [s] or None, absolute time at which each
+    elevation_rad : (n_ut, n_cand) [rad] or None, elevation of each candidate seen by the UT
+        (for a satellite-level policy the trigger run gives it per satellite, ``(n_ut,
+        n_cand // n_beam)``, which :func:`~leolink.sim.handover.decisions.to_satellites`
+        keeps).
+    service_end_s : (n_ut, n_cand) or (n_cand,) [s] or None (per satellite likewise for a
+        satellite-level policy), absolute time at which each
         candidate stops serving the UT (drops below the service threshold), from the
         ephemeris look-ahead; ``inf`` beyond the horizon, NaN if not serving now (T1,
         time_to_exit).
