@@ -5,7 +5,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from leolink.arrays import FLAT_MIN_SIZE, any_per_group, nonzero_2d, take_rows, unique_inverse
+from leolink.arrays import (
+    FLAT_MIN_SIZE,
+    any_per_group,
+    nonzero_2d,
+    reduce_groups,
+    take_rows,
+    unique_inverse,
+)
 
 
 def _same_as_numpy(a):
@@ -112,4 +119,19 @@ def test_any_per_group_is_numpys_any(lead, n_group, size, density, seed):
     got = any_per_group(mask, size)
     want = mask.reshape(*lead, n_group, size).any(axis=-1)
     assert got.shape == want.shape and got.dtype == bool
+    np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("ufunc", [np.fmax, np.fmin, np.add])
+def test_reduce_groups_is_numpys_reduce_along_the_group(ufunc):
+    # NaN and infinities among the values: fmax/fmin ignore NaN, add propagates it
+    rng = np.random.default_rng(7)
+    x = rng.normal(size=(3, 4, 5 * 3))
+    x[rng.random(x.shape) < 0.3] = np.nan
+    x[0, 0, :3] = np.nan  # a whole group NaN
+    x[1, 2, 4] = np.inf
+    x[2, 3, 9] = -np.inf
+    got = reduce_groups(ufunc, x, 3)
+    want = ufunc.reduce(x.reshape(3, 4, 5, 3), axis=-1)
+    assert got.shape == (3, 4, 5)
     np.testing.assert_array_equal(got, want)

@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["KeyTable", "any_per_group", "nonzero_2d", "take_rows", "unique_inverse"]
+__all__ = [
+    "KeyTable",
+    "any_per_group",
+    "nonzero_2d",
+    "reduce_groups",
+    "take_rows",
+    "unique_inverse",
+]
 
 #: From this many entries on, the flat path of :func:`nonzero_2d` is faster (measured on
 #: numpy 2.4: the two break even near 1,000 entries).
@@ -38,29 +45,38 @@ def nonzero_2d(mask):
     return rows, cols
 
 
-def any_per_group(mask, size):
-    """Whether any entry of each group of ``size`` consecutive entries on the last axis is
-    set: ``mask (..., n * size)`` -> ``(..., n)`` (a satellite's beams on a local axis).
+def reduce_groups(ufunc, x, size):
+    """``ufunc`` reduced over each group of ``size`` consecutive entries on the last axis:
+    ``x (..., n * size)`` -> ``(..., n)`` (a satellite's beams on a cell axis).
 
-    One ``|=`` per position in the group, over strided slices: numpy's ``any`` along a
-    short last axis runs an inner loop per group (numpy 2.4 here: 1.62 -> 0.54 ms for
-    (1000, 31 * 15), the trigger run's satellite axis).
+    One ``ufunc(out, slice, out=out)`` per position in the group, over strided slices:
+    numpy's ``ufunc.reduce`` along a short last axis runs an inner loop per group (numpy
+    2.4 here: ~3x slower for ``any`` of (1000, 31 * 15), the trigger run's satellite axis;
+    ~5x for ``fmax``). Exact for an associative, commutative ``ufunc`` (``logical_or``,
+    ``fmax``).
 
     Parameters
     ----------
-    mask : array_like of bool, last axis a multiple of ``size``
+    ufunc : numpy.ufunc, binary
+    x : ndarray, last axis a multiple of ``size``
     size : int >= 1
 
     Returns
     -------
-    ndarray of bool, the last axis ``size`` times shorter
+    ndarray of ``x``'s dtype, the last axis ``size`` times shorter
     """
-    mask = np.asarray(mask, bool)
-    groups = mask.reshape(*mask.shape[:-1], mask.shape[-1] // size, size)
+    groups = x.reshape(*x.shape[:-1], x.shape[-1] // size, size)
     out = groups[..., 0].copy()
     for k in range(1, size):
-        out |= groups[..., k]
+        ufunc(out, groups[..., k], out=out)
     return out
+
+
+def any_per_group(mask, size):
+    """Whether any entry of each group of ``size`` consecutive entries on the last axis is
+    set: ``mask (..., n * size)`` -> ``(..., n)``, bool (:func:`reduce_groups` of
+    ``logical_or``)."""
+    return reduce_groups(np.logical_or, np.asarray(mask, bool), size)
 
 
 def take_rows(a, *index):
